@@ -1,0 +1,404 @@
+//! Command-line flags (clap) and their conversion into validated library settings.
+
+use std::path::PathBuf;
+
+use clap::{Args, Parser, Subcommand, ValueEnum};
+use glam::Vec3;
+use rayscope_core::{CameraSettings, Channel, FovAxis, RenderSettings, Stage};
+
+/// Images larger than this many pixels need `--allow-large` (64 megapixels: 8192 × 8192).
+pub const PIXEL_BUDGET: u64 = 8192 * 8192;
+
+/// rayscope: a ray tracer and visual ray debugger for the COMP30019 scene format.
+///
+/// With no subcommand it renders like the course's program:
+///   rayscope -f scene.txt -o out.png -x 4
+#[derive(Debug, Parser)]
+#[command(
+    name = "rayscope",
+    version,
+    disable_help_flag = true,
+    args_conflicts_with_subcommands = true,
+    subcommand_negates_reqs = true,
+    after_help = "Pixel coordinates are 0-based from the top-left. `-h` is the image height; help is `--help`."
+)]
+pub struct Cli {
+    /// Print help.
+    #[arg(long, action = clap::ArgAction::Help, global = true)]
+    pub help: Option<bool>,
+    /// Render flags (the course's command line).
+    #[command(flatten)]
+    pub render: RenderArgs,
+    /// Tools beside rendering.
+    #[command(subcommand)]
+    pub command: Option<Command>,
+}
+
+/// Tools beside rendering.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Print the ray tree of one pixel sample (text, or JSON with --json).
+    Trace(TraceArgs),
+    /// Compare two images: PSNR, share of differing pixels, optional heat map.
+    Diff(DiffArgs),
+    /// Benchmarks: time a render, or closest-hit throughput.
+    #[command(subcommand)]
+    Bench(BenchCommand),
+    /// Start the visual debugger in the browser.
+    Debug(DebugArgs),
+    /// Write the debugger's 3D scene view to an image, headless.
+    View(ViewArgs),
+}
+
+/// Which of the course's stages to render.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum StageArg {
+    /// Flat material colour, one ray per pixel.
+    #[value(name = "1")]
+    One,
+    /// Whitted: point lights, shadows, mirrors, Fresnel glass.
+    #[value(name = "2")]
+    Two,
+    /// Everything, stage-3 add-ons included (the default).
+    #[value(name = "3")]
+    Three,
+}
+
+/// FOV axis flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum FovAxisArg {
+    /// The angle spans the image width (the course).
+    Horizontal,
+    /// The angle spans the image height (the Unity workshop).
+    Vertical,
+}
+
+/// Debug channel flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum ChannelArg {
+    /// Rendered colour.
+    Color,
+    /// Shading normal.
+    Normal,
+    /// Distance to the first hit.
+    Depth,
+    /// A colour per entity.
+    Entity,
+    /// Material colour of the first hit.
+    Albedo,
+    /// BVH traversal cost heat map.
+    Cost,
+}
+
+/// The course's flags plus rayscope's extras.
+#[derive(Debug, Clone, Args)]
+pub struct RenderArgs {
+    /// Scene file to render.
+    #[arg(short = 'f', long = "file", required = true, value_name = "SCENE")]
+    pub file: Option<PathBuf>,
+    /// Output image (.png, .exr or .ppm).
+    #[arg(short = 'o', long = "output", required = true, value_name = "IMAGE")]
+    pub output: Option<PathBuf>,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// Flags that shape a render, shared by rendering, `trace`, `view`, `debug` and `bench`.
+#[derive(Debug, Clone, Args)]
+pub struct RenderOpts {
+    /// Image width in pixels.
+    #[arg(short = 'w', long = "width", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..))]
+    pub width: u32,
+    /// Image height in pixels.
+    #[arg(short = 'h', long = "height", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..))]
+    pub height: u32,
+    /// Anti-aliasing: an N×N grid of samples per pixel.
+    #[arg(short = 'x', long = "aa-mult", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64), value_name = "N")]
+    pub aa: u32,
+    /// Ambient (indirect) lighting, stage 3.
+    #[arg(short = 'l', long = "ambient")]
+    pub ambient: bool,
+    /// Camera position "x,y,z".
+    #[arg(short = 'p', long = "cam-pos", default_value = "0,0,0", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    pub cam_pos: Vec3,
+    /// Camera rotation axis "x,y,z".
+    #[arg(short = 'a', long = "cam-axis", default_value = "0,0,1", value_parser = parse_vec3, allow_hyphen_values = true, value_name = "X,Y,Z")]
+    pub cam_axis: Vec3,
+    /// Camera rotation angle about the axis, in degrees.
+    #[arg(short = 'n', long = "cam-angle", default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true, value_name = "DEG")]
+    pub cam_angle: f32,
+    /// Lens radius for depth of field (0: pinhole).
+    #[arg(short = 'r', long = "aperture-radius", default_value_t = 0.0, value_parser = parse_non_negative, value_name = "R")]
+    pub aperture: f32,
+    /// Distance in focus.
+    #[arg(short = 't', long = "focal-length", default_value_t = 1.0, value_parser = parse_positive, value_name = "D")]
+    pub focal_length: f32,
+    /// Quality: more samples for stochastic effects.
+    #[arg(short = 'q', long = "quality", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=16), value_name = "Q")]
+    pub quality: u32,
+    /// Render only up to this stage of the course.
+    #[arg(long, value_enum)]
+    pub stage: Option<StageArg>,
+    /// Field of view in degrees.
+    #[arg(long, default_value_t = 60.0, value_parser = parse_fov)]
+    pub fov: f32,
+    /// Which image side the field of view spans.
+    #[arg(long = "fov-axis", value_enum, default_value_t = FovAxisArg::Horizontal)]
+    pub fov_axis: FovAxisArg,
+    /// Most secondary bounces for mirrors and glass.
+    #[arg(long = "max-depth", default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    pub max_depth: u32,
+    /// Seed for every random stream.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Write a debug channel instead of the colour.
+    #[arg(long = "aov", value_enum, default_value_t = ChannelArg::Color)]
+    pub aov: ChannelArg,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+    /// No progress bar, warnings or summary.
+    #[arg(long)]
+    pub quiet: bool,
+    /// Allow images over the pixel budget (64 megapixels).
+    #[arg(long = "allow-large")]
+    pub allow_large: bool,
+}
+
+impl RenderOpts {
+    /// Validates the flags together and converts them into render settings.
+    pub fn settings(&self) -> Result<RenderSettings, String> {
+        let pixels = self.width as u64 * self.height as u64;
+        if pixels > PIXEL_BUDGET && !self.allow_large {
+            return Err(format!(
+                "a {}×{} image is {} pixels, over the budget of {} (8192×8192); pass --allow-large to render it anyway",
+                self.width, self.height, pixels, PIXEL_BUDGET
+            ));
+        }
+        if self.cam_axis.length_squared() == 0.0 && self.cam_angle != 0.0 {
+            return Err("--cam-axis must not be (0, 0, 0) when --cam-angle is not 0: a rotation needs an axis".into());
+        }
+        let samples = pixels * (self.aa as u64).pow(2);
+        if samples > 16 * PIXEL_BUDGET && !self.allow_large {
+            return Err(format!(
+                "{samples} samples ({}×{} pixels at -x {}) is over the budget; pass --allow-large",
+                self.width, self.height, self.aa
+            ));
+        }
+        Ok(RenderSettings {
+            width: self.width,
+            height: self.height,
+            aa: self.aa,
+            stage: match self.stage {
+                Some(StageArg::One) => Stage::One,
+                Some(StageArg::Two) => Stage::Two,
+                Some(StageArg::Three) | None => Stage::Full,
+            },
+            ambient: self.ambient,
+            quality: self.quality,
+            max_depth: self.max_depth,
+            camera: CameraSettings {
+                position: self.cam_pos,
+                axis: self.cam_axis,
+                angle_deg: self.cam_angle,
+                fov_deg: self.fov,
+                fov_axis: match self.fov_axis {
+                    FovAxisArg::Horizontal => FovAxis::Horizontal,
+                    FovAxisArg::Vertical => FovAxis::Vertical,
+                },
+                aperture_radius: self.aperture,
+                focal_length: self.focal_length,
+            },
+            seed: self.seed,
+            channel: match self.aov {
+                ChannelArg::Color => Channel::Color,
+                ChannelArg::Normal => Channel::Normal,
+                ChannelArg::Depth => Channel::Depth,
+                ChannelArg::Entity => Channel::Entity,
+                ChannelArg::Albedo => Channel::Albedo,
+                ChannelArg::Cost => Channel::Cost,
+            },
+        })
+    }
+}
+
+/// `rayscope trace`.
+#[derive(Debug, Clone, Args)]
+pub struct TraceArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Pixel "X,Y", 0-based from the top-left.
+    #[arg(long, value_parser = parse_pixel, value_name = "X,Y")]
+    pub pixel: (u32, u32),
+    /// Sample index within the pixel (0-based; the N×N grid is row-major).
+    #[arg(long, default_value_t = 0)]
+    pub sample: u32,
+    /// Print JSON (schema in the README) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// `rayscope diff`.
+#[derive(Debug, Clone, Args)]
+pub struct DiffArgs {
+    /// First image.
+    pub a: PathBuf,
+    /// Second image.
+    pub b: PathBuf,
+    /// Write a difference heat map here.
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Succeed when PSNR ≥ DB instead of requiring identical images.
+    #[arg(long, value_name = "DB")]
+    pub tol: Option<f64>,
+}
+
+/// `rayscope bench …`.
+#[derive(Debug, Subcommand)]
+pub enum BenchCommand {
+    /// Time a render (median of several runs, render loop only).
+    Render(BenchRenderArgs),
+}
+
+/// `rayscope bench render`.
+#[derive(Debug, Clone, Args)]
+pub struct BenchRenderArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Timed runs (after one warm-up).
+    #[arg(long, default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// `rayscope debug`.
+#[derive(Debug, Clone, Args)]
+pub struct DebugArgs {
+    /// Scene file.
+    pub scene: PathBuf,
+    /// Port (default: a free one).
+    #[arg(long, default_value_t = 0)]
+    pub port: u16,
+    /// Address to bind (default 127.0.0.1: only this machine can connect).
+    #[arg(long, default_value = "127.0.0.1")]
+    pub host: String,
+    /// Open the browser.
+    #[arg(long)]
+    pub open: bool,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// `rayscope view`.
+#[derive(Debug, Clone, Args)]
+pub struct ViewArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Output image (.png).
+    #[arg(short = 'o', long = "output", value_name = "IMAGE")]
+    pub output: PathBuf,
+    /// Eye position of the view camera "x,y,z" (default: a three-quarter view).
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub eye: Option<Vec3>,
+    /// Point the view camera looks at "x,y,z".
+    #[arg(long, value_parser = parse_vec3, allow_hyphen_values = true)]
+    pub target: Option<Vec3>,
+    /// Debug rays: none, frustum, pixel:X,Y, row:Y, all.
+    #[arg(long, default_value = "frustum")]
+    pub rays: String,
+    /// Show the traced image on the grid ("traced"), a black grid ("black") or none ("none").
+    #[arg(long, default_value = "traced")]
+    pub image: String,
+    /// View width in pixels.
+    #[arg(long = "view-width", default_value_t = 960, value_parser = clap::value_parser!(u32).range(16..=8192))]
+    pub view_width: u32,
+    /// View height in pixels.
+    #[arg(long = "view-height", default_value_t = 640, value_parser = clap::value_parser!(u32).range(16..=8192))]
+    pub view_height: u32,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+fn parse_finite(s: &str) -> Result<f32, String> {
+    let v: f32 = s
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected a number, found '{s}'"))?;
+    if v.is_finite() {
+        Ok(v)
+    } else {
+        Err(format!("expected a finite number, found '{s}'"))
+    }
+}
+
+fn parse_non_negative(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s)?;
+    if v >= 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be 0 or more, found {s}"))
+    }
+}
+
+fn parse_positive(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s)?;
+    if v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be greater than 0, found {s}"))
+    }
+}
+
+fn parse_fov(s: &str) -> Result<f32, String> {
+    let v = parse_finite(s)?;
+    if v > 0.0 && v < 180.0 {
+        Ok(v)
+    } else {
+        Err(format!("must be between 0 and 180 degrees (exclusive), found {s}"))
+    }
+}
+
+/// Parses "x,y,z" (spaces and surrounding parentheses allowed) into a finite vector.
+pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
+    let inner = s.trim().trim_start_matches('(').trim_end_matches(')');
+    let parts: Vec<&str> = inner.split(',').map(str::trim).collect();
+    if parts.len() != 3 {
+        return Err(format!("expected three numbers \"x,y,z\", found '{s}'"));
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(&parts) {
+        *slot = parse_finite(p).map_err(|e| format!("{e} in '{s}'"))?;
+    }
+    Ok(Vec3::from(v))
+}
+
+fn parse_pixel(s: &str) -> Result<(u32, u32), String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    match parts.as_slice() {
+        [x, y] => match (x.parse(), y.parse()) {
+            (Ok(x), Ok(y)) => Ok((x, y)),
+            _ => Err(format!("expected two whole numbers \"x,y\", found '{s}'")),
+        },
+        _ => Err(format!("expected two whole numbers \"x,y\", found '{s}'")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn vectors() {
+        assert_eq!(parse_vec3("1,2,3").unwrap(), Vec3::new(1.0, 2.0, 3.0));
+        assert_eq!(parse_vec3("(1, -2, .5)").unwrap(), Vec3::new(1.0, -2.0, 0.5));
+        assert!(parse_vec3("1,2").is_err());
+        assert!(parse_vec3("1,2,x").is_err());
+        assert!(parse_vec3("1,2,inf").is_err());
+    }
+}

@@ -1,0 +1,349 @@
+//! What each command does: glue between validated flags and library calls.
+
+use std::io::IsTerminal;
+use std::path::Path;
+use std::process::ExitCode;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
+use rayscope_core::output::{check_writable, write_film};
+use rayscope_core::{render, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene};
+
+use crate::cli::{BenchCommand, BenchRenderArgs, Cli, Command, DiffArgs, RenderArgs, RenderOpts, TraceArgs};
+
+/// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
+#[derive(Debug)]
+pub struct Failure {
+    /// Exit code.
+    pub code: u8,
+    /// Message, printed once after "error: ".
+    pub message: String,
+}
+
+impl Failure {
+    fn input(message: impl Into<String>) -> Self {
+        Self {
+            code: 2,
+            message: message.into(),
+        }
+    }
+    fn failed(message: impl Into<String>) -> Self {
+        Self {
+            code: 1,
+            message: message.into(),
+        }
+    }
+}
+
+/// Runs the parsed command line.
+pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
+    match cli.command {
+        None => render_command(&cli.render),
+        Some(Command::Trace(a)) => trace_command(&a),
+        Some(Command::Diff(a)) => diff_command(&a),
+        Some(Command::Bench(BenchCommand::Render(a))) => bench_render(&a),
+        Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
+        Some(Command::View(a)) => rayscope_debug_cli::view(&a),
+    }
+}
+
+#[path = "debug_cli.rs"]
+mod rayscope_debug_cli;
+
+/// Builds the thread pool for `--threads` (global, once).
+fn setup_threads(opts: &RenderOpts) {
+    if let Some(n) = opts.threads {
+        // Fails only if a pool was already built, which cannot happen in this process.
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global();
+    }
+}
+
+/// Loads and converts a scene, printing warnings unless quiet. Input errors exit with 2.
+pub fn load_scene(path: &Path, quiet: bool) -> Result<(rayscope_scene::SceneFile, Scene), Failure> {
+    let file = rayscope_scene::load(path).map_err(|e| match e {
+        rayscope_scene::SceneError::Invalid(d) => Failure::input(format!("invalid scene\n{d}")),
+        other => Failure::input(other.to_string()),
+    })?;
+    if !quiet {
+        for w in &file.warnings {
+            eprintln!("{w}");
+        }
+    }
+    let scene = Scene::from_file(&file);
+    Ok((file, scene))
+}
+
+fn settings(opts: &RenderOpts) -> Result<RenderSettings, Failure> {
+    opts.settings().map_err(Failure::input)
+}
+
+fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
+    let (Some(file), Some(output)) = (&args.file, &args.output) else {
+        return Err(Failure::input("both -f/--file and -o/--output are required"));
+    };
+    let opts = &args.opts;
+    let settings = settings(opts)?;
+    // Fail before the (possibly long) render if the output cannot be written.
+    check_writable(output).map_err(|e| Failure::input(e.to_string()))?;
+    let (_, scene) = load_scene(file, opts.quiet)?;
+    setup_threads(opts);
+
+    let cancel = Arc::new(AtomicBool::new(false));
+    {
+        let cancel = cancel.clone();
+        // Ctrl-C sets the flag; the render stops at its next tile and nothing is written.
+        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+    }
+    let show = !opts.quiet && std::io::stderr().is_terminal();
+    let out = render_with_progress(&scene, &settings, show, &cancel)?;
+    if out.nonfinite > 0 {
+        let (x, y, s) = out.first_nonfinite.unwrap_or_default();
+        eprintln!(
+            "warning: {} samples were NaN or infinite and were written as black; replay the first with:\n  rayscope trace -f {} --pixel {x},{y} --sample {s} {}",
+            out.nonfinite,
+            file.display(),
+            replay_flags(opts)
+        );
+    }
+    write_film(&out.film, output).map_err(|e| Failure::failed(e.to_string()))?;
+    if !opts.quiet {
+        eprintln!("{}", summary(&settings, &out, output));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn replay_flags(o: &RenderOpts) -> String {
+    let mut s = format!("-w {} -h {} -x {}", o.width, o.height, o.aa);
+    if o.ambient {
+        s.push_str(" -l");
+    }
+    if o.quality != 0 {
+        s.push_str(&format!(" -q {}", o.quality));
+    }
+    s
+}
+
+/// Renders with an indicatif bar that appears only for renders longer than about half a second.
+pub fn render_with_progress(
+    scene: &Scene,
+    settings: &RenderSettings,
+    show: bool,
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Failure> {
+    let total = settings.width as u64 * settings.height as u64;
+    let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} rendering [{bar:40}] {percent:>3}% {elapsed_precise} (eta {eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    let shown = Mutex::new(false);
+    let progress = |done: u64, _total: u64| {
+        if show && start.elapsed() > Duration::from_millis(500) {
+            let mut s = shown.lock().unwrap_or_else(|e| e.into_inner());
+            if !*s {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+                *s = true;
+            }
+        }
+        bar.set_position(done);
+    };
+    let result = render(scene, settings, &progress, cancel);
+    bar.finish_and_clear();
+    result.map_err(|_| Failure {
+        code: 130,
+        message: "interrupted; no image was written".into(),
+    })
+}
+
+fn summary(s: &RenderSettings, out: &RenderOutput, path: &Path) -> String {
+    let secs = out.elapsed.as_secs_f64();
+    let rays = out.counters.total();
+    format!(
+        "{}×{}, {} spp, {:.3} s, {:.2} M rays ({:.1} Mrays/s) → {}",
+        s.width,
+        s.height,
+        out.samples_per_pixel,
+        secs,
+        rays as f64 / 1e6,
+        rays as f64 / 1e6 / secs.max(1e-9),
+        path.display()
+    )
+}
+
+fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
+    let settings = settings(&a.opts)?;
+    let (x, y) = a.pixel;
+    if x >= settings.width || y >= settings.height {
+        return Err(Failure::input(format!(
+            "pixel ({x}, {y}) is outside the {}×{} image (pixels are 0-based from the top-left)",
+            settings.width, settings.height
+        )));
+    }
+    let (_, scene) = load_scene(&a.file, a.opts.quiet)?;
+    let spp = rayscope_core::integrator::Integrator::new(&scene, &settings).samples_per_pixel();
+    if a.sample >= spp {
+        return Err(Failure::input(format!(
+            "sample {} does not exist: pixels have {spp} samples (0 to {})",
+            a.sample,
+            spp - 1
+        )));
+    }
+    let tree = trace_pixel(&scene, &settings, x, y, a.sample);
+    if a.json {
+        let s = serde_json::to_string_pretty(&tree).map_err(|e| Failure::failed(e.to_string()))?;
+        println!("{s}");
+    } else {
+        print!("{}", format_tree(&tree));
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn v3(v: [f32; 3]) -> String {
+    format!("({:.4}, {:.4}, {:.4})", v[0], v[1], v[2])
+}
+
+/// A ray tree as indented text.
+pub fn format_tree(t: &RayTree) -> String {
+    let mut out = format!("pixel ({}, {}) sample {}: colour {}\n", t.x, t.y, t.sample, v3(t.color));
+    for n in &t.nodes {
+        let indent = "  ".repeat(depth_of(t, n.id));
+        let kind = match n.kind {
+            RayKind::Camera => "camera",
+            RayKind::Shadow => "shadow",
+            RayKind::Reflection => "reflection",
+            RayKind::Refraction => "refraction",
+            RayKind::Emitter => "emitter",
+            RayKind::Bounce => "bounce",
+        };
+        out.push_str(&format!(
+            "{indent}#{} {kind} from {} dir {}",
+            n.id,
+            v3(n.origin),
+            v3(n.direction)
+        ));
+        if n.weight != 1.0 {
+            out.push_str(&format!(" weight {:.4}", n.weight));
+        }
+        out.push('\n');
+        if let Some(light) = &n.light {
+            match &n.blocked_by {
+                Some(b) => out.push_str(&format!("{indent}   to light '{light}': blocked by '{b}'\n")),
+                None => out.push_str(&format!("{indent}   to light '{light}': reaches it\n")),
+            }
+        } else if let Some(h) = &n.hit {
+            out.push_str(&format!(
+                "{indent}   hit '{}' ({} '{}') at t={:.4} point {} normal {}{}\n",
+                h.entity_name,
+                h.material_kind,
+                h.material,
+                h.t,
+                v3(h.point),
+                v3(h.normal),
+                if h.front_face { "" } else { " (back face)" }
+            ));
+        } else {
+            out.push_str(&format!("{indent}   miss\n"));
+        }
+        out.push_str(&format!("{indent}   brings {}\n", v3(n.value)));
+    }
+    out
+}
+
+fn depth_of(t: &RayTree, id: u32) -> usize {
+    let mut d = 0;
+    let mut cur = t.nodes.get(id as usize).and_then(|n| n.parent);
+    while let Some(p) = cur {
+        d += 1;
+        cur = t.nodes.get(p as usize).and_then(|n| n.parent);
+    }
+    d
+}
+
+fn read_rgb8(path: &Path) -> Result<image::RgbImage, Failure> {
+    Ok(image::open(path)
+        .map_err(|e| Failure::input(format!("cannot read image '{}': {e}", path.display())))?
+        .to_rgb8())
+}
+
+fn diff_command(a: &DiffArgs) -> Result<ExitCode, Failure> {
+    let ia = read_rgb8(&a.a)?;
+    let ib = read_rgb8(&a.b)?;
+    if ia.dimensions() != ib.dimensions() {
+        return Err(Failure::input(format!(
+            "the images differ in size: '{}' is {}×{}, '{}' is {}×{}",
+            a.a.display(),
+            ia.width(),
+            ia.height(),
+            a.b.display(),
+            ib.width(),
+            ib.height()
+        )));
+    }
+    let c = compare_rgb8(ia.as_raw(), ib.as_raw());
+    if let Some(out) = &a.output {
+        check_writable(out).map_err(|e| Failure::input(e.to_string()))?;
+        let heat = heatmap_rgb8(ia.as_raw(), ib.as_raw(), 32);
+        let mut film = Film::new(ia.width(), ia.height());
+        for (p, c) in film.pixels.iter_mut().zip(heat.chunks_exact(3)) {
+            // +0.5 keeps the 8-bit round trip through the course's truncating conversion exact.
+            *p = glam::Vec3::new(c[0] as f32 + 0.5, c[1] as f32 + 0.5, c[2] as f32 + 0.5) / 255.0;
+        }
+        write_film(&film, out).map_err(|e| Failure::failed(e.to_string()))?;
+    }
+    let psnr = if c.psnr.is_infinite() {
+        "inf".to_string()
+    } else {
+        format!("{:.2}", c.psnr)
+    };
+    println!(
+        "psnr_db={psnr} differing_pixels={} of {} ({:.3}%) max_channel_diff={}",
+        c.differing,
+        c.total,
+        100.0 * c.differing as f64 / c.total.max(1) as f64,
+        c.max_diff
+    );
+    let ok = match a.tol {
+        Some(db) => c.psnr >= db,
+        None => c.differing == 0,
+    };
+    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(1) })
+}
+
+fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
+    let settings = settings(&a.opts)?;
+    let t0 = Instant::now();
+    let (_, scene) = load_scene(&a.file, true)?;
+    let load = t0.elapsed();
+    setup_threads(&a.opts);
+    let cancel = AtomicBool::new(false);
+    let noop = |_: u64, _: u64| {};
+    let warm = render(&scene, &settings, &noop, &cancel).map_err(|e| Failure::failed(e.to_string()))?;
+    let mut times: Vec<f64> = Vec::new();
+    for _ in 0..a.repeat {
+        let out = render(&scene, &settings, &noop, &cancel).map_err(|e| Failure::failed(e.to_string()))?;
+        times.push(out.elapsed.as_secs_f64());
+    }
+    times.sort_by(f64::total_cmp);
+    let median = times[times.len() / 2];
+    let rays = warm.counters.total();
+    println!(
+        "scene={} size={}x{} spp={} threads={} load_s={:.4} runs={} median_s={:.4} min_s={:.4} max_s={:.4} mrays_per_s={:.1}",
+        a.file.display(),
+        settings.width,
+        settings.height,
+        warm.samples_per_pixel,
+        rayon::current_num_threads(),
+        load.as_secs_f64(),
+        a.repeat,
+        median,
+        times[0],
+        times[times.len() - 1],
+        rays as f64 / 1e6 / median
+    );
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,329 @@
+//! A bounding volume hierarchy over the scene's finite primitives, built with binned SAH.
+//!
+//! Nodes are stored depth-first in one flat array; a node's left child follows it directly and
+//! the right child's index is stored, so traversal touches memory mostly forwards.
+
+use glam::Vec3A;
+
+use crate::math::{Aabb, Ray};
+
+/// One BVH node: bounds plus either two children or a run of primitive references.
+#[derive(Debug, Clone, Copy)]
+pub struct BvhNode {
+    /// Lower corner of the bounds.
+    pub min: Vec3A,
+    /// Upper corner of the bounds.
+    pub max: Vec3A,
+    /// Interior: index of the right child. Leaf: first index into [`Bvh::prims`].
+    pub offset: u32,
+    /// Number of primitives; 0 for an interior node.
+    pub count: u16,
+    /// Split axis of an interior node (decides which child is visited first).
+    pub axis: u16,
+}
+
+/// A BVH over primitives identified by `u32`s chosen by the caller.
+#[derive(Debug, Clone, Default)]
+pub struct Bvh {
+    /// Nodes, root first; empty when there are no primitives.
+    pub nodes: Vec<BvhNode>,
+    /// Primitive references in leaf order.
+    pub prims: Vec<u32>,
+}
+
+/// A primitive to build over: its identifier, bounds and centroid.
+#[derive(Debug, Clone, Copy)]
+pub struct BuildPrim {
+    /// Caller's identifier, returned by traversal.
+    pub id: u32,
+    /// Bounds of the primitive.
+    pub bounds: Aabb,
+}
+
+const BINS: usize = 16;
+const MAX_LEAF: usize = 4;
+/// Below this many primitives a subtree is built on the current thread.
+const PARALLEL_CUTOFF: usize = 4096;
+
+struct Built {
+    nodes: Vec<BvhNode>,
+    prims: Vec<u32>,
+}
+
+impl Bvh {
+    /// Builds a BVH over `prims` (any order); uses all rayon threads for large inputs.
+    #[must_use]
+    pub fn build(mut prims: Vec<BuildPrim>) -> Bvh {
+        prims.retain(|p| !p.bounds.is_empty() && p.bounds.min.is_finite() && p.bounds.max.is_finite());
+        if prims.is_empty() {
+            return Bvh::default();
+        }
+        let centroids: Vec<Vec3A> = prims.iter().map(|p| p.bounds.center()).collect();
+        let mut items: Vec<(BuildPrim, Vec3A)> = prims.into_iter().zip(centroids).collect();
+        let built = build_rec(&mut items);
+        Bvh {
+            nodes: built.nodes,
+            prims: built.prims,
+        }
+    }
+
+    /// Visits leaves in near-to-far order along the ray; `leaf` gets the leaf's primitives and
+    /// returns the new `t_max` (shrinking it prunes farther nodes). Returns early when `leaf`
+    /// returns a negative value (any-hit queries).
+    #[inline]
+    pub fn traverse(&self, ray: &Ray, t_min: f32, t_max: f32, leaf: impl FnMut(&[u32], f32) -> f32) -> f32 {
+        self.traverse_counting::<false>(ray, t_min, t_max, leaf, &mut 0)
+    }
+
+    /// [`Bvh::traverse`] that also counts, when `COUNT`, the nodes whose bounds were tested.
+    #[inline]
+    pub fn traverse_counting<const COUNT: bool>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        mut t_max: f32,
+        mut leaf: impl FnMut(&[u32], f32) -> f32,
+        visits: &mut u32,
+    ) -> f32 {
+        if self.nodes.is_empty() {
+            return t_max;
+        }
+        let inv = ray.dir.recip();
+        let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
+        let mut stack = [0u32; 64];
+        let mut sp = 0usize;
+        let mut idx = 0u32;
+        loop {
+            let node = &self.nodes[idx as usize];
+            if COUNT {
+                *visits += 1;
+            }
+            if slab(node, ray.origin, inv, t_min, t_max) {
+                if node.count > 0 {
+                    let start = node.offset as usize;
+                    let r = leaf(&self.prims[start..start + node.count as usize], t_max);
+                    if r < 0.0 {
+                        return r;
+                    }
+                    t_max = r;
+                } else {
+                    // Visit the child on the ray's near side first.
+                    let (first, second) = if neg[node.axis as usize] {
+                        (node.offset, idx + 1)
+                    } else {
+                        (idx + 1, node.offset)
+                    };
+                    if sp < stack.len() {
+                        stack[sp] = second;
+                        sp += 1;
+                    }
+                    idx = first;
+                    continue;
+                }
+            }
+            if sp == 0 {
+                return t_max;
+            }
+            sp -= 1;
+            idx = stack[sp];
+        }
+    }
+
+    /// Bytes used by nodes and references.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<BvhNode>() + self.prims.len() * 4
+    }
+}
+
+#[inline]
+fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
+    let t0 = (node.min - o) * inv;
+    let t1 = (node.max - o) * inv;
+    // min/max of glam ignore NaN from 0 * inf the right way for rays starting on a slab plane.
+    let near = t0.min(t1).max_element().max(t_min);
+    let far = t0.max(t1).min_element().min(t_max);
+    near <= far
+}
+
+fn leaf_node(items: &[(BuildPrim, Vec3A)], bounds: Aabb) -> Built {
+    Built {
+        nodes: vec![BvhNode {
+            min: bounds.min,
+            max: bounds.max,
+            offset: 0,
+            count: items.len() as u16,
+            axis: 0,
+        }],
+        prims: items.iter().map(|(p, _)| p.id).collect(),
+    }
+}
+
+fn build_rec(items: &mut [(BuildPrim, Vec3A)]) -> Built {
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, (p, _)| b.union(p.bounds));
+    if items.len() <= MAX_LEAF {
+        return leaf_node(items, bounds);
+    }
+    let cb = items.iter().fold(Aabb::EMPTY, |b, (_, c)| b.grow(*c));
+    let extent = cb.max - cb.min;
+    let axis = if extent.x >= extent.y && extent.x >= extent.z {
+        0
+    } else if extent.y >= extent.z {
+        1
+    } else {
+        2
+    };
+    let lo = cb.min[axis];
+    let ext = extent[axis];
+    if ext.is_nan() || ext <= 0.0 {
+        // All centroids coincide: split in the middle of the list, or stop if small enough.
+        if items.len() <= u16::MAX as usize && items.len() <= 16 {
+            return leaf_node(items, bounds);
+        }
+        let mid = items.len() / 2;
+        return join(items, mid, bounds, axis);
+    }
+    // Binned SAH on the axis of largest centroid extent.
+    let scale = BINS as f32 / ext;
+    let bin_of = |c: Vec3A| (((c[axis] - lo) * scale) as usize).min(BINS - 1);
+    let mut bin_bounds = [Aabb::EMPTY; BINS];
+    let mut bin_count = [0usize; BINS];
+    for (p, c) in items.iter() {
+        let b = bin_of(*c);
+        bin_bounds[b] = bin_bounds[b].union(p.bounds);
+        bin_count[b] += 1;
+    }
+    let mut right_area = [0.0f32; BINS];
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0;
+    let mut right_count = [0usize; BINS];
+    for i in (1..BINS).rev() {
+        acc = acc.union(bin_bounds[i]);
+        cnt += bin_count[i];
+        right_area[i] = acc.half_area();
+        right_count[i] = cnt;
+    }
+    let mut best = (f32::INFINITY, 0usize);
+    let mut acc = Aabb::EMPTY;
+    let mut cnt = 0;
+    for i in 0..BINS - 1 {
+        acc = acc.union(bin_bounds[i]);
+        cnt += bin_count[i];
+        if cnt == 0 || right_count[i + 1] == 0 {
+            continue;
+        }
+        let cost = acc.half_area() * cnt as f32 + right_area[i + 1] * right_count[i + 1] as f32;
+        if cost < best.0 {
+            best = (cost, i);
+        }
+    }
+    let leaf_cost = bounds.half_area() * items.len() as f32;
+    // Traversal cost ≈ one primitive test, relative to the parent's area.
+    let split_cost = bounds.half_area() + best.0;
+    if items.len() <= MAX_LEAF * 2 && split_cost >= leaf_cost {
+        return leaf_node(items, bounds);
+    }
+    let split_bin = best.1;
+    let mut mid = partition(items, |(_, c)| bin_of(*c) <= split_bin);
+    if mid == 0 || mid == items.len() {
+        mid = items.len() / 2;
+    }
+    join(items, mid, bounds, axis)
+}
+
+fn join(items: &mut [(BuildPrim, Vec3A)], mid: usize, bounds: Aabb, axis: usize) -> Built {
+    let n = items.len();
+    let (l, r) = items.split_at_mut(mid);
+    let (left, right) = if n > PARALLEL_CUTOFF {
+        rayon::join(|| build_rec(l), || build_rec(r))
+    } else {
+        (build_rec(l), build_rec(r))
+    };
+    let mut nodes = Vec::with_capacity(1 + left.nodes.len() + right.nodes.len());
+    let right_index = 1 + left.nodes.len() as u32;
+    nodes.push(BvhNode {
+        min: bounds.min,
+        max: bounds.max,
+        offset: right_index,
+        count: 0,
+        axis: axis as u16,
+    });
+    let left_prims = left.prims.len() as u32;
+    nodes.extend(left.nodes.into_iter().map(|mut nd| {
+        if nd.count == 0 {
+            nd.offset += 1;
+        }
+        nd
+    }));
+    nodes.extend(right.nodes.into_iter().map(|mut nd| {
+        if nd.count == 0 {
+            nd.offset += right_index;
+        } else {
+            nd.offset += left_prims;
+        }
+        nd
+    }));
+    let mut prims = left.prims;
+    prims.extend(right.prims);
+    Built { nodes, prims }
+}
+
+fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
+    let mut i = 0;
+    for j in 0..v.len() {
+        if pred(&v[j]) {
+            v.swap(i, j);
+            i += 1;
+        }
+    }
+    i
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn empty_and_single() {
+        let b = Bvh::build(vec![]);
+        assert!(b.nodes.is_empty());
+        let r = Ray::new(Vec3A::ZERO, Vec3A::Z);
+        assert_eq!(b.traverse(&r, 0.0, 5.0, |_, _| 1.0), 5.0);
+        let one = Bvh::build(vec![BuildPrim {
+            id: 7,
+            bounds: Aabb {
+                min: Vec3A::splat(-1.0),
+                max: Vec3A::splat(1.0),
+            },
+        }]);
+        let mut seen = vec![];
+        one.traverse(&r, 0.0, 5.0, |p, t| {
+            seen.extend_from_slice(p);
+            t
+        });
+        assert_eq!(seen, vec![7]);
+    }
+
+    #[test]
+    fn every_primitive_reachable_once() {
+        let prims: Vec<BuildPrim> = (0..1000)
+            .map(|i| {
+                let c = Vec3A::new((i % 10) as f32, ((i / 10) % 10) as f32, (i / 100) as f32);
+                BuildPrim {
+                    id: i,
+                    bounds: Aabb {
+                        min: c,
+                        max: c + Vec3A::splat(0.5),
+                    },
+                }
+            })
+            .collect();
+        let b = Bvh::build(prims);
+        let mut ids = b.prims.clone();
+        ids.sort_unstable();
+        assert_eq!(ids, (0..1000).collect::<Vec<_>>());
+        // Leaf offsets must be consistent with the reference array.
+        let total: usize = b.nodes.iter().map(|n| n.count as usize).sum();
+        assert_eq!(total, 1000);
+    }
+}

@@ -1,0 +1,307 @@
+//! Analytic ray–primitive intersection: plane, sphere and triangle (the workshop's task 7).
+//!
+//! Every routine is two-sided and returns the nearest `t` in the open interval `(t_min, t_max)`.
+//! Rays must have unit-length directions.
+
+use glam::Vec3A;
+
+use crate::math::{Aabb, Ray};
+
+/// Where a ray met a primitive: distance plus the two surface parameters the primitive needs to
+/// rebuild its normal (barycentrics for triangles, unused elsewhere).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PrimHit {
+    /// Ray parameter of the hit.
+    pub t: f32,
+    /// First barycentric coordinate (weight of v1) for triangles.
+    pub u: f32,
+    /// Second barycentric coordinate (weight of v2) for triangles.
+    pub v: f32,
+}
+
+/// A surface a ray can be intersected with.
+pub trait Primitive {
+    /// The nearest hit with `t_min < t < t_max`, if any.
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit>;
+    /// The unit geometric normal at a hit found by [`Primitive::intersect`] (not flipped to face the ray).
+    fn normal(&self, ray: &Ray, hit: &PrimHit) -> Vec3A;
+}
+
+/// An infinite plane.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Plane {
+    /// A point on the plane.
+    pub point: Vec3A,
+    /// Unit normal.
+    pub normal: Vec3A,
+}
+
+impl Primitive for Plane {
+    #[inline]
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
+        let denom = self.normal.dot(ray.dir);
+        // A ray parallel to the plane never meets it (one lying in it is treated as a miss too).
+        if denom == 0.0 {
+            return None;
+        }
+        let t = (self.point - ray.origin).dot(self.normal) / denom;
+        (t > t_min && t < t_max).then_some(PrimHit { t, u: 0.0, v: 0.0 })
+    }
+
+    #[inline]
+    fn normal(&self, _ray: &Ray, _hit: &PrimHit) -> Vec3A {
+        self.normal
+    }
+}
+
+/// A sphere.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Sphere {
+    /// Centre.
+    pub center: Vec3A,
+    /// Radius (> 0).
+    pub radius: f32,
+}
+
+impl Sphere {
+    /// Bounding box.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: self.center - Vec3A::splat(self.radius),
+            max: self.center + Vec3A::splat(self.radius),
+        }
+    }
+}
+
+impl Primitive for Sphere {
+    #[inline]
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
+        // Numerically careful form (Haines et al., "Precision Improvements for Ray/Sphere
+        // Intersection", Ray Tracing Gems ch. 7): the discriminant is computed from the distance
+        // of the centre to the ray's line rather than as b² − c, which cancels catastrophically
+        // for small or distant spheres.
+        let f = ray.origin - self.center;
+        let b = -f.dot(ray.dir);
+        let l = f + ray.dir * b;
+        let r2 = self.radius * self.radius;
+        let disc = r2 - l.length_squared();
+        if disc < 0.0 {
+            return None;
+        }
+        let c = f.length_squared() - r2;
+        let q = b + disc.sqrt().copysign(b);
+        // Roots c/q and q: the stable pair whatever the sign of b.
+        let (mut t0, mut t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
+        if t0 > t1 {
+            std::mem::swap(&mut t0, &mut t1);
+        }
+        if t0 > t_min && t0 < t_max {
+            Some(PrimHit { t: t0, u: 0.0, v: 0.0 })
+        } else if t1 > t_min && t1 < t_max {
+            Some(PrimHit { t: t1, u: 0.0, v: 0.0 })
+        } else {
+            None
+        }
+    }
+
+    #[inline]
+    fn normal(&self, ray: &Ray, hit: &PrimHit) -> Vec3A {
+        ((ray.at(hit.t) - self.center) / self.radius).normalize()
+    }
+}
+
+/// A triangle prepared for intersection: first corner and the two edges from it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Triangle {
+    /// First corner.
+    pub v0: Vec3A,
+    /// v1 − v0.
+    pub e1: Vec3A,
+    /// v2 − v0.
+    pub e2: Vec3A,
+}
+
+impl Triangle {
+    /// The triangle with corners `a`, `b`, `c`.
+    #[must_use]
+    pub fn new(a: Vec3A, b: Vec3A, c: Vec3A) -> Self {
+        Self {
+            v0: a,
+            e1: b - a,
+            e2: c - a,
+        }
+    }
+
+    /// The three corners.
+    #[must_use]
+    pub fn vertices(&self) -> [Vec3A; 3] {
+        [self.v0, self.v0 + self.e1, self.v0 + self.e2]
+    }
+
+    /// Bounding box.
+    #[must_use]
+    pub fn bounds(&self) -> Aabb {
+        let [a, b, c] = self.vertices();
+        Aabb::EMPTY.grow(a).grow(b).grow(c)
+    }
+
+    /// True when the triangle has no area (it can never be hit).
+    #[must_use]
+    pub fn is_degenerate(&self) -> bool {
+        let n = self.e1.cross(self.e2);
+        n.length_squared() <= 0.0 || !n.is_finite()
+    }
+
+    /// Unit geometric normal (v1 − v0) × (v2 − v0), the course's convention.
+    #[must_use]
+    #[inline]
+    pub fn geometric_normal(&self) -> Vec3A {
+        self.e1.cross(self.e2).normalize()
+    }
+}
+
+impl Primitive for Triangle {
+    #[inline]
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
+        // Möller–Trumbore, two-sided: the sign of the determinant only says which side was hit.
+        let p = ray.dir.cross(self.e2);
+        let det = self.e1.dot(p);
+        if det == 0.0 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let s = ray.origin - self.v0;
+        let u = s.dot(p) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let q = s.cross(self.e1);
+        let v = ray.dir.dot(q) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = self.e2.dot(q) * inv;
+        (t > t_min && t < t_max).then_some(PrimHit { t, u, v })
+    }
+
+    #[inline]
+    fn normal(&self, _ray: &Ray, _hit: &PrimHit) -> Vec3A {
+        self.geometric_normal()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
+        Ray::new(Vec3A::from(o), Vec3A::from(d).normalize())
+    }
+
+    #[test]
+    fn sphere_from_outside_inside_and_behind() {
+        let s = Sphere {
+            center: Vec3A::new(0.0, 0.0, 5.0),
+            radius: 1.0,
+        };
+        let h = s
+            .intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
+            .unwrap();
+        assert!((h.t - 4.0).abs() < 1e-6);
+        let h = s
+            .intersect(&ray([0.0, 0.0, 5.0], [0.0, 1.0, 0.0]), 0.0, f32::INFINITY)
+            .unwrap();
+        assert!((h.t - 1.0).abs() < 1e-6, "from the centre the far side is hit");
+        assert!(s
+            .intersect(&ray([0.0; 3], [0.0, 0.0, -1.0]), 0.0, f32::INFINITY)
+            .is_none());
+        assert!(
+            s.intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, 3.9).is_none(),
+            "t_max respected"
+        );
+    }
+
+    #[test]
+    fn sphere_grazing_and_tiny_far_away() {
+        let s = Sphere {
+            center: Vec3A::new(1.0, 0.0, 5.0),
+            radius: 1.0,
+        };
+        // Tangent ray along x = 0 touches at t = 5.
+        let h = s.intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY);
+        assert!(h.map_or(true, |h| (h.t - 5.0).abs() < 1e-3));
+        assert!(s
+            .intersect(&ray([-0.001, 0.0, 0.0], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
+            .is_none());
+        let tiny = Sphere {
+            center: Vec3A::new(0.0, 0.0, 1e4),
+            radius: 1e-2,
+        };
+        let h = tiny
+            .intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
+            .unwrap();
+        assert!((h.t - (1e4 - 1e-2)).abs() < 2e-3, "t = {}", h.t);
+    }
+
+    #[test]
+    fn triangle_two_sided_and_edges() {
+        let t = Triangle::new(
+            Vec3A::new(-1.0, -1.0, 2.0),
+            Vec3A::new(0.0, 1.0, 2.0),
+            Vec3A::new(1.0, -1.0, 2.0),
+        );
+        let h = t
+            .intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
+            .unwrap();
+        assert!((h.t - 2.0).abs() < 1e-6);
+        let back = t
+            .intersect(&ray([0.0, 0.0, 4.0], [0.0, 0.0, -1.0]), 0.0, f32::INFINITY)
+            .unwrap();
+        assert!((back.t - 2.0).abs() < 1e-6, "back face is hit too");
+        assert!(t
+            .intersect(&ray([5.0, 0.0, 0.0], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
+            .is_none());
+        let n = t.geometric_normal();
+        assert!(
+            (n - Vec3A::new(0.0, 0.0, -1.0)).length() < 1e-6,
+            "normal = (v1−v0)×(v2−v0) = {n}"
+        );
+    }
+
+    #[test]
+    fn degenerate_triangle_never_hit() {
+        let t = Triangle::new(Vec3A::ZERO, Vec3A::X, Vec3A::X * 2.0);
+        assert!(t.is_degenerate());
+        for d in [[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]] {
+            assert!(t.intersect(&ray([0.5, -1.0, -1.0], d), 0.0, f32::INFINITY).is_none());
+        }
+    }
+
+    #[test]
+    fn plane_parallel_and_both_sides() {
+        let p = Plane {
+            point: Vec3A::new(0.0, -1.0, 0.0),
+            normal: Vec3A::Y,
+        };
+        assert!(p
+            .intersect(&ray([0.0; 3], [1.0, 0.0, 0.0]), 0.0, f32::INFINITY)
+            .is_none());
+        assert!(
+            (p.intersect(&ray([0.0; 3], [0.0, -1.0, 0.0]), 0.0, f32::INFINITY)
+                .unwrap()
+                .t
+                - 1.0)
+                .abs()
+                < 1e-6
+        );
+        assert!(
+            (p.intersect(&ray([0.0, -3.0, 0.0], [0.0, 1.0, 0.0]), 0.0, f32::INFINITY)
+                .unwrap()
+                .t
+                - 2.0)
+                .abs()
+                < 1e-6
+        );
+    }
+}

@@ -1,0 +1,27 @@
+//! rayscope's renderer: geometry, BVH, camera, materials, integrators and the parallel render loop.
+//!
+//! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
+//! [`render`] turns into a [`Film`] under [`RenderSettings`].
+
+pub mod bvh;
+pub mod camera;
+pub mod compare;
+pub mod film;
+pub mod geometry;
+pub mod integrator;
+pub mod math;
+pub mod observer;
+pub mod output;
+pub mod reference;
+pub mod render;
+pub mod rng;
+pub mod scene;
+pub mod settings;
+
+pub use camera::{Camera, CameraSettings, FovAxis};
+pub use film::Film;
+pub use math::Ray;
+pub use observer::{NoObserver, RayKind, RayNode, RayObserver, RayRecorder, RayTree};
+pub use render::{render, render_with, trace_pixel, trace_pixel_with, Cancelled, RenderOutput};
+pub use scene::Scene;
+pub use settings::{Channel, RenderSettings, Stage};

@@ -1,0 +1,187 @@
+//! The parallel render loop: tiles on rayon's pool, progress and cancellation callbacks, and a
+//! guard that keeps NaN and infinity off the film.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::{Duration, Instant};
+
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+
+use crate::film::Film;
+use crate::integrator::{Counters, Integrator};
+use crate::observer::{NoObserver, RayRecorder, RayTree};
+use crate::scene::{Intersect, Scene};
+use crate::settings::RenderSettings;
+
+/// Tile edge in pixels: small enough to balance two cores on tiny images, large enough to
+/// keep scheduling overhead negligible.
+const TILE: u32 = 16;
+
+/// The result of a finished render.
+#[derive(Debug, Clone)]
+pub struct RenderOutput {
+    /// The image.
+    pub film: Film,
+    /// Rays cast.
+    pub counters: Counters,
+    /// Samples per pixel used.
+    pub samples_per_pixel: u32,
+    /// Samples whose value was NaN or infinite (replaced by black).
+    pub nonfinite: u64,
+    /// The first such sample as (x, y, sample), for a replay command.
+    pub first_nonfinite: Option<(u32, u32, u32)>,
+    /// Wall time of the render loop.
+    pub elapsed: Duration,
+}
+
+/// The render was cancelled before it finished.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, thiserror::Error)]
+#[error("render cancelled")]
+pub struct Cancelled;
+
+/// Renders `scene` with `settings` on the current rayon pool.
+///
+/// `progress(done, total)` is called with pixel counts as tiles finish; setting `cancel` stops the
+/// render at the next tile and returns [`Cancelled`].
+pub fn render(
+    scene: &Scene,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
+    render_with(scene, scene, settings, progress, cancel)
+}
+
+/// [`render`] tracing rays with `isect` (e.g. the parry3d reference) instead of the scene's BVH.
+pub fn render_with<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
+    let start = Instant::now();
+    let integ = Integrator::with_intersector(scene, isect, settings);
+    let spp = integ.samples_per_pixel();
+    let (w, h) = (settings.width, settings.height);
+    let tiles_x = w.div_ceil(TILE);
+    let tiles_y = h.div_ceil(TILE);
+    let total = w as u64 * h as u64;
+    let done = AtomicU64::new(0);
+    let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
+        .into_par_iter()
+        .map(|t| {
+            if cancel.load(Ordering::Relaxed) {
+                return None;
+            }
+            let (tx, ty) = (t % tiles_x, t / tiles_x);
+            let r = render_tile(
+                &integ,
+                tx * TILE,
+                ty * TILE,
+                (tx * TILE + TILE).min(w),
+                (ty * TILE + TILE).min(h),
+                spp,
+            );
+            let n = done.fetch_add(r.pixels.len() as u64, Ordering::Relaxed) + r.pixels.len() as u64;
+            progress(n, total);
+            Some(r)
+        })
+        .collect();
+    if cancel.load(Ordering::Relaxed) {
+        return Err(Cancelled);
+    }
+    let mut film = Film::new(w, h);
+    let mut counters = Counters::default();
+    let mut nonfinite = 0;
+    let mut first_nonfinite: Option<(u32, u32, u32)> = None;
+    for r in results.into_iter().flatten() {
+        let tw = r.x1 - r.x0;
+        for (i, p) in r.pixels.iter().enumerate() {
+            let (x, y) = (r.x0 + i as u32 % tw, r.y0 + i as u32 / tw);
+            film.pixels[(y * w + x) as usize] = *p;
+        }
+        counters.add(&r.counters);
+        nonfinite += r.nonfinite;
+        // Tiles are in raster order, so the first tile with a bad sample holds the first one.
+        if first_nonfinite.is_none() {
+            first_nonfinite = r.first_nonfinite;
+        }
+    }
+    Ok(RenderOutput {
+        film,
+        counters,
+        samples_per_pixel: spp,
+        nonfinite,
+        first_nonfinite,
+        elapsed: start.elapsed(),
+    })
+}
+
+struct TileResult {
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    pixels: Vec<Vec3>,
+    counters: Counters,
+    nonfinite: u64,
+    first_nonfinite: Option<(u32, u32, u32)>,
+}
+
+fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u32, y1: u32, spp: u32) -> TileResult {
+    let mut r = TileResult {
+        x0,
+        y0,
+        x1,
+        pixels: Vec::with_capacity(((x1 - x0) * (y1 - y0)) as usize),
+        counters: Counters::default(),
+        nonfinite: 0,
+        first_nonfinite: None,
+    };
+    let inv = 1.0 / spp as f32;
+    for y in y0..y1 {
+        for x in x0..x1 {
+            let mut sum = Vec3A::ZERO;
+            for s in 0..spp {
+                let v = integ.sample(x, y, s, &mut NoObserver, &mut r.counters);
+                if v.is_finite() {
+                    sum += v;
+                } else {
+                    r.nonfinite += 1;
+                    r.first_nonfinite.get_or_insert((x, y, s));
+                }
+            }
+            r.pixels.push((sum * inv).into());
+        }
+    }
+    r
+}
+
+/// Traces sample `sample` of pixel (`x`, `y`) with a recorder and returns its ray tree.
+#[must_use]
+pub fn trace_pixel(scene: &Scene, settings: &RenderSettings, x: u32, y: u32, sample: u32) -> RayTree {
+    trace_pixel_with(scene, scene, settings, x, y, sample)
+}
+
+/// [`trace_pixel`] tracing rays with `isect`.
+#[must_use]
+pub fn trace_pixel_with<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    sample: u32,
+) -> RayTree {
+    let integ = Integrator::with_intersector(scene, isect, settings);
+    let mut rec = RayRecorder::default();
+    let mut c = Counters::default();
+    let v = integ.sample(x, y, sample, &mut rec, &mut c);
+    RayTree {
+        x,
+        y,
+        sample,
+        nodes: rec.nodes,
+        color: v.to_array(),
+    }
+}

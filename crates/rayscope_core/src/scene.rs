@@ -1,0 +1,457 @@
+//! The render-ready scene: primitives in f32, materials, lights and the BVH, built from a
+//! parsed [`rayscope_scene::SceneFile`].
+
+use glam::{DVec3, Vec3, Vec3A};
+use rayscope_scene::{MaterialKind, SceneFile, Shape};
+use serde::Serialize;
+
+use crate::bvh::{BuildPrim, Bvh};
+use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
+use crate::math::{Aabb, Ray};
+
+/// A material as the integrators use it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Material {
+    /// The material's type.
+    #[serde(serialize_with = "ser_kind")]
+    pub kind: MaterialKind,
+    /// Albedo, emitted radiance or absorbance, by kind.
+    pub color: Vec3,
+    /// Refractive index (Refractive) or roughness control (Glossy).
+    pub value: f32,
+}
+
+fn ser_kind<S: serde::Serializer>(k: &MaterialKind, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(k.name())
+}
+
+/// A point light with the course's unattenuated model.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PointLight {
+    /// Position in world space.
+    pub position: Vec3,
+    /// Colour.
+    pub color: Vec3,
+}
+
+/// Which primitive store a hit came from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum PrimRef {
+    /// Index into [`Scene::planes`].
+    Plane(u32),
+    /// Index into [`Scene::spheres`].
+    Sphere(u32),
+    /// Index into [`Scene::triangles`].
+    Triangle(u32),
+}
+
+/// The closest intersection of a ray with the scene.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Ray parameter.
+    pub t: f32,
+    /// Surface parameters (barycentrics for triangles).
+    pub u: f32,
+    /// Surface parameters (barycentrics for triangles).
+    pub v: f32,
+    /// The primitive hit.
+    pub prim: PrimRef,
+}
+
+/// Local geometry at a hit, ready for shading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Surface {
+    /// Hit point.
+    pub point: Vec3A,
+    /// Unit geometric normal, flipped to face the incoming ray.
+    pub normal: Vec3A,
+    /// Unit shading normal (interpolated for meshes), on the same side as `normal`.
+    pub shading_normal: Vec3A,
+    /// True when the ray hit the side the primitive's own normal points to.
+    pub front_face: bool,
+    /// Entity index.
+    pub entity: u32,
+    /// Material index.
+    pub material: u32,
+}
+
+/// What an entity is, for names in the debugger and `trace`.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct EntityInfo {
+    /// Name from the scene file.
+    pub name: String,
+    /// Scene command (`Plane`, `Sphere`, `Triangle`, `ObjModel`).
+    pub kind: &'static str,
+    /// Material index.
+    pub material: u32,
+    /// 1-based line in the scene file.
+    pub line: usize,
+    /// Number of primitives the entity turned into.
+    pub primitives: usize,
+}
+
+/// Per-triangle data that traversal does not need.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TriangleInfo {
+    /// Entity index.
+    pub entity: u32,
+    /// Material index.
+    pub material: u32,
+    /// Vertex normals for smooth shading, in vertex order.
+    pub normals: Option<[Vec3; 3]>,
+}
+
+/// A render-ready scene.
+#[derive(Debug, Clone, Default)]
+pub struct Scene {
+    /// Materials by index.
+    pub materials: Vec<Material>,
+    /// Material names by index.
+    pub material_names: Vec<String>,
+    /// Point lights.
+    pub lights: Vec<PointLight>,
+    /// Light names by index.
+    pub light_names: Vec<String>,
+    /// Entities by index.
+    pub entities: Vec<EntityInfo>,
+    /// Infinite planes (kept out of the BVH).
+    pub planes: Vec<Plane>,
+    /// (entity, material) of each plane.
+    pub plane_info: Vec<(u32, u32)>,
+    /// Spheres.
+    pub spheres: Vec<Sphere>,
+    /// (entity, material) of each sphere.
+    pub sphere_info: Vec<(u32, u32)>,
+    /// Triangles, including mesh triangles.
+    pub triangles: Vec<Triangle>,
+    /// Shading data of each triangle.
+    pub triangle_info: Vec<TriangleInfo>,
+    /// Acceleration structure over spheres and triangles.
+    pub bvh: Bvh,
+    /// Bounds of all finite geometry.
+    pub bounds: Aabb,
+}
+
+/// A closest-hit and any-hit query over a [`Scene`]: rayscope's BVH or the parry3d reference.
+pub trait Intersect: Sync {
+    /// The closest hit with `t_min < t < t_max`.
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit>;
+    /// Some primitive on the ray with `t_min < t < t_max`, not necessarily the closest.
+    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef>;
+    /// True when anything lies on the ray with `t_min < t < t_max`.
+    #[inline]
+    fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.occluder(ray, t_min, t_max).is_some()
+    }
+}
+
+impl Intersect for Scene {
+    #[inline]
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        Scene::intersect(self, ray, t_min, t_max)
+    }
+    #[inline]
+    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        Scene::occluder(self, ray, t_min, t_max)
+    }
+}
+
+/// Spheres are tagged in BVH references with this bit.
+const SPHERE_BIT: u32 = 1 << 31;
+
+fn v3(d: DVec3) -> Vec3A {
+    Vec3A::new(d.x as f32, d.y as f32, d.z as f32)
+}
+
+impl Scene {
+    /// Converts a parsed scene file and builds its BVH. Degenerate triangles are dropped.
+    #[must_use]
+    pub fn from_file(file: &SceneFile) -> Scene {
+        let mut s = Scene {
+            materials: file
+                .materials
+                .iter()
+                .map(|m| Material {
+                    kind: m.kind,
+                    color: v3(m.color).into(),
+                    value: m.value as f32,
+                })
+                .collect(),
+            material_names: file.materials.iter().map(|m| m.name.clone()).collect(),
+            lights: file
+                .lights
+                .iter()
+                .map(|l| PointLight {
+                    position: v3(l.position).into(),
+                    color: v3(l.color).into(),
+                })
+                .collect(),
+            light_names: file.lights.iter().map(|l| l.name.clone()).collect(),
+            ..Scene::default()
+        };
+        for (ei, e) in file.entities.iter().enumerate() {
+            let (ent, mat) = (ei as u32, e.material as u32);
+            let before = s.planes.len() + s.spheres.len() + s.triangles.len();
+            match &e.shape {
+                Shape::Plane { point, normal } => {
+                    s.planes.push(Plane {
+                        point: v3(*point),
+                        normal: v3(*normal).normalize(),
+                    });
+                    s.plane_info.push((ent, mat));
+                }
+                Shape::Sphere { center, radius } => {
+                    s.spheres.push(Sphere {
+                        center: v3(*center),
+                        radius: *radius as f32,
+                    });
+                    s.sphere_info.push((ent, mat));
+                }
+                Shape::Triangle { vertices } => {
+                    let t = Triangle::new(v3(vertices[0]), v3(vertices[1]), v3(vertices[2]));
+                    if !t.is_degenerate() {
+                        s.triangles.push(t);
+                        s.triangle_info.push(TriangleInfo {
+                            entity: ent,
+                            material: mat,
+                            normals: None,
+                        });
+                    }
+                }
+                Shape::Mesh { mesh, .. } => {
+                    s.triangles.reserve(mesh.triangles.len());
+                    for tri in &mesh.triangles {
+                        let p = tri.positions.map(|i| Vec3A::from(mesh.positions[i as usize]));
+                        let t = Triangle::new(p[0], p[1], p[2]);
+                        if t.is_degenerate() {
+                            continue;
+                        }
+                        s.triangles.push(t);
+                        let normals = tri.normals.map(|n| n.map(|i| mesh.normals[i as usize]));
+                        s.triangle_info.push(TriangleInfo {
+                            entity: ent,
+                            material: mat,
+                            normals,
+                        });
+                    }
+                }
+            }
+            let after = s.planes.len() + s.spheres.len() + s.triangles.len();
+            s.entities.push(EntityInfo {
+                name: e.name.clone(),
+                kind: e.shape.command(),
+                material: mat,
+                line: e.line,
+                primitives: after - before,
+            });
+        }
+        s.build_bvh();
+        s
+    }
+
+    fn build_bvh(&mut self) {
+        let mut prims: Vec<BuildPrim> = Vec::with_capacity(self.triangles.len() + self.spheres.len());
+        prims.extend(self.triangles.iter().enumerate().map(|(i, t)| BuildPrim {
+            id: i as u32,
+            bounds: t.bounds(),
+        }));
+        prims.extend(self.spheres.iter().enumerate().map(|(i, s)| BuildPrim {
+            id: i as u32 | SPHERE_BIT,
+            bounds: s.bounds(),
+        }));
+        self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+        self.bvh = Bvh::build(prims);
+    }
+
+    /// The closest hit with `t_min < t < t_max`, using the BVH and the planes.
+    #[must_use]
+    #[inline]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut t_max = t_max;
+        for (i, p) in self.planes.iter().enumerate() {
+            if let Some(h) = p.intersect(ray, t_min, t_max) {
+                t_max = h.t;
+                best = Some(Hit {
+                    t: h.t,
+                    u: 0.0,
+                    v: 0.0,
+                    prim: PrimRef::Plane(i as u32),
+                });
+            }
+        }
+        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
+            for &id in prims {
+                if id & SPHERE_BIT != 0 {
+                    let i = id & !SPHERE_BIT;
+                    if let Some(h) = self.spheres[i as usize].intersect(ray, t_min, t_max) {
+                        t_max = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            u: 0.0,
+                            v: 0.0,
+                            prim: PrimRef::Sphere(i),
+                        });
+                    }
+                } else if let Some(h) = self.triangles[id as usize].intersect(ray, t_min, t_max) {
+                    t_max = h.t;
+                    best = Some(Hit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: PrimRef::Triangle(id),
+                    });
+                }
+            }
+            t_max
+        });
+        best
+    }
+
+    /// True when anything lies on the ray with `t_min < t < t_max` (shadow rays).
+    #[must_use]
+    #[inline]
+    pub fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
+        self.occluder(ray, t_min, t_max).is_some()
+    }
+
+    /// Some primitive on the ray with `t_min < t < t_max`, not necessarily the closest.
+    #[must_use]
+    #[inline]
+    pub fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        for (i, p) in self.planes.iter().enumerate() {
+            if p.intersect(ray, t_min, t_max).is_some() {
+                return Some(PrimRef::Plane(i as u32));
+            }
+        }
+        let mut found = None;
+        self.bvh.traverse(ray, t_min, t_max, |prims, t_max| {
+            for &id in prims {
+                let hit = if id & SPHERE_BIT != 0 {
+                    self.spheres[(id & !SPHERE_BIT) as usize]
+                        .intersect(ray, t_min, t_max)
+                        .map(|_| PrimRef::Sphere(id & !SPHERE_BIT))
+                } else {
+                    self.triangles[id as usize]
+                        .intersect(ray, t_min, t_max)
+                        .map(|_| PrimRef::Triangle(id))
+                };
+                if hit.is_some() {
+                    found = hit;
+                    return -1.0;
+                }
+            }
+            t_max
+        });
+        found
+    }
+
+    /// Bounding-box tests plus primitive tests the closest-hit query of `ray` makes (the "cost"
+    /// debug channel).
+    #[must_use]
+    pub fn traversal_cost(&self, ray: &Ray) -> u32 {
+        let mut visits = 0;
+        let mut tests = self.planes.len() as u32;
+        // Planes are tested first, so their nearest hit prunes the BVH search as in `intersect`.
+        let t_planes = self
+            .planes
+            .iter()
+            .filter_map(|p| p.intersect(ray, 0.0, f32::INFINITY))
+            .map(|h| h.t)
+            .fold(f32::INFINITY, f32::min);
+        self.bvh.traverse_counting::<true>(
+            ray,
+            0.0,
+            t_planes,
+            |prims, mut t_max| {
+                for &id in prims {
+                    tests += 1;
+                    let h = if id & SPHERE_BIT != 0 {
+                        self.spheres[(id & !SPHERE_BIT) as usize]
+                            .intersect(ray, 0.0, t_max)
+                            .map(|h| h.t)
+                    } else {
+                        self.triangles[id as usize].intersect(ray, 0.0, t_max).map(|h| h.t)
+                    };
+                    if let Some(t) = h {
+                        t_max = t;
+                    }
+                }
+                t_max
+            },
+            &mut visits,
+        );
+        visits + tests
+    }
+
+    /// (entity, material) of a primitive.
+    #[must_use]
+    #[inline]
+    pub fn prim_info(&self, prim: PrimRef) -> (u32, u32) {
+        match prim {
+            PrimRef::Plane(i) => self.plane_info[i as usize],
+            PrimRef::Sphere(i) => self.sphere_info[i as usize],
+            PrimRef::Triangle(i) => {
+                let t = &self.triangle_info[i as usize];
+                (t.entity, t.material)
+            }
+        }
+    }
+
+    /// Shading geometry at a hit of `ray`.
+    #[must_use]
+    #[inline]
+    pub fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {
+        let ph = PrimHit {
+            t: hit.t,
+            u: hit.u,
+            v: hit.v,
+        };
+        let (n, ns) = match hit.prim {
+            PrimRef::Plane(i) => {
+                let n = self.planes[i as usize].normal(ray, &ph);
+                (n, n)
+            }
+            PrimRef::Sphere(i) => {
+                let n = self.spheres[i as usize].normal(ray, &ph);
+                (n, n)
+            }
+            PrimRef::Triangle(i) => {
+                let n = self.triangles[i as usize].geometric_normal();
+                let ns = match self.triangle_info[i as usize].normals {
+                    Some([a, b, c]) => {
+                        let w = 1.0 - hit.u - hit.v;
+                        let s = Vec3A::from(a) * w + Vec3A::from(b) * hit.u + Vec3A::from(c) * hit.v;
+                        let s = s.normalize_or_zero();
+                        if s == Vec3A::ZERO {
+                            n
+                        } else {
+                            s
+                        }
+                    }
+                    None => n,
+                };
+                (n, ns)
+            }
+        };
+        let (entity, material) = self.prim_info(hit.prim);
+        let front_face = n.dot(ray.dir) < 0.0;
+        let normal = if front_face { n } else { -n };
+        // Interpolated normals are flipped with the geometric one so both face the ray.
+        let shading_normal = if ns.dot(normal) < 0.0 { -ns } else { ns };
+        Surface {
+            point: ray.at(hit.t),
+            normal,
+            shading_normal,
+            front_face,
+            entity,
+            material,
+        }
+    }
+
+    /// Number of primitives (planes, spheres, triangles).
+    #[must_use]
+    pub fn primitive_count(&self) -> usize {
+        self.planes.len() + self.spheres.len() + self.triangles.len()
+    }
+}
