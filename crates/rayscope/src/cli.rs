@@ -107,13 +107,13 @@ pub struct RenderArgs {
 #[derive(Debug, Clone, Args)]
 pub struct RenderOpts {
     /// Image width in pixels.
-    #[arg(short = 'w', long = "width", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(short = 'w', long = "width", default_value_t = 400, allow_hyphen_values = true, value_parser = parse_size)]
     pub width: u32,
     /// Image height in pixels.
-    #[arg(short = 'h', long = "height", default_value_t = 400, value_parser = clap::value_parser!(u32).range(1..))]
+    #[arg(short = 'h', long = "height", default_value_t = 400, allow_hyphen_values = true, value_parser = parse_size)]
     pub height: u32,
     /// Anti-aliasing: an N×N grid of samples per pixel.
-    #[arg(short = 'x', long = "aa-mult", default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=64), value_name = "N")]
+    #[arg(short = 'x', long = "aa-mult", default_value_t = 1, allow_hyphen_values = true, value_parser = parse_aa, value_name = "N")]
     pub aa: u32,
     /// Ambient (indirect) lighting, stage 3.
     #[arg(short = 'l', long = "ambient")]
@@ -128,10 +128,10 @@ pub struct RenderOpts {
     #[arg(short = 'n', long = "cam-angle", default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true, value_name = "DEG")]
     pub cam_angle: f32,
     /// Lens radius for depth of field (0: pinhole).
-    #[arg(short = 'r', long = "aperture-radius", default_value_t = 0.0, value_parser = parse_non_negative, value_name = "R")]
+    #[arg(short = 'r', long = "aperture-radius", default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_non_negative, value_name = "R")]
     pub aperture: f32,
     /// Distance in focus.
-    #[arg(short = 't', long = "focal-length", default_value_t = 1.0, value_parser = parse_positive, value_name = "D")]
+    #[arg(short = 't', long = "focal-length", default_value_t = 1.0, allow_hyphen_values = true, value_parser = parse_positive, value_name = "D")]
     pub focal_length: f32,
     /// Quality: more samples for stochastic effects.
     #[arg(short = 'q', long = "quality", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=16), value_name = "Q")]
@@ -323,6 +323,22 @@ pub struct ViewArgs {
     pub view_height: u32,
     #[command(flatten)]
     pub opts: RenderOpts,
+}
+
+fn parse_whole(s: &str, lo: u32, hi: u32, what: &str) -> Result<u32, String> {
+    match s.trim().parse::<i64>() {
+        Ok(v) if v >= i64::from(lo) && v <= i64::from(hi) => Ok(v as u32),
+        Ok(v) => Err(format!("{what} must be from {lo} to {hi}, found {v}")),
+        Err(_) => Err(format!("expected a whole number, found '{s}'")),
+    }
+}
+
+fn parse_size(s: &str) -> Result<u32, String> {
+    parse_whole(s, 1, 1 << 20, "an image side")
+}
+
+fn parse_aa(s: &str) -> Result<u32, String> {
+    parse_whole(s, 1, 64, "the anti-aliasing multiplier")
 }
 
 fn parse_finite(s: &str) -> Result<f32, String> {

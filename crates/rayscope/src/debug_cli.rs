@@ -1,16 +1,111 @@
 //! `rayscope debug` and `rayscope view`: thin wrappers over the rayscope_debug library.
 
 use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
 
-use super::Failure;
+use rayscope_core::output::Format;
+use rayscope_debug::view::{auto_view, render_view, ImageMode, RayMode, RgbImage, ViewCamera, ViewOptions};
+
+use super::{load_scene, settings, setup_threads, Failure};
 use crate::cli::{DebugArgs, ViewArgs};
 
-/// `rayscope debug`.
-pub fn debug(_a: &DebugArgs) -> Result<ExitCode, Failure> {
-    Err(Failure::failed("the debugger is not built yet (issue 3)"))
+/// `rayscope debug`: serve the visual debugger on a local port.
+pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
+    setup_threads(&a.opts);
+    let settings = settings(&a.opts)?;
+    rayscope_debug::server::check_settings(&settings).map_err(Failure::input)?;
+    let (file, scene) = load_scene(&a.scene, a.opts.quiet)?;
+    let cfg = rayscope_debug::ServeConfig {
+        scene_path: a.scene.clone(),
+        scene_file: file,
+        scene,
+        settings,
+        host: a.host.clone(),
+        port: a.port,
+    };
+    rayscope_debug::serve(cfg, a.open).map_err(|e| match e {
+        rayscope_debug::DebugError::Settings(m) => Failure::input(m),
+        other => Failure::failed(other.to_string()),
+    })?;
+    Ok(ExitCode::SUCCESS)
 }
 
-/// `rayscope view`.
-pub fn view(_a: &ViewArgs) -> Result<ExitCode, Failure> {
-    Err(Failure::failed("the scene view is not built yet (issue 3)"))
+/// `rayscope view`: write the debugger's scene view to a PNG, headless.
+pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
+    setup_threads(&a.opts);
+    let settings = settings(&a.opts)?;
+    let rays: RayMode = a.rays.parse().map_err(|e| Failure::input(format!("--rays: {e}")))?;
+    let image_mode: ImageMode = a.image.parse().map_err(|e| Failure::input(format!("--image: {e}")))?;
+    match rays {
+        RayMode::Pixel(x, y) if x >= settings.width || y >= settings.height => {
+            return Err(Failure::input(format!(
+                "--rays pixel:{x},{y} is outside the {}×{} image (pixels are 0-based from the top-left)",
+                settings.width, settings.height
+            )))
+        }
+        RayMode::Row(y) if y >= settings.height => {
+            return Err(Failure::input(format!(
+                "--rays row:{y} is outside the {}×{} image (rows are 0-based from the top)",
+                settings.width, settings.height
+            )))
+        }
+        _ => {}
+    }
+    match rayscope_core::output::check_writable(&a.output) {
+        Ok(Format::Png) => {}
+        Ok(_) => return Err(Failure::input("the scene view is written as PNG: use a .png output")),
+        Err(e) => return Err(Failure::input(e.to_string())),
+    }
+    let (_, scene) = load_scene(&a.file, a.opts.quiet)?;
+    let aspect = a.view_width as f32 / a.view_height as f32;
+    let auto = auto_view(&scene, &settings, aspect);
+    let camera = ViewCamera {
+        eye: a.eye.unwrap_or(auto.eye),
+        target: a.target.unwrap_or(auto.target),
+        fov_deg: auto.fov_deg,
+    };
+    if (camera.eye - camera.target).length() < 1e-4 {
+        return Err(Failure::input("--eye and --target must differ"));
+    }
+    let image = if image_mode == ImageMode::Traced {
+        let never = AtomicBool::new(false);
+        let out = rayscope_core::render(&scene, &settings, &|_, _| {}, &never)
+            .map_err(|_| Failure::failed("render cancelled"))?;
+        Some(RgbImage {
+            width: out.film.width,
+            height: out.film.height,
+            rgb: out.film.to_rgb8(),
+        })
+    } else {
+        None
+    };
+    let mut opts = ViewOptions::new(a.view_width, a.view_height, camera);
+    opts.rays = rays;
+    opts.image = image_mode;
+    if let RayMode::Pixel(x, y) = rays {
+        opts.pixel = Some((x, y));
+    }
+    let frame = render_view(&scene, &settings, image.as_ref(), &opts);
+    let png = rayscope_debug::encode::png(&frame.image);
+    write_atomic(&a.output, &png).map_err(|e| Failure::failed(format!("cannot write {}: {e}", a.output.display())))?;
+    if !a.opts.quiet {
+        eprintln!(
+            "wrote {} ({}×{}, {:.1} ms, {} rays)",
+            a.output.display(),
+            frame.image.width,
+            frame.image.height,
+            frame.info.millis,
+            frame.info.rays_drawn
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Writes through a temporary file beside `path`, so a failure leaves no partial output.
+fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
+    let tmp = rayscope_core::output::temp_path(path);
+    std::fs::write(&tmp, bytes)?;
+    std::fs::rename(&tmp, path).inspect_err(|_| {
+        let _ = std::fs::remove_file(&tmp);
+    })
 }

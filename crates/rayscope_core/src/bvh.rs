@@ -177,7 +177,7 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)]) -> Built {
     let ext = extent[axis];
     if ext.is_nan() || ext <= 0.0 {
         // All centroids coincide: split in the middle of the list, or stop if small enough.
-        if items.len() <= u16::MAX as usize && items.len() <= 16 {
+        if items.len() <= MAX_LEAF {
             return leaf_node(items, bounds);
         }
         let mid = items.len() / 2;

@@ -1,13 +1,47 @@
 //! Integrators: stage 1 (flat colour), stage 2 (Whitted: point lights, mirrors, Fresnel glass)
-//! and the full renderer, all generic over a [`RayObserver`].
+//! and the full renderer (stage 2 plus every stage-3 add-on), all generic over a [`RayObserver`].
+//!
+//! # The full renderer's rules
+//!
+//! * **Whitted core.** Without stage-3 content or flags the full renderer is exactly stage 2:
+//!   point lights use the course's Σ max(0, N·L)·Cm·Cl (no attenuation), mirrors and Fresnel
+//!   glass recurse up to `max_depth`, glass splits into a reflected and a refracted ray.
+//! * **Emissive (A).** Spheres and triangles with an Emissive material are two-sided area lights
+//!   whose colour is their radiance; they show that colour and are not shaded by other lights.
+//!   At every Diffuse or Glossy hit one emitter point is sampled (emitter chosen by power, a
+//!   sphere by the cone it subtends, a triangle by area) and one direction is drawn from the
+//!   BRDF; the two are combined by multiple importance sampling with the power heuristic, so
+//!   shadows are soft and the result converges to the direct light any correct path tracer
+//!   computes (Diffuse BRDF = colour / π).
+//! * **Ambient (B, `-l`).** `-l` turns on indirect illumination: full path tracing, cosine /
+//!   BRDF-sampled bounces with Russian roulette after three bounces, emitters found by both
+//!   strategies (MIS) at every vertex, and point lights next-event-estimated at every vertex
+//!   with the course's formula (a point light delivers irradiance π·Cl·max(0, N·L), which is
+//!   the course's term for a Lambertian surface). Ambient light is therefore light that has
+//!   bounced off other surfaces: the background stays black (there is no sky), crevices
+//!   darken because fewer paths reach them, and colours bleed. In a point-light-only scene,
+//!   `-l` adds the indirect light of the point-lit surfaces.
+//! * **Glossy (D).** See [`crate::bsdf`]: Lambert base under a GGX dielectric coat; the number
+//!   is a glossiness, α = (1 / (1 + n))². Without `-l` the coat's reflection is traced
+//!   recursively (blurred reflections of the scene, up to `max_depth`) while the base gets
+//!   direct light only; point lights are evaluated with the whole BRDF, π·f·Cl·max(0, N·L).
+//! * **Beer (F).** A ray travelling inside a Refractive object whose colour σ is non-zero is
+//!   attenuated by exp(−σ·d) per channel over the distance d it travels inside.
+//! * **Quality (`-q`).** Each of the `-x N` grid positions gets 2^q paths when a stochastic
+//!   effect is on (emissive or glossy surfaces, `-l`, or an aperture), else one; sample `s`
+//!   of a pixel is grid cell `s mod N²` and path `s div N²`, with its own random stream.
 
-use glam::{Vec2, Vec3A};
+use glam::Vec3A;
 
+use crate::bsdf::Bsdf;
 use crate::camera::Camera;
-use crate::math::{offset_eps, reflect, Ray};
+use crate::lights::Emitters;
+use crate::math::{basis, offset_eps, reflect, Ray};
 use crate::observer::{RayKind, RayObserver};
 use crate::rng::Rng;
-use crate::scene::{Intersect, PrimRef, Scene, Surface};
+pub use crate::sampling::concentric_disk;
+use crate::sampling::{power_heuristic, to_local, to_world};
+use crate::scene::{Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, RenderSettings, Stage};
 use rayscope_scene::MaterialKind;
 
@@ -38,7 +72,7 @@ impl Counters {
 }
 
 /// The per-render state every sample needs.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone)]
 pub struct Integrator<'a, I: Intersect = Scene> {
     /// The scene.
     pub scene: &'a Scene,
@@ -48,6 +82,54 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub settings: &'a RenderSettings,
     /// Camera built from the settings.
     pub camera: Camera,
+    /// The scene's area lights.
+    pub emitters: Emitters,
+    /// True when a stochastic effect is on, so `-q` multiplies the samples.
+    pub stochastic: bool,
+}
+
+/// Most non-specular bounces of a path under `-l` (Russian roulette ends nearly all before).
+const MAX_BOUNCES: u32 = 64;
+/// Bounces before Russian roulette starts.
+const RR_START: u32 = 3;
+
+/// State carried down a path.
+#[derive(Debug, Clone, Copy)]
+struct PathState {
+    /// Mirror, glass and glossy-coat bounces so far (limited by `max_depth`).
+    depth: u32,
+    /// Non-specular (sampled) bounces so far.
+    bounces: u32,
+    /// Largest channel of the path throughput, for Russian roulette.
+    beta: f32,
+    /// Material whose absorbance applies to the ray (Beer's law), if it travels inside one.
+    medium: Option<u32>,
+    /// Split glass into both rays (Whitted) rather than choosing one by its Fresnel weight.
+    branch: bool,
+}
+
+/// Radiance arriving along a ray, split so the caller can weight emission by MIS.
+#[derive(Debug, Clone, Copy, Default)]
+struct Li {
+    /// Radiance emitted by the surface the ray hit.
+    emitted: Vec3A,
+    /// Everything else (light reflected or transmitted by that surface).
+    reflected: Vec3A,
+    /// Density with which emitter sampling from the ray's origin would pick the hit point.
+    light_pdf: f32,
+}
+
+impl Li {
+    fn total(&self) -> Vec3A {
+        self.emitted + self.reflected
+    }
+
+    fn reflected(v: Vec3A) -> Li {
+        Li {
+            reflected: v,
+            ..Li::default()
+        }
+    }
 }
 
 /// Exact unpolarised Fresnel reflectance for a ray meeting an interface with `cos_i` = cos of
@@ -84,12 +166,7 @@ impl<'a> Integrator<'a, Scene> {
     /// An integrator for `scene` with `settings`, tracing with the scene's BVH.
     #[must_use]
     pub fn new(scene: &'a Scene, settings: &'a RenderSettings) -> Self {
-        Self {
-            scene,
-            isect: scene,
-            settings,
-            camera: Camera::new(settings.camera, settings.width, settings.height),
-        }
+        Self::with_intersector(scene, scene, settings)
     }
 }
 
@@ -97,26 +174,47 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// An integrator for `scene` with `settings`, tracing with `isect`.
     #[must_use]
     pub fn with_intersector(scene: &'a Scene, isect: &'a I, settings: &'a RenderSettings) -> Self {
+        let full = settings.stage == Stage::Full;
+        let emitters = if full { Emitters::from_scene(scene) } else { Emitters::default() };
+        let glossy = scene
+            .entities
+            .iter()
+            .any(|e| scene.materials[e.material as usize].kind == MaterialKind::Glossy);
+        let stochastic = full
+            && (settings.ambient || settings.camera.aperture_radius > 0.0 || emitters.any_emission || glossy);
         Self {
             scene,
             isect,
             settings,
             camera: Camera::new(settings.camera, settings.width, settings.height),
+            emitters,
+            stochastic,
         }
     }
 
-    /// Samples per pixel the settings ask for.
+    /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
+    #[must_use]
+    pub fn paths_per_cell(&self) -> u32 {
+        if self.stochastic && self.settings.channel == Channel::Color {
+            1 << self.settings.quality.min(16)
+        } else {
+            1
+        }
+    }
+
+    /// Samples per pixel the settings ask for: N² grid positions × [`Self::paths_per_cell`].
     #[must_use]
     pub fn samples_per_pixel(&self) -> u32 {
         match self.settings.stage {
             Stage::One => 1,
             _ if self.settings.channel != Channel::Color => 1,
-            _ => self.settings.aa * self.settings.aa,
+            _ => (self.settings.aa * self.settings.aa).saturating_mul(self.paths_per_cell()),
         }
     }
 
-    /// Normalised image position of sample `s` of pixel (`x`, `y`): the N×N regular grid for
-    /// `-x N`, the pixel centre for stage 1 and debug channels.
+    /// Normalised image position of sample `s` of pixel (`x`, `y`): cell `s mod N²` of the N×N
+    /// regular grid for `-x N` (sample (i, j) at ((x + (i + 0.5)/N)/W, (y + (j + 0.5)/N)/H)),
+    /// the pixel centre for stage 1 and debug channels.
     #[must_use]
     #[inline]
     pub fn sample_position(&self, x: u32, y: u32, s: u32) -> (f32, f32) {
@@ -125,7 +223,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         } else {
             self.settings.aa
         };
-        let (i, j) = (s % n, s / n);
+        let cell = s % (n * n);
+        let (i, j) = (cell % n, cell / n);
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;
         (
@@ -158,9 +257,22 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             return self.channel(&ray, obs);
         }
         let id = obs.ray(None, RayKind::Camera, 0, &ray, f32::INFINITY);
-        let v = self.trace(&ray, 0, id, &mut rng, obs, c);
+        let v = self.radiance(&ray, id, &mut rng, obs, c);
         obs.result(id, 1.0, v);
         v
+    }
+
+    /// Radiance along `ray` (a camera ray, reported to `obs` as `id`) with a fresh path state.
+    #[inline]
+    pub fn radiance<O: RayObserver>(&self, ray: &Ray, id: u32, rng: &mut Rng, obs: &mut O, c: &mut Counters) -> Vec3A {
+        let path = PathState {
+            depth: 0,
+            bounces: 0,
+            beta: 1.0,
+            medium: None,
+            branch: true,
+        };
+        self.trace(ray, path, true, id, rng, obs, c).total()
     }
 
     fn channel<O: RayObserver>(&self, ray: &Ray, obs: &mut O) -> Vec3A {
@@ -186,84 +298,281 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
-    /// Radiance along `ray`, which has already been reported to `obs` as `id`.
+    /// Radiance along `ray`, which has already been reported to `obs` as `id`. With
+    /// `want_reflected` false only the hit surface's own emission is computed.
+    #[allow(clippy::too_many_arguments)]
     fn trace<O: RayObserver>(
         &self,
         ray: &Ray,
-        depth: u32,
+        path: PathState,
+        want_reflected: bool,
         id: u32,
         rng: &mut Rng,
         obs: &mut O,
         c: &mut Counters,
-    ) -> Vec3A {
+    ) -> Li {
         let Some(hit) = self.isect.intersect(ray, 0.0, f32::INFINITY) else {
-            return Vec3A::ZERO;
+            return Li::default();
         };
         let s = self.scene.surface(ray, &hit);
         if O::ENABLED {
             obs.hit(id, self.scene, hit.t, &s);
         }
-        let m = self.scene.materials[s.material as usize];
+        let m = &self.scene.materials[s.material as usize];
         let stage = self.settings.stage;
         if stage == Stage::One {
-            return m.color.into();
+            return Li::reflected(m.color.into());
         }
-        let color = match m.kind {
-            MaterialKind::Diffuse | MaterialKind::Glossy => {
-                self.direct_point_lights(&s, ray, Vec3A::from(m.color), id, obs, c)
-            }
-            MaterialKind::Emissive => {
-                if stage == Stage::Two {
-                    self.direct_point_lights(&s, ray, Vec3A::from(m.color), id, obs, c)
+        let full = stage == Stage::Full;
+        let mut out = match m.kind {
+            MaterialKind::Emissive if full => Li {
+                emitted: m.color.into(),
+                reflected: Vec3A::ZERO,
+                light_pdf: if self.emitters.is_empty() {
+                    0.0
                 } else {
-                    m.color.into()
-                }
+                    self.emitters.pdf(self.scene, ray.origin, hit.prim, s.point)
+                },
+            },
+            _ if !want_reflected => return Li::default(),
+            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, &s, m, path, id, rng, obs, c),
+            MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
+                Li::reflected(self.direct_point_lights(&s, ray, None, Vec3A::from(m.color), id, obs, c))
             }
             MaterialKind::Reflective => {
-                if depth >= self.settings.max_depth {
-                    return Vec3A::ZERO;
+                if path.depth >= self.settings.max_depth {
+                    return Li::default();
                 }
                 let eps = offset_eps(s.point, ray.origin);
                 let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-                self.secondary(&r, depth + 1, id, RayKind::Reflection, 1.0, rng, obs, c)
+                let child = PathState {
+                    depth: path.depth + 1,
+                    ..path
+                };
+                Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, rng, obs, c))
             }
             MaterialKind::Refractive => {
-                if depth >= self.settings.max_depth {
-                    return Vec3A::ZERO;
+                if path.depth >= self.settings.max_depth {
+                    return Li::default();
                 }
-                let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
-                let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
-                let kr = fresnel(cos_i, n1, n2);
-                let eps = offset_eps(s.point, ray.origin);
-                let mut out = Vec3A::ZERO;
-                if kr > 0.0 {
-                    let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-                    out += self.secondary(&r, depth + 1, id, RayKind::Reflection, kr, rng, obs, c) * kr;
-                }
-                if kr < 1.0 {
-                    if let Some(t) = refract(ray.dir, s.normal, n1 / n2) {
-                        let r = Ray::new(s.point - s.normal * eps, t);
-                        out +=
-                            self.secondary(&r, depth + 1, id, RayKind::Refraction, 1.0 - kr, rng, obs, c) * (1.0 - kr);
-                    }
-                }
-                out
+                Li::reflected(self.refractive(ray, &s, m, path, id, rng, obs, c))
             }
         };
-        // Beer's law: a ray that hit the inside of a Refractive surface travelled `t` through it.
-        if stage == Stage::Full && !s.front_face {
-            if let Some(absorb) = self.medium_absorbance(hit.prim) {
-                return color * (-absorb * hit.t).exp();
+        // Beer's law over the segment the ray travelled inside an absorbing medium.
+        if let Some(mi) = path.medium {
+            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
+            let att = (-sigma * hit.t).exp();
+            out.emitted *= att;
+            out.reflected *= att;
+        }
+        out
+    }
+
+    /// Fresnel glass: both rays while the path is still deterministic, one chosen by its
+    /// Fresnel weight after a sampled bounce.
+    #[allow(clippy::too_many_arguments)]
+    fn refractive<O: RayObserver>(
+        &self,
+        ray: &Ray,
+        s: &Surface,
+        m: &Material,
+        path: PathState,
+        id: u32,
+        rng: &mut Rng,
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Vec3A {
+        let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
+        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
+        let kr = fresnel(cos_i, n1, n2);
+        let eps = offset_eps(s.point, ray.origin);
+        let full = self.settings.stage == Stage::Full;
+        let absorbing = full && m.color != glam::Vec3::ZERO;
+        let this = absorbing.then_some(s.material);
+        // Reflected rays stay on the incoming side; refracted rays cross into the other medium
+        // (the outside of every object is air).
+        let refl_medium = if s.front_face { path.medium } else { this };
+        let refr_medium = if s.front_face { this } else { None };
+        let depth = path.depth + 1;
+        let refl = |rng: &mut Rng, obs: &mut O, c: &mut Counters, w: f32| {
+            let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
+            let p = PathState {
+                depth,
+                medium: refl_medium,
+                ..path
+            };
+            self.secondary(&r, p, id, RayKind::Reflection, w, rng, obs, c)
+        };
+        let refr = |t: Vec3A, rng: &mut Rng, obs: &mut O, c: &mut Counters, w: f32| {
+            let r = Ray::new(s.point - s.normal * eps, t);
+            let p = PathState {
+                depth,
+                medium: refr_medium,
+                ..path
+            };
+            self.secondary(&r, p, id, RayKind::Refraction, w, rng, obs, c)
+        };
+        let t = if kr < 1.0 { refract(ray.dir, s.normal, n1 / n2) } else { None };
+        if path.branch || !full {
+            let mut out = Vec3A::ZERO;
+            if kr > 0.0 {
+                out += refl(rng, obs, c, kr) * kr;
+            }
+            if let Some(t) = t {
+                out += refr(t, rng, obs, c, 1.0 - kr) * (1.0 - kr);
+            }
+            out
+        } else {
+            match t {
+                Some(t) if rng.next_f32() >= kr => refr(t, rng, obs, c, 1.0),
+                _ => refl(rng, obs, c, 1.0),
             }
         }
-        color
+    }
+
+    /// A Diffuse or Glossy hit in the full renderer: point lights, one emitter sample and one
+    /// BRDF sample (MIS), and the bounce's indirect light where the rules carry it.
+    #[allow(clippy::too_many_arguments)]
+    fn shade<O: RayObserver>(
+        &self,
+        ray: &Ray,
+        s: &Surface,
+        m: &Material,
+        path: PathState,
+        id: u32,
+        rng: &mut Rng,
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Li {
+        let ambient = self.settings.ambient;
+        let coat_only = !ambient && !self.emitters.any_emission;
+        let Some(bsdf) = Bsdf::of(m, coat_only) else {
+            return Li::default();
+        };
+        let n = s.shading_normal;
+        let (t, b) = basis(n);
+        let mut wo = to_local(-ray.dir, t, b, n);
+        if wo.z < 1e-4 {
+            // Interpolated normals can face away from the viewer near silhouettes.
+            wo = Vec3A::new(wo.x, wo.y, 1e-4).normalize();
+        }
+        let frame = (t, b, n, wo);
+        let lambert = matches!(bsdf, Bsdf::Lambert { .. });
+        let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
+        let mut l = self.direct_point_lights(
+            s,
+            ray,
+            (!lambert).then_some((&bsdf, frame)),
+            Vec3A::from(m.color),
+            id,
+            obs,
+            c,
+        );
+        // Beer's law for rays that stay inside the medium the hit lies in.
+        let sigma = path
+            .medium
+            .map(|mi| Vec3A::from(self.scene.materials[mi as usize].color));
+
+        // Emitter sampling, weighted against BRDF sampling.
+        if !self.emitters.is_empty() {
+            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            if let Some(ls) = self.emitters.sample(self.scene, origin, u0, u1, u2) {
+                let wi = to_local(ls.dir, t, b, n);
+                let (f, _) = bsdf.eval(wo, wi);
+                if wi.z > 0.0 && ls.dir.dot(s.normal) > 0.0 && f != Vec3A::ZERO {
+                    let shadow = Ray::new(origin, ls.dir);
+                    let t_max = ls.dist * (1.0 - 1e-4);
+                    c.shadow += 1;
+                    let sid = obs.ray(Some(id), RayKind::Emitter, path.depth, &shadow, t_max);
+                    let blocked = if O::ENABLED {
+                        let blocker = self.isect.occluder(&shadow, 0.0, t_max).map(|p| self.scene.prim_info(p).0);
+                        let e = &self.emitters.list[ls.emitter as usize];
+                        obs.shadow(sid, self.scene, &self.scene.entities[e.entity as usize].name, blocker);
+                        blocker.is_some()
+                    } else {
+                        self.isect.occluded(&shadow, 0.0, t_max)
+                    };
+                    let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+                    let mut contrib = if blocked {
+                        Vec3A::ZERO
+                    } else {
+                        f * ls.radiance * (wi.z * w / ls.pdf)
+                    };
+                    if let Some(sigma) = sigma {
+                        contrib *= (-sigma * ls.dist).exp();
+                    }
+                    obs.result(sid, w, contrib);
+                    l += contrib;
+                }
+            }
+        }
+
+        // BRDF sampling: emitters it finds (MIS) and, where carried, indirect light.
+        let coated = !lambert;
+        if !(self.emitters.any_emission || ambient || coated) {
+            return Li::reflected(l);
+        }
+        let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let Some(bs) = bsdf.sample(wo, u0, u1, u2) else {
+            return Li::reflected(l);
+        };
+        let wi_w = to_world(bs.wi, t, b, n).normalize();
+        if wi_w.dot(s.normal) <= 0.0 {
+            return Li::reflected(l);
+        }
+        let w_total = bs.f * (bs.wi.z / bs.pdf);
+        let mut carry = if ambient {
+            w_total
+        } else {
+            bs.f_coat * (bs.wi.z / bs.pdf)
+        };
+        let mut child = PathState {
+            depth: path.depth,
+            bounces: path.bounces + 1,
+            beta: path.beta * carry.max_element(),
+            medium: path.medium,
+            branch: false,
+        };
+        let mut want = carry.max_element() > 0.0;
+        if ambient {
+            want &= path.bounces < MAX_BOUNCES;
+            if want && path.bounces >= RR_START {
+                let p = child.beta.min(0.95);
+                if rng.next_f32() < p {
+                    carry /= p;
+                    child.beta /= p;
+                } else {
+                    want = false;
+                }
+            }
+        } else {
+            // Without -l only the coat's reflection recurses, like a blurred mirror.
+            want &= path.depth < self.settings.max_depth;
+            child.depth += 1;
+        }
+        if !want && self.emitters.is_empty() && !self.emitters.any_emission {
+            return Li::reflected(l);
+        }
+        let r = Ray::new(origin, wi_w);
+        c.secondary += 1;
+        let cid = obs.ray(Some(id), RayKind::Bounce, child.depth, &r, f32::INFINITY);
+        let li = self.trace(&r, child, want, cid, rng, obs, c);
+        let mis = if li.light_pdf > 0.0 {
+            power_heuristic(bs.pdf, li.light_pdf)
+        } else {
+            1.0
+        };
+        let contrib = w_total * li.emitted * mis + carry * li.reflected;
+        obs.result(cid, mis, contrib);
+        l += contrib;
+        Li::reflected(l)
     }
 
     #[allow(clippy::too_many_arguments)]
     fn secondary<O: RayObserver>(
         &self,
         r: &Ray,
-        depth: u32,
+        path: PathState,
         parent: u32,
         kind: RayKind,
         weight: f32,
@@ -272,23 +581,20 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         c: &mut Counters,
     ) -> Vec3A {
         c.secondary += 1;
-        let id = obs.ray(Some(parent), kind, depth, r, f32::INFINITY);
-        let v = self.trace(r, depth, id, rng, obs, c);
+        let id = obs.ray(Some(parent), kind, path.depth, r, f32::INFINITY);
+        let v = self.trace(r, path, true, id, rng, obs, c).total();
         obs.result(id, weight, v);
         v
     }
 
-    fn medium_absorbance(&self, prim: PrimRef) -> Option<Vec3A> {
-        let (_, mat) = self.scene.prim_info(prim);
-        let m = &self.scene.materials[mat as usize];
-        (m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO).then(|| m.color.into())
-    }
-
-    /// The course's diffuse term: Σ max(0, N·L) · albedo · light colour over visible point lights.
+    /// Point lights: the course's Σ max(0, N·L) · albedo · light colour over visible lights, or
+    /// with a BRDF, Σ π · f · light colour · max(0, N·L).
+    #[allow(clippy::too_many_arguments)]
     fn direct_point_lights<O: RayObserver>(
         &self,
         s: &Surface,
         ray: &Ray,
+        brdf: Option<(&Bsdf, (Vec3A, Vec3A, Vec3A, Vec3A))>,
         albedo: Vec3A,
         parent: u32,
         obs: &mut O,
@@ -321,7 +627,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 obs.shadow(id, self.scene, &self.scene.light_names[li], blocker);
             }
             let contrib = if blocker.is_none() && cos > 0.0 {
-                albedo * Vec3A::from(light.color) * cos
+                match brdf {
+                    None => albedo * Vec3A::from(light.color) * cos,
+                    Some((bsdf, (t, b, n, wo))) => {
+                        let (f, _) = bsdf.eval(wo, to_local(l, t, b, n));
+                        f * Vec3A::from(light.color) * (std::f32::consts::PI * cos)
+                    }
+                }
             } else {
                 Vec3A::ZERO
             };
@@ -330,23 +642,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
         sum
     }
-}
-
-/// Uniform point on the unit disk from two uniform numbers (Shirley–Chiu concentric mapping).
-#[must_use]
-#[inline]
-pub fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
-    let a = 2.0 * u1 - 1.0;
-    let b = 2.0 * u2 - 1.0;
-    if a == 0.0 && b == 0.0 {
-        return Vec2::ZERO;
-    }
-    let (r, phi) = if a.abs() > b.abs() {
-        (a, std::f32::consts::FRAC_PI_4 * (b / a))
-    } else {
-        (b, std::f32::consts::FRAC_PI_2 - std::f32::consts::FRAC_PI_4 * (a / b))
-    };
-    Vec2::new(r * phi.cos(), r * phi.sin())
 }
 
 /// A distinct, stable colour for entity `i`.

@@ -3,20 +3,24 @@
 //! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
 //! [`render`] turns into a [`Film`] under [`RenderSettings`].
 
+pub mod bsdf;
 pub mod bvh;
 pub mod camera;
 pub mod compare;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
+pub mod lights;
 pub mod math;
 pub mod observer;
 pub mod output;
 pub mod reference;
 pub mod render;
 pub mod rng;
+pub mod sampling;
 pub mod scene;
 pub mod settings;
+pub mod wide;
 
 pub use camera::{Camera, CameraSettings, FovAxis};
 pub use film::Film;

@@ -6,6 +6,7 @@ use rayscope_scene::{MaterialKind, SceneFile, Shape};
 use serde::Serialize;
 
 use crate::bvh::{BuildPrim, Bvh};
+use crate::wide::Bvh4;
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 
@@ -126,8 +127,10 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     /// Shading data of each triangle.
     pub triangle_info: Vec<TriangleInfo>,
-    /// Acceleration structure over spheres and triangles.
+    /// Binary SAH BVH over spheres and triangles (the build; traversal uses `wide`).
     pub bvh: Bvh,
+    /// The 4-wide BVH traversed by every query.
+    pub wide: Bvh4,
     /// Bounds of all finite geometry.
     pub bounds: Aabb,
 }
@@ -261,51 +264,38 @@ impl Scene {
         }));
         self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
         self.bvh = Bvh::build(prims);
+        self.wide = Bvh4::from_binary(&self.bvh, &self.triangles, &self.spheres, SPHERE_BIT);
     }
 
     /// The closest hit with `t_min < t < t_max`, using the BVH and the planes.
     #[must_use]
     #[inline]
     pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        self.intersect_counting::<false>(ray, t_min, t_max, &mut 0)
+    }
+
+    #[inline]
+    fn intersect_counting<const COUNT: bool>(&self, ray: &Ray, t_min: f32, t_max: f32, visits: &mut u32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_max = t_max;
         for (i, p) in self.planes.iter().enumerate() {
             if let Some(h) = p.intersect(ray, t_min, t_max) {
                 t_max = h.t;
-                best = Some(Hit {
-                    t: h.t,
-                    u: 0.0,
-                    v: 0.0,
-                    prim: PrimRef::Plane(i as u32),
-                });
+                best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Plane(i as u32) });
             }
         }
-        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
-            for &id in prims {
-                if id & SPHERE_BIT != 0 {
-                    let i = id & !SPHERE_BIT;
-                    if let Some(h) = self.spheres[i as usize].intersect(ray, t_min, t_max) {
-                        t_max = h.t;
-                        best = Some(Hit {
-                            t: h.t,
-                            u: 0.0,
-                            v: 0.0,
-                            prim: PrimRef::Sphere(i),
-                        });
-                    }
-                } else if let Some(h) = self.triangles[id as usize].intersect(ray, t_min, t_max) {
-                    t_max = h.t;
-                    best = Some(Hit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: PrimRef::Triangle(id),
-                    });
-                }
-            }
-            t_max
-        });
-        best
+        if COUNT {
+            *visits += self.planes.len() as u32;
+        }
+        match self.wide.closest::<COUNT>(ray, t_min, t_max, visits) {
+            Some(h) => Some(Hit {
+                t: h.t,
+                u: h.u,
+                v: h.v,
+                prim: if h.sphere { PrimRef::Sphere(h.id) } else { PrimRef::Triangle(h.id) },
+            }),
+            None => best,
+        }
     }
 
     /// True when anything lies on the ray with `t_min < t < t_max` (shadow rays).
@@ -324,64 +314,48 @@ impl Scene {
                 return Some(PrimRef::Plane(i as u32));
             }
         }
-        let mut found = None;
-        self.bvh.traverse(ray, t_min, t_max, |prims, t_max| {
+        self.wide
+            .any(ray, t_min, t_max)
+            .map(|(id, sphere)| if sphere { PrimRef::Sphere(id) } else { PrimRef::Triangle(id) })
+    }
+
+    /// Closest hit by the binary BVH and scalar routines: slower, kept as a cross-check of the
+    /// wide traversal in tests.
+    #[must_use]
+    pub fn intersect_binary(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        let mut t_max = t_max;
+        for (i, p) in self.planes.iter().enumerate() {
+            if let Some(h) = p.intersect(ray, t_min, t_max) {
+                t_max = h.t;
+                best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Plane(i as u32) });
+            }
+        }
+        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
             for &id in prims {
-                let hit = if id & SPHERE_BIT != 0 {
-                    self.spheres[(id & !SPHERE_BIT) as usize]
-                        .intersect(ray, t_min, t_max)
-                        .map(|_| PrimRef::Sphere(id & !SPHERE_BIT))
-                } else {
-                    self.triangles[id as usize]
-                        .intersect(ray, t_min, t_max)
-                        .map(|_| PrimRef::Triangle(id))
-                };
-                if hit.is_some() {
-                    found = hit;
-                    return -1.0;
+                if id & SPHERE_BIT != 0 {
+                    let i = id & !SPHERE_BIT;
+                    if let Some(h) = self.spheres[i as usize].intersect(ray, t_min, t_max) {
+                        t_max = h.t;
+                        best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Sphere(i) });
+                    }
+                } else if let Some(h) = self.triangles[id as usize].intersect(ray, t_min, t_max) {
+                    t_max = h.t;
+                    best = Some(Hit { t: h.t, u: h.u, v: h.v, prim: PrimRef::Triangle(id) });
                 }
             }
             t_max
         });
-        found
+        best
     }
 
-    /// Bounding-box tests plus primitive tests the closest-hit query of `ray` makes (the "cost"
-    /// debug channel).
+    /// Node and packet tests (planes count one each) the closest-hit query of `ray` makes: the
+    /// "cost" debug channel.
     #[must_use]
     pub fn traversal_cost(&self, ray: &Ray) -> u32 {
         let mut visits = 0;
-        let mut tests = self.planes.len() as u32;
-        // Planes are tested first, so their nearest hit prunes the BVH search as in `intersect`.
-        let t_planes = self
-            .planes
-            .iter()
-            .filter_map(|p| p.intersect(ray, 0.0, f32::INFINITY))
-            .map(|h| h.t)
-            .fold(f32::INFINITY, f32::min);
-        self.bvh.traverse_counting::<true>(
-            ray,
-            0.0,
-            t_planes,
-            |prims, mut t_max| {
-                for &id in prims {
-                    tests += 1;
-                    let h = if id & SPHERE_BIT != 0 {
-                        self.spheres[(id & !SPHERE_BIT) as usize]
-                            .intersect(ray, 0.0, t_max)
-                            .map(|h| h.t)
-                    } else {
-                        self.triangles[id as usize].intersect(ray, 0.0, t_max).map(|h| h.t)
-                    };
-                    if let Some(t) = h {
-                        t_max = t;
-                    }
-                }
-                t_max
-            },
-            &mut visits,
-        );
-        visits + tests
+        let _ = self.intersect_counting::<true>(ray, 0.0, f32::INFINITY, &mut visits);
+        visits
     }
 
     /// (entity, material) of a primitive.

@@ -1,1 +1,16 @@
-//! placeholder
+//! rayscope's visual ray debugger.
+//!
+//! - [`view`]: the scene view, drawn on the CPU: the scene from an orbit camera with the ray
+//!   tracer's camera, frustum, image-plane pixel grid (carrying the rendered image), debug rays
+//!   and ray trees as depth-tested, anti-aliased lines. `rayscope view` and the browser share it.
+//! - [`server`]: the local web app behind `rayscope debug` (axum), with its UI embedded.
+//!
+//! Pixel coordinates are 0-based from the top-left everywhere.
+
+pub mod canvas;
+pub mod encode;
+pub mod server;
+pub mod view;
+
+pub use server::{serve, start, DebugError, RunningServer, ServeConfig};
+pub use view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame, ViewOptions};

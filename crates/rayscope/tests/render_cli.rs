@@ -1,0 +1,175 @@
+//! The render command as a user runs it: flags, exit codes, messages, and files left alone on failure.
+
+mod common;
+
+use std::fs;
+
+use common::{reference, render, rayscope};
+use predicates::prelude::*;
+
+#[test]
+fn renders_png_exr_and_ppm() {
+    let dir = tempfile::tempdir().unwrap();
+    for ext in ["png", "exr", "ppm"] {
+        let out = dir.path().join(format!("a.{ext}"));
+        rayscope()
+            .args(["-w", "32", "-h", "24", "-f"])
+            .arg(reference("tests/sample_scene_1.txt"))
+            .arg("-o")
+            .arg(&out)
+            .assert()
+            .success()
+            .stderr(predicate::str::contains("32×24"));
+        let img = image::open(&out).unwrap();
+        assert_eq!((img.width(), img.height()), (32, 24), "{ext}");
+    }
+    let names: Vec<_> = fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    assert_eq!(names.len(), 3, "no temporary files left: {names:?}");
+}
+
+#[test]
+fn output_is_identical_for_any_thread_count() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = reference("tests/sample_scene_2.txt");
+    let imgs: Vec<_> = ["1", "2", "3"]
+        .iter()
+        .map(|t| render(&scene, &dir.path().join(format!("t{t}.png")), &["-w", "120", "-h", "90", "-x", "2", "--threads", t]))
+        .collect();
+    assert_eq!(imgs[0], imgs[1]);
+    assert_eq!(imgs[0], imgs[2]);
+}
+
+#[test]
+fn non_square_image_uses_horizontal_fov() {
+    // 400×200: the centre pixel column looks along +z; the left edge spans 30° horizontally.
+    let out = rayscope()
+        .args(["trace", "--json", "-w", "400", "-h", "200", "--pixel", "0,0", "-f"])
+        .arg(reference("tests/sample_scene_1.txt"))
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
+    let d: Vec<f64> = v["nodes"][0]["direction"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let t = 30f64.to_radians().tan();
+    let (x, y) = ((0.5 / 400.0 * 2.0 - 1.0) * t, (1.0 - 0.5 / 200.0 * 2.0) * t * 0.5);
+    let len = (x * x + y * y + 1.0).sqrt();
+    let want = [x / len, y / len, 1.0 / len];
+    for i in 0..3 {
+        assert!((d[i] - want[i]).abs() < 1e-5, "direction {d:?}, expected {want:?}");
+    }
+    // And the render itself has the requested shape.
+    let dir = tempfile::tempdir().unwrap();
+    let img = render(&reference("tests/sample_scene_1.txt"), &dir.path().join("w.png"), &["-w", "400", "-h", "200"]);
+    assert_eq!(img.dimensions(), (400, 200));
+}
+
+#[test]
+fn vertical_fov_axis_widens_a_wide_image() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = reference("tests/sample_scene_1.txt");
+    let h = render(&scene, &dir.path().join("h.png"), &["-w", "200", "-h", "100", "--stage", "1"]);
+    let v = render(&scene, &dir.path().join("v.png"), &["-w", "200", "-h", "100", "--stage", "1", "--fov-axis", "vertical"]);
+    assert_ne!(h, v, "a vertical 60° FOV on a 2:1 image sees more than a horizontal one");
+}
+
+fn assert_usage_error(args: &[&str], message: &str) {
+    rayscope().args(args).assert().code(2).stderr(predicate::str::contains(message));
+}
+
+#[test]
+fn invalid_flags_exit_with_2_and_say_why() {
+    let scene = reference("tests/sample_scene_1.txt");
+    let s = scene.to_str().unwrap();
+    assert_usage_error(&["-f", s, "-o", "x.png", "-w", "0"], "--width");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-h", "-5"], "--height");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-x", "0"], "--aa-mult");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-p", "1,2"], "expected three numbers");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-a", "0,0,0", "-n", "45"], "--cam-axis");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-r", "-1"], "0 or more");
+    assert_usage_error(&["-f", s, "-o", "x.png", "--fov", "180"], "between 0 and 180");
+    assert_usage_error(&["-f", s, "-o", "x.png", "-w", "100000", "-h", "100000"], "--allow-large");
+    assert_usage_error(&["-o", "x.png"], "--file");
+    assert_usage_error(&["-f", s, "-o", "x.jpg"], "unsupported output format");
+    assert!(!std::path::Path::new("x.png").exists() && !std::path::Path::new("x.jpg").exists());
+}
+
+#[test]
+fn help_is_long_only_because_h_is_height() {
+    rayscope().arg("--help").assert().success().stdout(predicate::str::contains("--aa-mult"));
+}
+
+#[test]
+fn bad_scene_reports_file_line_column_and_leaves_existing_output_untouched() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("bad.txt");
+    fs::write(&scene, "Material \"M\" Diffuse (1, 1, 1) 1\nSphere \"S\" (0, 0, 2) 0.5 \"Nope\"\n").unwrap();
+    let out = dir.path().join("keep.png");
+    fs::write(&out, b"precious").unwrap();
+    rayscope()
+        .arg("-f")
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("bad.txt:2:").and(predicate::str::contains("Nope")).and(predicate::str::contains("^")));
+    assert_eq!(fs::read(&out).unwrap(), b"precious");
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file left behind");
+}
+
+#[test]
+fn missing_scene_and_missing_output_folder_fail_before_rendering() {
+    let dir = tempfile::tempdir().unwrap();
+    rayscope()
+        .arg("-f")
+        .arg(dir.path().join("nope.txt"))
+        .arg("-o")
+        .arg(dir.path().join("a.png"))
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("nope.txt"));
+    rayscope()
+        .arg("-f")
+        .arg(reference("tests/sample_scene_1.txt"))
+        .arg("-o")
+        .arg(dir.path().join("no/such/folder/a.png"))
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("does not exist"));
+    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+#[test]
+fn scene_warnings_are_printed_unless_quiet() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("w.txt");
+    fs::write(&scene, "Material \"M\" Diffuse (1, 1, 1) 1 extra\n").unwrap();
+    let out = dir.path().join("a.png");
+    rayscope().args(["-w", "8", "-h", "8", "-f"]).arg(&scene).arg("-o").arg(&out).assert().success().stderr(predicate::str::contains("warning"));
+    rayscope().args(["-w", "8", "-h", "8", "--quiet", "-f"]).arg(&scene).arg("-o").arg(&out).assert().success().stderr(predicate::str::is_empty());
+}
+
+#[test]
+fn empty_scene_renders_black() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("empty.txt");
+    fs::write(&scene, "").unwrap();
+    let img = render(&scene, &dir.path().join("a.png"), &["-w", "4", "-h", "4"]);
+    assert!(img.pixels().all(|p| p.0 == [0, 0, 0]));
+}
+
+#[test]
+fn diff_exit_codes() {
+    let dir = tempfile::tempdir().unwrap();
+    let a = dir.path().join("a.png");
+    let b = dir.path().join("b.png");
+    render(&reference("tests/sample_scene_1.txt"), &a, &["-w", "40", "-h", "40", "--stage", "1"]);
+    render(&reference("tests/sample_scene_1.txt"), &b, &["-w", "40", "-h", "40", "--stage", "2"]);
+    rayscope().arg("diff").arg(&a).arg(&a).assert().success().stdout(predicate::str::contains("psnr_db=inf"));
+    let heat = dir.path().join("heat.png");
+    rayscope().arg("diff").arg(&a).arg(&b).arg("-o").arg(&heat).assert().code(1);
+    assert!(heat.exists());
+    rayscope().arg("diff").arg(&a).arg(&b).args(["--tol", "1"]).assert().success();
+}

@@ -1,0 +1,279 @@
+//! Area lights: every sphere and triangle (mesh triangles included) whose material is Emissive.
+//!
+//! An emitter is two-sided and emits its material colour as radiance, uniformly over its surface.
+//! One emitter is chosen with probability proportional to its power (luminance × area); a point
+//! on it is then drawn by solid angle for spheres seen from outside (uniform in the cone the
+//! sphere subtends) and by area otherwise (triangles, and spheres seen from inside). Emissive
+//! planes are infinite, so they cannot be sampled; they are found by BSDF sampling only.
+
+use glam::Vec3A;
+use rayscope_scene::MaterialKind;
+
+use crate::geometry::{Sphere, Triangle};
+use crate::math::basis;
+use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
+use crate::scene::{PrimRef, Scene};
+
+/// Relative margin inside which a point counts as on or inside a sphere emitter.
+const INSIDE_MARGIN: f32 = 1e-4;
+
+/// One emitting primitive.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Emitter {
+    /// The primitive.
+    pub prim: PrimRef,
+    /// Its entity.
+    pub entity: u32,
+    /// Emitted radiance.
+    pub radiance: Vec3A,
+    /// Surface area.
+    pub area: f32,
+}
+
+/// A point drawn on an emitter, seen from a shading point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LightSample {
+    /// Unit direction from the shading point to the sampled point.
+    pub dir: Vec3A,
+    /// Distance to the sampled point.
+    pub dist: f32,
+    /// Radiance arriving from it (before visibility).
+    pub radiance: Vec3A,
+    /// Density of `dir` in solid angle, including the choice of emitter.
+    pub pdf: f32,
+    /// Index into [`Emitters::list`].
+    pub emitter: u32,
+}
+
+/// The scene's emitters with a power-proportional selection table.
+#[derive(Debug, Clone, Default)]
+pub struct Emitters {
+    /// Emitting spheres and triangles.
+    pub list: Vec<Emitter>,
+    /// Selection probability of each emitter.
+    pub pmf: Vec<f32>,
+    cdf: Vec<f32>,
+    sphere_slot: Vec<u32>,
+    triangle_slot: Vec<u32>,
+    /// True when any entity (planes included) has an Emissive material with non-zero colour.
+    pub any_emission: bool,
+}
+
+fn is_emitting(scene: &Scene, material: u32) -> Option<Vec3A> {
+    let m = &scene.materials[material as usize];
+    (m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0).then(|| m.color.into())
+}
+
+impl Emitters {
+    /// Collects the emitters of `scene`.
+    #[must_use]
+    pub fn from_scene(scene: &Scene) -> Emitters {
+        let mut e = Emitters::default();
+        if !scene.materials.iter().any(|m| m.kind == MaterialKind::Emissive) {
+            return e;
+        }
+        e.any_emission = scene.plane_info.iter().any(|&(_, m)| is_emitting(scene, m).is_some());
+        for (i, (s, &(ent, mat))) in scene.spheres.iter().zip(&scene.sphere_info).enumerate() {
+            if let Some(radiance) = is_emitting(scene, mat) {
+                if e.sphere_slot.is_empty() {
+                    e.sphere_slot = vec![u32::MAX; scene.spheres.len()];
+                }
+                e.sphere_slot[i] = e.list.len() as u32;
+                e.list.push(Emitter {
+                    prim: PrimRef::Sphere(i as u32),
+                    entity: ent,
+                    radiance,
+                    area: 4.0 * std::f32::consts::PI * s.radius * s.radius,
+                });
+            }
+        }
+        for (i, (t, info)) in scene.triangles.iter().zip(&scene.triangle_info).enumerate() {
+            if let Some(radiance) = is_emitting(scene, info.material) {
+                if e.triangle_slot.is_empty() {
+                    e.triangle_slot = vec![u32::MAX; scene.triangles.len()];
+                }
+                e.triangle_slot[i] = e.list.len() as u32;
+                e.list.push(Emitter {
+                    prim: PrimRef::Triangle(i as u32),
+                    entity: info.entity,
+                    radiance,
+                    area: 0.5 * t.e1.cross(t.e2).length(),
+                });
+            }
+        }
+        e.any_emission |= !e.list.is_empty();
+        let lum = Vec3A::new(0.2126, 0.7152, 0.0722);
+        let weights: Vec<f64> = e
+            .list
+            .iter()
+            .map(|l| (l.radiance.dot(lum).max(1e-3 * l.radiance.max_element()) * l.area) as f64)
+            .collect();
+        let total: f64 = weights.iter().sum();
+        let mut acc = 0.0f64;
+        for w in &weights {
+            e.pmf.push((w / total) as f32);
+            acc += w / total;
+            e.cdf.push(acc as f32);
+        }
+        if let Some(last) = e.cdf.last_mut() {
+            *last = 1.0;
+        }
+        e
+    }
+
+    /// True when there is nothing to sample.
+    #[must_use]
+    pub fn is_empty(&self) -> bool {
+        self.list.is_empty()
+    }
+
+    /// The emitter index of a primitive, if it emits.
+    #[must_use]
+    #[inline]
+    pub fn index_of(&self, prim: PrimRef) -> Option<u32> {
+        let slot = match prim {
+            PrimRef::Sphere(i) => *self.sphere_slot.get(i as usize)?,
+            PrimRef::Triangle(i) => *self.triangle_slot.get(i as usize)?,
+            PrimRef::Plane(_) => return None,
+        };
+        (slot != u32::MAX).then_some(slot)
+    }
+
+    /// Draws a point on an emitter as seen from `p`, from three uniform numbers.
+    #[must_use]
+    #[inline]
+    pub fn sample(&self, scene: &Scene, p: Vec3A, u0: f32, u1: f32, u2: f32) -> Option<LightSample> {
+        if self.list.is_empty() {
+            return None;
+        }
+        let i = self.cdf.partition_point(|&c| c <= u0).min(self.list.len() - 1);
+        let e = &self.list[i];
+        let (dir, dist, pdf) = match e.prim {
+            PrimRef::Sphere(s) => sample_sphere(&scene.spheres[s as usize], p, u1, u2)?,
+            PrimRef::Triangle(t) => sample_triangle(&scene.triangles[t as usize], p, u1, u2)?,
+            PrimRef::Plane(_) => return None,
+        };
+        let pdf = pdf * self.pmf[i];
+        (pdf > 0.0 && pdf.is_finite()).then_some(LightSample {
+            dir,
+            dist,
+            radiance: e.radiance,
+            pdf,
+            emitter: i as u32,
+        })
+    }
+
+    /// Density (solid angle, selection included) with which [`Emitters::sample`] from `origin`
+    /// draws the direction towards `point` on `prim`, the nearest hit of that direction;
+    /// 0 when `prim` does not emit.
+    #[must_use]
+    #[inline]
+    pub fn pdf(&self, scene: &Scene, origin: Vec3A, prim: PrimRef, point: Vec3A) -> f32 {
+        let Some(i) = self.index_of(prim) else {
+            return 0.0;
+        };
+        let pdf = match prim {
+            PrimRef::Sphere(s) => sphere_pdf(&scene.spheres[s as usize], origin, point),
+            PrimRef::Triangle(t) => triangle_pdf(&scene.triangles[t as usize], origin, point),
+            PrimRef::Plane(_) => 0.0,
+        };
+        pdf * self.pmf[i as usize]
+    }
+}
+
+/// `1 − cos` of the half-angle of the cone `s` subtends from a point at squared distance `d2`
+/// from its centre, or `None` when the point is inside (or on) the sphere.
+fn cone_omc(s: &Sphere, d2: f32) -> Option<f32> {
+    let r2 = s.radius * s.radius;
+    if d2 <= r2 * (1.0 + INSIDE_MARGIN) {
+        return None;
+    }
+    let sin2 = r2 / d2;
+    Some(sin2 / (1.0 + (1.0 - sin2).sqrt()))
+}
+
+/// Direction, distance and solid-angle density of a point drawn on sphere `s` from `p`.
+#[must_use]
+pub fn sample_sphere(s: &Sphere, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+    let d = s.center - p;
+    let d2 = d.length_squared();
+    if let Some(omc) = cone_omc(s, d2) {
+        let axis = d / d2.sqrt();
+        let (t, b) = basis(axis);
+        let dir = to_world(uniform_cone(u1, u2, omc), t, b, axis).normalize();
+        // Nearest intersection of the sampled direction with the sphere.
+        let proj = dir.dot(d);
+        let l = d - dir * proj;
+        let disc = (s.radius * s.radius - l.length_squared()).max(0.0);
+        let dist = proj - disc.sqrt();
+        return Some((dir, dist.max(0.0), uniform_cone_pdf(omc)));
+    }
+    // From inside: uniform by area, converted to solid angle.
+    let n = uniform_sphere(u1, u2);
+    let y = s.center + n * s.radius;
+    let w = y - p;
+    let dist2 = w.length_squared();
+    let dist = dist2.sqrt();
+    if dist <= 0.0 {
+        return None;
+    }
+    let dir = w / dist;
+    let cos = n.dot(dir).abs();
+    if cos <= 1e-7 {
+        return None;
+    }
+    let area = 4.0 * std::f32::consts::PI * s.radius * s.radius;
+    Some((dir, dist, dist2 / (cos * area)))
+}
+
+/// Solid-angle density of [`sample_sphere`] from `p` for the point `y` on the sphere.
+#[must_use]
+pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
+    let d2 = (s.center - p).length_squared();
+    if let Some(omc) = cone_omc(s, d2) {
+        return uniform_cone_pdf(omc);
+    }
+    let w = y - p;
+    let dist2 = w.length_squared();
+    let n = (y - s.center) / s.radius;
+    let cos = n.dot(w).abs() / dist2.sqrt();
+    if cos <= 1e-7 {
+        return 0.0;
+    }
+    dist2 / (cos * 4.0 * std::f32::consts::PI * s.radius * s.radius)
+}
+
+/// Direction, distance and solid-angle density of a point drawn uniformly on triangle `t` from `p`.
+#[must_use]
+pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+    let (b1, b2) = uniform_triangle(u1, u2);
+    let y = t.v0 + t.e1 * b1 + t.e2 * b2;
+    let w = y - p;
+    let dist2 = w.length_squared();
+    let dist = dist2.sqrt();
+    if dist <= 0.0 {
+        return None;
+    }
+    let dir = w / dist;
+    let c = t.e1.cross(t.e2);
+    let area2 = c.length();
+    let cos = c.dot(dir).abs() / area2;
+    if cos <= 1e-7 {
+        return None;
+    }
+    Some((dir, dist, dist2 / (cos * 0.5 * area2)))
+}
+
+/// Solid-angle density of [`sample_triangle`] from `p` for the point `y` on the triangle.
+#[must_use]
+pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
+    let w = y - p;
+    let dist2 = w.length_squared();
+    let c = t.e1.cross(t.e2);
+    let area2 = c.length();
+    let cos = c.dot(w).abs() / (area2 * dist2.sqrt());
+    if cos <= 1e-7 {
+        return 0.0;
+    }
+    dist2 / (cos * 0.5 * area2)
+}

@@ -1,0 +1,227 @@
+//! Sampling routines for the stage-3 integrator: disk, cosine hemisphere, cones, spheres,
+//! triangles and the GGX distribution of visible normals, each with the density it draws from.
+//!
+//! Densities are in solid angle (directions) or area (points). Every routine here has a χ²
+//! goodness-of-fit test in `tests/stage3_sampling.rs`.
+
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+
+use glam::{Vec2, Vec3A};
+
+/// Uniform point on the unit disk from two uniform numbers (Shirley–Chiu concentric mapping).
+#[must_use]
+#[inline]
+pub fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
+    let a = 2.0 * u1 - 1.0;
+    let b = 2.0 * u2 - 1.0;
+    if a == 0.0 && b == 0.0 {
+        return Vec2::ZERO;
+    }
+    let (r, phi) = if a.abs() > b.abs() {
+        (a, FRAC_PI_4 * (b / a))
+    } else {
+        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
+    };
+    Vec2::new(r * phi.cos(), r * phi.sin())
+}
+
+/// Cosine-weighted direction about +z (Malley's method); density `cosθ / π`.
+#[must_use]
+#[inline]
+pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3A {
+    let d = concentric_disk(u1, u2);
+    let z = (1.0 - d.length_squared()).max(0.0).sqrt();
+    Vec3A::new(d.x, d.y, z)
+}
+
+/// Density of [`cosine_hemisphere`] for a direction with cosine `cos_theta` to +z.
+#[must_use]
+#[inline]
+pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
+    cos_theta.max(0.0) * FRAC_1_PI
+}
+
+/// Uniform direction about +z inside the cone whose half-angle has `1 − cosθmax = omc` (passing
+/// `1 − cos` keeps small cones exact in f32); density `1 / (2π · omc)`.
+#[must_use]
+#[inline]
+pub fn uniform_cone(u1: f32, u2: f32, omc: f32) -> Vec3A {
+    let x = u1 * omc; // 1 − cosθ
+    let cos = 1.0 - x;
+    let sin = (x * (2.0 - x)).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2;
+    Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos)
+}
+
+/// Density of [`uniform_cone`] inside the cone.
+#[must_use]
+#[inline]
+pub fn uniform_cone_pdf(omc: f32) -> f32 {
+    1.0 / (2.0 * PI * omc)
+}
+
+/// Uniform direction on the unit sphere; density `1 / (4π)`.
+#[must_use]
+#[inline]
+pub fn uniform_sphere(u1: f32, u2: f32) -> Vec3A {
+    let z = 1.0 - 2.0 * u1;
+    let r = (1.0 - z * z).max(0.0).sqrt();
+    let phi = 2.0 * PI * u2;
+    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+}
+
+/// Uniform barycentrics (b1, b2) on a triangle (weights of v1 and v2), the square-root mapping.
+#[must_use]
+#[inline]
+pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
+    let s = u1.sqrt();
+    (s * (1.0 - u2), s * u2)
+}
+
+/// The power heuristic (β = 2) weight of a strategy with density `a` against one with density `b`.
+#[must_use]
+#[inline]
+pub fn power_heuristic(a: f32, b: f32) -> f32 {
+    let (a2, b2) = (a * a, b * b);
+    if a2 + b2 == 0.0 || !a2.is_finite() {
+        return if a > 0.0 { 1.0 } else { 0.0 };
+    }
+    a2 / (a2 + b2)
+}
+
+/// World direction of the local direction `v` in the frame (t, b, n).
+#[must_use]
+#[inline]
+pub fn to_world(v: Vec3A, t: Vec3A, b: Vec3A, n: Vec3A) -> Vec3A {
+    t * v.x + b * v.y + n * v.z
+}
+
+/// Local coordinates of the world direction `v` in the frame (t, b, n).
+#[must_use]
+#[inline]
+pub fn to_local(v: Vec3A, t: Vec3A, b: Vec3A, n: Vec3A) -> Vec3A {
+    Vec3A::new(v.dot(t), v.dot(b), v.dot(n))
+}
+
+/// Isotropic GGX (Trowbridge–Reitz) normal distribution D(h) for a local half vector `h`.
+#[must_use]
+#[inline]
+pub fn ggx_d(h: Vec3A, alpha: f32) -> f32 {
+    if h.z <= 0.0 {
+        return 0.0;
+    }
+    let a2 = alpha * alpha;
+    let c2 = h.z * h.z;
+    let k = c2 * (a2 - 1.0) + 1.0;
+    a2 / (PI * k * k)
+}
+
+/// Smith's Λ for GGX, for a local direction `w`.
+#[must_use]
+#[inline]
+pub fn ggx_lambda(w: Vec3A, alpha: f32) -> f32 {
+    let c2 = w.z * w.z;
+    if c2 <= 0.0 {
+        return f32::INFINITY;
+    }
+    let t2 = ((1.0 - c2) / c2).max(0.0);
+    0.5 * ((1.0 + alpha * alpha * t2).sqrt() - 1.0)
+}
+
+/// Smith's masking G1 for GGX.
+#[must_use]
+#[inline]
+pub fn ggx_g1(w: Vec3A, alpha: f32) -> f32 {
+    1.0 / (1.0 + ggx_lambda(w, alpha))
+}
+
+/// Height-correlated masking–shadowing G2 for GGX.
+#[must_use]
+#[inline]
+pub fn ggx_g2(wo: Vec3A, wi: Vec3A, alpha: f32) -> f32 {
+    1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha))
+}
+
+/// A microfacet normal drawn from GGX's distribution of normals visible from the local direction
+/// `wo` (`wo.z > 0`), Heitz 2018, "Sampling the GGX Distribution of Visible Normals".
+#[must_use]
+#[inline]
+pub fn ggx_sample_vndf(wo: Vec3A, alpha: f32, u1: f32, u2: f32) -> Vec3A {
+    // Stretch to the hemisphere configuration.
+    let vh = Vec3A::new(alpha * wo.x, alpha * wo.y, wo.z).normalize();
+    let lensq = vh.x * vh.x + vh.y * vh.y;
+    let t1 = if lensq > 0.0 {
+        Vec3A::new(-vh.y, vh.x, 0.0) / lensq.sqrt()
+    } else {
+        Vec3A::X
+    };
+    let t2 = vh.cross(t1);
+    let r = u1.sqrt();
+    let phi = 2.0 * PI * u2;
+    let p1 = r * phi.cos();
+    let mut p2 = r * phi.sin();
+    let s = 0.5 * (1.0 + vh.z);
+    p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
+    let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
+    // Unstretch.
+    Vec3A::new(alpha * nh.x, alpha * nh.y, nh.z.max(1e-6)).normalize()
+}
+
+/// Density (solid angle of `wi`) of reflecting local `wo` about a VNDF-sampled normal:
+/// `G1(wo) · D(h) / (4 · wo.z)`, with `h` the half vector of `wo` and `wi`.
+#[must_use]
+#[inline]
+pub fn ggx_reflect_pdf(wo: Vec3A, wi: Vec3A, alpha: f32) -> f32 {
+    if wo.z <= 0.0 {
+        return 0.0;
+    }
+    let h = (wo + wi).normalize_or_zero();
+    if h == Vec3A::ZERO || h.z <= 0.0 || wo.dot(h) <= 0.0 {
+        return 0.0;
+    }
+    ggx_g1(wo, alpha) * ggx_d(h, alpha) / (4.0 * wo.z)
+}
+
+/// Mirror reflection of local `wo` about `h`.
+#[must_use]
+#[inline]
+pub fn reflect_about(wo: Vec3A, h: Vec3A) -> Vec3A {
+    h * (2.0 * wo.dot(h)) - wo
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cone_small_angles_stay_inside() {
+        let omc = 1e-7;
+        for i in 0..16 {
+            let d = uniform_cone(i as f32 / 15.0, 0.3, omc);
+            assert!(1.0 - d.z <= omc * 1.0001 + 1e-7);
+            assert!((d.length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn power_heuristic_is_a_partition() {
+        for (a, b) in [(1.0, 2.0), (0.5, 0.0), (3.0, 3.0)] {
+            assert!((power_heuristic(a, b) + power_heuristic(b, a) - 1.0).abs() < 1e-6);
+        }
+    }
+
+    #[test]
+    fn ggx_d_normalised_over_projected_area() {
+        // ∫ D(h) cosθh dω = 1.
+        for alpha in [0.1f32, 0.5, 1.0] {
+            let n = 2000;
+            let mut sum = 0.0f64;
+            for i in 0..n {
+                let c = (i as f32 + 0.5) / n as f32;
+                let h = Vec3A::new((1.0 - c * c).sqrt(), 0.0, c);
+                sum += (ggx_d(h, alpha) * c) as f64 * 2.0 * std::f64::consts::PI / n as f64;
+            }
+            assert!((sum - 1.0).abs() < 0.01, "alpha {alpha}: {sum}");
+        }
+    }
+}

@@ -1,0 +1,472 @@
+//! A 4-wide BVH with SIMD node tests and 4-wide triangle and sphere packets.
+//!
+//! Built by collapsing the binary SAH BVH of [`crate::bvh`]: each node holds up to four
+//! children whose bounds are stored structure-of-arrays, so one ray is tested against four boxes
+//! with a handful of `Vec4` instructions. Leaves are packets of up to four triangles (or spheres)
+//! in the same layout, tested together. This is the layout Embree uses for single rays; with
+//! glam's `Vec4` it needs no `unsafe`.
+
+use glam::{BVec4A, Vec3A, Vec4};
+
+use crate::bvh::{Bvh, BvhNode};
+use crate::geometry::{Sphere, Triangle};
+use crate::math::Ray;
+
+/// Child reference flag: the child is a leaf packet, not a node.
+const LEAF: u32 = 1 << 31;
+/// Leaf flag: the packet holds spheres, not triangles.
+const SPHERES: u32 = 1 << 30;
+/// An empty child slot.
+const EMPTY: u32 = u32::MAX;
+/// Lane id of an unused packet lane.
+const NO_PRIM: u32 = u32::MAX;
+
+/// One 4-wide node: child bounds as [axis][min/max] lanes, and child references.
+#[derive(Debug, Clone, Copy)]
+#[repr(C, align(64))]
+pub struct Node4 {
+    /// `bounds[axis][0]` = min of the four children on that axis, `[1]` = max.
+    pub bounds: [[Vec4; 2]; 3],
+    /// Node index, `LEAF | packet`, `LEAF | SPHERES | packet`, or `EMPTY`.
+    pub children: [u32; 4],
+}
+
+/// Four triangles in structure-of-arrays layout.
+#[derive(Debug, Clone, Copy)]
+pub struct TriPacket {
+    v0: [Vec4; 3],
+    e1: [Vec4; 3],
+    e2: [Vec4; 3],
+    /// Triangle index of each lane (`NO_PRIM` for padding).
+    pub ids: [u32; 4],
+}
+
+/// Four spheres in structure-of-arrays layout.
+#[derive(Debug, Clone, Copy)]
+pub struct SpherePacket {
+    c: [Vec4; 3],
+    r2: Vec4,
+    /// Sphere index of each lane (`NO_PRIM` for padding).
+    pub ids: [u32; 4],
+}
+
+/// What a wide-BVH query hit: the primitive and the ray parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct WideHit {
+    /// Ray parameter.
+    pub t: f32,
+    /// Barycentric u (triangles).
+    pub u: f32,
+    /// Barycentric v (triangles).
+    pub v: f32,
+    /// Triangle or sphere index.
+    pub id: u32,
+    /// True for spheres.
+    pub sphere: bool,
+}
+
+/// The 4-wide BVH.
+#[derive(Debug, Clone, Default)]
+pub struct Bvh4 {
+    /// Nodes; the root is node 0 unless `root` is a leaf.
+    pub nodes: Vec<Node4>,
+    /// Triangle packets.
+    pub tris: Vec<TriPacket>,
+    /// Sphere packets.
+    pub spheres: Vec<SpherePacket>,
+    /// Root reference (`EMPTY` for an empty scene).
+    pub root: u32,
+}
+
+/// Per-ray constants for the node test.
+struct RayConsts {
+    o: [Vec4; 3],
+    inv: [Vec4; 3],
+    /// 0 when the direction is positive on the axis (near plane = min), else 1.
+    near: [usize; 3],
+    d: [Vec4; 3],
+}
+
+impl RayConsts {
+    #[inline]
+    fn new(ray: &Ray) -> Self {
+        let inv = ray.dir.recip();
+        Self {
+            o: [Vec4::splat(ray.origin.x), Vec4::splat(ray.origin.y), Vec4::splat(ray.origin.z)],
+            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            near: [(inv.x < 0.0) as usize, (inv.y < 0.0) as usize, (inv.z < 0.0) as usize],
+            d: [Vec4::splat(ray.dir.x), Vec4::splat(ray.dir.y), Vec4::splat(ray.dir.z)],
+        }
+    }
+}
+
+impl Bvh4 {
+    /// Collapses a binary BVH whose references are `id` (triangle) or `id | sphere_bit` (sphere).
+    #[must_use]
+    pub fn from_binary(bvh: &Bvh, triangles: &[Triangle], spheres: &[Sphere], sphere_bit: u32) -> Bvh4 {
+        let mut out = Bvh4 { root: EMPTY, ..Bvh4::default() };
+        if bvh.nodes.is_empty() {
+            return out;
+        }
+        let mut b = Builder { bvh, triangles, spheres, sphere_bit, out: &mut out };
+        let root = b.node_ref(0);
+        out.root = root;
+        out
+    }
+
+    /// Bytes used by nodes and packets.
+    #[must_use]
+    pub fn memory_bytes(&self) -> usize {
+        self.nodes.len() * std::mem::size_of::<Node4>()
+            + self.tris.len() * std::mem::size_of::<TriPacket>()
+            + self.spheres.len() * std::mem::size_of::<SpherePacket>()
+    }
+
+    /// The closest hit with `t_min < t < t_max`. When `COUNT`, adds the node and packet tests
+    /// made to `visits`.
+    #[inline]
+    pub fn closest<const COUNT: bool>(&self, ray: &Ray, t_min: f32, t_max: f32, visits: &mut u32) -> Option<WideHit> {
+        if self.root == EMPTY {
+            return None;
+        }
+        let rc = RayConsts::new(ray);
+        let mut best: Option<WideHit> = None;
+        let mut t_best = t_max;
+        let mut stack = [(0u32, 0f32); 64];
+        let mut sp = 1;
+        stack[0] = (self.root, t_min);
+        while sp > 0 {
+            sp -= 1;
+            let (r, t_near) = stack[sp];
+            if t_near >= t_best {
+                continue;
+            }
+            if r & LEAF != 0 {
+                if COUNT {
+                    *visits += 1;
+                }
+                let h = if r & SPHERES != 0 {
+                    self.spheres[(r & !(LEAF | SPHERES)) as usize].closest(&rc, t_min, t_best)
+                } else {
+                    self.tris[(r & !LEAF) as usize].closest(&rc, t_min, t_best)
+                };
+                if let Some(h) = h {
+                    t_best = h.t;
+                    best = Some(h);
+                }
+                continue;
+            }
+            if COUNT {
+                *visits += 1;
+            }
+            let node = &self.nodes[r as usize];
+            let (mask, tn) = node_test(node, &rc, t_min, t_best);
+            // Push hit children far-to-near so the nearest is popped first.
+            let mut hits: [(u32, f32); 4] = [(EMPTY, 0.0); 4];
+            let mut n = 0;
+            let tn = tn.to_array();
+            for i in 0..4 {
+                if mask & (1 << i) != 0 {
+                    hits[n] = (node.children[i], tn[i]);
+                    n += 1;
+                }
+            }
+            let hits = &mut hits[..n];
+            if n > 1 {
+                hits.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
+            }
+            for &h in hits.iter() {
+                if sp < stack.len() {
+                    stack[sp] = h;
+                    sp += 1;
+                }
+            }
+        }
+        best
+    }
+
+    /// Some primitive with `t_min < t < t_max` (any hit), as (id, is_sphere).
+    #[inline]
+    pub fn any(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<(u32, bool)> {
+        if self.root == EMPTY {
+            return None;
+        }
+        let rc = RayConsts::new(ray);
+        let mut stack = [0u32; 64];
+        let mut sp = 1;
+        stack[0] = self.root;
+        while sp > 0 {
+            sp -= 1;
+            let r = stack[sp];
+            if r & LEAF != 0 {
+                let h = if r & SPHERES != 0 {
+                    self.spheres[(r & !(LEAF | SPHERES)) as usize].closest(&rc, t_min, t_max)
+                } else {
+                    self.tris[(r & !LEAF) as usize].closest(&rc, t_min, t_max)
+                };
+                if let Some(h) = h {
+                    return Some((h.id, h.sphere));
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            let (mask, _) = node_test(node, &rc, t_min, t_max);
+            for i in 0..4 {
+                if mask & (1 << i) != 0 && sp < stack.len() {
+                    stack[sp] = node.children[i];
+                    sp += 1;
+                }
+            }
+        }
+        None
+    }
+}
+
+/// Slab test of the ray against a node's four child boxes: hit mask and entry distances.
+#[inline(always)]
+fn node_test(node: &Node4, rc: &RayConsts, t_min: f32, t_max: f32) -> (u32, Vec4) {
+    let mut t0 = Vec4::splat(t_min);
+    let mut t1 = Vec4::splat(t_max);
+    for a in 0..3 {
+        let n = rc.near[a];
+        let tn = (node.bounds[a][n] - rc.o[a]) * rc.inv[a];
+        let tf = (node.bounds[a][1 - n] - rc.o[a]) * rc.inv[a];
+        // SSE max/min return their second operand when either is NaN, so with the running interval
+        // second a NaN from 0·∞ (origin on a slab plane of
+        // an axis-parallel ray) then leaves the interval unchanged instead of poisoning it.
+        t0 = tn.max(t0);
+        t1 = tf.min(t1);
+    }
+    (t0.cmple(t1).bitmask(), t0)
+}
+
+#[inline(always)]
+fn cross(a: &[Vec4; 3], b: &[Vec4; 3]) -> [Vec4; 3] {
+    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+}
+
+#[inline(always)]
+fn dot(a: &[Vec4; 3], b: &[Vec4; 3]) -> Vec4 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The lane with the smallest `t` among `mask`.
+#[inline(always)]
+fn nearest_lane(mask: BVec4A, t: Vec4) -> Option<usize> {
+    let bits = mask.bitmask();
+    if bits == 0 {
+        return None;
+    }
+    let t = Vec4::select(mask, t, Vec4::INFINITY).to_array();
+    let mut best = bits.trailing_zeros() as usize;
+    for (i, &ti) in t.iter().enumerate() {
+        if bits & (1 << i) != 0 && ti < t[best] {
+            best = i;
+        }
+    }
+    Some(best)
+}
+
+impl TriPacket {
+    /// Möller–Trumbore on four triangles at once (two-sided, like [`Triangle`]'s routine).
+    #[inline(always)]
+    fn closest(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+        let p = cross(&rc.d, &self.e2);
+        let det = dot(&self.e1, &p);
+        let inv = det.recip();
+        let s = [rc.o[0] - self.v0[0], rc.o[1] - self.v0[1], rc.o[2] - self.v0[2]];
+        let u = dot(&s, &p) * inv;
+        let q = cross(&s, &self.e1);
+        let v = dot(&rc.d, &q) * inv;
+        let t = dot(&self.e2, &q) * inv;
+        let zero = Vec4::ZERO;
+        let mask = det.cmpne(zero)
+            & u.cmpge(zero)
+            & u.cmple(Vec4::ONE)
+            & v.cmpge(zero)
+            & (u + v).cmple(Vec4::ONE)
+            & t.cmpgt(Vec4::splat(t_min))
+            & t.cmplt(Vec4::splat(t_max));
+        let i = nearest_lane(mask, t)?;
+        Some(WideHit { t: t.to_array()[i], u: u.to_array()[i], v: v.to_array()[i], id: self.ids[i], sphere: false })
+    }
+}
+
+impl SpherePacket {
+    /// The numerically careful sphere test of [`Sphere`] on four spheres at once.
+    #[inline(always)]
+    fn closest(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+        let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
+        let b = -dot(&f, &rc.d);
+        let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
+        let disc = self.r2 - dot(&l, &l);
+        let c = dot(&f, &f) - self.r2;
+        let sq = Vec4::from_array(disc.max(Vec4::ZERO).to_array().map(f32::sqrt));
+        let q = b + sq.copysign(b);
+        let t0 = c / q;
+        let t1 = q;
+        let lo = t0.min(t1);
+        let hi = t0.max(t1);
+        let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
+        let ok = disc.cmpge(Vec4::ZERO) & q.cmpne(Vec4::ZERO);
+        let lo_ok = lo.cmpgt(tmin) & lo.cmplt(tmax);
+        let hi_ok = hi.cmpgt(tmin) & hi.cmplt(tmax);
+        let t = Vec4::select(lo_ok, lo, hi);
+        let i = nearest_lane(ok & (lo_ok | hi_ok), t)?;
+        Some(WideHit { t: t.to_array()[i], u: 0.0, v: 0.0, id: self.ids[i], sphere: true })
+    }
+}
+
+struct Builder<'a> {
+    bvh: &'a Bvh,
+    triangles: &'a [Triangle],
+    spheres: &'a [Sphere],
+    sphere_bit: u32,
+    out: &'a mut Bvh4,
+}
+
+impl Builder<'_> {
+    /// The reference for binary node `i`: a 4-wide node, or a packet for a small leaf.
+    fn node_ref(&mut self, i: usize) -> u32 {
+        let n = &self.bvh.nodes[i];
+        if n.count > 0 {
+            return self.leaf_ref(n);
+        }
+        // A subtree of at most four primitives becomes one leaf: a full packet tests four
+        // primitives for the price of one, while small binary leaves would leave lanes empty.
+        let mut refs = Vec::with_capacity(4);
+        if self.collect_small(i, &mut refs) {
+            let leaf = BvhNode { offset: 0, count: refs.len() as u16, ..*n };
+            return self.leaf_ref_of(&leaf, &refs);
+        }
+        // Gather up to four children by opening the largest interior child, as Embree does.
+        let mut kids: Vec<usize> = vec![i + 1, n.offset as usize];
+        loop {
+            if kids.len() >= 4 {
+                break;
+            }
+            let pick = kids
+                .iter()
+                .enumerate()
+                .filter(|(_, &k)| self.bvh.nodes[k].count == 0 && !self.collect_small(k, &mut Vec::with_capacity(4)))
+                .max_by(|a, b| area(&self.bvh.nodes[*a.1]).total_cmp(&area(&self.bvh.nodes[*b.1])))
+                .map(|(j, _)| j);
+            let Some(j) = pick else { break };
+            let k = kids.swap_remove(j);
+            kids.push(k + 1);
+            kids.push(self.bvh.nodes[k].offset as usize);
+        }
+        let idx = self.out.nodes.len();
+        self.out.nodes.push(Node4 { bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], children: [EMPTY; 4] });
+        let mut bounds = [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3];
+        let mut children = [EMPTY; 4];
+        for (slot, &k) in kids.iter().enumerate() {
+            let kn = self.bvh.nodes[k];
+            for a in 0..3 {
+                bounds[a][0][slot] = kn.min[a];
+                bounds[a][1][slot] = kn.max[a];
+            }
+            children[slot] = self.node_ref(k);
+        }
+        let node = &mut self.out.nodes[idx];
+        for a in 0..3 {
+            node.bounds[a] = [Vec4::from(bounds[a][0]), Vec4::from(bounds[a][1])];
+        }
+        node.children = children;
+        idx as u32
+    }
+
+    /// A leaf of at most four references: one packet, or a small node over a triangle packet
+    /// and a sphere packet when the leaf mixes them.
+    /// Appends the references under node `i` to `out` if there are at most four.
+    fn collect_small(&self, i: usize, out: &mut Vec<u32>) -> bool {
+        let n = &self.bvh.nodes[i];
+        if n.count > 0 {
+            let refs = &self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
+            if out.len() + refs.len() > 4 {
+                return false;
+            }
+            out.extend_from_slice(refs);
+            return true;
+        }
+        self.collect_small(i + 1, out) && self.collect_small(n.offset as usize, out)
+    }
+
+    fn leaf_ref(&mut self, n: &BvhNode) -> u32 {
+        let refs = self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize].to_vec();
+        self.leaf_ref_of(n, &refs)
+    }
+
+    fn leaf_ref_of(&mut self, n: &BvhNode, refs: &[u32]) -> u32 {
+        let tris: Vec<u32> = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
+        let sph: Vec<u32> = refs.iter().filter(|r| *r & self.sphere_bit != 0).map(|r| r & !self.sphere_bit).collect();
+        let mut parts = Vec::new();
+        for chunk in tris.chunks(4) {
+            parts.push(self.tri_packet(chunk));
+        }
+        for chunk in sph.chunks(4) {
+            parts.push(self.sphere_packet(chunk));
+        }
+        if parts.len() == 1 {
+            return parts[0];
+        }
+        // Mixed leaf: a node whose children all carry the leaf's bounds.
+        let idx = self.out.nodes.len();
+        let mut node = Node4 { bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], children: [EMPTY; 4] };
+        for a in 0..3 {
+            let (mut lo, mut hi) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
+            for s in 0..parts.len().min(4) {
+                lo[s] = n.min[a];
+                hi[s] = n.max[a];
+            }
+            node.bounds[a] = [Vec4::from(lo), Vec4::from(hi)];
+        }
+        for (s, p) in parts.iter().take(4).enumerate() {
+            node.children[s] = *p;
+        }
+        self.out.nodes.push(node);
+        idx as u32
+    }
+
+    fn tri_packet(&mut self, ids: &[u32]) -> u32 {
+        let mut lanes = [[[0f32; 4]; 3]; 3];
+        let mut lane_ids = [NO_PRIM; 4];
+        for (l, &id) in ids.iter().enumerate() {
+            let t = &self.triangles[id as usize];
+            for (k, v) in [t.v0, t.e1, t.e2].iter().enumerate() {
+                for a in 0..3 {
+                    lanes[k][a][l] = v[a];
+                }
+            }
+            lane_ids[l] = id;
+        }
+        let v = |k: usize| [Vec4::from(lanes[k][0]), Vec4::from(lanes[k][1]), Vec4::from(lanes[k][2])];
+        self.out.tris.push(TriPacket { v0: v(0), e1: v(1), e2: v(2), ids: lane_ids });
+        LEAF | (self.out.tris.len() - 1) as u32
+    }
+
+    fn sphere_packet(&mut self, ids: &[u32]) -> u32 {
+        // Padding lanes get r² = −1: the discriminant is negative and they never hit.
+        let (mut c, mut r2) = ([[0f32; 4]; 3], [-1f32; 4]);
+        let mut lane_ids = [NO_PRIM; 4];
+        for (l, &id) in ids.iter().enumerate() {
+            let s = &self.spheres[id as usize];
+            for a in 0..3 {
+                c[a][l] = s.center[a];
+            }
+            r2[l] = s.radius * s.radius;
+            lane_ids[l] = id;
+        }
+        self.out.spheres.push(SpherePacket {
+            c: [Vec4::from(c[0]), Vec4::from(c[1]), Vec4::from(c[2])],
+            r2: Vec4::from(r2),
+            ids: lane_ids,
+        });
+        LEAF | SPHERES | (self.out.spheres.len() - 1) as u32
+    }
+}
+
+fn area(n: &BvhNode) -> f32 {
+    let d: Vec3A = (n.max - n.min).max(Vec3A::ZERO);
+    d.x * d.y + d.y * d.z + d.z * d.x
+}

@@ -1,0 +1,1177 @@
+//! The debugger's local web app: an axum server with the UI embedded in the binary.
+//!
+//! Renders run off the request path on blocking threads; a new settings change cancels the
+//! render before it through its cancel flag. Every request parameter is validated and bounded
+//! and answered with a JSON `{"error": …}` and status 400 when it is not acceptable.
+//!
+//! Endpoints (all `GET` unless noted):
+//! - `/`, `/app.js`, `/app.css`: the UI.
+//! - `/api/scene`: entities, lights, materials, settings, limits and a default view.
+//! - `/api/settings` (`GET`, `POST` JSON partial update): starts a render job, returns its id.
+//! - `/api/render/status`: progress of the current job.
+//! - `/api/image.png?channel=color|normal|depth|entity|albedo|cost`: the image (0-based pixels).
+//! - `/api/view?eye=x,y,z&target=x,y,z&w=&h=&rays=&image=&channel=&select=&pixel=x,y&tree=1&
+//!   sample=&samples=1&check=1&format=jpeg|png`: a scene-view frame.
+//! - `/api/pick?eye=&target=&w=&h=&x=&y=`: what is under a view pixel.
+//! - `/api/trace?x=&y=&sample=&intersector=ours|reference`: a pixel sample's ray tree.
+//! - `/api/check`: pixels where rayscope's intersector and the parry3d reference disagree.
+//! - `/api/compare` (`POST`, PNG body): PSNR against the current render and a heat map id;
+//!   `/api/compare/heatmap.png?id=`.
+
+use std::collections::{HashMap, VecDeque};
+use std::net::{IpAddr, SocketAddr, TcpListener as StdListener, ToSocketAddrs};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::Instant;
+
+use axum::body::Bytes;
+use axum::extract::{DefaultBodyLimit, Query, Request, State};
+use axum::http::{header, HeaderValue, StatusCode};
+use axum::middleware::{self, Next};
+use axum::response::{IntoResponse, Response};
+use axum::routing::{get, post};
+use axum::{Json, Router};
+use glam::Vec3;
+use rayon::prelude::*;
+use rayscope_core::integrator::Integrator;
+use rayscope_core::reference::ReferenceIntersector;
+use rayscope_core::rng::Rng;
+use rayscope_core::scene::{Intersect, Scene};
+use rayscope_core::{render, trace_pixel_with, Channel, FovAxis, RenderSettings, Stage};
+use rayscope_scene::{SceneFile, Shape};
+use serde::Deserialize;
+use serde_json::{json, Value};
+
+use crate::encode;
+use crate::view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewOptions};
+
+/// Largest image the debugger renders, per side.
+pub const MAX_IMAGE_SIDE: u32 = 2048;
+/// Largest view frame, per side.
+pub const MAX_VIEW_SIDE: u32 = 2560;
+/// Most debug rays drawn in one frame.
+pub const MAX_RAYS: u32 = 4096;
+/// Largest settings body in bytes.
+const SETTINGS_BODY_LIMIT: usize = 16 * 1024;
+/// Largest uploaded reference image in bytes.
+const COMPARE_BODY_LIMIT: usize = 32 * 1024 * 1024;
+/// Most primitive tests the intersector check may cost (pixels × primitives).
+const CHECK_BUDGET: u64 = 2_000_000_000;
+/// Most mismatches listed (all are counted).
+const CHECK_LIST: usize = 5000;
+
+/// Why the debugger could not start.
+#[derive(Debug, thiserror::Error)]
+pub enum DebugError {
+    /// The address could not be bound or resolved.
+    #[error("cannot listen on {addr}: {source}")]
+    Bind {
+        /// Host and port asked for.
+        addr: String,
+        /// The OS error.
+        #[source]
+        source: std::io::Error,
+    },
+    /// Anything else going wrong in the server.
+    #[error("debugger server failed: {0}")]
+    Server(String),
+    /// Settings outside the debugger's limits.
+    #[error("{0}")]
+    Settings(String),
+}
+
+/// What `rayscope debug` serves.
+#[derive(Debug, Clone)]
+pub struct ServeConfig {
+    /// The scene file (shown in the UI).
+    pub scene_path: PathBuf,
+    /// The parsed scene (for the inspector's parameters).
+    pub scene_file: SceneFile,
+    /// The render-ready scene.
+    pub scene: Scene,
+    /// Initial render settings.
+    pub settings: RenderSettings,
+    /// Address to bind (127.0.0.1 keeps it local to this machine).
+    pub host: String,
+    /// Port (0: any free port).
+    pub port: u16,
+}
+
+/// A server running on a background thread.
+#[derive(Debug)]
+pub struct RunningServer {
+    /// The address it listens on.
+    pub addr: SocketAddr,
+    /// The URL to open.
+    pub url: String,
+    shutdown: Option<tokio::sync::oneshot::Sender<()>>,
+    thread: Option<JoinHandle<Result<(), String>>>,
+}
+
+impl RunningServer {
+    /// Blocks until the server stops.
+    ///
+    /// # Errors
+    /// If the server failed.
+    pub fn wait(mut self) -> Result<(), DebugError> {
+        match self.thread.take().map(JoinHandle::join) {
+            Some(Ok(r)) => r.map_err(DebugError::Server),
+            Some(Err(_)) => Err(DebugError::Server("server thread panicked".into())),
+            None => Ok(()),
+        }
+    }
+
+    /// Stops the server and waits for it.
+    pub fn stop(mut self) {
+        if let Some(tx) = self.shutdown.take() {
+            let _ = tx.send(());
+        }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+/// Checks that settings fit the debugger's limits.
+///
+/// # Errors
+/// A message naming the offending setting.
+pub fn check_settings(s: &RenderSettings) -> Result<(), String> {
+    if s.width == 0 || s.height == 0 || s.width > MAX_IMAGE_SIDE || s.height > MAX_IMAGE_SIDE {
+        return Err(format!(
+            "image size {}×{} is outside 1..={MAX_IMAGE_SIDE} per side in the debugger",
+            s.width, s.height
+        ));
+    }
+    if !(1..=16).contains(&s.aa) {
+        return Err(format!("aa {} is outside 1..=16", s.aa));
+    }
+    let samples = s.width as u64 * s.height as u64 * (s.aa as u64).pow(2);
+    if samples > 4 * (MAX_IMAGE_SIDE as u64).pow(2) {
+        return Err(format!("{samples} samples is too many for the debugger; lower the size or -x"));
+    }
+    if s.max_depth > 64 {
+        return Err("depth limit must be at most 64".into());
+    }
+    if s.quality > 16 {
+        return Err("quality must be at most 16".into());
+    }
+    let c = &s.camera;
+    if !(c.fov_deg > 0.0 && c.fov_deg < 180.0) {
+        return Err("fov must be between 0 and 180 degrees (exclusive)".into());
+    }
+    for (name, v) in [("cam_pos", c.position), ("cam_axis", c.axis)] {
+        if !v.is_finite() || v.abs().max_element() > 1e6 {
+            return Err(format!("{name} must be finite and within ±1e6"));
+        }
+    }
+    if !c.angle_deg.is_finite() || c.angle_deg.abs() > 1e5 {
+        return Err("cam_angle must be a finite number of degrees".into());
+    }
+    if c.axis.length_squared() == 0.0 && c.angle_deg != 0.0 {
+        return Err("cam_axis must not be (0, 0, 0) when cam_angle is not 0".into());
+    }
+    if !(c.aperture_radius.is_finite() && (0.0..=100.0).contains(&c.aperture_radius)) {
+        return Err("aperture must be between 0 and 100".into());
+    }
+    if !(c.focal_length.is_finite() && c.focal_length > 0.0 && c.focal_length <= 1e6) {
+        return Err("focal length must be greater than 0".into());
+    }
+    Ok(())
+}
+
+/// Starts the server on a background thread and returns once it listens.
+///
+/// # Errors
+/// If the address cannot be bound, or the settings are outside the debugger's limits.
+pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
+    check_settings(&cfg.settings).map_err(DebugError::Settings)?;
+    let addr_text = format!("{}:{}", cfg.host, cfg.port);
+    let bind_err = |source| DebugError::Bind {
+        addr: addr_text.clone(),
+        source,
+    };
+    let addrs: Vec<SocketAddr> = (cfg.host.as_str(), cfg.port).to_socket_addrs().map_err(bind_err)?.collect();
+    let listener = StdListener::bind(&addrs[..]).map_err(bind_err)?;
+    listener.set_nonblocking(true).map_err(bind_err)?;
+    let addr = listener.local_addr().map_err(bind_err)?;
+    let host = match addr.ip() {
+        IpAddr::V6(ip) => format!("[{ip}]"),
+        IpAddr::V4(ip) if ip.is_unspecified() => "127.0.0.1".to_string(),
+        IpAddr::V4(ip) => ip.to_string(),
+    };
+    let url = format!("http://{host}:{}/", addr.port());
+    let state = Arc::new(AppState::new(cfg, addr));
+    state.start_render();
+    let app = router(state);
+    let (tx, rx) = tokio::sync::oneshot::channel::<()>();
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .worker_threads(2)
+        .enable_all()
+        .build()
+        .map_err(|e| DebugError::Server(e.to_string()))?;
+    let thread = std::thread::Builder::new()
+        .name("rayscope-debug-server".into())
+        .spawn(move || {
+            runtime.block_on(async move {
+                let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| e.to_string())?;
+                axum::serve(listener, app)
+                    .with_graceful_shutdown(async move {
+                        let _ = rx.await;
+                    })
+                    .await
+                    .map_err(|e| e.to_string())
+            })
+        })
+        .map_err(|e| DebugError::Server(e.to_string()))?;
+    Ok(RunningServer {
+        addr,
+        url,
+        shutdown: Some(tx),
+        thread: Some(thread),
+    })
+}
+
+/// Starts the server, prints its URL, opens a browser when `open` (ignoring failure) and serves
+/// until the process is stopped.
+///
+/// # Errors
+/// See [`start`].
+pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
+    let server = start(cfg)?;
+    println!("rayscope debugger listening on {}", server.url);
+    println!("press Ctrl-C to stop");
+    if open {
+        let _ = std::process::Command::new("xdg-open")
+            .arg(&server.url)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn();
+    }
+    server.wait()
+}
+
+/// A finished colour render.
+struct Rendered {
+    job: u64,
+    settings: RenderSettings,
+    image: Arc<RgbImage>,
+    millis: f64,
+}
+
+#[derive(Clone, Copy, PartialEq, Eq)]
+enum JobState {
+    Running,
+    Done,
+    Cancelled,
+}
+
+impl JobState {
+    fn name(self) -> &'static str {
+        match self {
+            JobState::Running => "running",
+            JobState::Done => "done",
+            JobState::Cancelled => "cancelled",
+        }
+    }
+}
+
+struct Job {
+    id: u64,
+    cancel: Arc<AtomicBool>,
+    done: Arc<AtomicU64>,
+    total: u64,
+    state: JobState,
+    started: Instant,
+    millis: f64,
+}
+
+#[derive(Clone, serde::Serialize)]
+struct HitAnswer {
+    entity: u32,
+    name: String,
+    t: f32,
+}
+
+#[derive(Clone, serde::Serialize)]
+struct Mismatch {
+    x: u32,
+    y: u32,
+    /// "entity", "distance", "missing" or "tie".
+    kind: &'static str,
+    ours: Option<HitAnswer>,
+    reference: Option<HitAnswer>,
+}
+
+struct CheckResult {
+    settings: RenderSettings,
+    json: Value,
+    cells: Vec<(u32, u32)>,
+}
+
+struct Inner {
+    settings: RenderSettings,
+    job: Job,
+    rendered: Option<Arc<Rendered>>,
+    channels: HashMap<&'static str, (RenderSettings, Arc<RgbImage>)>,
+    check: Option<Arc<CheckResult>>,
+    heatmaps: VecDeque<(u64, Arc<Vec<u8>>)>,
+    next_id: u64,
+}
+
+struct AppState {
+    scene: Arc<Scene>,
+    scene_json: Value,
+    addr: SocketAddr,
+    inner: Mutex<Inner>,
+}
+
+impl AppState {
+    fn new(cfg: ServeConfig, addr: SocketAddr) -> Self {
+        let scene_json = scene_json(&cfg);
+        Self {
+            scene: Arc::new(cfg.scene),
+            scene_json,
+            addr,
+            inner: Mutex::new(Inner {
+                settings: cfg.settings,
+                job: Job {
+                    id: 0,
+                    cancel: Arc::new(AtomicBool::new(false)),
+                    done: Arc::new(AtomicU64::new(0)),
+                    total: 0,
+                    state: JobState::Cancelled,
+                    started: Instant::now(),
+                    millis: 0.0,
+                },
+                rendered: None,
+                channels: HashMap::new(),
+                check: None,
+                heatmaps: VecDeque::new(),
+                next_id: 1,
+            }),
+        }
+    }
+
+    fn lock(&self) -> std::sync::MutexGuard<'_, Inner> {
+        // A panic while holding the lock leaves consistent data (plain assignments), so recover.
+        self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+
+    /// Cancels the current render and starts one for the current settings; returns its id.
+    fn start_render(self: &Arc<Self>) -> u64 {
+        let (id, settings, cancel, done) = {
+            let mut g = self.lock();
+            g.job.cancel.store(true, Ordering::Relaxed);
+            let id = g.next_id;
+            g.next_id += 1;
+            let s = g.settings;
+            g.job = Job {
+                id,
+                cancel: Arc::new(AtomicBool::new(false)),
+                done: Arc::new(AtomicU64::new(0)),
+                total: s.width as u64 * s.height as u64,
+                state: JobState::Running,
+                started: Instant::now(),
+                millis: 0.0,
+            };
+            (id, s, g.job.cancel.clone(), g.job.done.clone())
+        };
+        let state = self.clone();
+        std::thread::spawn(move || {
+            let start = Instant::now();
+            let progress = |d: u64, _t: u64| done.store(d, Ordering::Relaxed);
+            let settings = RenderSettings {
+                channel: Channel::Color,
+                ..settings
+            };
+            let result = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+                render(&state.scene, &settings, &progress, &cancel)
+            }));
+            let millis = start.elapsed().as_secs_f64() * 1000.0;
+            let mut g = state.lock();
+            if g.job.id != id {
+                return;
+            }
+            g.job.millis = millis;
+            match result {
+                Ok(Ok(out)) => {
+                    g.job.state = JobState::Done;
+                    g.rendered = Some(Arc::new(Rendered {
+                        job: id,
+                        settings,
+                        image: Arc::new(RgbImage {
+                            width: out.film.width,
+                            height: out.film.height,
+                            rgb: out.film.to_rgb8(),
+                        }),
+                        millis,
+                    }));
+                }
+                _ => g.job.state = JobState::Cancelled,
+            }
+        });
+        id
+    }
+}
+
+fn v3(v: glam::DVec3) -> [f64; 3] {
+    v.to_array()
+}
+
+fn scene_json(cfg: &ServeConfig) -> Value {
+    let f = &cfg.scene_file;
+    let entities: Vec<Value> = f
+        .entities
+        .iter()
+        .enumerate()
+        .map(|(i, e)| {
+            let params = match &e.shape {
+                Shape::Plane { point, normal } => json!({"point": v3(*point), "normal": v3(*normal)}),
+                Shape::Sphere { center, radius } => json!({"center": v3(*center), "radius": radius}),
+                Shape::Triangle { vertices } => json!({"v0": v3(vertices[0]), "v1": v3(vertices[1]), "v2": v3(vertices[2])}),
+                Shape::Mesh {
+                    source,
+                    offset,
+                    scale,
+                    mesh,
+                } => json!({
+                    "file": source.file_name().map(|n| n.to_string_lossy().to_string()),
+                    "offset": v3(*offset),
+                    "scale": scale,
+                    "triangles": mesh.triangles.len(),
+                }),
+            };
+            let primitives = cfg.scene.entities.get(i).map_or(0, |x| x.primitives);
+            json!({
+                "index": i,
+                "name": e.name,
+                "kind": e.shape.command(),
+                "material": e.material,
+                "material_name": f.materials.get(e.material).map(|m| m.name.clone()),
+                "line": e.line,
+                "primitives": primitives,
+                "params": params,
+            })
+        })
+        .collect();
+    let lights: Vec<Value> = f
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| json!({"index": i, "name": l.name, "position": v3(l.position), "color": v3(l.color), "line": l.line}))
+        .collect();
+    let materials: Vec<Value> = f
+        .materials
+        .iter()
+        .enumerate()
+        .map(|(i, m)| {
+            json!({"index": i, "name": m.name, "kind": m.kind.name(), "color": v3(m.color), "value": m.value, "line": m.line})
+        })
+        .collect();
+    json!({
+        "path": cfg.scene_path.display().to_string(),
+        "name": cfg.scene_path.file_name().map(|n| n.to_string_lossy().to_string()),
+        "entities": entities,
+        "lights": lights,
+        "materials": materials,
+        "primitives": cfg.scene.primitive_count(),
+        "warnings": f.warnings.iter().map(|w| w.to_string()).collect::<Vec<_>>(),
+        "limits": {"max_image_side": MAX_IMAGE_SIDE, "max_view_side": MAX_VIEW_SIDE, "max_rays": MAX_RAYS},
+    })
+}
+
+fn settings_json(s: &RenderSettings) -> Value {
+    let c = &s.camera;
+    json!({
+        "width": s.width,
+        "height": s.height,
+        "aa": s.aa,
+        "stage": match s.stage { Stage::One => "1", Stage::Two => "2", Stage::Full => "full" },
+        "ambient": s.ambient,
+        "quality": s.quality,
+        "max_depth": s.max_depth,
+        "seed": s.seed,
+        "fov": c.fov_deg,
+        "fov_axis": match c.fov_axis { FovAxis::Horizontal => "horizontal", FovAxis::Vertical => "vertical" },
+        "cam_pos": c.position.to_array(),
+        "cam_axis": c.axis.to_array(),
+        "cam_angle": c.angle_deg,
+        "aperture": c.aperture_radius,
+        "focal_length": c.focal_length,
+    })
+}
+
+/// A partial settings update from the UI.
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SettingsPatch {
+    width: Option<u32>,
+    height: Option<u32>,
+    aa: Option<u32>,
+    stage: Option<String>,
+    ambient: Option<bool>,
+    quality: Option<u32>,
+    max_depth: Option<u32>,
+    seed: Option<u64>,
+    fov: Option<f32>,
+    fov_axis: Option<String>,
+    cam_pos: Option<[f32; 3]>,
+    cam_axis: Option<[f32; 3]>,
+    cam_angle: Option<f32>,
+    aperture: Option<f32>,
+    focal_length: Option<f32>,
+}
+
+impl SettingsPatch {
+    fn apply(self, s: &RenderSettings) -> Result<RenderSettings, String> {
+        let mut s = *s;
+        if let Some(v) = self.width {
+            s.width = v;
+        }
+        if let Some(v) = self.height {
+            s.height = v;
+        }
+        if let Some(v) = self.aa {
+            s.aa = v;
+        }
+        if let Some(v) = self.stage {
+            s.stage = match v.as_str() {
+                "1" => Stage::One,
+                "2" => Stage::Two,
+                "3" | "full" => Stage::Full,
+                other => return Err(format!("stage must be 1, 2 or full, not '{other}'")),
+            };
+        }
+        if let Some(v) = self.ambient {
+            s.ambient = v;
+        }
+        if let Some(v) = self.quality {
+            s.quality = v;
+        }
+        if let Some(v) = self.max_depth {
+            s.max_depth = v;
+        }
+        if let Some(v) = self.seed {
+            s.seed = v;
+        }
+        if let Some(v) = self.fov {
+            s.camera.fov_deg = v;
+        }
+        if let Some(v) = self.fov_axis {
+            s.camera.fov_axis = match v.as_str() {
+                "horizontal" => FovAxis::Horizontal,
+                "vertical" => FovAxis::Vertical,
+                other => return Err(format!("fov_axis must be horizontal or vertical, not '{other}'")),
+            };
+        }
+        if let Some(v) = self.cam_pos {
+            s.camera.position = Vec3::from(v);
+        }
+        if let Some(v) = self.cam_axis {
+            s.camera.axis = Vec3::from(v);
+        }
+        if let Some(v) = self.cam_angle {
+            s.camera.angle_deg = v;
+        }
+        if let Some(v) = self.aperture {
+            s.camera.aperture_radius = v;
+        }
+        if let Some(v) = self.focal_length {
+            s.camera.focal_length = v;
+        }
+        check_settings(&s)?;
+        Ok(s)
+    }
+}
+
+/// An API error: status and message, answered as JSON.
+struct ApiError(StatusCode, String);
+
+impl ApiError {
+    fn bad(msg: impl Into<String>) -> Self {
+        ApiError(StatusCode::BAD_REQUEST, msg.into())
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.0, Json(json!({ "error": self.1 }))).into_response()
+    }
+}
+
+type ApiResult<T> = Result<T, ApiError>;
+type Params = Query<HashMap<String, String>>;
+
+fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/", get(index))
+        .route("/index.html", get(index))
+        .route("/app.js", get(app_js))
+        .route("/app.css", get(app_css))
+        .route("/api/scene", get(api_scene))
+        .route(
+            "/api/settings",
+            get(api_get_settings)
+                .post(api_post_settings)
+                .layer(DefaultBodyLimit::max(SETTINGS_BODY_LIMIT)),
+        )
+        .route("/api/render/status", get(api_status))
+        .route("/api/image.png", get(api_image))
+        .route("/api/view", get(api_view))
+        .route("/api/pick", get(api_pick))
+        .route("/api/trace", get(api_trace))
+        .route("/api/check", get(api_check))
+        .route(
+            "/api/compare",
+            post(api_compare).layer(DefaultBodyLimit::max(COMPARE_BODY_LIMIT)),
+        )
+        .route("/api/compare/heatmap.png", get(api_heatmap))
+        .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
+        .layer(middleware::from_fn_with_state(state.clone(), guard))
+        .with_state(state)
+}
+
+/// Rejects requests whose Host header names another site (DNS rebinding) when bound to a
+/// loopback address, and adds no-cache and nosniff headers.
+async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
+    if st.addr.ip().is_loopback() {
+        let host = req.headers().get(header::HOST).and_then(|h| h.to_str().ok()).unwrap_or("");
+        let port = st.addr.port();
+        let ok = [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("[::1]:{port}")]
+            .iter()
+            .any(|h| h == host);
+        if !ok {
+            return ApiError(StatusCode::FORBIDDEN, format!("unexpected Host header '{host}'")).into_response();
+        }
+    }
+    let mut res = next.run(req).await;
+    let h = res.headers_mut();
+    h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
+    h.insert("x-content-type-options", HeaderValue::from_static("nosniff"));
+    res
+}
+
+async fn index() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], include_str!("ui/index.html"))
+}
+
+async fn app_js() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], include_str!("ui/app.js"))
+}
+
+async fn app_css() -> impl IntoResponse {
+    ([(header::CONTENT_TYPE, "text/css; charset=utf-8")], include_str!("ui/app.css"))
+}
+
+async fn api_scene(State(st): State<Arc<AppState>>) -> Json<Value> {
+    let s = st.lock().settings;
+    let mut v = st.scene_json.clone();
+    let view = auto_view(&st.scene, &s, 1.5);
+    v["settings"] = settings_json(&s);
+    v["view"] = json!({"eye": view.eye.to_array(), "target": view.target.to_array(), "fov": view.fov_deg});
+    Json(v)
+}
+
+async fn api_get_settings(State(st): State<Arc<AppState>>) -> Json<Value> {
+    let g = st.lock();
+    Json(json!({"settings": settings_json(&g.settings), "job": g.job.id}))
+}
+
+async fn api_post_settings(State(st): State<Arc<AppState>>, body: Bytes) -> ApiResult<Json<Value>> {
+    let patch: SettingsPatch =
+        serde_json::from_slice(&body).map_err(|e| ApiError::bad(format!("invalid settings JSON: {e}")))?;
+    let current = st.lock().settings;
+    let new = patch.apply(&current).map_err(ApiError::bad)?;
+    let changed = new != current;
+    let job = if changed || st.lock().job.state == JobState::Cancelled {
+        {
+            let mut g = st.lock();
+            g.settings = new;
+            g.channels.clear();
+        }
+        st.start_render()
+    } else {
+        st.lock().job.id
+    };
+    Ok(Json(json!({"job": job, "settings": settings_json(&new), "changed": changed})))
+}
+
+async fn api_status(State(st): State<Arc<AppState>>) -> Json<Value> {
+    let g = st.lock();
+    let j = &g.job;
+    let done = j.done.load(Ordering::Relaxed);
+    let elapsed = if j.state == JobState::Running {
+        j.started.elapsed().as_secs_f64() * 1000.0
+    } else {
+        j.millis
+    };
+    Json(json!({
+        "job": j.id,
+        "state": j.state.name(),
+        "done": done,
+        "total": j.total,
+        "progress": if j.total > 0 { done as f64 / j.total as f64 } else { 0.0 },
+        "elapsed_ms": elapsed,
+        "rendered": g.rendered.as_ref().map(|r| json!({"job": r.job, "width": r.settings.width, "height": r.settings.height, "millis": r.millis})),
+        "settings": settings_json(&g.settings),
+    }))
+}
+
+fn parse_channel(s: &str) -> Result<(Channel, &'static str), ApiError> {
+    Ok(match s {
+        "color" => (Channel::Color, "color"),
+        "normal" => (Channel::Normal, "normal"),
+        "depth" => (Channel::Depth, "depth"),
+        "entity" => (Channel::Entity, "entity"),
+        "albedo" => (Channel::Albedo, "albedo"),
+        "cost" => (Channel::Cost, "cost"),
+        other => {
+            return Err(ApiError::bad(format!(
+                "channel must be color, normal, depth, entity, albedo or cost, not '{other}'"
+            )))
+        }
+    })
+}
+
+/// The image for `channel` at the current settings; colour comes from the last finished render
+/// (`None` while none matches the current image size).
+async fn channel_image(st: &Arc<AppState>, channel: Channel, name: &'static str) -> ApiResult<Option<Arc<RgbImage>>> {
+    let settings = st.lock().settings;
+    if channel == Channel::Color {
+        let g = st.lock();
+        return Ok(g
+            .rendered
+            .as_ref()
+            .filter(|r| r.settings.width == settings.width && r.settings.height == settings.height)
+            .map(|r| r.image.clone()));
+    }
+    if let Some((s, img)) = st.lock().channels.get(name) {
+        if *s == settings {
+            return Ok(Some(img.clone()));
+        }
+    }
+    let st2 = st.clone();
+    let img = tokio::task::spawn_blocking(move || {
+        let s = RenderSettings { channel, ..settings };
+        let never = AtomicBool::new(false);
+        render(&st2.scene, &s, &|_, _| {}, &never).ok().map(|out| RgbImage {
+            width: out.film.width,
+            height: out.film.height,
+            rgb: out.film.to_rgb8(),
+        })
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("render failed: {e}")))?;
+    let Some(img) = img else { return Ok(None) };
+    let img = Arc::new(img);
+    st.lock().channels.insert(name, (settings, img.clone()));
+    Ok(Some(img))
+}
+
+fn png_response(bytes: Vec<u8>) -> Response {
+    ([(header::CONTENT_TYPE, "image/png")], bytes).into_response()
+}
+
+async fn api_image(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Response> {
+    let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
+    let img = channel_image(&st, channel, name).await?;
+    match img {
+        Some(img) => {
+            let bytes = tokio::task::spawn_blocking(move || encode::png(&img))
+                .await
+                .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+            Ok(png_response(bytes))
+        }
+        None => Err(ApiError(StatusCode::CONFLICT, "no finished render yet".into())),
+    }
+}
+
+fn parse_vec3(name: &str, s: &str) -> ApiResult<Vec3> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let err = || ApiError::bad(format!("{name} must be three finite numbers \"x,y,z\" within ±1e6, not '{s}'"));
+    if parts.len() != 3 {
+        return Err(err());
+    }
+    let mut v = [0.0f32; 3];
+    for (slot, p) in v.iter_mut().zip(parts) {
+        *slot = p.parse().map_err(|_| err())?;
+        if !slot.is_finite() || slot.abs() > 1e6 {
+            return Err(err());
+        }
+    }
+    Ok(Vec3::from(v))
+}
+
+fn parse_num<T: std::str::FromStr + PartialOrd + std::fmt::Display + Copy>(
+    q: &HashMap<String, String>,
+    name: &str,
+    default: T,
+    lo: T,
+    hi: T,
+) -> ApiResult<T> {
+    match q.get(name) {
+        None => Ok(default),
+        Some(s) => match s.trim().parse::<T>() {
+            Ok(v) if v >= lo && v <= hi => Ok(v),
+            _ => Err(ApiError::bad(format!("{name} must be a number from {lo} to {hi}, not '{s}'"))),
+        },
+    }
+}
+
+fn parse_pixel(s: &str, settings: &RenderSettings) -> ApiResult<(u32, u32)> {
+    let err = || {
+        ApiError::bad(format!(
+            "pixel must be \"x,y\" inside the {}×{} image (0-based from the top-left), not '{s}'",
+            settings.width, settings.height
+        ))
+    };
+    let (x, y) = s.split_once(',').ok_or_else(err)?;
+    let x: u32 = x.trim().parse().map_err(|_| err())?;
+    let y: u32 = y.trim().parse().map_err(|_| err())?;
+    if x >= settings.width || y >= settings.height {
+        return Err(err());
+    }
+    Ok((x, y))
+}
+
+fn view_camera(q: &HashMap<String, String>, st: &AppState, settings: &RenderSettings, w: u32, h: u32) -> ApiResult<ViewCamera> {
+    let auto = auto_view(&st.scene, settings, w as f32 / h as f32);
+    let eye = q.get("eye").map(|s| parse_vec3("eye", s)).transpose()?.unwrap_or(auto.eye);
+    let target = q.get("target").map(|s| parse_vec3("target", s)).transpose()?.unwrap_or(auto.target);
+    if (eye - target).length() < 1e-4 {
+        return Err(ApiError::bad("eye and target must differ"));
+    }
+    let fov_deg = parse_num(q, "fov", auto.fov_deg, 5.0, 150.0)?;
+    Ok(ViewCamera { eye, target, fov_deg })
+}
+
+fn view_size(q: &HashMap<String, String>) -> ApiResult<(u32, u32)> {
+    Ok((
+        parse_num(q, "w", 960u32, 16, MAX_VIEW_SIDE)?,
+        parse_num(q, "h", 640u32, 16, MAX_VIEW_SIDE)?,
+    ))
+}
+
+fn parse_selection(s: &str) -> ApiResult<Option<Selection>> {
+    let err = || ApiError::bad(format!("select must be entity:N, light:N or camera, not '{s}'"));
+    if s.is_empty() || s == "none" {
+        return Ok(None);
+    }
+    if s == "camera" {
+        return Ok(Some(Selection::Camera));
+    }
+    let (k, n) = s.split_once(':').ok_or_else(err)?;
+    let n: u32 = n.parse().map_err(|_| err())?;
+    match k {
+        "entity" => Ok(Some(Selection::Entity(n))),
+        "light" => Ok(Some(Selection::Light(n))),
+        _ => Err(err()),
+    }
+}
+
+async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Response> {
+    let settings = st.lock().settings;
+    let (w, h) = view_size(&q)?;
+    let camera = view_camera(&q, &st, &settings, w, h)?;
+    let mut opts = ViewOptions::new(w, h, camera);
+    if let Some(r) = q.get("rays") {
+        opts.rays = r.parse::<RayMode>().map_err(ApiError::bad)?;
+        match opts.rays {
+            RayMode::Pixel(x, y) if x >= settings.width || y >= settings.height => {
+                return Err(ApiError::bad(format!("rays pixel {x},{y} is outside the image")))
+            }
+            RayMode::Row(y) if y >= settings.height => return Err(ApiError::bad(format!("rays row {y} is outside the image"))),
+            _ => {}
+        }
+    }
+    if let Some(m) = q.get("image") {
+        opts.image = m.parse::<ImageMode>().map_err(ApiError::bad)?;
+    }
+    opts.max_rays = parse_num(&q, "max_rays", 2500u32, 1, MAX_RAYS)?;
+    if let Some(s) = q.get("select") {
+        opts.selection = parse_selection(s)?;
+        match opts.selection {
+            Some(Selection::Entity(e)) if e as usize >= st.scene.entities.len() => return Err(ApiError::bad("no such entity")),
+            Some(Selection::Light(l)) if l as usize >= st.scene.lights.len() => return Err(ApiError::bad("no such light")),
+            _ => {}
+        }
+    }
+    let flag = |name: &str| q.get(name).is_some_and(|v| v == "1" || v == "true");
+    if let Some(p) = q.get("pixel") {
+        opts.pixel = Some(parse_pixel(p, &settings)?);
+    }
+    let spp = Integrator::new(&st.scene, &settings).samples_per_pixel();
+    let sample = parse_num(&q, "sample", 0u32, 0, spp.saturating_sub(1))?;
+    opts.samples = flag("samples");
+    opts.cutaway = !q.get("cutaway").is_some_and(|v| v == "0");
+    opts.ground_grid = !q.get("ground").is_some_and(|v| v == "0");
+    opts.antialias = !q.get("aa").is_some_and(|v| v == "0");
+    opts.hidden_alpha = parse_num(&q, "hidden", 0.12f32, 0.0, 1.0)?;
+    let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
+    let image = if opts.image == ImageMode::Traced {
+        channel_image(&st, channel, name).await?
+    } else {
+        None
+    };
+    if flag("check") {
+        if let Some(c) = st.lock().check.as_ref().filter(|c| c.settings == settings) {
+            opts.highlight = c.cells.clone();
+        }
+    }
+    let want_tree = flag("tree");
+    let jpeg = q.get("format").is_none_or(|f| f != "png");
+    let quality = parse_num(&q, "quality", 88u8, 30, 100)?;
+    let st2 = st.clone();
+    let (bytes, info) = tokio::task::spawn_blocking(move || {
+        if want_tree {
+            if let Some((x, y)) = opts.pixel {
+                opts.tree = Some(trace_pixel_with(&st2.scene, &*st2.scene, &settings, x, y, sample));
+            }
+        }
+        let frame = render_view(&st2.scene, &settings, image.as_deref(), &opts);
+        let bytes = if jpeg {
+            encode::jpeg(&frame.image, quality)
+        } else {
+            encode::png(&frame.image)
+        };
+        (bytes, frame.info)
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("view failed: {e}")))?;
+    let info = serde_json::to_string(&info).unwrap_or_default();
+    let ct = if jpeg { "image/jpeg" } else { "image/png" };
+    let mut res = ([(header::CONTENT_TYPE, ct)], bytes).into_response();
+    if let Ok(v) = HeaderValue::from_str(&info) {
+        res.headers_mut().insert("x-view-info", v);
+    }
+    Ok(res)
+}
+
+async fn api_pick(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Json<Value>> {
+    let settings = st.lock().settings;
+    let (w, h) = view_size(&q)?;
+    let camera = view_camera(&q, &st, &settings, w, h)?;
+    let x = parse_num(&q, "x", 0u32, 0, w - 1)?;
+    let y = parse_num(&q, "y", 0u32, 0, h - 1)?;
+    let opts = ViewOptions::new(w, h, camera);
+    let sel = pick(&st.scene, &settings, &opts, x, y);
+    Ok(Json(json!({ "selection": sel })))
+}
+
+async fn api_trace(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Json<Value>> {
+    let settings = st.lock().settings;
+    let x = parse_num(&q, "x", u32::MAX, 0, settings.width - 1)
+        .map_err(|_| ApiError::bad(format!("x must be a pixel column from 0 to {}", settings.width - 1)))?;
+    let y = parse_num(&q, "y", u32::MAX, 0, settings.height - 1)
+        .map_err(|_| ApiError::bad(format!("y must be a pixel row from 0 to {}", settings.height - 1)))?;
+    if x == u32::MAX || y == u32::MAX {
+        return Err(ApiError::bad("x and y are required (0-based pixel from the top-left)"));
+    }
+    let spp = Integrator::new(&st.scene, &settings).samples_per_pixel();
+    let sample = parse_num(&q, "sample", 0u32, 0, spp - 1)?;
+    let reference = match q.get("intersector").map(String::as_str) {
+        None | Some("ours") => false,
+        Some("reference") => true,
+        Some(o) => return Err(ApiError::bad(format!("intersector must be ours or reference, not '{o}'"))),
+    };
+    let st2 = st.clone();
+    let tree = tokio::task::spawn_blocking(move || {
+        if reference {
+            trace_pixel_with(&st2.scene, &ReferenceIntersector { scene: &st2.scene }, &settings, x, y, sample)
+        } else {
+            trace_pixel_with(&st2.scene, &*st2.scene, &settings, x, y, sample)
+        }
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("trace failed: {e}")))?;
+    let integ = Integrator::new(&st.scene, &settings);
+    let positions: Vec<[f32; 2]> = (0..spp.min(256))
+        .map(|s| {
+            let (u, v) = integ.sample_position(x, y, s);
+            [u * settings.width as f32, v * settings.height as f32]
+        })
+        .collect();
+    let pixel = st.lock().rendered.as_ref().filter(|r| r.settings == settings).map(|r| {
+        let i = (y * settings.width + x) as usize * 3;
+        [r.image.rgb[i], r.image.rgb[i + 1], r.image.rgb[i + 2]]
+    });
+    Ok(Json(json!({
+        "tree": tree,
+        "samples_per_pixel": spp,
+        "sample_positions": positions,
+        "pixel_rgb8": pixel,
+        "intersector": if reference { "reference" } else { "ours" },
+    })))
+}
+
+fn answer(scene: &Scene, h: Option<rayscope_core::scene::Hit>) -> Option<HitAnswer> {
+    h.map(|h| {
+        let (e, _) = scene.prim_info(h.prim);
+        HitAnswer {
+            entity: e,
+            name: scene.entities[e as usize].name.clone(),
+            t: h.t,
+        }
+    })
+}
+
+fn run_check(scene: &Scene, settings: &RenderSettings) -> (Vec<Mismatch>, u64) {
+    let integ = Integrator::new(scene, settings);
+    let reference = ReferenceIntersector { scene };
+    let (w, h) = (settings.width, settings.height);
+    let rows: Vec<Vec<Mismatch>> = (0..h)
+        .into_par_iter()
+        .map(|y| {
+            let mut out = Vec::new();
+            for x in 0..w {
+                let pixel = y as u64 * w as u64 + x as u64;
+                let mut rng = Rng::for_sample(settings.seed, pixel, 0);
+                let ray = integ.camera_ray(x, y, 0, &mut rng);
+                let a = scene.intersect(&ray, 0.0, f32::INFINITY);
+                let b = reference.intersect(&ray, 0.0, f32::INFINITY);
+                let kind = match (&a, &b) {
+                    (None, None) => None,
+                    (Some(_), None) | (None, Some(_)) => Some("missing"),
+                    (Some(p), Some(q)) => {
+                        let (ep, _) = scene.prim_info(p.prim);
+                        let (eq, _) = scene.prim_info(q.prim);
+                        let tol = 1e-3 * p.t.abs().max(1.0);
+                        let close = (p.t - q.t).abs() <= tol;
+                        match (ep == eq, close) {
+                            (true, true) => None,
+                            (true, false) => Some("distance"),
+                            // Two entities at the same distance: either answer is right.
+                            (false, true) => Some("tie"),
+                            (false, false) => Some("entity"),
+                        }
+                    }
+                };
+                if let Some(kind) = kind {
+                    out.push(Mismatch {
+                        x,
+                        y,
+                        kind,
+                        ours: answer(scene, a),
+                        reference: answer(scene, b),
+                    });
+                }
+            }
+            out
+        })
+        .collect();
+    let all: Vec<Mismatch> = rows.into_iter().flatten().collect();
+    let n = all.len() as u64;
+    (all, n)
+}
+
+async fn api_check(State(st): State<Arc<AppState>>) -> ApiResult<Json<Value>> {
+    let settings = st.lock().settings;
+    if let Some(c) = st.lock().check.as_ref().filter(|c| c.settings == settings) {
+        return Ok(Json(c.json.clone()));
+    }
+    let cost = settings.width as u64 * settings.height as u64 * st.scene.primitive_count().max(1) as u64;
+    if cost > CHECK_BUDGET {
+        return Err(ApiError::bad(format!(
+            "checking {}×{} pixels against {} primitives with the brute-force reference is too slow; lower the image size",
+            settings.width,
+            settings.height,
+            st.scene.primitive_count()
+        )));
+    }
+    let st2 = st.clone();
+    let start = Instant::now();
+    let (all, n) = tokio::task::spawn_blocking(move || run_check(&st2.scene, &settings))
+        .await
+        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("check failed: {e}")))?;
+    let ties = all.iter().filter(|m| m.kind == "tie").count();
+    let cells: Vec<(u32, u32)> = all.iter().map(|m| (m.x, m.y)).collect();
+    let json = json!({
+        "total": settings.width as u64 * settings.height as u64,
+        "count": n,
+        "ties": ties,
+        "listed": all.len().min(CHECK_LIST),
+        "mismatches": all.into_iter().take(CHECK_LIST).collect::<Vec<_>>(),
+        "millis": start.elapsed().as_secs_f64() * 1000.0,
+        "note": "first hit of each pixel's camera ray (sample 0), rayscope's BVH vs the parry3d reference; a tie is two entities at the same distance",
+    });
+    st.lock().check = Some(Arc::new(CheckResult {
+        settings,
+        json: json.clone(),
+        cells,
+    }));
+    Ok(Json(json))
+}
+
+async fn api_compare(State(st): State<Arc<AppState>>, body: Bytes) -> ApiResult<Json<Value>> {
+    let rendered = st
+        .lock()
+        .rendered
+        .clone()
+        .ok_or_else(|| ApiError(StatusCode::CONFLICT, "no finished render to compare with yet".into()))?;
+    if body.is_empty() {
+        return Err(ApiError::bad("send the reference PNG as the request body"));
+    }
+    let result = tokio::task::spawn_blocking(move || -> Result<(Value, Vec<u8>), String> {
+        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(&body[..]), image::ImageFormat::Png);
+        let mut limits = image::Limits::default();
+        limits.max_image_width = Some(8192);
+        limits.max_image_height = Some(8192);
+        limits.max_alloc = Some(512 * 1024 * 1024);
+        reader.limits(limits);
+        let img = reader.decode().map_err(|e| format!("not a readable PNG: {e}"))?.to_rgb8();
+        let r = &rendered.image;
+        if img.width() != r.width || img.height() != r.height {
+            return Err(format!(
+                "the reference is {}×{} but the render is {}×{}",
+                img.width(),
+                img.height(),
+                r.width,
+                r.height
+            ));
+        }
+        let c = rayscope_core::compare::compare_rgb8(&r.rgb, img.as_raw());
+        let heat = rayscope_core::compare::heatmap_rgb8(&r.rgb, img.as_raw(), 32);
+        let png = encode::png(&RgbImage {
+            width: r.width,
+            height: r.height,
+            rgb: heat,
+        });
+        Ok((
+            json!({
+                "psnr": if c.psnr.is_finite() { json!(c.psnr) } else { json!("inf") },
+                "differing": c.differing,
+                "total": c.total,
+                "max_diff": c.max_diff,
+                "render_job": rendered.job,
+            }),
+            png,
+        ))
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("compare failed: {e}")))?;
+    let (mut v, png) = result.map_err(ApiError::bad)?;
+    let mut g = st.lock();
+    let id = g.next_id;
+    g.next_id += 1;
+    g.heatmaps.push_back((id, Arc::new(png)));
+    while g.heatmaps.len() > 4 {
+        g.heatmaps.pop_front();
+    }
+    v["heatmap"] = json!(format!("/api/compare/heatmap.png?id={id}"));
+    Ok(Json(v))
+}
+
+async fn api_heatmap(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Response> {
+    let id = parse_num(&q, "id", 0u64, 0, u64::MAX)?;
+    let g = st.lock();
+    let png = g
+        .heatmaps
+        .iter()
+        .find(|(i, _)| *i == id)
+        .map(|(_, p)| p.clone())
+        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no such heat map (only the last 4 are kept)".into()))?;
+    Ok(png_response(png.to_vec()))
+}

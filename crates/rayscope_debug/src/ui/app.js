@@ -1,0 +1,560 @@
+// rayscope debugger UI: plain JavaScript, no libraries. The 3D view is drawn by the server;
+// this file only sends input and shows frames, images and tables.
+// Pixel coordinates are 0-based from the top-left everywhere.
+"use strict";
+
+const $ = (id) => document.getElementById(id);
+const st = {
+  scene: null,
+  settings: null,
+  selection: { type: "camera" },   // {type:"entity"|"light"|"material"|"camera", index}
+  pixel: null,                      // [x, y]
+  sample: 0,
+  orbit: null,                      // {target:[..], dist, yaw, pitch, fov}
+  defaultView: null,
+  job: 0,
+  renderedJob: -1,
+  check: null,
+  heatmap: null,
+  zoom: 0,
+  imageData: null,
+};
+
+// ---------- helpers ----------
+const fmt = (v, d = 3) => (typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toFixed(d)) : String(v));
+const vec = (a, d = 3) => (a ? "(" + a.map((x) => fmt(x, d)).join(", ") + ")" : "—");
+const rgbCss = (c) => `rgb(${c.map((x) => Math.round(Math.min(1, Math.max(0, x)) * 255)).join(",")})`;
+function el(tag, attrs = {}, ...kids) {
+  const e = document.createElement(tag);
+  for (const [k, v] of Object.entries(attrs)) {
+    if (k === "class") e.className = v;
+    else if (k === "style") e.style.cssText = v;
+    else if (k.startsWith("on")) e.addEventListener(k.slice(2), v);
+    else e.setAttribute(k, v);
+  }
+  for (const k of kids) if (k != null) e.append(k);
+  return e;
+}
+async function api(path, opts) {
+  const r = await fetch(path, opts);
+  const ct = r.headers.get("content-type") || "";
+  const body = ct.includes("json") ? await r.json() : await r.text();
+  if (!r.ok) throw new Error(body && body.error ? body.error : `${r.status} ${r.statusText}`);
+  return body;
+}
+
+// ---------- orbit camera ----------
+function orbitFrom(eye, target, fov) {
+  const o = [eye[0] - target[0], eye[1] - target[1], eye[2] - target[2]];
+  const dist = Math.hypot(...o);
+  return { target: target.slice(), dist, yaw: Math.atan2(o[0], o[2]), pitch: Math.asin(o[1] / dist), fov };
+}
+function orbitEye(o) {
+  const c = Math.cos(o.pitch);
+  return [o.target[0] + o.dist * c * Math.sin(o.yaw), o.target[1] + o.dist * Math.sin(o.pitch), o.target[2] + o.dist * c * Math.cos(o.yaw)];
+}
+function orbitBasis(o) {
+  const e = orbitEye(o);
+  let f = [o.target[0] - e[0], o.target[1] - e[1], o.target[2] - e[2]];
+  const n = Math.hypot(...f); f = f.map((x) => x / n);
+  // Left-handed, +y up: right = up × forward.
+  let r = [f[2], 0, -f[0]]; const rn = Math.hypot(...r) || 1; r = r.map((x) => x / rn);
+  const u = [f[1] * r[2] - f[2] * r[1], f[2] * r[0] - f[0] * r[2], f[0] * r[1] - f[1] * r[0]];
+  return { r, u, f };
+}
+
+// ---------- view frames ----------
+let viewBusy = false, viewPending = null, viewUrl = null, draftTimer = null;
+function viewParams(draft) {
+  const img = $("view");
+  const wrap = $("view-wrap");
+  const scale = draft ? 0.5 : Math.min(window.devicePixelRatio || 1, 1.5);
+  const w = Math.max(16, Math.min(2560, Math.round(wrap.clientWidth * scale)));
+  const h = Math.max(16, Math.min(2560, Math.round(wrap.clientHeight * scale)));
+  const o = st.orbit;
+  const p = new URLSearchParams();
+  p.set("eye", orbitEye(o).map((x) => x.toFixed(5)).join(","));
+  p.set("target", o.target.map((x) => x.toFixed(5)).join(","));
+  p.set("fov", String(o.fov));
+  p.set("w", w); p.set("h", h);
+  let rays = $("rays").value;
+  if (rays === "pixel") rays = st.pixel ? `pixel:${st.pixel[0]},${st.pixel[1]}` : "frustum";
+  else if (rays === "row") rays = st.pixel ? `row:${st.pixel[1]}` : "frustum";
+  p.set("rays", rays);
+  p.set("image", $("image-mode").value);
+  p.set("channel", $("channel").value);
+  if (st.selection && (st.selection.type === "entity" || st.selection.type === "light")) p.set("select", `${st.selection.type}:${st.selection.index}`);
+  else if (st.selection && st.selection.type === "camera") p.set("select", "camera");
+  if (st.pixel) {
+    p.set("pixel", st.pixel.join(","));
+    p.set("sample", String(st.sample));
+    if ($("show-tree").checked) p.set("tree", "1");
+    if ($("show-samples").checked) p.set("samples", "1");
+  }
+  if (st.check) p.set("check", "1");
+  if (!$("cutaway").checked) p.set("cutaway", "0");
+  p.set("hidden", $("xray").checked ? "0.12" : "0");
+  if (draft) { p.set("aa", "0"); p.set("quality", "70"); }
+  return p;
+}
+function requestView(draft = false) {
+  if (!st.orbit || !st.settings) return;
+  const p = viewParams(draft);
+  if (viewBusy) { viewPending = draft; return; }
+  viewBusy = true;
+  fetch("/api/view?" + p.toString())
+    .then(async (r) => {
+      if (!r.ok) { const e = await r.json().catch(() => ({})); throw new Error(e.error || r.statusText); }
+      const info = JSON.parse(r.headers.get("x-view-info") || "{}");
+      const blob = await r.blob();
+      const url = URL.createObjectURL(blob);
+      const img = $("view");
+      img.onload = () => { if (viewUrl && viewUrl !== url) URL.revokeObjectURL(viewUrl); viewUrl = url; };
+      img.src = url;
+      img.dataset.gridX = info.grid_lines_x; img.dataset.gridY = info.grid_lines_y;
+      img.dataset.frames = String(Number(img.dataset.frames || 0) + 1);
+      const grid = info.grid_step > 1 ? `, every ${info.grid_step}th line` : "";
+      const rays = info.ray_stride > 1 ? ` (every ${info.ray_stride}th pixel)` : "";
+      $("view-info").textContent = `grid ${info.grid_lines_x}×${info.grid_lines_y} lines${grid} · ${info.rays_drawn} rays${rays} · ${info.millis.toFixed(0)} ms`;
+    })
+    .catch((e) => { $("view-info").textContent = "view: " + e.message; })
+    .finally(() => {
+      viewBusy = false;
+      if (viewPending !== null) { const d = viewPending; viewPending = null; requestView(d); }
+    });
+}
+function dragView() {
+  requestView(true);
+  clearTimeout(draftTimer);
+  draftTimer = setTimeout(() => requestView(false), 180);
+}
+
+function setupViewInput() {
+  const img = $("view");
+  let drag = null;
+  img.addEventListener("contextmenu", (e) => e.preventDefault());
+  img.addEventListener("pointerdown", (e) => {
+    drag = { x: e.clientX, y: e.clientY, moved: false, pan: e.shiftKey || e.button === 2 || e.button === 1 };
+    img.setPointerCapture(e.pointerId);
+    img.classList.add("dragging");
+  });
+  img.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const dx = e.clientX - drag.x, dy = e.clientY - drag.y;
+    if (!drag.moved && Math.hypot(dx, dy) < 3) return;
+    drag.moved = true; drag.x = e.clientX; drag.y = e.clientY;
+    const o = st.orbit;
+    if (drag.pan) {
+      const b = orbitBasis(o);
+      const k = o.dist * 0.0016;
+      for (let i = 0; i < 3; i++) o.target[i] += -b.r[i] * dx * k + b.u[i] * dy * k;
+    } else {
+      o.yaw += dx * 0.008;
+      o.pitch = Math.max(-1.5, Math.min(1.5, o.pitch + dy * 0.008));
+    }
+    dragView();
+  });
+  img.addEventListener("pointerup", async (e) => {
+    img.classList.remove("dragging");
+    const d = drag; drag = null;
+    if (!d || d.moved) return;
+    // A click: pick what is under the pointer.
+    const rect = img.getBoundingClientRect();
+    const p = viewParams(false);
+    const x = Math.floor((e.clientX - rect.left) / rect.width * Number(p.get("w")));
+    const y = Math.floor((e.clientY - rect.top) / rect.height * Number(p.get("h")));
+    const q = new URLSearchParams({ eye: p.get("eye"), target: p.get("target"), fov: p.get("fov"), w: p.get("w"), h: p.get("h"), x, y });
+    try {
+      const r = await api("/api/pick?" + q);
+      const s = r.selection;
+      if (!s) return;
+      if (s.type === "pixel") selectPixel(s.index[0], s.index[1]);
+      else select({ type: s.type, index: s.index });
+    } catch (err) { $("view-info").textContent = err.message; }
+  });
+  img.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    st.orbit.dist = Math.max(0.05, Math.min(1e5, st.orbit.dist * Math.exp(e.deltaY * 0.0012)));
+    dragView();
+  }, { passive: false });
+  new ResizeObserver(() => { clearTimeout(draftTimer); draftTimer = setTimeout(() => requestView(false), 120); }).observe($("view-wrap"));
+}
+
+// ---------- hierarchy & inspector ----------
+function buildHierarchy() {
+  const ul = $("hierarchy");
+  ul.innerHTML = "";
+  const s = st.scene;
+  const item = (sel, label, extra, cls) => {
+    const li = el("li", { class: "item " + cls, "data-type": sel.type, "data-index": sel.index ?? "" }, ...extra, el("span", { class: "name" }, label));
+    li.addEventListener("click", () => select(sel));
+    return li;
+  };
+  ul.append(el("li", { class: "group" }, "Camera & image"));
+  ul.append(item({ type: "camera" }, "Camera", [el("span", { class: "swatch", style: "background:#eee" })], "camera"));
+  ul.append(el("li", { class: "group" }, `Entities (${s.entities.length})`));
+  for (const e of s.entities) {
+    const m = s.materials[e.material];
+    ul.append(item({ type: "entity", index: e.index }, e.name, [el("span", { class: "swatch", style: `background:${rgbCss(m.color)}` })], "entity"));
+    ul.lastChild.append(el("span", { class: "kind" }, e.kind));
+  }
+  ul.append(el("li", { class: "group" }, `Lights (${s.lights.length})`));
+  for (const l of s.lights) {
+    ul.append(item({ type: "light", index: l.index }, l.name, [el("span", { class: "swatch", style: `background:${rgbCss(l.color)};border-radius:50%` })], "light"));
+  }
+  ul.append(el("li", { class: "group" }, `Materials (${s.materials.length})`));
+  for (const m of s.materials) {
+    ul.append(item({ type: "material", index: m.index }, m.name, [el("span", { class: "swatch", style: `background:${rgbCss(m.color)}` })], "material"));
+    ul.lastChild.append(el("span", { class: "kind" }, m.kind));
+  }
+}
+
+function select(sel) {
+  st.selection = sel;
+  for (const li of document.querySelectorAll("#hierarchy li.item")) {
+    li.classList.toggle("selected", li.dataset.type === sel.type && (sel.index === undefined || String(sel.index) === li.dataset.index));
+  }
+  renderInspector();
+  requestView();
+}
+
+function dl(pairs) {
+  const d = el("dl");
+  for (const [k, v] of pairs) d.append(el("dt", {}, k), el("dd", {}, v));
+  return d;
+}
+function materialLink(i) {
+  const m = st.scene.materials[i];
+  return el("a", { class: "link", onclick: () => select({ type: "material", index: i }) }, m ? m.name : "?");
+}
+function renderInspector() {
+  const box = $("inspector");
+  box.innerHTML = "";
+  const s = st.scene, sel = st.selection;
+  if (sel.type === "camera") {
+    box.append(el("h3", {}, "Camera & image"));
+    box.append($("settings-form").content.cloneNode(true));
+    fillSettingsForm();
+    for (const input of box.querySelectorAll("input, select")) input.addEventListener("change", onSettingsChange);
+    return;
+  }
+  if (sel.type === "entity") {
+    const e = s.entities[sel.index];
+    box.append(el("h3", {}, e.name));
+    const pairs = [["kind", e.kind], ["material", materialLink(e.material)], ["line", String(e.line)], ["primitives", String(e.primitives)]];
+    for (const [k, v] of Object.entries(e.params)) pairs.push([k, Array.isArray(v) ? vec(v) : fmt(v)]);
+    box.append(dl(pairs));
+  } else if (sel.type === "light") {
+    const l = s.lights[sel.index];
+    box.append(el("h3", {}, l.name));
+    box.append(dl([["kind", "PointLight"], ["position", vec(l.position)], ["colour", vec(l.color)], ["line", String(l.line)]]));
+  } else if (sel.type === "material") {
+    const m = s.materials[sel.index];
+    box.append(el("h3", {}, m.name));
+    const users = s.entities.filter((e) => e.material === m.index).map((e) => e.name).join(", ") || "—";
+    box.append(dl([["type", m.kind], ["colour", el("span", {}, el("span", { class: "swatch", style: `background:${rgbCss(m.color)}` }), " " + vec(m.color))], [m.kind === "Refractive" ? "index" : "value", fmt(m.value)], ["line", String(m.line)], ["used by", users]]));
+  }
+  box.append(el("p", { class: "dim" }, el("a", { class: "link", onclick: () => select({ type: "camera" }) }, "← camera & image settings")));
+}
+
+function fillSettingsForm() {
+  const s = st.settings;
+  const f = $("settings");
+  if (!f) return;
+  for (const input of f.querySelectorAll("input, select")) {
+    const v = s[input.name];
+    if (input.dataset.i !== undefined) input.value = v[Number(input.dataset.i)];
+    else if (input.type === "checkbox") input.checked = !!v;
+    else input.value = v;
+  }
+}
+
+let settingsTimer = null;
+function onSettingsChange() {
+  clearTimeout(settingsTimer);
+  settingsTimer = setTimeout(sendSettings, 120);
+}
+async function sendSettings() {
+  const f = $("settings");
+  const patch = {};
+  for (const input of f.querySelectorAll("input, select")) {
+    const name = input.name;
+    if (input.dataset.i !== undefined) {
+      patch[name] = patch[name] || [0, 0, 0];
+      patch[name][Number(input.dataset.i)] = Number(input.value);
+    } else if (input.type === "checkbox") patch[name] = input.checked;
+    else if (input.type === "number") patch[name] = Number(input.value);
+    else patch[name] = input.value;
+  }
+  try {
+    const r = await api("/api/settings", { method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(patch) });
+    $("settings-error").textContent = "";
+    onNewSettings(r.settings, r.job);
+  } catch (e) {
+    $("settings-error").textContent = e.message;
+  }
+}
+function onNewSettings(settings, job) {
+  const sizeChanged = !st.settings || settings.width !== st.settings.width || settings.height !== st.settings.height;
+  st.settings = settings;
+  st.job = job;
+  if (st.pixel && (st.pixel[0] >= settings.width || st.pixel[1] >= settings.height)) st.pixel = null;
+  if (sizeChanged) { st.check = null; $("check-summary").textContent = "not run yet"; setupZoom(); }
+  st.sample = 0;
+  fillSettingsForm();
+  pollStatus();
+  requestView();
+  if (st.pixel) tracePixel();
+}
+
+// ---------- render status ----------
+let pollTimer = null;
+async function pollStatus() {
+  clearTimeout(pollTimer);
+  try {
+    const s = await api("/api/render/status");
+    $("progress-bar").style.width = `${(s.progress * 100).toFixed(1)}%`;
+    if (s.state === "running") {
+      $("status-text").textContent = `rendering ${s.settings.width}×${s.settings.height}… ${(s.progress * 100).toFixed(0)}%`;
+      pollTimer = setTimeout(pollStatus, 200);
+    } else {
+      $("status-text").textContent = s.state === "done" ? `rendered ${s.settings.width}×${s.settings.height} in ${s.elapsed_ms.toFixed(0)} ms` : s.state;
+      if (s.rendered && s.rendered.job !== st.renderedJob) {
+        st.renderedJob = s.rendered.job;
+        loadImage();
+        requestView();
+      }
+    }
+  } catch (e) {
+    $("status-text").textContent = "server: " + e.message;
+    pollTimer = setTimeout(pollStatus, 1000);
+  }
+}
+
+// ---------- image panel ----------
+function setupZoom() {
+  const z = $("zoom");
+  const s = st.settings;
+  z.innerHTML = "";
+  const box = $("image-scroll");
+  const room = Math.max(120, Math.min(box.clientWidth, box.clientHeight) - 24);
+  const fit = Math.max(1, Math.floor(room / Math.max(s.width, s.height)));
+  for (const k of [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64]) z.append(el("option", { value: k }, `${k}×`));
+  const best = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64].filter((k) => k <= fit).pop() || 1;
+  z.value = String(best);
+  st.zoom = best;
+  layoutImage();
+}
+function layoutImage() {
+  const s = st.settings;
+  const img = $("image"), ov = $("image-overlay");
+  img.style.width = `${s.width * st.zoom}px`;
+  img.style.height = `${s.height * st.zoom}px`;
+  ov.width = s.width * st.zoom; ov.height = s.height * st.zoom;
+  ov.style.width = img.style.width; ov.style.height = img.style.height;
+  drawOverlay();
+}
+function imageSrc() {
+  if ($("show-heatmap").checked && st.heatmap) return st.heatmap;
+  return `/api/image.png?channel=${$("channel").value}&job=${st.renderedJob}`;
+}
+function loadImage() {
+  const img = $("image");
+  img.onload = () => {
+    const c = document.createElement("canvas");
+    c.width = img.naturalWidth; c.height = img.naturalHeight;
+    const g = c.getContext("2d");
+    g.drawImage(img, 0, 0);
+    try { st.imageData = g.getImageData(0, 0, c.width, c.height); } catch (_) { st.imageData = null; }
+    img.dataset.loaded = `${img.naturalWidth}x${img.naturalHeight}`;
+  };
+  img.onerror = () => { st.imageData = null; };
+  img.src = imageSrc();
+  layoutImage();
+}
+function drawOverlay() {
+  const ov = $("image-overlay");
+  const g = ov.getContext("2d");
+  g.clearRect(0, 0, ov.width, ov.height);
+  const z = st.zoom;
+  if (st.check && st.check.mismatches) {
+    g.strokeStyle = "#ff00ff"; g.lineWidth = Math.max(1, z / 6);
+    g.fillStyle = "rgba(255,0,255,0.45)";
+    for (const m of st.check.mismatches) { g.fillRect(m.x * z, m.y * z, z, z); }
+  }
+  if (st.pixel) {
+    g.strokeStyle = "#ffd21a"; g.lineWidth = Math.max(1.5, z / 5);
+    g.strokeRect(st.pixel[0] * z + 0.5, st.pixel[1] * z + 0.5, Math.max(z - 1, 1), Math.max(z - 1, 1));
+  }
+}
+function imagePixelAt(e) {
+  const img = $("image");
+  const rect = img.getBoundingClientRect();
+  const x = Math.floor((e.clientX - rect.left) / rect.width * st.settings.width);
+  const y = Math.floor((e.clientY - rect.top) / rect.height * st.settings.height);
+  if (x < 0 || y < 0 || x >= st.settings.width || y >= st.settings.height) return null;
+  return [x, y];
+}
+function setupImageInput() {
+  const img = $("image");
+  img.addEventListener("mousemove", (e) => {
+    const p = imagePixelAt(e);
+    if (!p) return;
+    let col = "";
+    const d = st.imageData;
+    if (d && d.width === st.settings.width && d.height === st.settings.height) {
+      const i = (p[1] * d.width + p[0]) * 4;
+      const c = [d.data[i], d.data[i + 1], d.data[i + 2]];
+      col = ` = rgb(${c.join(", ")}) = (${c.map((v) => (v / 255).toFixed(3)).join(", ")})`;
+    }
+    $("pixel-readout").textContent = `pixel (${p[0]}, ${p[1]})${col}`;
+  });
+  img.addEventListener("click", (e) => {
+    const p = imagePixelAt(e);
+    if (p) selectPixel(p[0], p[1]);
+  });
+  $("zoom").addEventListener("change", () => { st.zoom = Number($("zoom").value); layoutImage(); });
+  $("channel").addEventListener("change", () => { loadImage(); requestView(); });
+  $("show-heatmap").addEventListener("change", loadImage);
+  $("compare-file").addEventListener("change", compareUpload);
+  $("check-btn").addEventListener("click", runCheck);
+}
+
+function selectPixel(x, y, sample = 0) {
+  st.pixel = [x, y];
+  st.sample = sample;
+  drawOverlay();
+  tracePixel();
+  requestView();
+}
+
+// ---------- ray tree ----------
+const KIND_COLORS = { camera: "#ffffff", shadow: "#ffdb33", reflection: "#33e5ff", refraction: "#ff59e5", emitter: "#ff9919", bounce: "#66ff66" };
+async function tracePixel() {
+  if (!st.pixel) return;
+  const [x, y] = st.pixel;
+  showTab("tree-tab");
+  try {
+    const r = await api(`/api/trace?x=${x}&y=${y}&sample=${st.sample}`);
+    const t = r.tree;
+    const head = $("tree-head");
+    head.innerHTML = "";
+    head.append(`pixel (${x}, ${y}), sample ${t.sample} of ${r.samples_per_pixel} — colour ${vec(t.color)}`);
+    if (r.pixel_rgb8) head.append(` — image byte value rgb(${r.pixel_rgb8.join(", ")})`);
+    if (r.samples_per_pixel > 1) {
+      const sel = el("select", { id: "sample-select" });
+      for (let i = 0; i < r.samples_per_pixel; i++) {
+        const pos = r.sample_positions[i];
+        sel.append(el("option", { value: i }, `sample ${i}` + (pos ? ` @ (${pos[0].toFixed(3)}, ${pos[1].toFixed(3)})` : "")));
+      }
+      sel.value = String(st.sample);
+      sel.addEventListener("change", () => { st.sample = Number(sel.value); tracePixel(); requestView(); });
+      head.append(" ", sel);
+    }
+    const tb = $("tree").querySelector("tbody");
+    tb.innerHTML = "";
+    for (const n of t.nodes) {
+      const h = n.hit;
+      const entity = h ? h.entity_name : n.blocked_by ? `blocked by ${n.blocked_by}` : n.light ? `→ ${n.light} (clear)` : "miss";
+      const tr = el("tr", {},
+        el("td", {}, String(n.id) + (n.parent !== null && n.parent !== undefined ? ` ←${n.parent}` : "")),
+        el("td", { class: "k", style: `color:${n.blocked_by ? "#ff4026" : KIND_COLORS[n.kind] || "#fff"}` }, n.kind),
+        el("td", {}, String(n.depth)),
+        el("td", {}, vec(n.origin)),
+        el("td", {}, vec(n.direction)),
+        el("td", {}, h ? fmt(h.t, 4) : n.t_max != null ? `≤ ${fmt(n.t_max, 4)}` : "∞"),
+        el("td", { class: "entity" }, entity),
+        el("td", {}, h ? vec(h.point) : "—"),
+        el("td", {}, h ? vec(h.normal) + (h.front_face ? "" : " (back)") : "—"),
+        el("td", {}, h ? `${h.material} (${h.material_kind})` : "—"),
+        el("td", {}, fmt(n.weight, 3)),
+        el("td", {}, el("span", { class: "swatch", style: `background:${rgbCss(n.value)}` }), " " + vec(n.value)),
+      );
+      tb.append(tr);
+    }
+  } catch (e) {
+    $("tree-head").textContent = e.message;
+  }
+}
+
+// ---------- intersector check ----------
+async function runCheck() {
+  showTab("check-tab");
+  $("check-summary").textContent = "tracing every pixel with both intersectors…";
+  try {
+    const r = await api("/api/check");
+    st.check = r;
+    const real = r.count - r.ties;
+    $("check-summary").textContent = `${r.count} of ${r.total} pixels disagree (${real} real, ${r.ties} ties between entities at the same distance) — ${r.millis.toFixed(0)} ms` + (r.listed < r.count ? ` — first ${r.listed} listed` : "");
+    const tb = $("check-list").querySelector("tbody");
+    tb.innerHTML = "";
+    const ans = (a) => (a ? `${a.name} t=${fmt(a.t, 5)}` : "miss");
+    for (const m of r.mismatches.slice(0, 1000)) {
+      const tr = el("tr", {}, el("td", {}, `(${m.x}, ${m.y})`), el("td", {}, m.kind), el("td", {}, ans(m.ours)), el("td", {}, ans(m.reference)));
+      tr.addEventListener("click", () => {
+        for (const o of tb.querySelectorAll("tr.sel")) o.classList.remove("sel");
+        tr.classList.add("sel");
+        const box = $("check-detail");
+        box.innerHTML = "";
+        box.append(el("div", { class: "answers" },
+          el("div", {}, el("b", {}, "rayscope"), el("br"), ans(m.ours)),
+          el("div", {}, el("b", {}, "parry3d reference"), el("br"), ans(m.reference))));
+        st.pixel = [m.x, m.y]; st.sample = 0; drawOverlay(); requestView();
+      });
+      tb.append(tr);
+    }
+    drawOverlay();
+    requestView();
+  } catch (e) {
+    $("check-summary").textContent = e.message;
+  }
+}
+
+// ---------- compare with a reference ----------
+async function compareUpload() {
+  const f = $("compare-file").files[0];
+  if (!f) return;
+  $("compare-result").textContent = "comparing…";
+  try {
+    const buf = await f.arrayBuffer();
+    const r = await api("/api/compare", { method: "POST", headers: { "content-type": "image/png" }, body: buf });
+    st.heatmap = r.heatmap;
+    $("show-heatmap").disabled = false;
+    const psnr = r.psnr === "inf" ? "∞ (identical)" : `${Number(r.psnr).toFixed(2)} dB`;
+    $("compare-result").textContent = `${f.name}: PSNR ${psnr}, ${r.differing} of ${r.total} pixels differ, largest channel difference ${r.max_diff}`;
+  } catch (e) {
+    $("compare-result").textContent = e.message;
+  }
+  $("compare-file").value = "";
+}
+
+function showTab(id) {
+  for (const t of document.querySelectorAll(".tab")) t.classList.toggle("active", t.dataset.tab === id);
+  for (const b of document.querySelectorAll(".tab-body")) b.classList.toggle("hidden", b.id !== id);
+}
+
+// ---------- start ----------
+async function main() {
+  try {
+    const s = await api("/api/scene");
+    st.scene = s;
+    $("scene-name").textContent = s.path;
+    $("scene-name").title = (s.warnings || []).join("\n");
+    st.defaultView = s.view;
+    st.orbit = orbitFrom(s.view.eye, s.view.target, s.view.fov);
+    buildHierarchy();
+    st.settings = s.settings;
+    setupZoom();
+    select({ type: "camera" });
+    setupViewInput();
+    setupImageInput();
+    for (const id of ["rays", "image-mode", "show-tree", "show-samples", "cutaway", "xray"]) $(id).addEventListener("change", () => requestView());
+    $("reset-view").addEventListener("click", () => { st.orbit = orbitFrom(st.defaultView.eye, st.defaultView.target, st.defaultView.fov); requestView(); });
+    for (const t of document.querySelectorAll(".tab")) t.addEventListener("click", () => showTab(t.dataset.tab));
+    document.body.dataset.ready = "1";
+    pollStatus();
+  } catch (e) {
+    $("status-text").textContent = "cannot load the scene: " + e.message;
+  }
+}
+main();
