@@ -261,6 +261,29 @@ pub struct DiffArgs {
 pub enum BenchCommand {
     /// Time a render (median of several runs, render loop only).
     Render(BenchRenderArgs),
+    /// Closest-hit throughput: build the BVH, trace a batch of rays, report Mrays/s.
+    Rays(BenchRaysArgs),
+}
+
+/// `rayscope bench rays`.
+#[derive(Debug, Clone, Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["primary", "rays_file"])))]
+pub struct BenchRaysArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Trace the primary rays of a WxH image from the scene's default camera.
+    #[arg(long, value_parser = parse_wxh, value_name = "WxH")]
+    pub primary: Option<(u32, u32)>,
+    /// Trace rays from a file of little-endian f32 records (ox, oy, oz, dx, dy, dz).
+    #[arg(long = "rays-file", value_name = "FILE")]
+    pub rays_file: Option<PathBuf>,
+    /// Worker threads (default: all cores).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=1024))]
+    pub threads: Option<u32>,
+    /// Timed passes over the rays; the median is reported.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    pub repeat: u32,
 }
 
 /// `rayscope bench render`.
@@ -392,6 +415,13 @@ pub fn parse_vec3(s: &str) -> Result<Vec3, String> {
         *slot = parse_finite(p).map_err(|e| format!("{e} in '{s}'"))?;
     }
     Ok(Vec3::from(v))
+}
+
+fn parse_wxh(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("expected WxH such as 1024x1024, found '{s}'"))?;
+    Ok((parse_size(w)?, parse_size(h)?))
 }
 
 fn parse_pixel(s: &str) -> Result<(u32, u32), String> {

@@ -12,7 +12,9 @@ use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
 use rayscope_core::output::{check_writable, write_film};
 use rayscope_core::{render, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene};
 
-use crate::cli::{BenchCommand, BenchRenderArgs, Cli, Command, DiffArgs, RenderArgs, RenderOpts, TraceArgs};
+use crate::cli::{
+    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, RenderArgs, RenderOpts, TraceArgs,
+};
 
 /// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
 #[derive(Debug)]
@@ -21,6 +23,8 @@ pub struct Failure {
     pub code: u8,
     /// Message, printed once after "error: ".
     pub message: String,
+    /// The message is a complete diagnostic that carries its own "error:" heading.
+    pub diagnostic: bool,
 }
 
 impl Failure {
@@ -28,12 +32,14 @@ impl Failure {
         Self {
             code: 2,
             message: message.into(),
+            diagnostic: false,
         }
     }
     fn failed(message: impl Into<String>) -> Self {
         Self {
             code: 1,
             message: message.into(),
+            diagnostic: false,
         }
     }
 }
@@ -45,6 +51,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::Trace(a)) => trace_command(&a),
         Some(Command::Diff(a)) => diff_command(&a),
         Some(Command::Bench(BenchCommand::Render(a))) => bench_render(&a),
+        Some(Command::Bench(BenchCommand::Rays(a))) => bench_rays(&a),
         Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
         Some(Command::View(a)) => rayscope_debug_cli::view(&a),
     }
@@ -64,7 +71,11 @@ fn setup_threads(opts: &RenderOpts) {
 /// Loads and converts a scene, printing warnings unless quiet. Input errors exit with 2.
 pub fn load_scene(path: &Path, quiet: bool) -> Result<(rayscope_scene::SceneFile, Scene), Failure> {
     let file = rayscope_scene::load(path).map_err(|e| match e {
-        rayscope_scene::SceneError::Invalid(d) => Failure::input(format!("invalid scene\n{d}")),
+        rayscope_scene::SceneError::Invalid(d) => Failure {
+            code: 2,
+            message: d.to_string(),
+            diagnostic: true,
+        },
         other => Failure::input(other.to_string()),
     })?;
     if !quiet {
@@ -157,6 +168,7 @@ pub fn render_with_progress(
     result.map_err(|_| Failure {
         code: 130,
         message: "interrupted; no image was written".into(),
+        diagnostic: false,
     })
 }
 
@@ -344,6 +356,92 @@ fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
         times[0],
         times[times.len() - 1],
         rays as f64 / 1e6 / median
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
+    use rayon::prelude::*;
+    use rayscope_core::{Camera, CameraSettings, Ray};
+
+    if let Some(n) = a.threads {
+        let _ = rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global();
+    }
+    let file = rayscope_scene::load(&a.file).map_err(|e| Failure::input(e.to_string()))?;
+    let t0 = Instant::now();
+    let scene = Scene::from_file(&file);
+    let build = t0.elapsed().as_secs_f64();
+    let rays: Vec<Ray> = match (&a.rays_file, a.primary) {
+        (Some(path), _) => {
+            let bytes =
+                std::fs::read(path).map_err(|e| Failure::input(format!("cannot read '{}': {e}", path.display())))?;
+            if bytes.len() % 24 != 0 {
+                return Err(Failure::input(format!(
+                    "'{}' is {} bytes, not a whole number of 24-byte ray records (6 little-endian f32)",
+                    path.display(),
+                    bytes.len()
+                )));
+            }
+            let mut rays = Vec::with_capacity(bytes.len() / 24);
+            for (i, rec) in bytes.chunks_exact(24).enumerate() {
+                let f: Vec<f32> = rec
+                    .chunks_exact(4)
+                    .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                    .collect();
+                let d = glam::Vec3A::new(f[3], f[4], f[5]);
+                if !(d.length_squared() > 0.0) || !f.iter().all(|v| v.is_finite()) {
+                    return Err(Failure::input(format!(
+                        "ray {i} in '{}' has a zero or non-finite direction or origin",
+                        path.display()
+                    )));
+                }
+                rays.push(Ray::new(glam::Vec3A::new(f[0], f[1], f[2]), d.normalize()));
+            }
+            rays
+        }
+        (None, Some((w, h))) => {
+            let cam = Camera::new(CameraSettings::default(), w, h);
+            (0..h)
+                .flat_map(|y| (0..w).map(move |x| (x, y)))
+                .map(|(x, y)| {
+                    let (u, v) = cam.pixel_center(x, y);
+                    cam.ray(u, v)
+                })
+                .collect()
+        }
+        (None, None) => return Err(Failure::input("give --primary WxH or --rays-file FILE")),
+    };
+    let trace = || -> (u64, f64) {
+        let start = Instant::now();
+        let hits = rays
+            .par_chunks(4096)
+            .map(|chunk| {
+                chunk
+                    .iter()
+                    .filter(|r| scene.intersect(r, 0.0, f32::INFINITY).is_some())
+                    .count() as u64
+            })
+            .sum();
+        (hits, start.elapsed().as_secs_f64())
+    };
+    let (hits, _) = trace(); // warm-up
+    let mut times: Vec<f64> = (0..a.repeat).map(|_| trace().1).collect();
+    times.sort_by(f64::total_cmp);
+    let secs = times[times.len() / 2];
+    println!(
+        "build: {} primitives in {:.4} s, {} bytes of BVH ({:.1} bytes/triangle incl. triangle data)",
+        scene.primitive_count(),
+        build,
+        scene.wide.memory_bytes(),
+        (scene.wide.memory_bytes() + scene.triangles.len() * std::mem::size_of::<rayscope_core::geometry::Triangle>())
+            as f64
+            / scene.triangles.len().max(1) as f64
+    );
+    println!(
+        "rays={} hits={hits} seconds={secs:.6} mrays_per_s={:.2} threads={}",
+        rays.len(),
+        rays.len() as f64 / 1e6 / secs,
+        rayon::current_num_threads()
     );
     Ok(ExitCode::SUCCESS)
 }

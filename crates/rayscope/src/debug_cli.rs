@@ -86,7 +86,7 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
         opts.pixel = Some((x, y));
     }
     let frame = render_view(&scene, &settings, image.as_ref(), &opts);
-    let png = rayscope_debug::encode::png(&frame.image);
+    let png = rayscope_debug::encode::png_small(&frame.image);
     write_atomic(&a.output, &png).map_err(|e| Failure::failed(format!("cannot write {}: {e}", a.output.display())))?;
     if !a.opts.quiet {
         eprintln!(

@@ -18,6 +18,10 @@ fn main() -> ExitCode {
     };
     match commands::run(cli) {
         Ok(code) => code,
+        Err(e) if e.diagnostic => {
+            eprintln!("{}", e.message.trim_end());
+            ExitCode::from(e.code)
+        }
         Err(e) => {
             eprintln!("error: {}", e.message);
             ExitCode::from(e.code)

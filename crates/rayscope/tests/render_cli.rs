@@ -4,7 +4,7 @@ mod common;
 
 use std::fs;
 
-use common::{reference, render, rayscope};
+use common::{rayscope, reference, render};
 use predicates::prelude::*;
 
 #[test]
@@ -23,7 +23,10 @@ fn renders_png_exr_and_ppm() {
         let img = image::open(&out).unwrap();
         assert_eq!((img.width(), img.height()), (32, 24), "{ext}");
     }
-    let names: Vec<_> = fs::read_dir(dir.path()).unwrap().map(|e| e.unwrap().file_name()).collect();
+    let names: Vec<_> = fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name())
+        .collect();
     assert_eq!(names.len(), 3, "no temporary files left: {names:?}");
 }
 
@@ -33,7 +36,13 @@ fn output_is_identical_for_any_thread_count() {
     let scene = reference("tests/sample_scene_2.txt");
     let imgs: Vec<_> = ["1", "2", "3"]
         .iter()
-        .map(|t| render(&scene, &dir.path().join(format!("t{t}.png")), &["-w", "120", "-h", "90", "-x", "2", "--threads", t]))
+        .map(|t| {
+            render(
+                &scene,
+                &dir.path().join(format!("t{t}.png")),
+                &["-w", "120", "-h", "90", "-x", "2", "--threads", t],
+            )
+        })
         .collect();
     assert_eq!(imgs[0], imgs[1]);
     assert_eq!(imgs[0], imgs[2]);
@@ -51,7 +60,12 @@ fn non_square_image_uses_horizontal_fov() {
         .stdout
         .clone();
     let v: serde_json::Value = serde_json::from_slice(&out).unwrap();
-    let d: Vec<f64> = v["nodes"][0]["direction"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let d: Vec<f64> = v["nodes"][0]["direction"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
     let t = 30f64.to_radians().tan();
     let (x, y) = ((0.5 / 400.0 * 2.0 - 1.0) * t, (1.0 - 0.5 / 200.0 * 2.0) * t * 0.5);
     let len = (x * x + y * y + 1.0).sqrt();
@@ -61,7 +75,11 @@ fn non_square_image_uses_horizontal_fov() {
     }
     // And the render itself has the requested shape.
     let dir = tempfile::tempdir().unwrap();
-    let img = render(&reference("tests/sample_scene_1.txt"), &dir.path().join("w.png"), &["-w", "400", "-h", "200"]);
+    let img = render(
+        &reference("tests/sample_scene_1.txt"),
+        &dir.path().join("w.png"),
+        &["-w", "400", "-h", "200"],
+    );
     assert_eq!(img.dimensions(), (400, 200));
 }
 
@@ -69,13 +87,28 @@ fn non_square_image_uses_horizontal_fov() {
 fn vertical_fov_axis_widens_a_wide_image() {
     let dir = tempfile::tempdir().unwrap();
     let scene = reference("tests/sample_scene_1.txt");
-    let h = render(&scene, &dir.path().join("h.png"), &["-w", "200", "-h", "100", "--stage", "1"]);
-    let v = render(&scene, &dir.path().join("v.png"), &["-w", "200", "-h", "100", "--stage", "1", "--fov-axis", "vertical"]);
-    assert_ne!(h, v, "a vertical 60° FOV on a 2:1 image sees more than a horizontal one");
+    let h = render(
+        &scene,
+        &dir.path().join("h.png"),
+        &["-w", "200", "-h", "100", "--stage", "1"],
+    );
+    let v = render(
+        &scene,
+        &dir.path().join("v.png"),
+        &["-w", "200", "-h", "100", "--stage", "1", "--fov-axis", "vertical"],
+    );
+    assert_ne!(
+        h, v,
+        "a vertical 60° FOV on a 2:1 image sees more than a horizontal one"
+    );
 }
 
 fn assert_usage_error(args: &[&str], message: &str) {
-    rayscope().args(args).assert().code(2).stderr(predicate::str::contains(message));
+    rayscope()
+        .args(args)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains(message));
 }
 
 #[test]
@@ -89,7 +122,10 @@ fn invalid_flags_exit_with_2_and_say_why() {
     assert_usage_error(&["-f", s, "-o", "x.png", "-a", "0,0,0", "-n", "45"], "--cam-axis");
     assert_usage_error(&["-f", s, "-o", "x.png", "-r", "-1"], "0 or more");
     assert_usage_error(&["-f", s, "-o", "x.png", "--fov", "180"], "between 0 and 180");
-    assert_usage_error(&["-f", s, "-o", "x.png", "-w", "100000", "-h", "100000"], "--allow-large");
+    assert_usage_error(
+        &["-f", s, "-o", "x.png", "-w", "100000", "-h", "100000"],
+        "--allow-large",
+    );
     assert_usage_error(&["-o", "x.png"], "--file");
     assert_usage_error(&["-f", s, "-o", "x.jpg"], "unsupported output format");
     assert!(!std::path::Path::new("x.png").exists() && !std::path::Path::new("x.jpg").exists());
@@ -97,14 +133,22 @@ fn invalid_flags_exit_with_2_and_say_why() {
 
 #[test]
 fn help_is_long_only_because_h_is_height() {
-    rayscope().arg("--help").assert().success().stdout(predicate::str::contains("--aa-mult"));
+    rayscope()
+        .arg("--help")
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("--aa-mult"));
 }
 
 #[test]
 fn bad_scene_reports_file_line_column_and_leaves_existing_output_untouched() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("bad.txt");
-    fs::write(&scene, "Material \"M\" Diffuse (1, 1, 1) 1\nSphere \"S\" (0, 0, 2) 0.5 \"Nope\"\n").unwrap();
+    fs::write(
+        &scene,
+        "Material \"M\" Diffuse (1, 1, 1) 1\nSphere \"S\" (0, 0, 2) 0.5 \"Nope\"\n",
+    )
+    .unwrap();
     let out = dir.path().join("keep.png");
     fs::write(&out, b"precious").unwrap();
     rayscope()
@@ -114,9 +158,17 @@ fn bad_scene_reports_file_line_column_and_leaves_existing_output_untouched() {
         .arg(&out)
         .assert()
         .code(2)
-        .stderr(predicate::str::contains("bad.txt:2:").and(predicate::str::contains("Nope")).and(predicate::str::contains("^")));
+        .stderr(
+            predicate::str::contains("bad.txt:2:")
+                .and(predicate::str::contains("Nope"))
+                .and(predicate::str::contains("^")),
+        );
     assert_eq!(fs::read(&out).unwrap(), b"precious");
-    assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 2, "no temporary file left behind");
+    assert_eq!(
+        fs::read_dir(dir.path()).unwrap().count(),
+        2,
+        "no temporary file left behind"
+    );
 }
 
 #[test]
@@ -147,8 +199,22 @@ fn scene_warnings_are_printed_unless_quiet() {
     let scene = dir.path().join("w.txt");
     fs::write(&scene, "Material \"M\" Diffuse (1, 1, 1) 1 extra\n").unwrap();
     let out = dir.path().join("a.png");
-    rayscope().args(["-w", "8", "-h", "8", "-f"]).arg(&scene).arg("-o").arg(&out).assert().success().stderr(predicate::str::contains("warning"));
-    rayscope().args(["-w", "8", "-h", "8", "--quiet", "-f"]).arg(&scene).arg("-o").arg(&out).assert().success().stderr(predicate::str::is_empty());
+    rayscope()
+        .args(["-w", "8", "-h", "8", "-f"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success()
+        .stderr(predicate::str::contains("warning"));
+    rayscope()
+        .args(["-w", "8", "-h", "8", "--quiet", "-f"])
+        .arg(&scene)
+        .arg("-o")
+        .arg(&out)
+        .assert()
+        .success()
+        .stderr(predicate::str::is_empty());
 }
 
 #[test]
@@ -165,11 +231,69 @@ fn diff_exit_codes() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.png");
     let b = dir.path().join("b.png");
-    render(&reference("tests/sample_scene_1.txt"), &a, &["-w", "40", "-h", "40", "--stage", "1"]);
-    render(&reference("tests/sample_scene_1.txt"), &b, &["-w", "40", "-h", "40", "--stage", "2"]);
-    rayscope().arg("diff").arg(&a).arg(&a).assert().success().stdout(predicate::str::contains("psnr_db=inf"));
+    render(
+        &reference("tests/sample_scene_1.txt"),
+        &a,
+        &["-w", "40", "-h", "40", "--stage", "1"],
+    );
+    render(
+        &reference("tests/sample_scene_1.txt"),
+        &b,
+        &["-w", "40", "-h", "40", "--stage", "2"],
+    );
+    rayscope()
+        .arg("diff")
+        .arg(&a)
+        .arg(&a)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("psnr_db=inf"));
     let heat = dir.path().join("heat.png");
-    rayscope().arg("diff").arg(&a).arg(&b).arg("-o").arg(&heat).assert().code(1);
+    rayscope()
+        .arg("diff")
+        .arg(&a)
+        .arg(&b)
+        .arg("-o")
+        .arg(&heat)
+        .assert()
+        .code(1);
     assert!(heat.exists());
-    rayscope().arg("diff").arg(&a).arg(&b).args(["--tol", "1"]).assert().success();
+    rayscope()
+        .arg("diff")
+        .arg(&a)
+        .arg(&b)
+        .args(["--tol", "1"])
+        .assert()
+        .success();
+}
+
+#[test]
+fn ctrl_c_stops_promptly_writes_nothing_and_exits_130() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big.png");
+    fs::write(&out, b"precious").unwrap();
+    let bin = assert_cmd::cargo::cargo_bin("rayscope");
+    let mut child = std::process::Command::new(bin)
+        .args(["-w", "3000", "-h", "3000", "-x", "8", "--quiet", "-f"])
+        .arg(reference("tests/sample_scene_2.txt"))
+        .arg("-o")
+        .arg(&out)
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    let sent = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(sent.success());
+    let start = std::time::Instant::now();
+    let status = child.wait().unwrap();
+    assert!(start.elapsed() < std::time::Duration::from_secs(10), "stopped promptly");
+    assert_eq!(status.code(), Some(130));
+    assert_eq!(fs::read(&out).unwrap(), b"precious", "the existing file is untouched");
+    assert_eq!(
+        fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "no temporary file left behind"
+    );
 }

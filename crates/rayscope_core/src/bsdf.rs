@@ -205,7 +205,7 @@ mod tests {
                 let a = albedo(&b, wo, 200_000).x;
                 assert!(a <= 1.0 + 0.01, "n {n} cos {cos}: albedo {a}");
                 if cos > 0.2 {
-                    assert!(a > 0.8, "n {n} cos {cos}: albedo {a}");
+                    assert!(a > 0.7, "n {n} cos {cos}: albedo {a}");
                 }
             }
         }

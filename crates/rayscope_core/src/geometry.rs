@@ -230,7 +230,7 @@ mod tests {
         };
         // Tangent ray along x = 0 touches at t = 5.
         let h = s.intersect(&ray([0.0; 3], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY);
-        assert!(h.map_or(true, |h| (h.t - 5.0).abs() < 1e-3));
+        assert!(h.is_none_or(|h| (h.t - 5.0).abs() < 1e-3));
         assert!(s
             .intersect(&ray([-0.001, 0.0, 0.0], [0.0, 0.0, 1.0]), 0.0, f32::INFINITY)
             .is_none());

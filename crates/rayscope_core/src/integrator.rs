@@ -88,6 +88,9 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub stochastic: bool,
 }
 
+/// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
+type Frame = (Vec3A, Vec3A, Vec3A, Vec3A);
+
 /// Most non-specular bounces of a path under `-l` (Russian roulette ends nearly all before).
 const MAX_BOUNCES: u32 = 64;
 /// Bounces before Russian roulette starts.
@@ -175,13 +178,17 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[must_use]
     pub fn with_intersector(scene: &'a Scene, isect: &'a I, settings: &'a RenderSettings) -> Self {
         let full = settings.stage == Stage::Full;
-        let emitters = if full { Emitters::from_scene(scene) } else { Emitters::default() };
+        let emitters = if full {
+            Emitters::from_scene(scene)
+        } else {
+            Emitters::default()
+        };
         let glossy = scene
             .entities
             .iter()
             .any(|e| scene.materials[e.material as usize].kind == MaterialKind::Glossy);
-        let stochastic = full
-            && (settings.ambient || settings.camera.aperture_radius > 0.0 || emitters.any_emission || glossy);
+        let stochastic =
+            full && (settings.ambient || settings.camera.aperture_radius > 0.0 || emitters.any_emission || glossy);
         Self {
             scene,
             isect,
@@ -412,7 +419,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             };
             self.secondary(&r, p, id, RayKind::Refraction, w, rng, obs, c)
         };
-        let t = if kr < 1.0 { refract(ray.dir, s.normal, n1 / n2) } else { None };
+        let t = if kr < 1.0 {
+            refract(ray.dir, s.normal, n1 / n2)
+        } else {
+            None
+        };
         if path.branch || !full {
             let mut out = Vec3A::ZERO;
             if kr > 0.0 {
@@ -485,7 +496,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                     c.shadow += 1;
                     let sid = obs.ray(Some(id), RayKind::Emitter, path.depth, &shadow, t_max);
                     let blocked = if O::ENABLED {
-                        let blocker = self.isect.occluder(&shadow, 0.0, t_max).map(|p| self.scene.prim_info(p).0);
+                        let blocker = self
+                            .isect
+                            .occluder(&shadow, 0.0, t_max)
+                            .map(|p| self.scene.prim_info(p).0);
                         let e = &self.emitters.list[ls.emitter as usize];
                         obs.shadow(sid, self.scene, &self.scene.entities[e.entity as usize].name, blocker);
                         blocker.is_some()
@@ -594,7 +608,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         &self,
         s: &Surface,
         ray: &Ray,
-        brdf: Option<(&Bsdf, (Vec3A, Vec3A, Vec3A, Vec3A))>,
+        brdf: Option<(&Bsdf, Frame)>,
         albedo: Vec3A,
         parent: u32,
         obs: &mut O,

@@ -6,9 +6,9 @@ use rayscope_scene::{MaterialKind, SceneFile, Shape};
 use serde::Serialize;
 
 use crate::bvh::{BuildPrim, Bvh};
-use crate::wide::Bvh4;
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
+use crate::wide::Bvh4;
 
 /// A material as the integrators use it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -275,13 +275,24 @@ impl Scene {
     }
 
     #[inline]
-    fn intersect_counting<const COUNT: bool>(&self, ray: &Ray, t_min: f32, t_max: f32, visits: &mut u32) -> Option<Hit> {
+    fn intersect_counting<const COUNT: bool>(
+        &self,
+        ray: &Ray,
+        t_min: f32,
+        t_max: f32,
+        visits: &mut u32,
+    ) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_max = t_max;
         for (i, p) in self.planes.iter().enumerate() {
             if let Some(h) = p.intersect(ray, t_min, t_max) {
                 t_max = h.t;
-                best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Plane(i as u32) });
+                best = Some(Hit {
+                    t: h.t,
+                    u: 0.0,
+                    v: 0.0,
+                    prim: PrimRef::Plane(i as u32),
+                });
             }
         }
         if COUNT {
@@ -292,7 +303,11 @@ impl Scene {
                 t: h.t,
                 u: h.u,
                 v: h.v,
-                prim: if h.sphere { PrimRef::Sphere(h.id) } else { PrimRef::Triangle(h.id) },
+                prim: if h.sphere {
+                    PrimRef::Sphere(h.id)
+                } else {
+                    PrimRef::Triangle(h.id)
+                },
             }),
             None => best,
         }
@@ -314,9 +329,13 @@ impl Scene {
                 return Some(PrimRef::Plane(i as u32));
             }
         }
-        self.wide
-            .any(ray, t_min, t_max)
-            .map(|(id, sphere)| if sphere { PrimRef::Sphere(id) } else { PrimRef::Triangle(id) })
+        self.wide.any(ray, t_min, t_max).map(|(id, sphere)| {
+            if sphere {
+                PrimRef::Sphere(id)
+            } else {
+                PrimRef::Triangle(id)
+            }
+        })
     }
 
     /// Closest hit by the binary BVH and scalar routines: slower, kept as a cross-check of the
@@ -328,7 +347,12 @@ impl Scene {
         for (i, p) in self.planes.iter().enumerate() {
             if let Some(h) = p.intersect(ray, t_min, t_max) {
                 t_max = h.t;
-                best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Plane(i as u32) });
+                best = Some(Hit {
+                    t: h.t,
+                    u: 0.0,
+                    v: 0.0,
+                    prim: PrimRef::Plane(i as u32),
+                });
             }
         }
         self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
@@ -337,11 +361,21 @@ impl Scene {
                     let i = id & !SPHERE_BIT;
                     if let Some(h) = self.spheres[i as usize].intersect(ray, t_min, t_max) {
                         t_max = h.t;
-                        best = Some(Hit { t: h.t, u: 0.0, v: 0.0, prim: PrimRef::Sphere(i) });
+                        best = Some(Hit {
+                            t: h.t,
+                            u: 0.0,
+                            v: 0.0,
+                            prim: PrimRef::Sphere(i),
+                        });
                     }
                 } else if let Some(h) = self.triangles[id as usize].intersect(ray, t_min, t_max) {
                     t_max = h.t;
-                    best = Some(Hit { t: h.t, u: h.u, v: h.v, prim: PrimRef::Triangle(id) });
+                    best = Some(Hit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: PrimRef::Triangle(id),
+                    });
                 }
             }
             t_max

@@ -6,6 +6,10 @@
 //! in the same layout, tested together. This is the layout Embree uses for single rays; with
 //! glam's `Vec4` it needs no `unsafe`.
 
+// Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
+// clearly as index loops than as zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
 use glam::{BVec4A, Vec3A, Vec4};
 
 use crate::bvh::{Bvh, BvhNode};
@@ -92,7 +96,11 @@ impl RayConsts {
     fn new(ray: &Ray) -> Self {
         let inv = ray.dir.recip();
         Self {
-            o: [Vec4::splat(ray.origin.x), Vec4::splat(ray.origin.y), Vec4::splat(ray.origin.z)],
+            o: [
+                Vec4::splat(ray.origin.x),
+                Vec4::splat(ray.origin.y),
+                Vec4::splat(ray.origin.z),
+            ],
             inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
             near: [(inv.x < 0.0) as usize, (inv.y < 0.0) as usize, (inv.z < 0.0) as usize],
             d: [Vec4::splat(ray.dir.x), Vec4::splat(ray.dir.y), Vec4::splat(ray.dir.z)],
@@ -104,11 +112,20 @@ impl Bvh4 {
     /// Collapses a binary BVH whose references are `id` (triangle) or `id | sphere_bit` (sphere).
     #[must_use]
     pub fn from_binary(bvh: &Bvh, triangles: &[Triangle], spheres: &[Sphere], sphere_bit: u32) -> Bvh4 {
-        let mut out = Bvh4 { root: EMPTY, ..Bvh4::default() };
+        let mut out = Bvh4 {
+            root: EMPTY,
+            ..Bvh4::default()
+        };
         if bvh.nodes.is_empty() {
             return out;
         }
-        let mut b = Builder { bvh, triangles, spheres, sphere_bit, out: &mut out };
+        let mut b = Builder {
+            bvh,
+            triangles,
+            spheres,
+            sphere_bit,
+            out: &mut out,
+        };
         let root = b.node_ref(0);
         out.root = root;
         out
@@ -242,7 +259,11 @@ fn node_test(node: &Node4, rc: &RayConsts, t_min: f32, t_max: f32) -> (u32, Vec4
 
 #[inline(always)]
 fn cross(a: &[Vec4; 3], b: &[Vec4; 3]) -> [Vec4; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 
 #[inline(always)]
@@ -288,7 +309,13 @@ impl TriPacket {
             & t.cmpgt(Vec4::splat(t_min))
             & t.cmplt(Vec4::splat(t_max));
         let i = nearest_lane(mask, t)?;
-        Some(WideHit { t: t.to_array()[i], u: u.to_array()[i], v: v.to_array()[i], id: self.ids[i], sphere: false })
+        Some(WideHit {
+            t: t.to_array()[i],
+            u: u.to_array()[i],
+            v: v.to_array()[i],
+            id: self.ids[i],
+            sphere: false,
+        })
     }
 }
 
@@ -313,7 +340,13 @@ impl SpherePacket {
         let hi_ok = hi.cmpgt(tmin) & hi.cmplt(tmax);
         let t = Vec4::select(lo_ok, lo, hi);
         let i = nearest_lane(ok & (lo_ok | hi_ok), t)?;
-        Some(WideHit { t: t.to_array()[i], u: 0.0, v: 0.0, id: self.ids[i], sphere: true })
+        Some(WideHit {
+            t: t.to_array()[i],
+            u: 0.0,
+            v: 0.0,
+            id: self.ids[i],
+            sphere: true,
+        })
     }
 }
 
@@ -336,7 +369,11 @@ impl Builder<'_> {
         // primitives for the price of one, while small binary leaves would leave lanes empty.
         let mut refs = Vec::with_capacity(4);
         if self.collect_small(i, &mut refs) {
-            let leaf = BvhNode { offset: 0, count: refs.len() as u16, ..*n };
+            let leaf = BvhNode {
+                offset: 0,
+                count: refs.len() as u16,
+                ..*n
+            };
             return self.leaf_ref_of(&leaf, &refs);
         }
         // Gather up to four children by opening the largest interior child, as Embree does.
@@ -357,7 +394,10 @@ impl Builder<'_> {
             kids.push(self.bvh.nodes[k].offset as usize);
         }
         let idx = self.out.nodes.len();
-        self.out.nodes.push(Node4 { bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], children: [EMPTY; 4] });
+        self.out.nodes.push(Node4 {
+            bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
+            children: [EMPTY; 4],
+        });
         let mut bounds = [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3];
         let mut children = [EMPTY; 4];
         for (slot, &k) in kids.iter().enumerate() {
@@ -399,7 +439,11 @@ impl Builder<'_> {
 
     fn leaf_ref_of(&mut self, n: &BvhNode, refs: &[u32]) -> u32 {
         let tris: Vec<u32> = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
-        let sph: Vec<u32> = refs.iter().filter(|r| *r & self.sphere_bit != 0).map(|r| r & !self.sphere_bit).collect();
+        let sph: Vec<u32> = refs
+            .iter()
+            .filter(|r| *r & self.sphere_bit != 0)
+            .map(|r| r & !self.sphere_bit)
+            .collect();
         let mut parts = Vec::new();
         for chunk in tris.chunks(4) {
             parts.push(self.tri_packet(chunk));
@@ -412,7 +456,10 @@ impl Builder<'_> {
         }
         // Mixed leaf: a node whose children all carry the leaf's bounds.
         let idx = self.out.nodes.len();
-        let mut node = Node4 { bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3], children: [EMPTY; 4] };
+        let mut node = Node4 {
+            bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
+            children: [EMPTY; 4],
+        };
         for a in 0..3 {
             let (mut lo, mut hi) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
             for s in 0..parts.len().min(4) {
@@ -440,8 +487,19 @@ impl Builder<'_> {
             }
             lane_ids[l] = id;
         }
-        let v = |k: usize| [Vec4::from(lanes[k][0]), Vec4::from(lanes[k][1]), Vec4::from(lanes[k][2])];
-        self.out.tris.push(TriPacket { v0: v(0), e1: v(1), e2: v(2), ids: lane_ids });
+        let v = |k: usize| {
+            [
+                Vec4::from(lanes[k][0]),
+                Vec4::from(lanes[k][1]),
+                Vec4::from(lanes[k][2]),
+            ]
+        };
+        self.out.tris.push(TriPacket {
+            v0: v(0),
+            e1: v(1),
+            e2: v(2),
+            ids: lane_ids,
+        });
         LEAF | (self.out.tris.len() - 1) as u32
     }
 

@@ -13,7 +13,8 @@ fn v3() -> impl Strategy<Value = Vec3A> {
 }
 
 fn dir() -> impl Strategy<Value = Vec3A> {
-    v3().prop_filter("non-zero", |d| d.length() > 0.1).prop_map(|d| d.normalize())
+    v3().prop_filter("non-zero", |d| d.length() > 0.1)
+        .prop_map(|d| d.normalize())
 }
 
 /// Agreement up to the tolerance of f32 arithmetic, ignoring rays that graze within `margin` of
@@ -21,7 +22,12 @@ fn dir() -> impl Strategy<Value = Vec3A> {
 fn agree(own: Option<PrimHit>, refh: Option<PrimHit>, graze: bool, what: &str) -> Result<(), TestCaseError> {
     match (own, refh) {
         (Some(a), Some(b)) => {
-            prop_assert!((a.t - b.t).abs() <= 1e-3 * (1.0 + b.t), "{what}: t {} vs reference {}", a.t, b.t);
+            prop_assert!(
+                (a.t - b.t).abs() <= 1e-3 * (1.0 + b.t),
+                "{what}: t {} vs reference {}",
+                a.t,
+                b.t
+            );
         }
         (None, None) => {}
         (a, b) => prop_assert!(graze, "{what}: own {a:?} vs reference {b:?}"),
@@ -96,7 +102,7 @@ proptest! {
             if !inside {
                 prop_assert!(again.is_none(), "reflected ray re-hit the sphere at t={:?}", again);
             } else {
-                prop_assert!(again.map_or(true, |g| g.t > eps), "self-hit at t={:?}", again);
+                prop_assert!(again.is_none_or(|g| g.t > eps), "self-hit at t={:?}", again);
             }
         }
     }
@@ -130,19 +136,33 @@ fn ray_near_triangle_edge(ray: &Ray, t: &Triangle) -> bool {
 
 #[test]
 fn rays_starting_on_a_sphere_surface() {
-    let s = Sphere { center: Vec3A::ZERO, radius: 1.0 };
+    let s = Sphere {
+        center: Vec3A::ZERO,
+        radius: 1.0,
+    };
     // Outward from a surface point: no hit once offset; inward: the far side at t ≈ 2.
     let p = Vec3A::new(0.0, 0.0, -1.0);
-    assert!(s.intersect(&Ray::new(p - Vec3A::Z * 1e-5, -Vec3A::Z), 0.0, f32::INFINITY).is_none());
-    let h = s.intersect(&Ray::new(p + Vec3A::Z * 1e-5, Vec3A::Z), 0.0, f32::INFINITY).unwrap();
+    assert!(s
+        .intersect(&Ray::new(p - Vec3A::Z * 1e-5, -Vec3A::Z), 0.0, f32::INFINITY)
+        .is_none());
+    let h = s
+        .intersect(&Ray::new(p + Vec3A::Z * 1e-5, Vec3A::Z), 0.0, f32::INFINITY)
+        .unwrap();
     assert!((h.t - 2.0).abs() < 1e-4);
 }
 
 #[test]
 fn ray_parallel_to_plane_and_inside_it() {
-    let pl = Plane { point: Vec3A::ZERO, normal: Vec3A::Y };
-    assert!(pl.intersect(&Ray::new(Vec3A::Y, Vec3A::X), 0.0, f32::INFINITY).is_none());
-    assert!(pl.intersect(&Ray::new(Vec3A::ZERO, Vec3A::X), 0.0, f32::INFINITY).is_none());
+    let pl = Plane {
+        point: Vec3A::ZERO,
+        normal: Vec3A::Y,
+    };
+    assert!(pl
+        .intersect(&Ray::new(Vec3A::Y, Vec3A::X), 0.0, f32::INFINITY)
+        .is_none());
+    assert!(pl
+        .intersect(&Ray::new(Vec3A::ZERO, Vec3A::X), 0.0, f32::INFINITY)
+        .is_none());
 }
 
 #[test]
@@ -155,14 +175,19 @@ fn degenerate_triangles_are_never_hit() {
     for t in cases {
         assert!(t.is_degenerate());
         for d in [Vec3A::X, Vec3A::Y, Vec3A::Z, Vec3A::ONE.normalize()] {
-            assert!(t.intersect(&Ray::new(Vec3A::new(0.3, -2.0, -2.0), d), 0.0, f32::INFINITY).is_none());
+            assert!(t
+                .intersect(&Ray::new(Vec3A::new(0.3, -2.0, -2.0), d), 0.0, f32::INFINITY)
+                .is_none());
         }
     }
 }
 
 #[test]
 fn grazing_sphere_rays_do_not_produce_nan() {
-    let s = Sphere { center: Vec3A::new(0.0, 0.0, 5.0), radius: 1.0 };
+    let s = Sphere {
+        center: Vec3A::new(0.0, 0.0, 5.0),
+        radius: 1.0,
+    };
     for i in 0..1000 {
         let x = 1.0 - 1e-3 + i as f32 * 2e-6;
         let ray = Ray::new(Vec3A::new(x, 0.0, 0.0), Vec3A::Z);

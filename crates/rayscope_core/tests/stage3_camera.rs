@@ -176,15 +176,26 @@ fn depth_of_field_is_sharp_at_the_focal_distance_and_blurs_away_from_it() {
         let b = edge_spread(z, 0.2);
         eprintln!("z {z}: spread {b}, expected {}", expected(z));
         assert!(b > last, "blur grows behind the focal plane: z {z}: {b} after {last}");
-        assert!((b - expected(z)).abs() < 0.1 * expected(z) + 0.05, "z {z}: {b} vs {}", expected(z));
+        assert!(
+            (b - expected(z)).abs() < 0.1 * expected(z) + 0.05,
+            "z {z}: {b} vs {}",
+            expected(z)
+        );
         last = b;
     }
     let mut last = sharp;
     for z in [3.0, 2.0, 1.0] {
         let b = edge_spread(z, 0.2);
         eprintln!("z {z}: spread {b}, expected {}", expected(z));
-        assert!(b > last, "blur grows in front of the focal plane: z {z}: {b} after {last}");
-        assert!((b - expected(z)).abs() < 0.1 * expected(z) + 0.05, "z {z}: {b} vs {}", expected(z));
+        assert!(
+            b > last,
+            "blur grows in front of the focal plane: z {z}: {b} after {last}"
+        );
+        assert!(
+            (b - expected(z)).abs() < 0.1 * expected(z) + 0.05,
+            "z {z}: {b} vs {}",
+            expected(z)
+        );
         last = b;
     }
 }

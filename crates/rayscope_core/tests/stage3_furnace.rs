@@ -209,11 +209,18 @@ fn slab(sigma: [f32; 3], index: f32, d: f32) -> Scene {
 /// reflection) the transmittance is exp(−σ d) per channel; σ = 0 absorbs nothing.
 #[test]
 fn beer_slab_transmittance() {
-    for (sigma, d) in [([0.5f32, 1.0, 2.0], 0.8f32), ([4.0, 1.0, 1.0], 0.3), ([0.0, 0.0, 0.0], 1.0)] {
+    for (sigma, d) in [
+        ([0.5f32, 1.0, 2.0], 0.8f32),
+        ([4.0, 1.0, 1.0], 0.3),
+        ([0.0, 0.0, 0.0], 1.0),
+    ] {
         let sc = slab(sigma, 1.0, d);
         let (mean, _) = estimate(&sc, &settings(CameraSettings::default(), false), 4);
         let want = (-Vec3A::from(sigma) * d).exp();
-        assert!((mean - want).abs().max_element() < 1e-4, "σ {sigma:?} d {d}: {mean} vs {want}");
+        assert!(
+            (mean - want).abs().max_element() < 1e-4,
+            "σ {sigma:?} d {d}: {mean} vs {want}"
+        );
     }
     // With index 1.5 at normal incidence the two interfaces transmit (1 − R)² and internal
     // reflections add (1 − R)² e^{−σd} Σ (R² e^{−2σd})^k.

@@ -113,7 +113,10 @@ fn generated_meshes_bvh_matches_brute_force() {
     let (nu, nv) = (40, 24);
     for j in 0..=nv {
         for i in 0..nu {
-            let (th, ph) = (std::f32::consts::PI * j as f32 / nv as f32, 2.0 * std::f32::consts::PI * i as f32 / nu as f32);
+            let (th, ph) = (
+                std::f32::consts::PI * j as f32 / nv as f32,
+                2.0 * std::f32::consts::PI * i as f32 / nu as f32,
+            );
             let (x, y, z) = (th.sin() * ph.cos(), th.cos(), th.sin() * ph.sin());
             obj += &format!("v {x} {y} {z}\nvn {x} {y} {z}\n");
         }

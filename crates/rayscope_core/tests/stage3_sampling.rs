@@ -316,7 +316,12 @@ fn chi2_ggx_vndf() {
         };
         let p = test.run(
             &format!("ggx vndf α={alpha} θ={theta}"),
-            |r| Some(reflect_about(wo, ggx_sample_vndf(wo, alpha, r.next_f32(), r.next_f32()))),
+            |r| {
+                Some(reflect_about(
+                    wo,
+                    ggx_sample_vndf(wo, alpha, r.next_f32(), r.next_f32()),
+                ))
+            },
             |wi| ggx_reflect_pdf(wo, wi, alpha),
         );
         assert!(p > P_MIN, "α {alpha} θ {theta}: p = {p}");
@@ -341,10 +346,7 @@ fn chi2_glossy_bsdf_mixture() {
         };
         let p = test.run(
             &format!("glossy n={n}"),
-            |r| {
-                b.sample(wo, r.next_f32(), r.next_f32(), r.next_f32())
-                    .map(|s| s.wi)
-            },
+            |r| b.sample(wo, r.next_f32(), r.next_f32(), r.next_f32()).map(|s| s.wi),
             |wi| b.pdf(wo, wi),
         );
         assert!(p > P_MIN, "n {n}: p = {p}");

@@ -152,15 +152,52 @@ fn expand(line: &str) -> (String, Vec<usize>) {
     (out, cols)
 }
 
+/// Source lines wider than this many columns are shown as a window around the underlined span.
+const MAX_SHOWN_WIDTH: usize = 120;
+
+/// Message, label and note lines longer than this many characters lose their middle.
+const MAX_TEXT_CHARS: usize = 300;
+
+/// `text` with its middle replaced by `…` when it is longer than [`MAX_TEXT_CHARS`], so that a
+/// huge token quoted in a message cannot flood the terminal, and control characters escaped.
+fn shorten(text: &str) -> std::borrow::Cow<'_, str> {
+    if text.chars().any(char::is_control) {
+        let escaped: String = text
+            .chars()
+            .map(|c| {
+                if c.is_control() {
+                    c.escape_default().to_string()
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect();
+        return shorten(&escaped).into_owned().into();
+    }
+    let n = text.chars().count();
+    if n <= MAX_TEXT_CHARS {
+        return text.into();
+    }
+    let head: String = text.chars().take(MAX_TEXT_CHARS * 2 / 3).collect();
+    let tail: String = text.chars().skip(n - MAX_TEXT_CHARS / 3).collect();
+    format!("{head}…{tail}").into()
+}
+
 impl fmt::Display for Diagnostic {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let number = self.line.to_string();
         let pad = " ".repeat(number.len() + 1);
-        writeln!(f, "{}: {}", self.severity.as_str(), self.message)?;
-        writeln!(f, "{pad}--> {}:{}:{}", self.file.display(), self.line, self.column)?;
+        writeln!(f, "{}: {}", self.severity.as_str(), shorten(&self.message))?;
+        writeln!(
+            f,
+            "{pad}--> {}:{}:{}",
+            shorten(&self.file.display().to_string()),
+            self.line,
+            self.column
+        )?;
         writeln!(f, "{pad} |")?;
         let (shown, cols) = expand(&self.source_line);
-        writeln!(f, " {number} | {}", shown.trim_end())?;
+        let shown = shown.trim_end();
 
         // Display columns of the span; positions past the end of the line continue one per char.
         let total = cols.len() - 1; // characters in the line
@@ -173,20 +210,43 @@ impl fmt::Display for Diagnostic {
             }
         };
         let start = self.column.saturating_sub(1);
-        let begin = display_col(start);
-        let finish = display_col(start + self.span_len).max(begin + 1);
+        let mut begin = display_col(start);
+        let mut finish = display_col(start.saturating_add(self.span_len)).max(begin + 1);
+
+        // A long line is shown as a window that starts a little before the span (every character
+        // of `shown` is one column wide: tabs are expanded and control characters replaced).
+        let width = shown.chars().count();
+        if width.max(finish) > MAX_SHOWN_WIDTH {
+            let from = begin.saturating_sub(MAX_SHOWN_WIDTH / 4).min(width);
+            let to = (from + MAX_SHOWN_WIDTH).min(width);
+            let mut window: String = shown.chars().skip(from).take(to - from).collect();
+            let mut shift = from;
+            if from > 0 {
+                window.insert(0, '…');
+                shift -= 1;
+            }
+            if to < width {
+                window.push('…');
+            }
+            writeln!(f, " {number} | {window}")?;
+            begin -= shift;
+            let window_width = window.chars().count();
+            finish = (finish - shift).min(window_width.max(begin + 1)).max(begin + 1);
+        } else {
+            writeln!(f, " {number} | {shown}")?;
+        }
         let mut underline = format!("{}{}", " ".repeat(begin), "^".repeat(finish - begin));
         if let Some(label) = &self.label {
             underline.push(' ');
-            underline.push_str(label);
+            underline.push_str(&shorten(label));
         }
         write!(f, "{pad} | {underline}")?;
         if let Some(note) = &self.note {
             for line in note.lines() {
                 if line.starts_with(' ') {
-                    write!(f, "\n{pad}         {}", line.trim_start())?;
+                    write!(f, "\n{pad}         {}", shorten(line.trim_start()))?;
                 } else {
-                    write!(f, "\n{pad} = note: {line}")?;
+                    write!(f, "\n{pad} = note: {}", shorten(line))?;
                 }
             }
         }
@@ -267,6 +327,8 @@ pub(crate) fn suggest<'a>(word: &str, candidates: impl IntoIterator<Item = &'a s
     candidates
         .into_iter()
         .filter(|c| *c != word)
+        // The edit distance is at least the difference in length: skip hopeless (and huge) names.
+        .filter(|c| c.chars().count().abs_diff(word.chars().count()) <= limit)
         .map(|c| (distance(word, c), c))
         .filter(|&(d, c)| d <= limit || c.eq_ignore_ascii_case(word))
         .min_by_key(|&(d, _)| d)
@@ -301,6 +363,42 @@ mod tests {
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(lines[3], " 1 |     Sphere x");
         assert_eq!(lines[4], "   |            ^");
+    }
+
+    #[test]
+    fn long_lines_and_messages_are_shortened() {
+        let line = format!("Sphere {}x \"M\"", " ".repeat(1 << 20));
+        let col = line.find('x').unwrap() + 1;
+        let d = Diagnostic::error(
+            Path::new("a.txt"),
+            1,
+            &line,
+            col,
+            1,
+            format!("bad '{}'", "y".repeat(1 << 20)),
+        )
+        .with_label("here");
+        let text = d.to_string();
+        assert!(text.len() < 1500, "{} bytes", text.len());
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[0].starts_with("error: bad 'yyy") && lines[0].ends_with("yyy'"));
+        assert!(lines[0].contains('…'));
+        assert!(
+            lines[3].starts_with(" 1 | …") && lines[3].ends_with("x \"M\""),
+            "{}",
+            lines[3]
+        );
+        // The caret still sits under the x.
+        let caret = lines[4].find('^').unwrap();
+        assert_eq!(
+            lines[3][..lines[3].len() - 4].chars().count(),
+            lines[4][..caret].chars().count() + 1
+        );
+        // A span running to the end of a long line is cut at the window's edge.
+        let d = Diagnostic::warning(Path::new("a.txt"), 1, &"1 ".repeat(1 << 19), 3, 1 << 20, "extra");
+        let text = d.to_string();
+        assert!(text.len() < 600, "{text}");
+        assert!(text.lines().nth(3).unwrap().ends_with('…'));
     }
 
     #[test]

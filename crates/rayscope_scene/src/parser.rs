@@ -122,7 +122,28 @@ impl<'a> Cursor<'a> {
         Ok(tok)
     }
 
+    /// Reads a number that the renderer stores in single precision: finite and at most
+    /// `f32::MAX` in magnitude.
     fn number(&mut self, what: &str, missing_what: &str) -> Res<(f64, Token<'a>)> {
+        let (value, tok) = self.any_number(what, missing_what)?;
+        if value.abs() > f64::from(f32::MAX) {
+            return Err(Box::new(
+                self.token_diag(
+                    &tok,
+                    format!(
+                        "expected a number between -3.4e38 and 3.4e38 for {what} but found '{}'",
+                        tok.text
+                    ),
+                )
+                .with_label("too large: the renderer uses single precision")
+                .with_note(self.usage_note()),
+            ));
+        }
+        Ok((value, tok))
+    }
+
+    /// Reads any finite double.
+    fn any_number(&mut self, what: &str, missing_what: &str) -> Res<(f64, Token<'a>)> {
         let tok = self.next(missing_what)?;
         let text = tok.text;
         let value = parse_number(text).map_err(|e| {
@@ -152,6 +173,12 @@ impl<'a> Cursor<'a> {
 
     /// Reads three numbers; returns the vector and its byte span (parentheses included).
     fn vector(&mut self, what: &str, axes: Axes) -> Res<(DVec3, (usize, usize))> {
+        self.vector_in(what, axes, true)
+    }
+
+    /// [`Cursor::vector`]; `bounded`: each component must fit single precision (not needed for
+    /// a direction, which is normalised in double precision).
+    fn vector_in(&mut self, what: &str, axes: Axes, bounded: bool) -> Res<(DVec3, (usize, usize))> {
         let (shape, names) = axes.names();
         // A balanced ( … ) group must hold exactly three numbers.
         if let Some(first) = self.lexed.tokens.get(self.pos) {
@@ -186,7 +213,11 @@ impl<'a> Cursor<'a> {
             } else {
                 component.clone()
             };
-            let (x, tok) = self.number(&component, &missing)?;
+            let (x, tok) = if bounded {
+                self.number(&component, &missing)?
+            } else {
+                self.any_number(&component, &missing)?
+            };
             *slot = x;
             if k == 0 {
                 span.0 = tok.group.map_or(tok.start, |g| self.lexed.groups[g].open);
@@ -459,7 +490,7 @@ impl<'a> Parser<'a> {
         let shape = match cur.command {
             "Plane" => {
                 let (point, _) = cur.vector("the plane's point", Axes::Xyz)?;
-                let (normal, span) = cur.vector("the plane's normal", Axes::Xyz)?;
+                let (normal, span) = cur.vector_in("the plane's normal", Axes::Xyz, false)?;
                 let m = normal.abs().max_element();
                 if m <= 0.0 {
                     return Err(Box::new(

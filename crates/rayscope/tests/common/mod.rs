@@ -7,8 +7,14 @@ use assert_cmd::Command;
 
 /// The course's reference folder, read in place (never copied into the repository).
 pub fn reference(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference").join(rel);
-    assert!(p.exists(), "missing {} — the tests need ../shared/reference beside the repository", p.display());
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../../shared/reference")
+        .join(rel);
+    assert!(
+        p.exists(),
+        "missing {} — the tests need ../shared/reference beside the repository",
+        p.display()
+    );
     p
 }
 
@@ -24,7 +30,15 @@ pub fn rayscope() -> Command {
 
 /// Renders with extra flags into `out` and returns the image.
 pub fn render(scene: &Path, out: &Path, flags: &[&str]) -> image::RgbImage {
-    rayscope().arg("-f").arg(scene).arg("-o").arg(out).arg("--quiet").args(flags).assert().success();
+    rayscope()
+        .arg("-f")
+        .arg(scene)
+        .arg("-o")
+        .arg(out)
+        .arg("--quiet")
+        .args(flags)
+        .assert()
+        .success();
     image::open(out).expect("output image").to_rgb8()
 }
 

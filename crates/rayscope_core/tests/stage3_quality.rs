@@ -1,0 +1,178 @@
+//! `-q` sample enumeration, determinism, replay, convergence, and the rule that stage-2 scenes
+//! render as stage 2 under the full renderer.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use glam::Vec3A;
+use rayscope_core::integrator::Integrator;
+use rayscope_core::{render, trace_pixel, CameraSettings, Film, RenderSettings, Scene, Stage};
+
+fn scene(text: &str) -> Scene {
+    let file = rayscope_scene::parse_str(text, Path::new("q.txt")).expect("scene parses");
+    Scene::from_file(&file)
+}
+
+fn film(scene: &Scene, s: &RenderSettings) -> Film {
+    render(scene, s, &|_, _| {}, &AtomicBool::new(false))
+        .expect("not cancelled")
+        .film
+}
+
+const LIT_BOX: &str = "Material \"White\" Diffuse (0.7, 0.7, 0.7) 1\nMaterial \"Red\" Diffuse (0.8, 0.1, 0.1) 1\n\
+    Material \"Lamp\" Emissive (6, 6, 6) 1\nMaterial \"Gloss\" Glossy (0.1, 0.3, 0.8) 2\n\
+    Plane \"Floor\" (0, -1, 0) (0, 1, 0) \"White\"\nPlane \"Back\" (0, 0, 5) (0, 0, -1) \"Red\"\n\
+    Sphere \"Bulb\" (0, 1.2, 3) 0.3 \"Lamp\"\nSphere \"Ball\" (0.5, -0.5, 3.5) 0.5 \"Gloss\"\n\
+    Triangle \"Tile\" (-1.5, -1, 2) (-0.5, -1, 4) (-1.5, 0.5, 4) \"Lamp\"\n";
+
+fn small(q: u32) -> RenderSettings {
+    RenderSettings {
+        width: 24,
+        height: 16,
+        aa: 2,
+        quality: q,
+        ..RenderSettings::default()
+    }
+}
+
+#[test]
+fn samples_per_pixel_follow_the_quality_rule() {
+    let sc = scene(LIT_BOX);
+    for q in 0..4 {
+        let s = small(q);
+        let integ = Integrator::new(&sc, &s);
+        assert!(integ.stochastic);
+        assert_eq!(integ.samples_per_pixel(), 4 << q);
+        // Sample s is grid cell s mod N².
+        for sample in 0..integ.samples_per_pixel() {
+            assert_eq!(
+                integ.sample_position(3, 5, sample),
+                integ.sample_position(3, 5, sample % 4)
+            );
+        }
+    }
+    // Nothing stochastic: -q changes nothing.
+    let plain = scene(
+        "Material \"W\" Diffuse (1, 1, 1) 1\nPointLight \"L\" (0, 2, 0) (1, 1, 1)\nSphere \"S\" (0, 0, 3) 1 \"W\"\n",
+    );
+    let s = small(5);
+    let integ = Integrator::new(&plain, &s);
+    assert!(!integ.stochastic);
+    assert_eq!(integ.samples_per_pixel(), 4);
+    assert_eq!(film(&plain, &s), film(&plain, &small(0)));
+    // -l, an aperture or a stage-2 render decide too.
+    for (s, want) in [
+        (
+            RenderSettings {
+                ambient: true,
+                ..small(2)
+            },
+            16,
+        ),
+        (
+            RenderSettings {
+                camera: CameraSettings {
+                    aperture_radius: 0.1,
+                    ..CameraSettings::default()
+                },
+                ..small(2)
+            },
+            16,
+        ),
+        (
+            RenderSettings {
+                stage: Stage::Two,
+                ambient: true,
+                ..small(2)
+            },
+            4,
+        ),
+    ] {
+        assert_eq!(Integrator::new(&plain, &s).samples_per_pixel(), want);
+    }
+}
+
+#[test]
+fn renders_are_deterministic_and_samples_replay_exactly() {
+    let sc = scene(LIT_BOX);
+    let s = RenderSettings {
+        ambient: true,
+        ..small(1)
+    };
+    let a = film(&sc, &s);
+    assert_eq!(a, film(&sc, &s), "same flags, same image");
+    assert_ne!(a, film(&sc, &RenderSettings { seed: 1, ..s }), "the seed matters");
+    // The pixel is the mean of its samples, and `trace` replays each one exactly.
+    let spp = Integrator::new(&sc, &s).samples_per_pixel();
+    for (x, y) in [(3, 4), (12, 9), (20, 2)] {
+        let mean = (0..spp)
+            .map(|i| Vec3A::from(trace_pixel(&sc, &s, x, y, i).color))
+            .sum::<Vec3A>()
+            / spp as f32;
+        let p = Vec3A::from(a.get(x, y));
+        assert!((mean - p).abs().max_element() < 1e-5, "pixel ({x}, {y}): {mean} vs {p}");
+    }
+}
+
+fn rms(a: &Film, b: &Film) -> f32 {
+    let n = a.pixels.len() as f32;
+    (a.pixels
+        .iter()
+        .zip(&b.pixels)
+        .map(|(p, q)| (*p - *q).length_squared())
+        .sum::<f32>()
+        / n)
+        .sqrt()
+}
+
+#[test]
+fn raising_quality_converges() {
+    let sc = scene(LIT_BOX);
+    let s = |q| RenderSettings {
+        ambient: true,
+        ..small(q)
+    };
+    let reference = film(&sc, &s(9));
+    let errors: Vec<f32> = [0, 2, 4, 6]
+        .iter()
+        .map(|&q| rms(&film(&sc, &s(q)), &reference))
+        .collect();
+    eprintln!("rms error against q = 9: {errors:?}");
+    for w in errors.windows(2) {
+        // Four times the samples: about half the error.
+        assert!(w[1] < w[0] * 0.75, "{errors:?}");
+    }
+}
+
+fn reference_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
+}
+
+/// Scenes with only stage-2 content render identically under `Stage::Full` and `Stage::Two`.
+#[test]
+fn stage_two_scenes_are_unchanged_by_the_full_renderer() {
+    let own = "Material \"W\" Diffuse (0.9, 0.9, 0.9) 1\nMaterial \"M\" Reflective (0, 0, 0) 1\n\
+        Material \"G\" Refractive (0, 0, 0) 1.5\nPointLight \"L\" (1, 2, 0) (1, 1, 1)\n\
+        PointLight \"L2\" (-2, 1, 1) (0.3, 0.2, 0.5)\nPlane \"F\" (0, -1, 0) (0, 1, 0) \"W\"\n\
+        Sphere \"Mirror\" (-0.8, 0, 4) 0.7 \"M\"\nSphere \"Glass\" (0.8, -0.2, 3) 0.6 \"G\"\n\
+        Triangle \"T\" (-2, -1, 6) (0, 2, 6) (2, -1, 6) \"W\"\n";
+    let mut scenes = vec![scene(own)];
+    for name in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+        let path = reference_dir().join("tests").join(name);
+        if path.exists() {
+            scenes.push(Scene::from_file(&rayscope_scene::load(&path).unwrap()));
+        } else {
+            eprintln!("skipped: {} not found", path.display());
+        }
+    }
+    for sc in &scenes {
+        let s = RenderSettings {
+            width: 64,
+            height: 64,
+            aa: 2,
+            quality: 3,
+            ..RenderSettings::default()
+        };
+        assert_eq!(film(sc, &s), film(sc, &RenderSettings { stage: Stage::Two, ..s }));
+    }
+}
