@@ -389,7 +389,7 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
                     .map(|b| f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
                     .collect();
                 let d = glam::Vec3A::new(f[3], f[4], f[5]);
-                if !(d.length_squared() > 0.0) || !f.iter().all(|v| v.is_finite()) {
+                if d.length_squared() <= 0.0 || !f.iter().all(|v| v.is_finite()) {
                     return Err(Failure::input(format!(
                         "ray {i} in '{}' has a zero or non-finite direction or origin",
                         path.display()

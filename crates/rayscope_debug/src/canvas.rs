@@ -73,35 +73,56 @@ impl Canvas {
     pub fn segment(&mut self, a: ScreenPoint, b: ScreenPoint, ca: Vec4, cb: Vec4, width: f32, bias: f32, fade_z: f32) {
         let hw = (width * 0.5).max(0.35);
         let reach = hw + 1.0;
-        // Clip against the screen rectangle grown by the reach (Liang–Barsky).
+        // Clip against the screen rectangle grown by the reach (Liang–Barsky), in f64: an end
+        // near the view's near plane projects very far off screen.
         let (w, h) = (self.width as f32, self.height as f32);
-        let d = b.p - a.p;
-        let mut s0 = 0.0f32;
-        let mut s1 = 1.0f32;
+        let (ax, ay) = (f64::from(a.p.x), f64::from(a.p.y));
+        let (dx, dy) = (f64::from(b.p.x) - ax, f64::from(b.p.y) - ay);
+        let r = f64::from(reach);
+        let mut s0 = 0.0f64;
+        let mut s1 = 1.0f64;
         for (p, q) in [
-            (-d.x, a.p.x + reach),
-            (d.x, w + reach - a.p.x),
-            (-d.y, a.p.y + reach),
-            (d.y, h + reach - a.p.y),
+            (-dx, ax + r),
+            (dx, f64::from(w) + r - ax),
+            (-dy, ay + r),
+            (dy, f64::from(h) + r - ay),
         ] {
             if p == 0.0 {
                 if q < 0.0 {
                     return;
                 }
             } else {
-                let r = q / p;
+                let t = q / p;
                 if p < 0.0 {
-                    s0 = s0.max(r);
+                    s0 = s0.max(t);
                 } else {
-                    s1 = s1.min(r);
+                    s1 = s1.min(t);
                 }
             }
         }
-        if s0 > s1 {
+        if s0 > s1 || !s0.is_finite() || !s1.is_finite() {
             return;
         }
-        let pa = a.p + d * s0;
-        let pb = a.p + d * s1;
+        // Re-base the segment on its visible part (colours perspective-correct at the cuts).
+        let at = |s: f64| {
+            let inv_z = a.inv_z + (b.inv_z - a.inv_z) * s as f32;
+            let sw = if inv_z > 0.0 && b.inv_z != a.inv_z {
+                (s as f32 * b.inv_z / inv_z).clamp(0.0, 1.0)
+            } else {
+                s as f32
+            };
+            (
+                ScreenPoint {
+                    p: Vec2::new((ax + dx * s) as f32, (ay + dy * s) as f32),
+                    inv_z,
+                },
+                ca + (cb - ca) * sw,
+            )
+        };
+        let ((a, ca), (b, cb)) = (at(s0), at(s1));
+        let (s0, s1) = (0.0f32, 1.0f32);
+        let d = b.p - a.p;
+        let (pa, pb) = (a.p, b.p);
         let len2 = d.length_squared();
         let steep = d.y.abs() > d.x.abs();
         // Walk the major axis one pixel at a time; cover a band across the minor axis.
@@ -327,7 +348,7 @@ mod tests {
     fn steep_and_offscreen_lines_do_not_panic() {
         let mut c = blank(16, 16);
         c.segment(sp(-100.0, -50.0), sp(300.0, 900.0), Vec4::ONE, Vec4::ONE, 3.0, 0.0, 0.0);
-        c.segment(sp(8.0, -1e9), sp(8.0, 1e9), Vec4::ONE, Vec4::ONE, 1.0, 0.0, 0.0);
+        c.segment(sp(8.5, -1e9), sp(8.5, 1e9), Vec4::ONE, Vec4::ONE, 1.0, 0.0, 0.0);
         c.segment(sp(5.0, 5.0), sp(5.0, 5.0), Vec4::ONE, Vec4::ONE, 2.0, 0.0, 0.0);
         c.dot(sp(-3.0, 8.0), 4.0, Vec4::ONE, Vec4::ONE, 0.0);
         c.text(Vec2::new(14.0, 14.0), "xyz", 2, Vec4::ONE);

@@ -12,8 +12,21 @@ use crate::view::RgbImage;
 /// If `img.rgb` does not hold `width × height × 3` bytes.
 #[must_use]
 pub fn png(img: &RgbImage) -> Vec<u8> {
+    png_with(img, CompressionType::Fast, FilterType::Sub)
+}
+
+/// Encodes an RGB image as small a PNG as the encoder manages (for files).
+///
+/// # Panics
+/// If `img.rgb` does not hold `width × height × 3` bytes.
+#[must_use]
+pub fn png_small(img: &RgbImage) -> Vec<u8> {
+    png_with(img, CompressionType::Best, FilterType::Adaptive)
+}
+
+fn png_with(img: &RgbImage, compression: CompressionType, filter: FilterType) -> Vec<u8> {
     let mut out = Vec::new();
-    PngEncoder::new_with_quality(&mut out, CompressionType::Fast, FilterType::Sub)
+    PngEncoder::new_with_quality(&mut out, compression, filter)
         .write_image(&img.rgb, img.width, img.height, ExtendedColorType::Rgb8)
         .expect("encoding a PNG into memory cannot fail for a well-formed image");
     out

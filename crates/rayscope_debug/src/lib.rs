@@ -13,4 +13,6 @@ pub mod server;
 pub mod view;
 
 pub use server::{serve, start, DebugError, RunningServer, ServeConfig};
-pub use view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame, ViewOptions};
+pub use view::{
+    auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame, ViewOptions,
+};

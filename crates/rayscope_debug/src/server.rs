@@ -150,7 +150,9 @@ pub fn check_settings(s: &RenderSettings) -> Result<(), String> {
     }
     let samples = s.width as u64 * s.height as u64 * (s.aa as u64).pow(2);
     if samples > 4 * (MAX_IMAGE_SIDE as u64).pow(2) {
-        return Err(format!("{samples} samples is too many for the debugger; lower the size or -x"));
+        return Err(format!(
+            "{samples} samples is too many for the debugger; lower the size or -x"
+        ));
     }
     if s.max_depth > 64 {
         return Err("depth limit must be at most 64".into());
@@ -193,7 +195,10 @@ pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
         addr: addr_text.clone(),
         source,
     };
-    let addrs: Vec<SocketAddr> = (cfg.host.as_str(), cfg.port).to_socket_addrs().map_err(bind_err)?.collect();
+    let addrs: Vec<SocketAddr> = (cfg.host.as_str(), cfg.port)
+        .to_socket_addrs()
+        .map_err(bind_err)?
+        .collect();
     let listener = StdListener::bind(&addrs[..]).map_err(bind_err)?;
     listener.set_nonblocking(true).map_err(bind_err)?;
     let addr = listener.local_addr().map_err(bind_err)?;
@@ -431,7 +436,9 @@ fn scene_json(cfg: &ServeConfig) -> Value {
             let params = match &e.shape {
                 Shape::Plane { point, normal } => json!({"point": v3(*point), "normal": v3(*normal)}),
                 Shape::Sphere { center, radius } => json!({"center": v3(*center), "radius": radius}),
-                Shape::Triangle { vertices } => json!({"v0": v3(vertices[0]), "v1": v3(vertices[1]), "v2": v3(vertices[2])}),
+                Shape::Triangle { vertices } => {
+                    json!({"v0": v3(vertices[0]), "v1": v3(vertices[1]), "v2": v3(vertices[2])})
+                }
                 Shape::Mesh {
                     source,
                     offset,
@@ -638,11 +645,19 @@ fn router(state: Arc<AppState>) -> Router {
 /// loopback address, and adds no-cache and nosniff headers.
 async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
     if st.addr.ip().is_loopback() {
-        let host = req.headers().get(header::HOST).and_then(|h| h.to_str().ok()).unwrap_or("");
+        let host = req
+            .headers()
+            .get(header::HOST)
+            .and_then(|h| h.to_str().ok())
+            .unwrap_or("");
         let port = st.addr.port();
-        let ok = [format!("127.0.0.1:{port}"), format!("localhost:{port}"), format!("[::1]:{port}")]
-            .iter()
-            .any(|h| h == host);
+        let ok = [
+            format!("127.0.0.1:{port}"),
+            format!("localhost:{port}"),
+            format!("[::1]:{port}"),
+        ]
+        .iter()
+        .any(|h| h == host);
         if !ok {
             return ApiError(StatusCode::FORBIDDEN, format!("unexpected Host header '{host}'")).into_response();
         }
@@ -655,15 +670,24 @@ async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Res
 }
 
 async fn index() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "text/html; charset=utf-8")], include_str!("ui/index.html"))
+    (
+        [(header::CONTENT_TYPE, "text/html; charset=utf-8")],
+        include_str!("ui/index.html"),
+    )
 }
 
 async fn app_js() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "text/javascript; charset=utf-8")], include_str!("ui/app.js"))
+    (
+        [(header::CONTENT_TYPE, "text/javascript; charset=utf-8")],
+        include_str!("ui/app.js"),
+    )
 }
 
 async fn app_css() -> impl IntoResponse {
-    ([(header::CONTENT_TYPE, "text/css; charset=utf-8")], include_str!("ui/app.css"))
+    (
+        [(header::CONTENT_TYPE, "text/css; charset=utf-8")],
+        include_str!("ui/app.css"),
+    )
 }
 
 async fn api_scene(State(st): State<Arc<AppState>>) -> Json<Value> {
@@ -696,7 +720,9 @@ async fn api_post_settings(State(st): State<Arc<AppState>>, body: Bytes) -> ApiR
     } else {
         st.lock().job.id
     };
-    Ok(Json(json!({"job": job, "settings": settings_json(&new), "changed": changed})))
+    Ok(Json(
+        json!({"job": job, "settings": settings_json(&new), "changed": changed}),
+    ))
 }
 
 async fn api_status(State(st): State<Arc<AppState>>) -> Json<Value> {
@@ -791,7 +817,11 @@ async fn api_image(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResu
 
 fn parse_vec3(name: &str, s: &str) -> ApiResult<Vec3> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let err = || ApiError::bad(format!("{name} must be three finite numbers \"x,y,z\" within ±1e6, not '{s}'"));
+    let err = || {
+        ApiError::bad(format!(
+            "{name} must be three finite numbers \"x,y,z\" within ±1e6, not '{s}'"
+        ))
+    };
     if parts.len() != 3 {
         return Err(err());
     }
@@ -816,7 +846,9 @@ fn parse_num<T: std::str::FromStr + PartialOrd + std::fmt::Display + Copy>(
         None => Ok(default),
         Some(s) => match s.trim().parse::<T>() {
             Ok(v) if v >= lo && v <= hi => Ok(v),
-            _ => Err(ApiError::bad(format!("{name} must be a number from {lo} to {hi}, not '{s}'"))),
+            _ => Err(ApiError::bad(format!(
+                "{name} must be a number from {lo} to {hi}, not '{s}'"
+            ))),
         },
     }
 }
@@ -837,10 +869,24 @@ fn parse_pixel(s: &str, settings: &RenderSettings) -> ApiResult<(u32, u32)> {
     Ok((x, y))
 }
 
-fn view_camera(q: &HashMap<String, String>, st: &AppState, settings: &RenderSettings, w: u32, h: u32) -> ApiResult<ViewCamera> {
+fn view_camera(
+    q: &HashMap<String, String>,
+    st: &AppState,
+    settings: &RenderSettings,
+    w: u32,
+    h: u32,
+) -> ApiResult<ViewCamera> {
     let auto = auto_view(&st.scene, settings, w as f32 / h as f32);
-    let eye = q.get("eye").map(|s| parse_vec3("eye", s)).transpose()?.unwrap_or(auto.eye);
-    let target = q.get("target").map(|s| parse_vec3("target", s)).transpose()?.unwrap_or(auto.target);
+    let eye = q
+        .get("eye")
+        .map(|s| parse_vec3("eye", s))
+        .transpose()?
+        .unwrap_or(auto.eye);
+    let target = q
+        .get("target")
+        .map(|s| parse_vec3("target", s))
+        .transpose()?
+        .unwrap_or(auto.target);
     if (eye - target).length() < 1e-4 {
         return Err(ApiError::bad("eye and target must differ"));
     }
@@ -853,6 +899,11 @@ fn view_size(q: &HashMap<String, String>) -> ApiResult<(u32, u32)> {
         parse_num(q, "w", 960u32, 16, MAX_VIEW_SIDE)?,
         parse_num(q, "h", 640u32, 16, MAX_VIEW_SIDE)?,
     ))
+}
+
+/// True when the query sets `name=0`.
+fn is_off(q: &HashMap<String, String>, name: &str) -> bool {
+    matches!(q.get(name).map(String::as_str), Some("0"))
 }
 
 fn parse_selection(s: &str) -> ApiResult<Option<Selection>> {
@@ -883,7 +934,9 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
             RayMode::Pixel(x, y) if x >= settings.width || y >= settings.height => {
                 return Err(ApiError::bad(format!("rays pixel {x},{y} is outside the image")))
             }
-            RayMode::Row(y) if y >= settings.height => return Err(ApiError::bad(format!("rays row {y} is outside the image"))),
+            RayMode::Row(y) if y >= settings.height => {
+                return Err(ApiError::bad(format!("rays row {y} is outside the image")))
+            }
             _ => {}
         }
     }
@@ -894,8 +947,12 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
     if let Some(s) = q.get("select") {
         opts.selection = parse_selection(s)?;
         match opts.selection {
-            Some(Selection::Entity(e)) if e as usize >= st.scene.entities.len() => return Err(ApiError::bad("no such entity")),
-            Some(Selection::Light(l)) if l as usize >= st.scene.lights.len() => return Err(ApiError::bad("no such light")),
+            Some(Selection::Entity(e)) if e as usize >= st.scene.entities.len() => {
+                return Err(ApiError::bad("no such entity"))
+            }
+            Some(Selection::Light(l)) if l as usize >= st.scene.lights.len() => {
+                return Err(ApiError::bad("no such light"))
+            }
             _ => {}
         }
     }
@@ -906,9 +963,9 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
     let spp = Integrator::new(&st.scene, &settings).samples_per_pixel();
     let sample = parse_num(&q, "sample", 0u32, 0, spp.saturating_sub(1))?;
     opts.samples = flag("samples");
-    opts.cutaway = !q.get("cutaway").is_some_and(|v| v == "0");
-    opts.ground_grid = !q.get("ground").is_some_and(|v| v == "0");
-    opts.antialias = !q.get("aa").is_some_and(|v| v == "0");
+    opts.cutaway = !is_off(&q, "cutaway");
+    opts.ground_grid = !is_off(&q, "ground");
+    opts.antialias = !is_off(&q, "aa");
     opts.hidden_alpha = parse_num(&q, "hidden", 0.12f32, 0.0, 1.0)?;
     let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
     let image = if opts.image == ImageMode::Traced {
@@ -922,7 +979,7 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
         }
     }
     let want_tree = flag("tree");
-    let jpeg = q.get("format").is_none_or(|f| f != "png");
+    let jpeg = !matches!(q.get("format").map(String::as_str), Some("png"));
     let quality = parse_num(&q, "quality", 88u8, 30, 100)?;
     let st2 = st.clone();
     let (bytes, info) = tokio::task::spawn_blocking(move || {
@@ -975,12 +1032,23 @@ async fn api_trace(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResu
     let reference = match q.get("intersector").map(String::as_str) {
         None | Some("ours") => false,
         Some("reference") => true,
-        Some(o) => return Err(ApiError::bad(format!("intersector must be ours or reference, not '{o}'"))),
+        Some(o) => {
+            return Err(ApiError::bad(format!(
+                "intersector must be ours or reference, not '{o}'"
+            )))
+        }
     };
     let st2 = st.clone();
     let tree = tokio::task::spawn_blocking(move || {
         if reference {
-            trace_pixel_with(&st2.scene, &ReferenceIntersector { scene: &st2.scene }, &settings, x, y, sample)
+            trace_pixel_with(
+                &st2.scene,
+                &ReferenceIntersector { scene: &st2.scene },
+                &settings,
+                x,
+                y,
+                sample,
+            )
         } else {
             trace_pixel_with(&st2.scene, &*st2.scene, &settings, x, y, sample)
         }
@@ -1121,7 +1189,10 @@ async fn api_compare(State(st): State<Arc<AppState>>, body: Bytes) -> ApiResult<
         limits.max_image_height = Some(8192);
         limits.max_alloc = Some(512 * 1024 * 1024);
         reader.limits(limits);
-        let img = reader.decode().map_err(|e| format!("not a readable PNG: {e}"))?.to_rgb8();
+        let img = reader
+            .decode()
+            .map_err(|e| format!("not a readable PNG: {e}"))?
+            .to_rgb8();
         let r = &rendered.image;
         if img.width() != r.width || img.height() != r.height {
             return Err(format!(
@@ -1172,6 +1243,11 @@ async fn api_heatmap(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiRe
         .iter()
         .find(|(i, _)| *i == id)
         .map(|(_, p)| p.clone())
-        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no such heat map (only the last 4 are kept)".into()))?;
+        .ok_or_else(|| {
+            ApiError(
+                StatusCode::NOT_FOUND,
+                "no such heat map (only the last 4 are kept)".into(),
+            )
+        })?;
     Ok(png_response(png.to_vec()))
 }

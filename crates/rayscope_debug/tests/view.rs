@@ -5,7 +5,10 @@ use glam::{Vec3, Vec3A};
 use rayscope_core::{Camera, CameraSettings, FovAxis, RenderSettings, Scene};
 use rayscope_debug::view::{render_view, ImageMode, Projection, RayMode, RgbImage, ViewCamera, ViewOptions};
 
-const SCENE_1: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference/tests/sample_scene_1.txt");
+const SCENE_1: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/reference/tests/sample_scene_1.txt"
+);
 
 fn scene1() -> Scene {
     let file = rayscope_scene::load(std::path::Path::new(SCENE_1)).expect("scene 1 loads");
@@ -80,8 +83,14 @@ fn frustum_edges_project_through_the_image_plane_corners() {
         for k in [0.6f32, 1.5] {
             let p = cam.origin + (cam.plane_point_world(u, v) - cam.origin) * k;
             let (x, y, _) = proj.project(p.into()).expect("in front of the view");
-            assert!(near(&with, x, y, 1, is_blue), "frustum edge ({u}, {v}) at {k}: no blue near ({x}, {y})");
-            assert!(!near(&without, x, y, 2, is_blue), "blue at ({x}, {y}) without a frustum");
+            assert!(
+                near(&with, x, y, 1, is_blue),
+                "frustum edge ({u}, {v}) at {k}: no blue near ({x}, {y})"
+            );
+            assert!(
+                !near(&without, x, y, 2, is_blue),
+                "blue at ({x}, {y}) without a frustum"
+            );
         }
     }
 }
@@ -99,11 +108,16 @@ fn the_ray_through_a_pixel_goes_through_its_centre_and_ends_at_its_hit() {
     let img = render_view(&scene, &s, None, &plain(view, RayMode::Pixel(x, y))).image;
     let (u, v) = cam.pixel_center(x, y);
     let ray = cam.ray(u, v);
-    let hit = scene.intersect(&ray, 0.0, f32::INFINITY).expect("pixel (7, 7) sees the floor");
+    let hit = scene
+        .intersect(&ray, 0.0, f32::INFINITY)
+        .expect("pixel (7, 7) sees the floor");
     assert_eq!(scene.entities[scene.prim_info(hit.prim).0 as usize].name, "Plane");
     // The pixel centre on the image plane, and points along the ray.
     let on_plane = cam.plane_point_world(u, v);
-    assert!((ray.at(on_plane.length()) - on_plane).length() < 1e-4, "the ray passes through the pixel centre");
+    assert!(
+        (ray.at(on_plane.length()) - on_plane).length() < 1e-4,
+        "the ray passes through the pixel centre"
+    );
     for p in [on_plane * 0.5, on_plane, ray.at(hit.t * 0.5), ray.at(hit.t * 0.9)] {
         let (sx, sy, _) = proj.project(p.into()).unwrap();
         assert!(near(&img, sx, sy, 1, is_white), "no white ray pixel near ({sx}, {sy})");
@@ -111,7 +125,10 @@ fn the_ray_through_a_pixel_goes_through_its_centre_and_ends_at_its_hit() {
     // The hit is marked with a dot: white fill ringed in black.
     let (hx, hy, _) = proj.project(ray.at(hit.t).into()).unwrap();
     assert!(near(&img, hx, hy, 1, is_white));
-    assert!(near(&img, hx, hy, 3, |c| c.iter().all(|&v| v < 60)), "dark ring around the hit dot");
+    assert!(
+        near(&img, hx, hy, 3, |c| c.iter().all(|&v| v < 60)),
+        "dark ring around the hit dot"
+    );
     // The ray stops at the hit: nothing white beyond it.
     let (bx, by, _) = proj.project(ray.at(hit.t * 1.3).into()).unwrap();
     assert!(!near(&img, bx, by, 1, is_white), "the ray must end at its first hit");
@@ -156,7 +173,11 @@ fn the_grid_has_width_plus_one_and_height_plus_one_lines() {
         let base = render_view(&scene, &s, None, &no_grid);
         // A scanline through the middle of cell row 1 crosses every vertical line once.
         let (_, y, _) = proj.project(cam.plane_point_world(0.5, 1.5 / h as f32).into()).unwrap();
-        assert_eq!(red_runs(&frame.image, &base.image, y as u32), (w + 1) as usize, "{w}×{h}: vertical lines");
+        assert_eq!(
+            red_runs(&frame.image, &base.image, y as u32),
+            (w + 1) as usize,
+            "{w}×{h}: vertical lines"
+        );
         // A column through the middle of cell column 1 crosses every horizontal line once.
         let (x, _, _) = proj.project(cam.plane_point_world(1.5 / w as f32, 0.5).into()).unwrap();
         let transpose = |img: &RgbImage| RgbImage {
@@ -194,7 +215,11 @@ fn an_entity_in_front_hides_the_ray_behind_it() {
     let mid = ray.at(hit.t * 0.5);
     let (x, y, _) = proj.project(mid.into()).unwrap();
     let green = |c: [u8; 3]| c[1] > 150 && c[0] < 150 && c[2] < 150;
-    assert!(green(px(&with, x as i64, y as i64)), "the sphere covers the ray: {:?}", px(&with, x as i64, y as i64));
+    assert!(
+        green(px(&with, x as i64, y as i64)),
+        "the sphere covers the ray: {:?}",
+        px(&with, x as i64, y as i64)
+    );
     for dy in -2..=2 {
         for dx in -2..=2 {
             assert_eq!(
@@ -211,7 +236,9 @@ fn an_entity_in_front_hides_the_ray_behind_it() {
     // Sanity: the point is behind the sphere as seen from the eye.
     let to_mid = (mid - Vec3A::from(view.eye)).normalize();
     let occ = rayscope_core::Ray::new(view.eye.into(), to_mid);
-    assert!(scene.intersect(&occ, 0.0, (mid - Vec3A::from(view.eye)).length()).is_some());
+    assert!(scene
+        .intersect(&occ, 0.0, (mid - Vec3A::from(view.eye)).length())
+        .is_some());
 }
 
 #[test]
@@ -227,7 +254,11 @@ fn the_image_plane_carries_the_rendered_pixels() {
     let proj = Projection::new(&view, 960, 640);
     // A 3×3 image with a distinct colour per pixel.
     let rgb: Vec<u8> = (0..9u8).flat_map(|i| [i * 25, 200 - i * 20, 40 + i * 10]).collect();
-    let image = RgbImage { width: 3, height: 3, rgb };
+    let image = RgbImage {
+        width: 3,
+        height: 3,
+        rgb,
+    };
     let mut opts = plain(view, RayMode::None);
     opts.image = ImageMode::Traced;
     let frame = render_view(&scene, &s, Some(&image), &opts).image;
@@ -238,5 +269,17 @@ fn the_image_plane_carries_the_rendered_pixels() {
         let i = (y * 3 + x) as usize * 3;
         let want = [image.rgb[i], image.rgb[i + 1], image.rgb[i + 2]];
         assert_eq!(px(&frame, sx as i64, sy as i64), want, "cell ({x}, {y})");
+    }
+}
+
+#[test]
+fn odd_and_tiny_frame_sizes_draw() {
+    let scene = scene1();
+    let s = workshop(9, 9);
+    for (w, h) in [(961, 641), (17, 16), (16, 17), (1, 1), (3, 2)] {
+        let mut o = ViewOptions::new(w, h, three_quarter());
+        o.rays = RayMode::All;
+        let f = render_view(&scene, &s, None, &o);
+        assert_eq!(f.image.rgb.len(), (w * h * 3) as usize);
     }
 }

@@ -1,0 +1,266 @@
+//! `rayscope trace --json`, `rayscope view` and `rayscope debug` through the binary.
+
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::process::{Command, Stdio};
+
+use assert_cmd::prelude::*;
+use serde_json::Value;
+
+const REF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference/tests/");
+
+fn scene(name: &str) -> String {
+    format!("{REF}{name}")
+}
+
+fn rayscope() -> Command {
+    Command::cargo_bin("rayscope").unwrap()
+}
+
+fn trace_json(scene_name: &str, pixel: &str) -> Value {
+    let out = rayscope()
+        .args(["trace", "-f", &scene(scene_name), "--pixel", pixel, "--json"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    serde_json::from_slice(&out.stdout).expect("trace --json prints JSON")
+}
+
+#[test]
+fn mirror_sphere_pixel_reflects_onto_a_named_wall() {
+    // Scene 2 at 400×400: pixel (150, 150) looks at the MirrorSphere (centre (-0.15, 0.2, 2),
+    // radius 0.35): its direction passes 0.09 from the centre.
+    let t = trace_json("sample_scene_2.txt", "150,150");
+    let nodes = t["nodes"].as_array().unwrap();
+    let cam = &nodes[0];
+    assert_eq!(cam["kind"], "camera");
+    assert_eq!(cam["hit"]["entity_name"], "MirrorSphere");
+    assert_eq!(cam["hit"]["material_kind"], "Reflective");
+    let refl = nodes
+        .iter()
+        .find(|n| n["kind"] == "reflection" && n["parent"] == 0)
+        .expect("the mirror hit spawns a reflection ray");
+    let wall = refl["hit"]["entity_name"]
+        .as_str()
+        .expect("the reflection hits something");
+    let walls = [
+        "LeftWallA",
+        "LeftWallB",
+        "RightWallA",
+        "RightWallB",
+        "RearWallA",
+        "RearWallB",
+        "FarWallA",
+        "FarWallB",
+        "Floor",
+        "Roof",
+    ];
+    assert!(walls.contains(&wall), "reflection hit {wall}");
+    // The reflected ray starts on the sphere, at the camera ray's hit point.
+    let p: Vec<f64> = cam["hit"]["point"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let o: Vec<f64> = refl["origin"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let d = p.iter().zip(&o).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+    assert!(d < 1e-3, "reflection starts {d} from the hit");
+    let r = ((p[0] + 0.15).powi(2) + (p[1] - 0.2).powi(2) + (p[2] - 2.0).powi(2)).sqrt();
+    assert!((r - 0.35).abs() < 1e-4, "the hit lies on the sphere");
+}
+
+#[test]
+fn shadow_ray_reports_its_blocker() {
+    // Scene 1, pixel (100, 300): the floor in the sphere's shadow (black in the course's image).
+    let t = trace_json("sample_scene_1.txt", "100,300");
+    let nodes = t["nodes"].as_array().unwrap();
+    assert_eq!(nodes[0]["hit"]["entity_name"], "Plane");
+    let shadow = nodes.iter().find(|n| n["kind"] == "shadow").expect("a shadow ray");
+    assert_eq!(shadow["light"], "Light");
+    assert_eq!(shadow["blocked_by"], "Sphere");
+    // And a lit floor pixel's shadow ray is clear.
+    let t = trace_json("sample_scene_1.txt", "200,390");
+    let shadow = t["nodes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|n| n["kind"] == "shadow")
+        .cloned()
+        .unwrap();
+    assert!(shadow["blocked_by"].is_null());
+}
+
+fn view_png(dir: &std::path::Path, name: &str, extra: &[&str]) -> image::RgbImage {
+    let out = dir.join(name);
+    let mut args = vec![
+        "view",
+        "-f",
+        REF,
+        "-o",
+        out.to_str().unwrap(),
+        "-w",
+        "9",
+        "-h",
+        "9",
+        "--fov-axis",
+        "vertical",
+        "--view-width",
+        "480",
+        "--view-height",
+        "320",
+        "--quiet",
+    ];
+    let s = scene("sample_scene_1.txt");
+    args[2] = &s;
+    args.extend_from_slice(extra);
+    rayscope().args(&args).assert().success();
+    image::open(&out).unwrap().to_rgb8()
+}
+
+#[test]
+fn view_reproduces_the_workshop_steps() {
+    let dir = tempfile::tempdir().unwrap();
+    let steps = [
+        ("frustum.png", ["--rays", "frustum", "--image", "none"]),
+        ("ray-0-0.png", ["--rays", "pixel:0,0", "--image", "none"]),
+        ("all-rays.png", ["--rays", "all", "--image", "none"]),
+        ("all-black.png", ["--rays", "all", "--image", "black"]),
+        ("raytraced.png", ["--rays", "all", "--image", "traced"]),
+    ];
+    let imgs: Vec<image::RgbImage> = steps.iter().map(|(n, a)| view_png(dir.path(), n, a)).collect();
+    for (img, (name, _)) in imgs.iter().zip(&steps) {
+        assert_eq!(img.dimensions(), (480, 320), "{name}");
+    }
+    // Each step adds something: no two frames are the same.
+    for i in 0..imgs.len() {
+        for j in i + 1..imgs.len() {
+            assert_ne!(imgs[i], imgs[j], "{} and {}", steps[i].0, steps[j].0);
+        }
+    }
+    // Adding rays adds white; the black image adds near-black pixels.
+    let white = |img: &image::RgbImage| img.pixels().filter(|p| p.0.iter().all(|&v| v > 235)).count();
+    let black = |img: &image::RgbImage| img.pixels().filter(|p| p.0.iter().all(|&v| v < 12)).count();
+    assert!(white(&imgs[1]) > white(&imgs[0]));
+    assert!(white(&imgs[2]) > white(&imgs[1]) + 200);
+    assert!(black(&imgs[3]) > black(&imgs[2]) + 1000);
+}
+
+#[test]
+fn view_rejects_bad_flags_without_writing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("v.png");
+    let s = scene("sample_scene_1.txt");
+    for bad in [
+        vec!["--rays", "sideways"],
+        vec!["--rays", "pixel:9,0"],
+        vec!["--rays", "row:12"],
+        vec!["--image", "sepia"],
+        vec!["--eye", "0,0,0", "--target", "0,0,0"],
+    ] {
+        let mut args = vec!["view", "-f", &s, "-o", out.to_str().unwrap(), "-w", "9", "-h", "9"];
+        args.extend(bad.iter().copied());
+        let o = rayscope().args(&args).output().unwrap();
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{bad:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!out.exists(), "{bad:?} wrote a file");
+    }
+    let jpg = dir.path().join("v.jpg");
+    let o = rayscope()
+        .args(["view", "-f", &s, "-o", jpg.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+}
+
+fn http_get(port: u16, path: &str) -> (u16, String) {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    write!(
+        s,
+        "GET {path} HTTP/1.1\r\nHost: 127.0.0.1:{port}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut buf = String::new();
+    s.read_to_string(&mut buf).unwrap();
+    let status = buf.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0);
+    let body = buf
+        .split_once("\r\n\r\n")
+        .map(|(_, b)| b.to_string())
+        .unwrap_or_default();
+    (status, body)
+}
+
+/// Kills the server when the test ends.
+struct Kill(std::process::Child);
+
+impl Drop for Kill {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+#[test]
+fn debug_serves_the_app_on_a_free_local_port() {
+    let mut child = Command::cargo_bin("rayscope")
+        .unwrap()
+        .args(["debug", &scene("sample_scene_2.txt"), "-w", "40", "-h", "30", "--quiet"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let _kill = Kill(child);
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).unwrap();
+    let url = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .expect("prints its URL");
+    let port: u16 = url
+        .trim_start_matches("http://127.0.0.1:")
+        .trim_end_matches('/')
+        .parse()
+        .unwrap();
+    let (code, html) = http_get(port, "/");
+    assert_eq!(code, 200);
+    assert!(html.contains("rayscope") && html.contains("/app.js"));
+    let (code, scene) = http_get(port, "/api/scene");
+    assert_eq!(code, 200);
+    let v: Value = serde_json::from_str(scene.trim()).unwrap_or_else(|e| panic!("{e}: {scene}"));
+    let names: Vec<&str> = v["entities"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|e| e["name"].as_str().unwrap())
+        .collect();
+    assert!(names.contains(&"MirrorSphere") && names.contains(&"FarWallB"));
+    assert_eq!(v["settings"]["width"], 40);
+    // Bad requests get a 400 with a message, and the server keeps serving.
+    let (code, body) = http_get(port, "/api/trace?x=40&y=0");
+    assert_eq!(code, 400, "{body}");
+    assert!(body.contains("x must be"));
+    let (code, _) = http_get(port, "/api/view?w=99999");
+    assert_eq!(code, 400);
+    let (code, _) = http_get(port, "/api/scene");
+    assert_eq!(code, 200);
+}
+
+#[test]
+fn debug_refuses_images_over_its_limit() {
+    let o = rayscope()
+        .args(["debug", &scene("sample_scene_1.txt"), "-w", "4096", "-h", "16"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("2048"));
+}

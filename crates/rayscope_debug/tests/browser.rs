@@ -1,0 +1,296 @@
+//! The debugger in a real browser: headless Chromium driven through chromedriver (WebDriver)
+//! with fantoccini. Needs the Debian packages `chromium` and `chromium-driver`.
+//!
+//! Without them the test fails when `CI=true` and is skipped (with a message) otherwise.
+//! Screenshots go to `target/browser-screenshots/`.
+
+use std::net::TcpListener;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use fantoccini::{Client, ClientBuilder, Locator};
+use rayscope_core::{CameraSettings, FovAxis, RenderSettings, Scene};
+use rayscope_debug::{RunningServer, ServeConfig};
+use serde_json::json;
+
+const SCENE_1: &str = concat!(
+    env!("CARGO_MANIFEST_DIR"),
+    "/../../../shared/reference/tests/sample_scene_1.txt"
+);
+
+fn find_exe(names: &[&str]) -> Option<PathBuf> {
+    let path = std::env::var_os("PATH")?;
+    for dir in std::env::split_paths(&path) {
+        for n in names {
+            let p = dir.join(n);
+            if p.is_file() {
+                return Some(p);
+            }
+        }
+    }
+    None
+}
+
+fn free_port() -> u16 {
+    TcpListener::bind("127.0.0.1:0").unwrap().local_addr().unwrap().port()
+}
+
+/// Kills chromedriver (and so its browser) when the test ends, pass or fail.
+struct Driver(Child);
+
+impl Drop for Driver {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Stops the debugger server when the test ends.
+struct Server(Option<RunningServer>);
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        if let Some(s) = self.0.take() {
+            s.stop();
+        }
+    }
+}
+
+fn screenshots_dir() -> PathBuf {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/browser-screenshots");
+    std::fs::create_dir_all(&dir).unwrap();
+    dir
+}
+
+async fn shot(c: &Client, name: &str) {
+    let png = c.screenshot().await.expect("screenshot");
+    let path = screenshots_dir().join(name);
+    std::fs::write(&path, png).unwrap();
+    eprintln!("screenshot: {}", path.display());
+}
+
+/// Polls `f` until it returns `Some`, for up to `secs` seconds.
+async fn wait_for<T, F, Fut>(what: &str, secs: u64, mut f: F) -> T
+where
+    F: FnMut() -> Fut,
+    Fut: std::future::Future<Output = Option<T>>,
+{
+    let end = Instant::now() + Duration::from_secs(secs);
+    loop {
+        if let Some(v) = f().await {
+            return v;
+        }
+        assert!(Instant::now() < end, "timed out waiting for {what}");
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+}
+
+async fn attr(c: &Client, css: &str, name: &str) -> Option<String> {
+    let e = c.find(Locator::Css(css)).await.ok()?;
+    e.attr(name).await.ok().flatten()
+}
+
+#[test]
+fn debugger_in_chromium() {
+    let chromium = find_exe(&["chromium", "chromium-browser", "google-chrome"]);
+    let driver = find_exe(&["chromedriver"]);
+    let (Some(chromium), Some(driver)) = (chromium, driver) else {
+        let msg = "chromium and chromedriver are needed (Debian: apt-get install chromium chromium-driver)";
+        if std::env::var("CI").is_ok_and(|v| v == "true") {
+            panic!("{msg}; CI=true, so this is a failure, not a skip");
+        }
+        eprintln!("SKIPPED debugger_in_chromium: {msg}");
+        return;
+    };
+
+    // The debugger, in process, on a free port: scene 1 as in the workshop (9×9, vertical FOV).
+    let file = rayscope_scene::load(Path::new(SCENE_1)).unwrap();
+    let scene = Scene::from_file(&file);
+    let settings = RenderSettings {
+        width: 9,
+        height: 9,
+        camera: CameraSettings {
+            fov_axis: FovAxis::Vertical,
+            ..CameraSettings::default()
+        },
+        ..RenderSettings::default()
+    };
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path: PathBuf::from(SCENE_1),
+        scene_file: file,
+        scene,
+        settings,
+        host: "127.0.0.1".into(),
+        port: 0,
+    })
+    .expect("debugger starts");
+    let url = server.url.clone();
+    let _server = Server(Some(server));
+
+    let port = free_port();
+    let _driver = Driver(
+        Command::new(&driver)
+            .arg(format!("--port={port}"))
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("chromedriver starts"),
+    );
+    let profile = tempfile_dir();
+
+    let rt = tokio::runtime::Builder::new_current_thread()
+        .enable_all()
+        .build()
+        .unwrap();
+    rt.block_on(async move {
+        let mut caps = serde_json::Map::new();
+        caps.insert(
+            "goog:chromeOptions".into(),
+            json!({
+                "binary": chromium.to_string_lossy(),
+                "args": [
+                    "--headless", "--no-sandbox", "--disable-gpu", "--disable-dev-shm-usage",
+                    "--disable-background-networking", "--disable-component-update", "--disable-sync",
+                    "--no-first-run", "--window-size=1500,950",
+                    format!("--user-data-dir={}", profile.display()),
+                ],
+            }),
+        );
+        let webdriver = format!("http://127.0.0.1:{port}");
+        let c = wait_for("chromedriver", 20, || {
+            let caps = caps.clone();
+            let webdriver = webdriver.clone();
+            async move {
+                ClientBuilder::new(hyper_util::client::legacy::connect::HttpConnector::new())
+                    .capabilities(caps)
+                    .connect(&webdriver)
+                    .await
+                    .ok()
+            }
+        })
+        .await;
+
+        let result = drive(&c, &url).await;
+        if result.is_err() {
+            shot(&c, "failure.png").await;
+        }
+        let _ = c.close().await;
+        if let Err(e) = result {
+            panic!("{e}");
+        }
+    });
+    let _ = std::fs::remove_dir_all(tempfile_dir());
+}
+
+fn tempfile_dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("rayscope-chromium-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+async fn drive(c: &Client, url: &str) -> Result<(), String> {
+    c.goto(url).await.map_err(|e| e.to_string())?;
+    wait_for("the page to load the scene", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+
+    // The hierarchy lists the scene's entities by name.
+    let names: Vec<String> = {
+        let mut v = Vec::new();
+        for e in c
+            .find_all(Locator::Css("#hierarchy li.entity .name"))
+            .await
+            .map_err(|e| e.to_string())?
+        {
+            v.push(e.text().await.map_err(|e| e.to_string())?);
+        }
+        v
+    };
+    assert_eq!(names, ["Plane", "Sphere", "Triangle"], "hierarchy entities");
+    let lights = c
+        .find(Locator::Css("#hierarchy li.light .name"))
+        .await
+        .map_err(|e| e.to_string())?;
+    assert_eq!(lights.text().await.map_err(|e| e.to_string())?, "Light");
+
+    // The view arrives with a 9×9 grid: 10 × 10 lines.
+    wait_for("the first view frame", 20, || async {
+        attr(c, "#view", "data-grid-x").await.filter(|v| v == "10")
+    })
+    .await;
+    wait_for("the rendered image", 20, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == "9x9")
+    })
+    .await;
+    shot(c, "01-loaded.png").await;
+
+    // Change the width like a user: type into the inspector's field and leave it.
+    let width = c.find(Locator::Css("#set-width")).await.map_err(|e| e.to_string())?;
+    width.clear().await.map_err(|e| e.to_string())?;
+    width.send_keys("12\u{e004}").await.map_err(|e| e.to_string())?;
+    wait_for("the grid to follow the width", 20, || async {
+        let x = attr(c, "#view", "data-grid-x").await?;
+        let y = attr(c, "#view", "data-grid-y").await?;
+        (x == "13" && y == "10").then_some(())
+    })
+    .await;
+    wait_for("the 12×9 render", 20, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == "12x9")
+    })
+    .await;
+    shot(c, "02-width-12.png").await;
+
+    // Click the image's centre pixel: its ray tree names the sphere.
+    let image = c.find(Locator::Css("#image")).await.map_err(|e| e.to_string())?;
+    image.click().await.map_err(|e| e.to_string())?;
+    let entity = wait_for("the ray tree", 20, || async {
+        let cell = c
+            .find(Locator::Css("#tree tbody tr:first-child td.entity"))
+            .await
+            .ok()?;
+        cell.text().await.ok().filter(|t| !t.is_empty())
+    })
+    .await;
+    assert_eq!(entity, "Sphere", "the centre pixel's camera ray hits the sphere");
+    let head = c.find(Locator::Css("#tree-head")).await.map_err(|e| e.to_string())?;
+    let head = head.text().await.map_err(|e| e.to_string())?;
+    // WebDriver clicks the middle of the element's visible part: a pixel near the centre.
+    let near_centre = ["(5, 3)", "(5, 4)", "(6, 3)", "(6, 4)"]
+        .iter()
+        .any(|p| head.starts_with(&format!("pixel {p}")));
+    assert!(near_centre, "{head}");
+    // A shadow ray towards the light is listed too.
+    let kinds = c
+        .find_all(Locator::Css("#tree tbody td.k"))
+        .await
+        .map_err(|e| e.to_string())?;
+    let mut ks = Vec::new();
+    for k in kinds {
+        ks.push(k.text().await.map_err(|e| e.to_string())?);
+    }
+    assert!(
+        ks.contains(&"camera".to_string()) && ks.contains(&"shadow".to_string()),
+        "{ks:?}"
+    );
+    // Give the view a moment to show the tree.
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    shot(c, "03-ray-tree.png").await;
+
+    // Check the intersector: both agree on scene 1.
+    c.find(Locator::Css("#check-btn"))
+        .await
+        .map_err(|e| e.to_string())?
+        .click()
+        .await
+        .map_err(|e| e.to_string())?;
+    let summary = wait_for("the intersector check", 30, || async {
+        let e = c.find(Locator::Css("#check-summary")).await.ok()?;
+        e.text().await.ok().filter(|t| t.contains("disagree"))
+    })
+    .await;
+    assert!(summary.starts_with("0 of 108 pixels disagree"), "{summary}");
+    shot(c, "04-check.png").await;
+    Ok(())
+}
