@@ -99,8 +99,9 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     let settings = settings(opts)?;
     // Fail before the (possibly long) render if the output cannot be written.
     check_writable(output).map_err(|e| Failure::input(e.to_string()))?;
-    let (_, scene) = load_scene(file, opts.quiet)?;
+    // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
+    let (_, scene) = load_scene(file, opts.quiet)?;
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -328,10 +329,10 @@ fn diff_command(a: &DiffArgs) -> Result<ExitCode, Failure> {
 
 fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
     let settings = settings(&a.opts)?;
+    setup_threads(&a.opts);
     let t0 = Instant::now();
     let (_, scene) = load_scene(&a.file, true)?;
     let load = t0.elapsed();
-    setup_threads(&a.opts);
     let cancel = AtomicBool::new(false);
     let noop = |_: u64, _: u64| {};
     let warm = render(&scene, &settings, &noop, &cancel).map_err(|e| Failure::failed(e.to_string()))?;

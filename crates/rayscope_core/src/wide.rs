@@ -14,7 +14,7 @@ use glam::{BVec4A, Vec3A, Vec4};
 
 use crate::bvh::{Bvh, BvhNode};
 use crate::geometry::{Sphere, Triangle};
-use crate::math::Ray;
+use crate::math::{Aabb, Ray};
 
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;
@@ -178,21 +178,37 @@ impl Bvh4 {
             }
             let node = &self.nodes[r as usize];
             let (mask, tn) = node_test(node, &rc, t_min, t_best);
-            // Push hit children far-to-near so the nearest is popped first.
+            if mask == 0 {
+                continue;
+            }
+            let tn = tn.to_array();
+            if mask & (mask - 1) == 0 {
+                // One child hit: no ordering needed.
+                let i = mask.trailing_zeros() as usize;
+                if sp < stack.len() {
+                    stack[sp] = (node.children[i], tn[i]);
+                    sp += 1;
+                }
+                continue;
+            }
+            // Several: insertion-sort by entry distance (at most four), far first, so the
+            // nearest is popped first.
             let mut hits: [(u32, f32); 4] = [(EMPTY, 0.0); 4];
             let mut n = 0;
-            let tn = tn.to_array();
-            for i in 0..4 {
-                if mask & (1 << i) != 0 {
-                    hits[n] = (node.children[i], tn[i]);
-                    n += 1;
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let item = (node.children[i], tn[i]);
+                let mut j = n;
+                while j > 0 && hits[j - 1].1 < item.1 {
+                    hits[j] = hits[j - 1];
+                    j -= 1;
                 }
+                hits[j] = item;
+                n += 1;
             }
-            let hits = &mut hits[..n];
-            if n > 1 {
-                hits.sort_unstable_by(|a, b| b.1.total_cmp(&a.1));
-            }
-            for &h in hits.iter() {
+            for &h in &hits[..n] {
                 if sp < stack.len() {
                     stack[sp] = h;
                     sp += 1;
@@ -274,18 +290,12 @@ fn dot(a: &[Vec4; 3], b: &[Vec4; 3]) -> Vec4 {
 /// The lane with the smallest `t` among `mask`.
 #[inline(always)]
 fn nearest_lane(mask: BVec4A, t: Vec4) -> Option<usize> {
-    let bits = mask.bitmask();
-    if bits == 0 {
+    if !mask.any() {
         return None;
     }
-    let t = Vec4::select(mask, t, Vec4::INFINITY).to_array();
-    let mut best = bits.trailing_zeros() as usize;
-    for (i, &ti) in t.iter().enumerate() {
-        if bits & (1 << i) != 0 && ti < t[best] {
-            best = i;
-        }
-    }
-    Some(best)
+    let t = Vec4::select(mask, t, Vec4::INFINITY);
+    let m = t.min_element();
+    Some((t.cmpeq(Vec4::splat(m)) & mask).bitmask().trailing_zeros() as usize)
 }
 
 impl TriPacket {
@@ -365,16 +375,12 @@ impl Builder<'_> {
         if n.count > 0 {
             return self.leaf_ref(n);
         }
-        // A subtree of at most four primitives becomes one leaf: a full packet tests four
-        // primitives for the price of one, while small binary leaves would leave lanes empty.
-        let mut refs = Vec::with_capacity(4);
+        // A subtree of at most four triangles and four spheres becomes one leaf of full packets:
+        // a packet tests four primitives for the price of one, so small binary leaves would
+        // waste lanes and add node tests.
+        let mut refs = Vec::with_capacity(8);
         if self.collect_small(i, &mut refs) {
-            let leaf = BvhNode {
-                offset: 0,
-                count: refs.len() as u16,
-                ..*n
-            };
-            return self.leaf_ref_of(&leaf, &refs);
+            return self.leaf_ref_of(&refs);
         }
         // Gather up to four children by opening the largest interior child, as Embree does.
         let mut kids: Vec<usize> = vec![i + 1, n.offset as usize];
@@ -385,7 +391,7 @@ impl Builder<'_> {
             let pick = kids
                 .iter()
                 .enumerate()
-                .filter(|(_, &k)| self.bvh.nodes[k].count == 0 && !self.collect_small(k, &mut Vec::with_capacity(4)))
+                .filter(|(_, &k)| self.bvh.nodes[k].count == 0 && !self.collect_small(k, &mut Vec::with_capacity(8)))
                 .max_by(|a, b| area(&self.bvh.nodes[*a.1]).total_cmp(&area(&self.bvh.nodes[*b.1])))
                 .map(|(j, _)| j);
             let Some(j) = pick else { break };
@@ -416,28 +422,26 @@ impl Builder<'_> {
         idx as u32
     }
 
-    /// A leaf of at most four references: one packet, or a small node over a triangle packet
-    /// and a sphere packet when the leaf mixes them.
-    /// Appends the references under node `i` to `out` if there are at most four.
+    /// Appends the references under node `i` to `out` while they fit in one triangle packet
+    /// and one sphere packet; false when they do not.
     fn collect_small(&self, i: usize, out: &mut Vec<u32>) -> bool {
         let n = &self.bvh.nodes[i];
         if n.count > 0 {
-            let refs = &self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
-            if out.len() + refs.len() > 4 {
-                return false;
-            }
-            out.extend_from_slice(refs);
-            return true;
+            out.extend_from_slice(&self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]);
+            let spheres = out.iter().filter(|r| *r & self.sphere_bit != 0).count();
+            return spheres <= 4 && out.len() - spheres <= 4;
         }
         self.collect_small(i + 1, out) && self.collect_small(n.offset as usize, out)
     }
 
     fn leaf_ref(&mut self, n: &BvhNode) -> u32 {
         let refs = self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize].to_vec();
-        self.leaf_ref_of(n, &refs)
+        self.leaf_ref_of(&refs)
     }
 
-    fn leaf_ref_of(&mut self, n: &BvhNode, refs: &[u32]) -> u32 {
+    /// A leaf: one packet, or a small node over a triangle packet and a sphere packet when the
+    /// leaf mixes them.
+    fn leaf_ref_of(&mut self, refs: &[u32]) -> u32 {
         let tris: Vec<u32> = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
         let sph: Vec<u32> = refs
             .iter()
@@ -454,19 +458,31 @@ impl Builder<'_> {
         if parts.len() == 1 {
             return parts[0];
         }
-        // Mixed leaf: a node whose children all carry the leaf's bounds.
+        // Mixed leaf: a node over the packets, each with its own bounds so a ray that misses
+        // the spheres skips their packet.
         let idx = self.out.nodes.len();
         let mut node = Node4 {
             bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
             children: [EMPTY; 4],
         };
-        for a in 0..3 {
-            let (mut lo, mut hi) = ([f32::INFINITY; 4], [f32::NEG_INFINITY; 4]);
-            for s in 0..parts.len().min(4) {
-                lo[s] = n.min[a];
-                hi[s] = n.max[a];
+        let mut lo = [[f32::INFINITY; 4]; 3];
+        let mut hi = [[f32::NEG_INFINITY; 4]; 3];
+        let tri_groups = tris.chunks(4).map(|c| {
+            c.iter()
+                .fold(Aabb::EMPTY, |b, &t| b.union(self.triangles[t as usize].bounds()))
+        });
+        let sph_groups = sph.chunks(4).map(|c| {
+            c.iter()
+                .fold(Aabb::EMPTY, |b, &t| b.union(self.spheres[t as usize].bounds()))
+        });
+        for (slot, b) in tri_groups.chain(sph_groups).take(4).enumerate() {
+            for a in 0..3 {
+                lo[a][slot] = b.min[a];
+                hi[a][slot] = b.max[a];
             }
-            node.bounds[a] = [Vec4::from(lo), Vec4::from(hi)];
+        }
+        for a in 0..3 {
+            node.bounds[a] = [Vec4::from(lo[a]), Vec4::from(hi[a])];
         }
         for (s, p) in parts.iter().take(4).enumerate() {
             node.children[s] = *p;
