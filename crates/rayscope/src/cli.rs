@@ -338,6 +338,12 @@ pub struct ViewArgs {
     /// Show the traced image on the grid ("traced"), a black grid ("black") or none ("none").
     #[arg(long, default_value = "traced")]
     pub image: String,
+    /// With --rays pixel:X,Y: also draw the pixel's sub-pixel samples (and lens samples).
+    #[arg(long)]
+    pub samples: bool,
+    /// With --rays pixel:X,Y: also draw the pixel's ray tree (sample 0), coloured by kind.
+    #[arg(long)]
+    pub tree: bool,
     /// View width in pixels.
     #[arg(long = "view-width", default_value_t = 960, value_parser = clap::value_parser!(u32).range(16..=8192))]
     pub view_width: u32,

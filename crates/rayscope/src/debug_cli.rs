@@ -84,6 +84,12 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
     opts.image = image_mode;
     if let RayMode::Pixel(x, y) = rays {
         opts.pixel = Some((x, y));
+        opts.samples = a.samples;
+        if a.tree {
+            opts.tree = Some(rayscope_core::trace_pixel(&scene, &settings, x, y, 0));
+        }
+    } else if a.samples || a.tree {
+        return Err(Failure::input("--samples and --tree need --rays pixel:X,Y"));
     }
     let frame = render_view(&scene, &settings, image.as_ref(), &opts);
     let png = rayscope_debug::encode::png_small(&frame.image);

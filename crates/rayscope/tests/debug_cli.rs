@@ -264,3 +264,38 @@ fn debug_refuses_images_over_its_limit() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("2048"));
 }
+
+#[test]
+fn view_shows_sub_pixel_and_lens_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    // Orange marks the aperture ring and where lens samples leave it; cyan the sub-pixel samples.
+    let orange = |img: &image::RgbImage| {
+        img.pixels()
+            .filter(|p| p[0] > 230 && (120..200).contains(&p[1]) && p[2] < 80)
+            .count()
+    };
+    let cyan = |img: &image::RgbImage| img.pixels().filter(|p| p[0] < 110 && p[1] > 200 && p[2] > 230).count();
+    let plain = view_png(dir.path(), "plain.png", &["--rays", "pixel:4,4"]);
+    let grid = view_png(dir.path(), "grid.png", &["--rays", "pixel:4,4", "-x", "3", "--samples"]);
+    let lens = view_png(
+        dir.path(),
+        "lens.png",
+        &["--rays", "pixel:4,4", "-x", "3", "--samples", "-r", "0.2", "-t", "2"],
+    );
+    assert!(cyan(&grid) > cyan(&plain) + 20, "sub-pixel sample rays are drawn");
+    assert!(
+        orange(&lens) > orange(&grid) + 20,
+        "the aperture ring and lens samples are drawn"
+    );
+    rayscope()
+        .args([
+            "view",
+            "-f",
+            &scene("sample_scene_1.txt"),
+            "-o",
+            dir.path().join("x.png").to_str().unwrap(),
+            "--samples",
+        ])
+        .assert()
+        .code(2);
+}

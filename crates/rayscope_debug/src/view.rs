@@ -1092,6 +1092,20 @@ impl Overlay<'_, '_> {
         let integ = Integrator::new(self.ctx.scene, settings);
         let spp = integ.samples_per_pixel().min(1024);
         let cyan = Vec3::new(0.2, 0.95, 1.0);
+        let aperture = settings.camera.aperture_radius;
+        let lens = settings.stage == rayscope_core::Stage::Full && aperture > 0.0;
+        if lens {
+            // The aperture disk in the camera's lens plane, where the lens samples start.
+            let cam = &self.ctx.cam;
+            let ring = |k: u32| {
+                let a = k as f32 / 48.0 * std::f32::consts::TAU;
+                cam.origin + cam.rotation * Vec3A::new(a.cos() * aperture, a.sin() * aperture, 0.0)
+            };
+            let orange = Vec3::new(1.0, 0.6, 0.1).extend(1.0);
+            for k in 0..48 {
+                self.seg(ring(k), ring(k + 1), orange, orange, 1.4);
+            }
+        }
         for s in 0..spp {
             let pixel = y as u64 * settings.width as u64 + x as u64;
             let mut rng = Rng::for_sample(settings.seed, pixel, s as u64);
@@ -1099,6 +1113,15 @@ impl Overlay<'_, '_> {
             let (u, v) = integ.sample_position(x, y, s);
             if spp <= 64 {
                 self.ray_to_hit(&ray, cyan, 0.5, 0.9, 0.0);
+            }
+            if lens {
+                // Where this sample's ray leaves the lens.
+                self.dot(
+                    ray.origin,
+                    2.0,
+                    Vec3::new(1.0, 0.6, 0.1).extend(1.0),
+                    Vec4::new(0.1, 0.05, 0.0, 1.0),
+                );
             }
             self.dot(
                 self.ctx.cam.plane_point_world(u, v),
