@@ -86,6 +86,8 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub emitters: Emitters,
     /// True when a stochastic effect is on, so `-q` multiplies the samples.
     pub stochastic: bool,
+    /// Whitted glass branches with a smaller path weight are not traced (0: trace all).
+    pub branch_cutoff: f32,
 }
 
 /// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
@@ -95,6 +97,12 @@ type Frame = (Vec3A, Vec3A, Vec3A, Vec3A);
 const MAX_BOUNCES: u32 = 64;
 /// Bounces before Russian roulette starts.
 const RR_START: u32 = 3;
+
+/// Whitted glass splits into two rays at every hit, so a pixel seen through glass costs up to
+/// 2^depth rays. A branch that can bring back at most this much radiance (its weight times the
+/// brightest radiance any ray can return) is not traced: the ≤ 2·depth branches a sample can
+/// drop then add up to less than one 8-bit level.
+const MIN_BRANCH_RADIANCE: f32 = 1.0 / 4096.0;
 
 /// State carried down a path.
 #[derive(Debug, Clone, Copy)]
@@ -189,6 +197,19 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             .any(|e| scene.materials[e.material as usize].kind == MaterialKind::Glossy);
         let stochastic =
             full && (settings.ambient || settings.camera.aperture_radius > 0.0 || emitters.any_emission || glossy);
+        // Without stochastic effects every ray returns at most Σ lights × the largest albedo
+        // (mirrors and glass only pass light on), which bounds what a pruned branch could add.
+        let branch_cutoff = if stochastic {
+            0.0
+        } else {
+            let lights: f32 = scene.lights.iter().map(|l| l.color.max_element().max(0.0)).sum();
+            let albedo = scene
+                .materials
+                .iter()
+                .map(|m| m.color.max_element())
+                .fold(1.0f32, f32::max);
+            MIN_BRANCH_RADIANCE / (lights * albedo).max(f32::MIN_POSITIVE)
+        };
         Self {
             scene,
             isect,
@@ -196,6 +217,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             camera: Camera::new(settings.camera, settings.width, settings.height),
             emitters,
             stochastic,
+            branch_cutoff,
         }
     }
 
@@ -406,6 +428,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             let p = PathState {
                 depth,
                 medium: refl_medium,
+                beta: if path.branch || !full { path.beta * w } else { path.beta },
                 ..path
             };
             self.secondary(&r, p, id, RayKind::Reflection, w, rng, obs, c)
@@ -415,6 +438,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             let p = PathState {
                 depth,
                 medium: refr_medium,
+                beta: if path.branch || !full { path.beta * w } else { path.beta },
                 ..path
             };
             self.secondary(&r, p, id, RayKind::Refraction, w, rng, obs, c)
@@ -426,10 +450,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         };
         if path.branch || !full {
             let mut out = Vec3A::ZERO;
-            if kr > 0.0 {
+            if kr > 0.0 && path.beta * kr >= self.branch_cutoff {
                 out += refl(rng, obs, c, kr) * kr;
             }
-            if let Some(t) = t {
+            if let Some(t) = t.filter(|_| path.beta * (1.0 - kr) >= self.branch_cutoff) {
                 out += refr(t, rng, obs, c, 1.0 - kr) * (1.0 - kr);
             }
             out
