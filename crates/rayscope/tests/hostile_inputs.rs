@@ -829,10 +829,23 @@ fn render_tiny(mode: u8, text: &str) -> Result<(), TestCaseError> {
     prop_assert!(out.film.pixels.iter().all(|p| p.is_finite()), "non-finite pixel");
     // The render loop blackens and counts NaN and infinite samples; with modest numbers there
     // must be none (near the single-precision limit, sums may overflow).
-    if largest_number(&file) <= 1e6 {
+    if largest_number(&file) <= 1e6 && !(settings.ambient && gains_energy(&file)) {
         prop_assert_eq!(out.nonfinite, 0, "NaN or infinite sample at {:?}", out.first_nonfinite);
     }
     Ok(())
+}
+
+/// Some surface reflects more light than it receives (a colour above 1). With path-traced
+/// ambient light, an enclosure of such surfaces diverges to infinity: a known limitation
+/// (`fuzz/known-issues/render_tiny/`), not checked here.
+fn gains_energy(file: &rayscope_scene::SceneFile) -> bool {
+    file.materials.iter().any(|m| {
+        use rayscope_scene::MaterialKind;
+        matches!(
+            m.kind,
+            MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Reflective
+        ) && m.color.max_element() > 1.0
+    })
 }
 
 /// The largest magnitude of any number in the scene.

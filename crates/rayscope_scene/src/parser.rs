@@ -395,7 +395,21 @@ impl<'a> Parser<'a> {
                     .with_label(label),
                 )
             })?;
-        let (color, _) = cur.vector("the material's colour", Axes::Rgb)?;
+        let (color, span) = cur.vector("the material's colour", Axes::Rgb)?;
+        if kind == MaterialKind::Refractive && color.min_element() < 0.0 {
+            // Beer's law attenuates by exp(−σ·d): a negative σ amplifies without bound.
+            let shown = cur.text.get(span.0..span.1).unwrap_or_default();
+            return Err(Box::new(
+                cur.diag(
+                    Severity::Error,
+                    span.0,
+                    span.1,
+                    format!("expected a non-negative absorbance for the refractive material but found '{shown}'"),
+                )
+                .with_label("absorbance cannot be negative")
+                .with_note("a Refractive material's colour is its absorbance per channel (Beer's law); (0, 0, 0) is clear glass"),
+            ));
+        }
         let what = match kind {
             MaterialKind::Refractive => "the material's refractive index".to_string(),
             MaterialKind::Glossy => "the material's roughness".to_string(),
