@@ -282,19 +282,8 @@ impl Scene {
         t_max: f32,
         visits: &mut u32,
     ) -> Option<Hit> {
-        let mut best: Option<Hit> = None;
-        let mut t_max = t_max;
-        for (i, p) in self.planes.iter().enumerate() {
-            if let Some(h) = p.intersect(ray, t_min, t_max) {
-                t_max = h.t;
-                best = Some(Hit {
-                    t: h.t,
-                    u: 0.0,
-                    v: 0.0,
-                    prim: PrimRef::Plane(i as u32),
-                });
-            }
-        }
+        let best = self.nearest_plane(ray, t_min, t_max);
+        let t_max = best.map_or(t_max, |h| h.t);
         if COUNT {
             *visits += self.planes.len() as u32;
         }
@@ -338,10 +327,9 @@ impl Scene {
         })
     }
 
-    /// Closest hit by the binary BVH and scalar routines: slower, kept as a cross-check of the
-    /// wide traversal in tests.
-    #[must_use]
-    pub fn intersect_binary(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+    /// The nearest infinite plane with `t_min < t < t_max` (planes are kept out of the BVH).
+    #[inline]
+    fn nearest_plane(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         let mut t_max = t_max;
         for (i, p) in self.planes.iter().enumerate() {
@@ -355,6 +343,15 @@ impl Scene {
                 });
             }
         }
+        best
+    }
+
+    /// Closest hit by the binary BVH and scalar routines: slower, kept as a cross-check of the
+    /// wide traversal in tests.
+    #[must_use]
+    pub fn intersect_binary(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let mut best = self.nearest_plane(ray, t_min, t_max);
+        let t_max = best.map_or(t_max, |h| h.t);
         self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
             for &id in prims {
                 if id & SPHERE_BIT != 0 {
