@@ -9,6 +9,9 @@ use rayscope_core::{CameraSettings, Channel, FovAxis, RenderSettings, Stage};
 /// Images larger than this many pixels need `--allow-large` (64 megapixels: 8192 × 8192).
 pub const PIXEL_BUDGET: u64 = 8192 * 8192;
 
+/// No image may exceed this many pixels (2^30: a 12 GiB float film), `--allow-large` or not.
+pub const HARD_PIXEL_LIMIT: u64 = 1 << 30;
+
 /// rayscope: a ray tracer and visual ray debugger for the COMP30019 scene format.
 ///
 /// With no subcommand it renders like the course's program:
@@ -169,13 +172,22 @@ impl RenderOpts {
     /// Validates the flags together and converts them into render settings.
     pub fn settings(&self) -> Result<RenderSettings, String> {
         let pixels = self.width as u64 * self.height as u64;
+        if pixels > HARD_PIXEL_LIMIT {
+            return Err(format!(
+                "a {}×{} image is {} pixels, more than rayscope can hold in memory (at most {}, even with --allow-large)",
+                self.width, self.height, pixels, HARD_PIXEL_LIMIT
+            ));
+        }
         if pixels > PIXEL_BUDGET && !self.allow_large {
             return Err(format!(
                 "a {}×{} image is {} pixels, over the budget of {} (8192×8192); pass --allow-large to render it anyway",
                 self.width, self.height, pixels, PIXEL_BUDGET
             ));
         }
-        if self.cam_axis.length_squared() == 0.0 && self.cam_angle != 0.0 {
+        // Normalised in f64: a tiny but non-zero axis is a valid direction even where its squared
+        // length would underflow in f32.
+        let axis = self.cam_axis.as_dvec3().normalize_or_zero();
+        if axis == glam::DVec3::ZERO && self.cam_angle != 0.0 {
             return Err("--cam-axis must not be (0, 0, 0) when --cam-angle is not 0: a rotation needs an axis".into());
         }
         let samples = pixels * (self.aa as u64).pow(2);
@@ -199,7 +211,11 @@ impl RenderOpts {
             max_depth: self.max_depth,
             camera: CameraSettings {
                 position: self.cam_pos,
-                axis: self.cam_axis,
+                axis: if axis == glam::DVec3::ZERO {
+                    self.cam_axis
+                } else {
+                    axis.as_vec3()
+                },
                 angle_deg: self.cam_angle,
                 fov_deg: self.fov,
                 fov_axis: match self.fov_axis {

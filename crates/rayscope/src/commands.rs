@@ -128,12 +128,33 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
 }
 
 fn replay_flags(o: &RenderOpts) -> String {
+    // Every flag that decides which rays a sample casts, so `trace` replays the same sample.
+    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
     let mut s = format!("-w {} -h {} -x {}", o.width, o.height, o.aa);
     if o.ambient {
         s.push_str(" -l");
     }
-    if o.quality != 0 {
-        s.push_str(&format!(" -q {}", o.quality));
+    s.push_str(&format!(
+        " -q {} -p {} -a {} -n {} -r {} -t {} --fov {} --max-depth {} --seed {}",
+        o.quality,
+        v(o.cam_pos),
+        v(o.cam_axis),
+        o.cam_angle,
+        o.aperture,
+        o.focal_length,
+        o.fov,
+        o.max_depth,
+        o.seed
+    ));
+    if o.fov_axis == crate::cli::FovAxisArg::Vertical {
+        s.push_str(" --fov-axis vertical");
+    }
+    if let Some(stage) = o.stage {
+        s.push_str(match stage {
+            crate::cli::StageArg::One => " --stage 1",
+            crate::cli::StageArg::Two => " --stage 2",
+            crate::cli::StageArg::Three => " --stage 3",
+        });
     }
     s
 }

@@ -72,10 +72,14 @@ impl Bsdf {
     /// The model of a Diffuse or Glossy material; `None` for the other kinds.
     #[must_use]
     pub fn of(m: &Material, coat_only: bool) -> Option<Bsdf> {
+        // A surface cannot reflect more light than it receives: colours above 1 (which the
+        // course's point-light formula allows as "brightness") are clamped for light transport,
+        // or paths between such surfaces would gain energy at every bounce and diverge.
+        let albedo = Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE);
         match m.kind {
-            MaterialKind::Diffuse => Some(Bsdf::Lambert { albedo: m.color.into() }),
+            MaterialKind::Diffuse => Some(Bsdf::Lambert { albedo }),
             MaterialKind::Glossy => Some(Bsdf::Coated {
-                base: m.color.into(),
+                base: albedo,
                 alpha: glossy_alpha(m.value),
                 coat_only,
             }),

@@ -314,8 +314,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         match self.settings.channel {
             Channel::Normal => s.shading_normal * 0.5 + Vec3A::splat(0.5),
             Channel::Depth => {
-                let far = (self.scene.bounds.max - self.scene.bounds.min).length().max(1.0)
-                    + (self.camera.origin - self.scene.bounds.center()).length();
+                // Scenes of planes alone have no bounds; fall back to a fixed range then.
+                let b = &self.scene.bounds;
+                let far = if b.is_empty() {
+                    100.0
+                } else {
+                    (b.max - b.min).length().max(1.0) + (self.camera.origin - b.center()).length()
+                };
                 Vec3A::splat(1.0 - (hit.t / far).clamp(0.0, 1.0))
             }
             Channel::Entity => entity_color(s.entity),

@@ -78,10 +78,10 @@ impl Format {
 /// Checks, before any work is done, that `path` can be written: known format, existing folder,
 /// folder writable. Returns the format.
 pub fn check_writable(path: &Path) -> Result<Format, OutputError> {
-    let format = Format::from_path(path)?;
     if path.is_dir() {
         return Err(OutputError::IsFolder(path.to_path_buf()));
     }
+    let format = Format::from_path(path)?;
     let dir = parent_dir(path);
     if !dir.is_dir() {
         return Err(OutputError::MissingFolder {
