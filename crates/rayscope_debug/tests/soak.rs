@@ -78,7 +78,7 @@ fn several_clients_for_a_while() {
                     // A trace may ask for a pixel outside an image another client just shrank.
                     let ok = code == 200 || (code == 400 && path.starts_with("/api/trace"));
                     assert!(ok, "{method} {path} {body}: {code} {}", String::from_utf8_lossy(&resp));
-                    if n % 50 == 0 {
+                    if n.is_multiple_of(50) {
                         peak_rss = peak_rss.max(rss_kib());
                     }
                 }
