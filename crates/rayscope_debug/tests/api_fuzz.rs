@@ -172,3 +172,45 @@ fn random_requests_never_break_the_server() {
     );
     server.stop();
 }
+
+#[test]
+fn a_slow_client_does_not_stall_others() {
+    use std::io::Write;
+    let file = rayscope_scene::load(Path::new(SCENE)).expect("course scene 2");
+    let scene = Scene::from_file(&file);
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path: PathBuf::from(SCENE),
+        scene_file: file,
+        scene,
+        settings: RenderSettings {
+            width: 40,
+            height: 30,
+            ..RenderSettings::default()
+        },
+        host: "127.0.0.1".into(),
+        port: 0,
+    })
+    .expect("debugger starts");
+    let addr = server.addr;
+    // Three clients that send half a request (or half a body) and then go quiet.
+    let mut slow = Vec::new();
+    for partial in [
+        &b"GET /api/scene HTTP/1.1\r\nHost: x"[..],
+        b"POST /api/settings HTTP/1.1\r\nHost: 127.0.0.1\r\nContent-Length: 1000\r\n\r\n{\"wid",
+        b"G",
+    ] {
+        let mut s = std::net::TcpStream::connect(addr).unwrap();
+        s.write_all(partial).unwrap();
+        slow.push(s);
+    }
+    for _ in 0..5 {
+        let t = std::time::Instant::now();
+        assert_eq!(request(addr, "GET", "/api/scene", b"").0, 200);
+        assert!(
+            t.elapsed() < std::time::Duration::from_secs(2),
+            "answered while slow clients hang"
+        );
+    }
+    drop(slow);
+    server.stop();
+}
