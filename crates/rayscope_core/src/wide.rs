@@ -33,6 +33,26 @@ pub struct Node4 {
     pub bounds: [[Vec4; 2]; 3],
     /// Node index, `LEAF | packet`, `LEAF | SPHERES | packet`, or `EMPTY`.
     pub children: [u32; 4],
+    /// Bit i set when `children[i]` is used (sits in the padding of the 128-byte node).
+    pub valid: u32,
+}
+
+impl Node4 {
+    fn empty() -> Self {
+        Node4 {
+            bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
+            children: [EMPTY; 4],
+            valid: 0,
+        }
+    }
+
+    fn set_children(&mut self, children: [u32; 4]) {
+        self.children = children;
+        self.valid = children
+            .iter()
+            .enumerate()
+            .fold(0, |m, (i, &c)| m | (u32::from(c != EMPTY) << i));
+    }
 }
 
 /// Four triangles in structure-of-arrays layout.
@@ -270,7 +290,14 @@ fn node_test(node: &Node4, rc: &RayConsts, t_min: f32, t_max: f32) -> (u32, Vec4
         t0 = tn.max(t0);
         t1 = tf.min(t1);
     }
-    (t0.cmple(t1).bitmask(), t0)
+    // Empty slots have inverted bounds and never pass, except for degenerate rays; mask them
+    // out explicitly so traversal can never follow one.
+    let valid = node
+        .children
+        .iter()
+        .enumerate()
+        .fold(0, |m, (i, &c)| m | (u32::from(c != EMPTY) << i));
+    (t0.cmple(t1).bitmask() & valid, t0)
 }
 
 #[inline(always)]
@@ -400,10 +427,7 @@ impl Builder<'_> {
             kids.push(self.bvh.nodes[k].offset as usize);
         }
         let idx = self.out.nodes.len();
-        self.out.nodes.push(Node4 {
-            bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
-            children: [EMPTY; 4],
-        });
+        self.out.nodes.push(Node4::empty());
         let mut bounds = [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3];
         let mut children = [EMPTY; 4];
         for (slot, &k) in kids.iter().enumerate() {
@@ -418,7 +442,7 @@ impl Builder<'_> {
         for a in 0..3 {
             node.bounds[a] = [Vec4::from(bounds[a][0]), Vec4::from(bounds[a][1])];
         }
-        node.children = children;
+        node.set_children(children);
         idx as u32
     }
 
@@ -461,10 +485,7 @@ impl Builder<'_> {
         // Mixed leaf: a node over the packets, each with its own bounds so a ray that misses
         // the spheres skips their packet.
         let idx = self.out.nodes.len();
-        let mut node = Node4 {
-            bounds: [[Vec4::INFINITY, Vec4::NEG_INFINITY]; 3],
-            children: [EMPTY; 4],
-        };
+        let mut node = Node4::empty();
         let mut lo = [[f32::INFINITY; 4]; 3];
         let mut hi = [[f32::NEG_INFINITY; 4]; 3];
         let tri_groups = tris.chunks(4).map(|c| {
@@ -484,9 +505,11 @@ impl Builder<'_> {
         for a in 0..3 {
             node.bounds[a] = [Vec4::from(lo[a]), Vec4::from(hi[a])];
         }
+        let mut children = [EMPTY; 4];
         for (s, p) in parts.iter().take(4).enumerate() {
-            node.children[s] = *p;
+            children[s] = *p;
         }
+        node.set_children(children);
         self.out.nodes.push(node);
         idx as u32
     }

@@ -140,3 +140,23 @@ fn axis_parallel_rays_through_slab_planes() {
         }
     }
 }
+
+#[test]
+fn degenerate_rays_hit_nothing_and_never_panic() {
+    // Found by the render_tiny property test: a NaN ray passed every slab test and followed an
+    // empty child slot.
+    for (spheres, tris) in [(1, 0), (0, 1), (2, 3), (5, 40)] {
+        let scene = random_scene(13, spheres, tris);
+        for (o, d) in [
+            (Vec3A::ZERO, Vec3A::new(f32::NAN, 0.0, 1.0)),
+            (Vec3A::new(f32::NAN, 0.0, 0.0), Vec3A::Z),
+            (Vec3A::ZERO, Vec3A::new(f32::INFINITY, 0.0, 0.0)),
+            (Vec3A::splat(f32::NEG_INFINITY), Vec3A::Z),
+            (Vec3A::ZERO, Vec3A::ZERO),
+        ] {
+            let ray = Ray::new(o, d);
+            assert!(scene.intersect(&ray, 0.0, f32::INFINITY).is_none());
+            assert!(!scene.occluded(&ray, 0.0, f32::INFINITY));
+        }
+    }
+}
