@@ -5,13 +5,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-
-use common::{request, rss_kib};
+use common::{request, rss_kib, start_server};
 
 use rayscope_core::rng::Rng;
-use rayscope_core::{RenderSettings, Scene};
-use rayscope_debug::ServeConfig;
 
 const SCENE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -104,22 +100,7 @@ fn random_request(rng: &mut Rng) -> (&'static str, String, Vec<u8>) {
 
 #[test]
 fn random_requests_never_break_the_server() {
-    let file = rayscope_scene::load(Path::new(SCENE)).expect("course scene 2");
-    let scene = Scene::from_file(&file);
-    let settings = RenderSettings {
-        width: 40,
-        height: 30,
-        ..RenderSettings::default()
-    };
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path: PathBuf::from(SCENE),
-        scene_file: file,
-        scene,
-        settings,
-        host: "127.0.0.1".into(),
-        port: 0,
-    })
-    .expect("debugger starts");
+    let server = start_server(SCENE, 40, 30);
     let addr = server.addr;
     // Warm up (first frames allocate caches), then measure.
     assert_eq!(request(addr, "GET", "/api/scene", b"").0, 200);
@@ -176,21 +157,7 @@ fn random_requests_never_break_the_server() {
 #[test]
 fn a_slow_client_does_not_stall_others() {
     use std::io::Write;
-    let file = rayscope_scene::load(Path::new(SCENE)).expect("course scene 2");
-    let scene = Scene::from_file(&file);
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path: PathBuf::from(SCENE),
-        scene_file: file,
-        scene,
-        settings: RenderSettings {
-            width: 40,
-            height: 30,
-            ..RenderSettings::default()
-        },
-        host: "127.0.0.1".into(),
-        port: 0,
-    })
-    .expect("debugger starts");
+    let server = start_server(SCENE, 40, 30);
     let addr = server.addr;
     // Three clients that send half a request (or half a body) and then go quiet.
     let mut slow = Vec::new();

@@ -6,13 +6,10 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use common::{request, rss_kib};
+use common::{request, rss_kib, start_server};
 use rayscope_core::rng::Rng;
-use rayscope_core::{RenderSettings, Scene};
-use rayscope_debug::ServeConfig;
 
 const SCENE: &str = concat!(
     env!("CARGO_MANIFEST_DIR"),
@@ -25,21 +22,7 @@ fn several_clients_for_a_while() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(20);
-    let file = rayscope_scene::load(Path::new(SCENE)).expect("course scene 2");
-    let scene = Scene::from_file(&file);
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path: PathBuf::from(SCENE),
-        scene_file: file,
-        scene,
-        settings: RenderSettings {
-            width: 60,
-            height: 40,
-            ..RenderSettings::default()
-        },
-        host: "127.0.0.1".into(),
-        port: 0,
-    })
-    .expect("debugger starts");
+    let server = start_server(SCENE, 60, 40);
     let addr = server.addr;
     assert_eq!(request(addr, "GET", "/api/view?w=480&h=320&rays=all", b"").0, 200);
     let start_rss = rss_kib();

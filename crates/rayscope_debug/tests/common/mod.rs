@@ -3,7 +3,11 @@
 
 use std::io::{Read, Write};
 use std::net::{SocketAddr, TcpStream};
+use std::path::{Path, PathBuf};
 use std::time::Duration;
+
+use rayscope_core::{RenderSettings, Scene};
+use rayscope_debug::{RunningServer, ServeConfig};
 
 /// Sends one request and returns the status code and body.
 pub fn request(addr: SocketAddr, method: &str, path: &str, body: &[u8]) -> (u16, Vec<u8>) {
@@ -36,4 +40,23 @@ pub fn rss_kib() -> u64 {
                 .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
         })
         .unwrap_or(0)
+}
+
+/// Starts the debugger in-process on a free loopback port for `scene` at `width` × `height`.
+pub fn start_server(scene: &str, width: u32, height: u32) -> RunningServer {
+    let file = rayscope_scene::load(Path::new(scene)).expect("scene loads");
+    let scene_data = Scene::from_file(&file);
+    rayscope_debug::start(ServeConfig {
+        scene_path: PathBuf::from(scene),
+        scene_file: file,
+        scene: scene_data,
+        settings: RenderSettings {
+            width,
+            height,
+            ..RenderSettings::default()
+        },
+        host: "127.0.0.1".into(),
+        port: 0,
+    })
+    .expect("debugger starts")
 }
