@@ -571,9 +571,7 @@ pub fn render_view(
     let (w, h) = (opts.width.max(1), opts.height.max(1));
     let proj = Projection::new(&opts.camera, w, h);
     let cam = Camera::new(settings.camera, settings.width.max(1), settings.height.max(1));
-    let q0 = cam.plane_point_world(0.0, 0.0);
-    let qu = cam.plane_point_world(1.0, 0.0) - q0;
-    let qv = cam.plane_point_world(0.0, 1.0) - q0;
+    let (q0, qu, qv) = image_plane_frame(&cam);
     let mut highlight = Vec::new();
     if !opts.highlight.is_empty() {
         highlight = vec![false; cam.width as usize * cam.height as usize];
@@ -739,9 +737,7 @@ pub fn render_view(
 pub fn pick(scene: &Scene, settings: &RenderSettings, opts: &ViewOptions, px: u32, py: u32) -> Option<Selection> {
     let proj = Projection::new(&opts.camera, opts.width.max(1), opts.height.max(1));
     let cam = Camera::new(settings.camera, settings.width.max(1), settings.height.max(1));
-    let q0 = cam.plane_point_world(0.0, 0.0);
-    let qu = cam.plane_point_world(1.0, 0.0) - q0;
-    let qv = cam.plane_point_world(0.0, 1.0) - q0;
+    let (q0, qu, qv) = image_plane_frame(&cam);
     let ctx = Ctx {
         scene,
         proj,
@@ -1235,6 +1231,16 @@ impl Overlay<'_, '_> {
             }
         }
     }
+}
+
+/// The image plane in world space: its top-left corner and the edges along +u and +v.
+fn image_plane_frame(cam: &Camera) -> (Vec3A, Vec3A, Vec3A) {
+    let q0 = cam.plane_point_world(0.0, 0.0);
+    (
+        q0,
+        cam.plane_point_world(1.0, 0.0) - q0,
+        cam.plane_point_world(0.0, 1.0) - q0,
+    )
 }
 
 #[cfg(test)]
