@@ -218,12 +218,19 @@ pub fn sample_sphere(s: &Sphere, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f
         return None;
     }
     let dir = w / dist;
-    let cos = n.dot(dir).abs();
-    if cos <= 1e-7 {
-        return None;
-    }
-    let area = 4.0 * std::f32::consts::PI * s.radius * s.radius;
-    Some((dir, dist, dist2 / (cos * area)))
+    let pdf = area_to_solid_angle(dist2, n.dot(dir).abs(), sphere_area(s))?;
+    Some((dir, dist, pdf))
+}
+
+/// Solid-angle density of a point drawn uniformly by area on a surface of `area`, seen at squared
+/// distance `dist2` and at `cos` to the surface normal; `None` where the surface is seen edge-on.
+#[inline]
+fn area_to_solid_angle(dist2: f32, cos: f32, area: f32) -> Option<f32> {
+    (cos > 1e-7).then(|| dist2 / (cos * area))
+}
+
+fn sphere_area(s: &Sphere) -> f32 {
+    4.0 * std::f32::consts::PI * s.radius * s.radius
 }
 
 /// Solid-angle density of [`sample_sphere`] from `p` for the point `y` on the sphere.
@@ -236,11 +243,7 @@ pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
     let w = y - p;
     let dist2 = w.length_squared();
     let n = (y - s.center) / s.radius;
-    let cos = n.dot(w).abs() / dist2.sqrt();
-    if cos <= 1e-7 {
-        return 0.0;
-    }
-    dist2 / (cos * 4.0 * std::f32::consts::PI * s.radius * s.radius)
+    area_to_solid_angle(dist2, n.dot(w).abs() / dist2.sqrt(), sphere_area(s)).unwrap_or(0.0)
 }
 
 /// Direction, distance and solid-angle density of a point drawn uniformly on triangle `t` from `p`.
@@ -257,11 +260,8 @@ pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3
     let dir = w / dist;
     let c = t.e1.cross(t.e2);
     let area2 = c.length();
-    let cos = c.dot(dir).abs() / area2;
-    if cos <= 1e-7 {
-        return None;
-    }
-    Some((dir, dist, dist2 / (cos * 0.5 * area2)))
+    let pdf = area_to_solid_angle(dist2, c.dot(dir).abs() / area2, 0.5 * area2)?;
+    Some((dir, dist, pdf))
 }
 
 /// Solid-angle density of [`sample_triangle`] from `p` for the point `y` on the triangle.
@@ -271,9 +271,5 @@ pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
     let dist2 = w.length_squared();
     let c = t.e1.cross(t.e2);
     let area2 = c.length();
-    let cos = c.dot(w).abs() / (area2 * dist2.sqrt());
-    if cos <= 1e-7 {
-        return 0.0;
-    }
-    dist2 / (cos * 0.5 * area2)
+    area_to_solid_angle(dist2, c.dot(w).abs() / (area2 * dist2.sqrt()), 0.5 * area2).unwrap_or(0.0)
 }
