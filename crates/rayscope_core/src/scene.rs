@@ -264,7 +264,7 @@ impl Scene {
         }));
         self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
         self.bvh = Bvh::build(prims);
-        self.wide = Bvh4::from_binary(&self.bvh, &self.triangles, &self.spheres, SPHERE_BIT);
+        self.wide = Bvh4::from_binary(&self.bvh, &self.triangles, &self.spheres, SPHERE_BIT, &self.planes);
     }
 
     /// The closest hit with `t_min < t < t_max`, using the BVH and the planes.
@@ -282,24 +282,12 @@ impl Scene {
         t_max: f32,
         visits: &mut u32,
     ) -> Option<Hit> {
-        let best = self.nearest_plane(ray, t_min, t_max);
-        let t_max = best.map_or(t_max, |h| h.t);
-        if COUNT {
-            *visits += self.planes.len() as u32;
-        }
-        match self.wide.closest::<COUNT>(ray, t_min, t_max, visits) {
-            Some(h) => Some(Hit {
-                t: h.t,
-                u: h.u,
-                v: h.v,
-                prim: if h.sphere {
-                    PrimRef::Sphere(h.id)
-                } else {
-                    PrimRef::Triangle(h.id)
-                },
-            }),
-            None => best,
-        }
+        self.wide.closest::<COUNT>(ray, t_min, t_max, visits).map(|h| Hit {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+        })
     }
 
     /// True when anything lies on the ray with `t_min < t < t_max` (shadow rays).
@@ -313,18 +301,7 @@ impl Scene {
     #[must_use]
     #[inline]
     pub fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
-        for (i, p) in self.planes.iter().enumerate() {
-            if p.intersect(ray, t_min, t_max).is_some() {
-                return Some(PrimRef::Plane(i as u32));
-            }
-        }
-        self.wide.any(ray, t_min, t_max).map(|(id, sphere)| {
-            if sphere {
-                PrimRef::Sphere(id)
-            } else {
-                PrimRef::Triangle(id)
-            }
-        })
+        self.wide.any(ray, t_min, t_max)
     }
 
     /// The nearest infinite plane with `t_min < t < t_max` (planes are kept out of the BVH).
