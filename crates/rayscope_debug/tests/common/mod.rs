@@ -31,12 +31,27 @@ pub fn request(addr: SocketAddr, method: &str, path: &str, body: &[u8]) -> (u16,
 }
 
 /// Resident memory of this process in KiB (0 where /proc is missing).
+///
+/// [`start_server`] runs the debugger inside the test process, so this is the server's memory
+/// plus whatever the test itself holds: a test that reads it as the server's memory must keep
+/// its own footprint constant while it runs (no per-request buffers kept).
 pub fn rss_kib() -> u64 {
+    proc_status("VmRSS")
+}
+
+/// Threads of this process (0 where /proc is missing): the server's runtime, render and
+/// blocking-pool threads plus the test's own.
+pub fn thread_count() -> u64 {
+    proc_status("Threads")
+}
+
+/// The first number of the `name:` line of `/proc/self/status` (0 where missing).
+fn proc_status(name: &str) -> u64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
         .and_then(|s| {
             s.lines()
-                .find(|l| l.starts_with("VmRSS:"))
+                .find(|l| l.split(':').next() == Some(name))
                 .and_then(|l| l.split_whitespace().nth(1)?.parse().ok())
         })
         .unwrap_or(0)
