@@ -1,5 +1,6 @@
 //! The 4-wide BVH against the binary BVH and against the parry3d brute force, on scenes that mix
-//! spheres and triangles (mixed leaves, padded packets) and on rays from inside and outside.
+//! spheres, triangles and planes (mixed leaves, padded packets, flat packet lists for tiny scenes,
+//! plane packets) and on rays from inside and outside.
 
 use glam::{DVec3, Vec3A};
 use rayscope_core::math::Ray;
@@ -9,6 +10,10 @@ use rayscope_core::scene::{Intersect, PrimRef, Scene};
 use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
 
 fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
+    random_scene_with_planes(seed, spheres, triangles, 0)
+}
+
+fn random_scene_with_planes(seed: u64, spheres: usize, triangles: usize, planes: usize) -> Scene {
     let mut rng = Rng::for_sample(seed, 0, 0);
     let mut r = move || rng.next_f32() as f64;
     let mut file = SceneFile {
@@ -44,6 +49,23 @@ fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
             line: i + 2,
         });
     }
+    for i in 0..planes {
+        let normal = loop {
+            let n = DVec3::new(r() * 2.0 - 1.0, r() * 2.0 - 1.0, r() * 2.0 - 1.0);
+            if n.length_squared() > 0.01 {
+                break n.normalize();
+            }
+        };
+        file.entities.push(EntityDef {
+            name: format!("P{i}"),
+            shape: Shape::Plane {
+                point: DVec3::new(r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0),
+                normal,
+            },
+            material: 0,
+            line: i + 2,
+        });
+    }
     Scene::from_file(&file)
 }
 
@@ -73,8 +95,26 @@ fn random_rays(seed: u64, n: usize) -> Vec<Ray> {
 
 #[test]
 fn wide_equals_binary_and_brute_force() {
-    for (seed, spheres, tris) in [(1, 0, 1), (2, 1, 0), (3, 3, 5), (4, 40, 0), (5, 0, 300), (6, 200, 800)] {
-        let scene = random_scene(seed, spheres, tris);
+    // Up to four packets are tested as a flat list, more through the tree; planes go in packets
+    // of four (five planes leave three padding lanes).
+    for (seed, spheres, tris, planes) in [
+        (1, 0, 1, 0),
+        (2, 1, 0, 0),
+        (3, 3, 5, 0),
+        (4, 40, 0, 0),
+        (5, 0, 300, 0),
+        (6, 200, 800, 0),
+        (7, 2, 6, 1),
+        (8, 0, 0, 5),
+        (9, 30, 120, 5),
+    ] {
+        let scene = random_scene_with_planes(seed, spheres, tris, planes);
+        let packets = tris.div_ceil(4) + spheres.div_ceil(4);
+        assert_eq!(
+            scene.wide.flat.len(),
+            if packets <= 4 { packets } else { 0 },
+            "seed {seed}: flat list only for tiny scenes"
+        );
         let reference = ReferenceIntersector { scene: &scene };
         let mut disagree = 0;
         let rays = random_rays(seed, 3000);
