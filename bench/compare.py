@@ -12,6 +12,7 @@ import math
 import multiprocessing as mp
 import os
 import platform
+import re
 import statistics
 import subprocess
 import sys
@@ -24,6 +25,7 @@ HERE = os.path.dirname(os.path.abspath(__file__))
 sys.path.insert(0, HERE)
 
 import course_scene as cs  # noqa: E402
+import gen_mesh  # noqa: E402
 import to_mitsuba as tm  # noqa: E402
 
 ROOT = os.path.dirname(HERE)
@@ -50,6 +52,7 @@ class Rayscope:
     def __init__(self, exe: str, tmp: str):
         self.exe = exe
         self.tmp = tmp
+        self.gnu_time = "/usr/bin/time" if os.access("/usr/bin/time", os.X_OK) else None
 
     def render(self, scene: str, out_name: str, flags: list[str]) -> tuple[float, str]:
         """Whole-process wall time of one render; returns (seconds, output path)."""
@@ -73,6 +76,49 @@ class Rayscope:
             "seconds": float(fields["seconds"]),
             "mrays": float(fields["mrays_per_s"]),
             "threads": int(fields["threads"]),
+        }
+
+    def bench_rays_rss(self, scene: str, rays_file: str, threads: int, passes: int) -> dict:
+        """bench_rays plus the build line (seconds, bytes per triangle) and rayscope's peak RSS (OBJ
+        parsing, the rays and the BVH included), from GNU time's %M. Without /usr/bin/time it falls
+        back to wait4's ru_maxrss, which is an upper bound: Linux carries the high-water mark of
+        the forking process (this Python, with Mitsuba loaded) across exec."""
+        cmd = [
+            self.exe, "bench", "rays", "-f", scene, "--rays-file", rays_file,
+            "--threads", str(threads), "--repeat", str(passes),
+        ]
+        rss_file = os.path.join(self.tmp, "maxrss.txt")
+        if self.gnu_time:
+            cmd = [self.gnu_time, "-f", "%M", "-o", rss_file, *cmd]
+        with tempfile.TemporaryFile("w+") as out, tempfile.TemporaryFile("w+") as err:
+            proc = subprocess.Popen(cmd, stdout=out, stderr=err, text=True)
+            _, status, usage = os.wait4(proc.pid, 0)
+            proc.returncode = os.waitstatus_to_exitcode(status)
+            out.seek(0)
+            err.seek(0)
+            text, errtext = out.read(), err.read()
+        if proc.returncode != 0:
+            raise SystemExit(f"{' '.join(cmd)} failed ({proc.returncode}):\n{errtext}")
+        if self.gnu_time:
+            with open(rss_file, encoding="ascii") as f:
+                maxrss_kb = int(f.read().split()[-1])
+        else:
+            maxrss_kb = usage.ru_maxrss  # Linux: kilobytes
+        lines = (text + "\n" + errtext).splitlines()
+        build = next(l for l in lines if l.startswith("build:"))
+        m = re.match(r"build: (\d+) primitives in ([0-9.]+) s, (\d+) bytes of BVH \(([0-9.]+) bytes/triangle", build)
+        assert m, build
+        fields = dict(kv.split("=", 1) for kv in text.strip().splitlines()[-1].split())
+        return {
+            "prims": int(m.group(1)),
+            "build_s": float(m.group(2)),
+            "bvh_bytes": int(m.group(3)),
+            "bytes_per_tri": float(m.group(4)),
+            "rays": int(fields["rays"]),
+            "hits": int(fields["hits"]),
+            "mrays": float(fields["mrays_per_s"]),
+            "threads": int(fields["threads"]),
+            "rss": maxrss_kb * 1024,
         }
 
     def primary_hits(self, scene: str, side: int) -> int:
@@ -393,11 +439,8 @@ def bench_path(args, rs: Rayscope, table: Table, notes: list[str]):
         del scene
 
 
-def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
-    scene = cs.parse_scene(SCENE_OBJ)
-    mesh_scene = os.path.join(args.out, "bunny_only.txt")
-    cs.write_bunny_only_scene(scene, mesh_scene)
-    triangles = np.concatenate([cs.load_obj_triangles(m) for m in scene.objs])
+def ray_sets(args) -> list[tuple[str, str, np.ndarray]]:
+    """The closest-hit ray files (primary side x side, incoherent side^2), written to args.out."""
     side = args.primary_side
     n = side * side
     sets = []
@@ -409,6 +452,17 @@ def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
     rays = incoherent_rays(n)
     write_rays(path, rays)
     sets.append((f"incoherent, {n:,}", path, rays))
+    return sets
+
+
+def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
+    scene = cs.parse_scene(SCENE_OBJ)
+    mesh_scene = os.path.join(args.out, "bunny_only.txt")
+    cs.write_bunny_only_scene(scene, mesh_scene)
+    triangles = np.concatenate([cs.load_obj_triangles(m) for m in scene.objs])
+    side = args.primary_side
+    n = side * side
+    sets = ray_sets(args)
 
     ours_primary = rs.primary_hits(mesh_scene, side)
     notes.append(
@@ -473,6 +527,110 @@ def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
                 raise SystemExit(f"hit counts disagree by {rel:.4%} on {label}: Embree {hp}, rayscope {ho}")
 
 
+# The enlarged bunny of the scale section: 2.5 x the course's scale (0.35), placed so that it
+# covers about as much of the course camera's image as the generated torus (about a quarter).
+BIG_BUNNY_FACTOR = 2.5
+BIG_BUNNY_OFFSET = (-0.07, -0.85, 2.0)
+
+
+def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
+    """Generated tori of --scale-tris triangles against the course bunny (and the bunny enlarged to
+    the torus's screen coverage) on the closest-hit ray files, --scale-threads threads."""
+    threads = args.scale_threads
+    scene = cs.parse_scene(SCENE_OBJ)
+    bunny = os.path.join(args.out, "bunny_only.txt")
+    cs.write_bunny_only_scene(scene, bunny)
+    (model,) = scene.objs
+    big_bunny = os.path.join(args.out, "bunny_big.txt")
+    with open(big_bunny, "w", encoding="utf-8") as f:
+        m = scene.materials[model.material]
+        f.write(f'Material "{m.name}" {m.kind} ({", ".join(repr(x) for x in m.colour)}) {m.number!r}\n')
+        o = ", ".join(repr(x) for x in BIG_BUNNY_OFFSET)
+        f.write(f'ObjModel "{model.name}" "{model.path}" ({o}) {model.scale * BIG_BUNNY_FACTOR!r} "{m.name}"\n')
+    scenes = [("bunny (course)", bunny), (f"bunny x{BIG_BUNNY_FACTOR:g}", big_bunny)]
+    # The same enlarged bunny with every triangle split into 4^levels: the shape and the screen
+    # coverage stay, only the triangle count grows, which isolates what size costs.
+    for levels in args.scale_subdiv:
+        t0 = time.perf_counter()
+        obj = gen_mesh.ensure_subdivided(args.out, model.path, levels)
+        if time.perf_counter() - t0 > 0.5:
+            log(f"generated {os.path.relpath(obj, ROOT)} in {time.perf_counter() - t0:.1f} s")
+        sub = os.path.join(args.out, f"bunny_big_sub{levels}.txt")
+        with open(sub, "w", encoding="utf-8") as f:
+            m = scene.materials[model.material]
+            f.write(f'Material "{m.name}" {m.kind} ({", ".join(repr(x) for x in m.colour)}) {m.number!r}\n')
+            o = ", ".join(repr(x) for x in BIG_BUNNY_OFFSET)
+            f.write(f'ObjModel "{model.name}" "{obj}" ({o}) {model.scale * BIG_BUNNY_FACTOR!r} "{m.name}"\n')
+        scenes.append((f"bunny x{BIG_BUNNY_FACTOR:g}, {4 ** levels}x triangles", sub))
+    for tris in args.scale_tris:
+        t0 = time.perf_counter()
+        path, obj = gen_mesh.ensure(args.out, tris)
+        if time.perf_counter() - t0 > 0.5:
+            log(f"generated {os.path.relpath(obj, ROOT)} in {time.perf_counter() - t0:.1f} s")
+        scenes.append((f"torus {tris / 1e6:g}M", path))
+    sets = [(label, path) for label, path, _ in ray_sets(args)]
+
+    # results[(scene, set)] = list of runs; scenes alternate, the order rotating every repetition.
+    results: dict[tuple[str, str], list[dict]] = {(s, r): [] for s, _ in scenes for r, _ in sets}
+    for rep in range(args.reps):
+        for set_label, rays_file in sets:
+            k = rep % len(scenes)
+            for name, path in scenes[k:] + scenes[:k]:
+                r = rs.bench_rays_rss(path, rays_file, threads, args.ray_passes)
+                assert r["threads"] == threads, r
+                results[(name, set_label)].append(r)
+        log(f"  scale: repetition {rep + 1}/{args.reps} done")
+
+    def med(name, key, set_label=None):
+        runs = [x for (s, r), xs in results.items() if s == name and set_label in (None, r) for x in xs]
+        return median([x[key] for x in runs])
+
+    def hits(name, set_label):
+        hs = {x["hits"] for x in results[(name, set_label)]}
+        assert len(hs) == 1, (name, set_label, hs)
+        return hs.pop()
+
+    bunny_rss = med(scenes[0][0], "rss")
+    table.section(
+        f"Scale: BVH build and memory (rayscope `bench rays`, {threads} threads; build time as printed by "
+        "rayscope, OBJ parsing not included; peak RSS of the rayscope process"
+        f"{'' if rs.gnu_time else ' (upper bound: no /usr/bin/time, wait4 ru_maxrss)'}, OBJ parsing and "
+        "1,048,576 rays included). Medians over all runs of the throughput table",
+        ["scene", "triangles", "build", "build s per M triangles (target <= 1)", "BVH incl. triangles, bytes/triangle",
+         "peak RSS", "peak RSS above the bunny's, bytes/triangle"],
+    )
+    for name, _ in scenes:
+        n = results[(name, sets[0][0])][0]["prims"]
+        b = med(name, "build_s")
+        rss = med(name, "rss")
+        above = f"{(rss - bunny_rss) / n:.0f}" if n > 100_000 else "-"
+        table.row([name, f"{n:,}", f"{b:.3f} s", f"{b / n * 1e6:.3f}", f"{med(name, 'bytes_per_tri'):.1f}",
+                   f"{rss / 2**20:.0f} MiB", above])
+    table.section(
+        f"Scale: closest-hit throughput, {threads} threads, median Mrays/s of --reps runs (each the median "
+        f"of {args.ray_passes} passes). Target: torus >= 0.5 x the course bunny",
+        ["rays", "scene", "hits (fraction)", "Mrays/s", "/ bunny (course)", f"/ bunny x{BIG_BUNNY_FACTOR:g}"],
+    )
+    for set_label, _ in sets:
+        base = med(scenes[0][0], "mrays", set_label)
+        big = med(scenes[1][0], "mrays", set_label)
+        for name, _ in scenes:
+            h = hits(name, set_label)
+            n_rays = results[(name, set_label)][0]["rays"]
+            mr = med(name, "mrays", set_label)
+            table.row([set_label, name, f"{h:,} ({h / n_rays:.1%})", f"{mr:.2f}", f"{mr / base:.2f}", f"{mr / big:.2f}"])
+    notes.append(
+        f"Scale: the tori are `bench/gen_mesh.py`'s closed bumpy torus (scenes `bench/out/torus_N.txt`), "
+        f"centred at {gen_mesh.CENTRE}; the course bunny (4968 triangles) covers "
+        f"{hits(scenes[0][0], sets[0][0]) / args.primary_side**2:.1%} of the primary rays, so most of its rays "
+        f"miss cheaply; `bunny x{BIG_BUNNY_FACTOR:g}` (scale {model.scale * BIG_BUNNY_FACTOR:g}, offset "
+        f"{BIG_BUNNY_OFFSET}) covers about as much of the image as the tori and compares like with like."
+    )
+
+
+SECTIONS = ["direct", "path", "rays", "scale"]
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--rayscope", default=os.path.join(ROOT, "target", "release", "rayscope"))
@@ -483,7 +641,16 @@ def main():
     ap.add_argument("--ray-passes", type=int, default=3, help="timed passes per closest-hit repetition")
     ap.add_argument("--threads", type=int, nargs="+", default=[1, 2])
     ap.add_argument("--variants", nargs="+", default=["llvm_ad_rgb", "scalar_rgb"])
-    ap.add_argument("--only", nargs="+", choices=["direct", "path", "rays"], default=["direct", "path", "rays"])
+    ap.add_argument("--only", nargs="+", choices=SECTIONS, default=SECTIONS)
+    ap.add_argument(
+        "--scale-tris", type=int, nargs="+", default=[1_000_000, 4_000_000],
+        help="scale section: triangle counts of the generated tori (default 1000000 4000000)",
+    )
+    ap.add_argument(
+        "--scale-subdiv", type=int, nargs="*", default=[4, 5],
+        help="scale section: also the enlarged bunny split 4^L times for each L (default 4 5: 1.27M, 5.09M)",
+    )
+    ap.add_argument("--scale-threads", type=int, default=2, help="scale section: threads (default 2)")
     ap.add_argument("--no-scene2-path", dest="scene2_path", action="store_false")
     ap.add_argument("--out", default=os.path.join(HERE, "out"))
     args = ap.parse_args()
@@ -504,6 +671,8 @@ def main():
             bench_path(args, rs, table, notes)
         if "rays" in args.only:
             bench_rays(args, rs, table, notes)
+        if "scale" in args.only:
+            bench_scale(args, rs, table, notes)
     wall = time.perf_counter() - started
 
     version = subprocess.run([args.rayscope, "--version"], capture_output=True, text=True).stdout.strip()
