@@ -525,17 +525,33 @@ struct Builder<'a> {
 impl Builder<'_> {
     /// The reference for binary node `i`: a 4-wide node, or a packet for a small leaf.
     fn node_ref(&mut self, i: usize) -> u32 {
+        if let Some(r) = self.leaf_of(i) {
+            return r;
+        }
+        let idx = self.out.nodes.len();
+        self.out.nodes.push(Node4::empty());
+        self.fill_node(i, idx);
+        idx as u32
+    }
+
+    /// A leaf reference when binary node `i` is a leaf or a subtree small enough for one.
+    fn leaf_of(&mut self, i: usize) -> Option<u32> {
         let n = &self.bvh.nodes[i];
         if n.count > 0 {
-            return self.leaf_ref(n);
+            return Some(self.leaf_ref(n));
         }
         // A subtree of at most four triangles and four spheres becomes one leaf of full packets:
         // a packet tests four primitives for the price of one, so small binary leaves would
         // waste lanes and add node tests.
         let mut refs = Vec::with_capacity(8);
-        if self.collect_small(i, &mut refs) {
-            return self.leaf_ref_of(&refs);
-        }
+        self.collect_small(i, &mut refs).then(|| self.leaf_ref_of(&refs))
+    }
+
+    /// Makes 4-wide node `idx` from interior binary node `i`. A node's interior children are
+    /// stored next to each other (and its leaf packets too), so the cache lines a ray needs after
+    /// a node test are adjacent in memory.
+    fn fill_node(&mut self, i: usize, idx: usize) {
+        let n = &self.bvh.nodes[i];
         // Gather up to four children by opening the largest interior child, as Embree does.
         let mut kids: Vec<usize> = vec![i + 1, n.offset as usize];
         loop {
@@ -553,24 +569,33 @@ impl Builder<'_> {
             kids.push(k + 1);
             kids.push(self.bvh.nodes[k].offset as usize);
         }
-        let idx = self.out.nodes.len();
-        self.out.nodes.push(Node4::empty());
         let mut bounds = [[[f32::INFINITY; 4], [f32::NEG_INFINITY; 4]]; 3];
         let mut children = [EMPTY; 4];
+        let mut interior = Vec::with_capacity(4);
         for (slot, &k) in kids.iter().enumerate() {
             let kn = self.bvh.nodes[k];
             for a in 0..3 {
                 bounds[a][0][slot] = kn.min[a];
                 bounds[a][1][slot] = kn.max[a];
             }
-            children[slot] = self.node_ref(k);
+            match self.leaf_of(k) {
+                Some(r) => children[slot] = r,
+                None => interior.push((slot, k)),
+            }
+        }
+        let base = self.out.nodes.len();
+        for (j, &(slot, _)) in interior.iter().enumerate() {
+            self.out.nodes.push(Node4::empty());
+            children[slot] = (base + j) as u32;
+        }
+        for (j, &(_, k)) in interior.iter().enumerate() {
+            self.fill_node(k, base + j);
         }
         let node = &mut self.out.nodes[idx];
         for a in 0..3 {
             node.bounds[a] = [Vec4::from(bounds[a][0]), Vec4::from(bounds[a][1])];
         }
         node.set_children(children);
-        idx as u32
     }
 
     /// Appends the references under node `i` to `out` while they fit in one triangle packet
