@@ -90,8 +90,9 @@ impl Bvh {
         }
         let inv = ray.dir.recip();
         let neg = [inv.x < 0.0, inv.y < 0.0, inv.z < 0.0];
-        let mut stack = [0u32; 64];
-        let mut sp = 0usize;
+        // A growable stack: this walk is the cross-check of the wide one, so it must not lose a
+        // branch of a pathologically deep tree, and it is not on the render path.
+        let mut stack: Vec<u32> = Vec::with_capacity(64);
         let mut idx = 0u32;
         loop {
             let node = &self.nodes[idx as usize];
@@ -113,19 +114,15 @@ impl Bvh {
                     } else {
                         (idx + 1, node.offset)
                     };
-                    if sp < stack.len() {
-                        stack[sp] = second;
-                        sp += 1;
-                    }
+                    stack.push(second);
                     idx = first;
                     continue;
                 }
             }
-            if sp == 0 {
-                return t_max;
+            match stack.pop() {
+                Some(next) => idx = next,
+                None => return t_max,
             }
-            sp -= 1;
-            idx = stack[sp];
         }
     }
 

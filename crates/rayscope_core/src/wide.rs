@@ -157,8 +157,10 @@ impl NodeConsts {
     }
 }
 
-/// Traversal stack depth. A 4-wide node pushes at most four entries and pops one, so a tree of
-/// depth d needs at most 3d + 1; the binary build caps its depth well below 21 levels.
+/// Traversal stack entries kept on the machine stack. A 4-wide node pushes at most four entries
+/// and pops one, so a tree of depth d needs at most 3d + 1: 64 covers 21 levels, more than any
+/// reasonable mesh needs; a query that runs out of room (a binned SAH can build deeper trees for
+/// pathological inputs) starts over with a heap stack rather than lose a branch.
 const STACK: usize = 64;
 
 /// Scenes that fit in this many packets are tested flat, without a tree.
@@ -240,6 +242,23 @@ impl Bvh4 {
         }
     }
 
+    /// Node levels on the longest root-to-leaf path (0 without a tree).
+    #[must_use]
+    pub fn depth(&self) -> usize {
+        fn level(b: &Bvh4, r: u32) -> usize {
+            if r == EMPTY || r & LEAF != 0 {
+                return 0;
+            }
+            1 + b.nodes[r as usize]
+                .children
+                .iter()
+                .map(|&c| level(b, c))
+                .max()
+                .unwrap_or(0)
+        }
+        level(self, self.root)
+    }
+
     /// Bytes used by nodes and packets.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {
@@ -272,24 +291,53 @@ impl Bvh4 {
             return best;
         }
         let nc = NodeConsts::new(ray);
+        let mut walk = Walk {
+            best,
+            t_best,
+            visits: 0,
+        };
         let mut stack: ArrayVec<(u32, f32), STACK> = ArrayVec::new();
-        stack.push((self.root, t_min));
-        while let Some((r, t_near)) = stack.pop() {
-            if t_near >= t_best {
+        if !self.walk_closest::<COUNT, _>(&rc, &nc, t_min, &mut stack, &mut walk) {
+            // A tree deeper than the fixed stack (pathological input): finish on the heap. Work
+            // already done only lowered t_best, so starting over from the root is correct.
+            let mut heap: Vec<(u32, f32)> = Vec::with_capacity(4 * STACK);
+            self.walk_closest::<COUNT, _>(&rc, &nc, t_min, &mut heap, &mut walk);
+        }
+        if COUNT {
+            *visits += walk.visits;
+        }
+        walk.best
+    }
+
+    /// The closest-hit tree walk with `stack`; false when `stack` ran out of room. Not inlined:
+    /// inlined, it slowed the flat-list path of small scenes by 4 % (code layout), more than the
+    /// call costs a mesh.
+    #[inline(never)]
+    fn walk_closest<const COUNT: bool, S: TraversalStack<(u32, f32)>>(
+        &self,
+        rc: &RayConsts,
+        nc: &NodeConsts,
+        t_min: f32,
+        stack: &mut S,
+        w: &mut Walk,
+    ) -> bool {
+        stack.put((self.root, t_min));
+        while let Some((r, t_near)) = stack.take() {
+            if t_near >= w.t_best {
                 continue;
             }
             if COUNT {
-                *visits += 1;
+                w.visits += 1;
             }
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest(r, &rc, t_min, t_best) {
-                    t_best = h.t;
-                    best = Some(h);
+                if let Some(h) = self.packet_closest(r, rc, t_min, w.t_best) {
+                    w.t_best = h.t;
+                    w.best = Some(h);
                 }
                 continue;
             }
             let node = &self.nodes[r as usize];
-            let (mask, tn) = node_test(node, &rc, &nc, t_min, t_best);
+            let (mask, tn) = node_test(node, rc, nc, t_min, w.t_best);
             if mask == 0 {
                 continue;
             }
@@ -297,7 +345,9 @@ impl Bvh4 {
             if mask & (mask - 1) == 0 {
                 // One child hit: no ordering needed.
                 let i = mask.trailing_zeros() as usize;
-                let _ = stack.try_push((node.children[i], tn[i]));
+                if !stack.put((node.children[i], tn[i])) {
+                    return false;
+                }
                 continue;
             }
             // Several: insertion-sort by entry distance (at most four), far first, so the
@@ -318,10 +368,12 @@ impl Bvh4 {
                 n += 1;
             }
             for &h in &hits[..n] {
-                let _ = stack.try_push(h);
+                if !stack.put(h) {
+                    return false;
+                }
             }
         }
-        best
+        true
     }
 
     /// Some primitive with `t_min < t < t_max` (any hit).
@@ -343,23 +395,82 @@ impl Bvh4 {
         }
         let nc = NodeConsts::new(ray);
         let mut stack: ArrayVec<u32, STACK> = ArrayVec::new();
-        stack.push(self.root);
-        while let Some(r) = stack.pop() {
+        match self.walk_any(&rc, &nc, t_min, t_max, &mut stack) {
+            Some(found) => found,
+            // Too deep for the fixed stack: start over on the heap.
+            None => self
+                .walk_any(&rc, &nc, t_min, t_max, &mut Vec::with_capacity(4 * STACK))
+                .flatten(),
+        }
+    }
+
+    /// The any-hit tree walk with `stack`; `None` when `stack` ran out of room.
+    #[inline(never)]
+    fn walk_any<S: TraversalStack<u32>>(
+        &self,
+        rc: &RayConsts,
+        nc: &NodeConsts,
+        t_min: f32,
+        t_max: f32,
+        stack: &mut S,
+    ) -> Option<Option<PrimRef>> {
+        stack.put(self.root);
+        while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest(r, &rc, t_min, t_max) {
-                    return Some(h.prim);
+                if let Some(h) = self.packet_closest(r, rc, t_min, t_max) {
+                    return Some(Some(h.prim));
                 }
                 continue;
             }
             let node = &self.nodes[r as usize];
-            let (mut mask, _) = node_test(node, &rc, &nc, t_min, t_max);
+            let (mut mask, _) = node_test(node, rc, nc, t_min, t_max);
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                let _ = stack.try_push(node.children[i]);
+                if !stack.put(node.children[i]) {
+                    return None;
+                }
             }
         }
-        None
+        Some(None)
+    }
+}
+
+/// The closest-hit walk's running result.
+struct Walk {
+    best: Option<WideHit>,
+    t_best: f32,
+    visits: u32,
+}
+
+/// A traversal stack: the fixed-size one of the fast path, or a heap one for very deep trees.
+trait TraversalStack<T> {
+    /// Pushes `x`; false when there is no room.
+    fn put(&mut self, x: T) -> bool;
+    /// Pops the top entry.
+    fn take(&mut self) -> Option<T>;
+}
+
+impl<T, const N: usize> TraversalStack<T> for ArrayVec<T, N> {
+    #[inline(always)]
+    fn put(&mut self, x: T) -> bool {
+        self.try_push(x).is_ok()
+    }
+    #[inline(always)]
+    fn take(&mut self) -> Option<T> {
+        self.pop()
+    }
+}
+
+impl<T> TraversalStack<T> for Vec<T> {
+    #[inline(always)]
+    fn put(&mut self, x: T) -> bool {
+        self.push(x);
+        true
+    }
+    #[inline(always)]
+    fn take(&mut self) -> Option<T> {
+        self.pop()
     }
 }
 

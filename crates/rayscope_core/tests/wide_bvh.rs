@@ -3,10 +3,13 @@
 //! plane packets) and on rays from inside and outside.
 
 use glam::{DVec3, Vec3A};
+use rayscope_core::bvh::{Bvh, BvhNode};
+use rayscope_core::geometry::Triangle;
 use rayscope_core::math::Ray;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
 use rayscope_core::scene::{Intersect, PrimRef, Scene};
+use rayscope_core::wide::Bvh4;
 use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
 
 fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
@@ -198,5 +201,81 @@ fn degenerate_rays_hit_nothing_and_never_panic() {
             assert!(scene.intersect(&ray, 0.0, f32::INFINITY).is_none());
             assert!(!scene.occluded(&ray, 0.0, f32::INFINITY));
         }
+    }
+}
+
+#[test]
+fn deep_trees_never_lose_a_branch() {
+    // A binary BVH shaped like a chain (each node: one triangle, then the rest), as a binned SAH
+    // can build for pathological inputs. Collapsed, every 4-wide level holds three leaves and the
+    // rest of the chain, so a ray meeting every triangle keeps three entries per level on its
+    // stack: 40 levels need 120, more than the 64 kept on the machine stack. The deepest triangle
+    // is the nearest and must still be found.
+    let depth = 120;
+    let triangles: Vec<Triangle> = (0..depth)
+        .map(|i| {
+            let x = 0.5 + 0.001 * i as f32;
+            Triangle::new(
+                Vec3A::new(x, -1.0, -1.0),
+                Vec3A::new(x, 2.0, -1.0),
+                Vec3A::new(x, -1.0, 2.0),
+            )
+        })
+        .collect();
+    let bounds_from = |i: usize| {
+        triangles[i..]
+            .iter()
+            .fold(rayscope_core::math::Aabb::EMPTY, |b, t| b.union(t.bounds()))
+    };
+    let mut nodes = Vec::new();
+    for (i, t) in triangles.iter().enumerate() {
+        let all = bounds_from(i);
+        let own = t.bounds();
+        if i + 1 == depth {
+            nodes.push(BvhNode {
+                min: own.min,
+                max: own.max,
+                offset: i as u32,
+                count: 1,
+                axis: 0,
+            });
+        } else {
+            // Interior node at 2i: left child (its triangle) at 2i + 1, the rest at 2i + 2.
+            nodes.push(BvhNode {
+                min: all.min,
+                max: all.max,
+                offset: 2 * i as u32 + 2,
+                count: 0,
+                axis: 0,
+            });
+            nodes.push(BvhNode {
+                min: own.min,
+                max: own.max,
+                offset: i as u32,
+                count: 1,
+                axis: 0,
+            });
+        }
+    }
+    let bvh = Bvh {
+        nodes,
+        prims: (0..depth as u32).collect(),
+    };
+    let wide = Bvh4::from_binary(&bvh, &triangles, &[], 1 << 31, &[]);
+    assert!(
+        wide.depth() > 21,
+        "deeper than 64 stack entries cover: {}",
+        wide.depth()
+    );
+    for (y, z) in [(0.1, 0.1), (0.0, 0.0), (-0.5, 0.7)] {
+        let ray = Ray::new(Vec3A::new(2.0, y, z), -Vec3A::X);
+        let hit = wide.closest::<false>(&ray, 0.0, f32::INFINITY, &mut 0).map(|h| h.prim);
+        assert_eq!(
+            hit,
+            Some(PrimRef::Triangle(depth as u32 - 1)),
+            "the nearest triangle is the deepest"
+        );
+        assert_eq!(wide.any(&ray, 0.0, 1.3).map(|_| ()), None, "nothing nearer than 1.38");
+        assert!(wide.any(&ray, 0.0, 1.4).is_some());
     }
 }
