@@ -117,6 +117,10 @@ pub struct Bvh4 {
     pub flat: Vec<u32>,
     /// Root reference (`EMPTY` for an empty scene).
     pub root: u32,
+    /// True when the tree is too deep for the fixed traversal stack (3 entries per level), as
+    /// a binned SAH can build for pathological inputs: queries then use a heap stack, so no
+    /// branch is ever lost, and ordinary trees pay nothing for the check.
+    pub deep: bool,
 }
 
 /// Per-ray constants for the packet tests.
@@ -159,8 +163,7 @@ impl NodeConsts {
 
 /// Traversal stack entries kept on the machine stack. A 4-wide node pushes at most four entries
 /// and pops one, so a tree of depth d needs at most 3d + 1: 64 covers 21 levels, more than any
-/// reasonable mesh needs; a query that runs out of room (a binned SAH can build deeper trees for
-/// pathological inputs) starts over with a heap stack rather than lose a branch.
+/// reasonable mesh needs; deeper trees (see [`Bvh4::deep`]) are walked with a heap stack.
 const STACK: usize = 64;
 
 /// Scenes that fit in this many packets are tested flat, without a tree.
@@ -208,6 +211,7 @@ impl Bvh4 {
         }
         let root = b.node_ref(0);
         out.root = root;
+        out.deep = 3 * out.depth() + 1 > STACK;
         out
     }
 
@@ -296,12 +300,10 @@ impl Bvh4 {
             t_best,
             visits: 0,
         };
-        let mut stack: ArrayVec<(u32, f32), STACK> = ArrayVec::new();
-        if !self.walk_closest::<COUNT, _>(&rc, &nc, t_min, &mut stack, &mut walk) {
-            // A tree deeper than the fixed stack (pathological input): finish on the heap. Work
-            // already done only lowered t_best, so starting over from the root is correct.
-            let mut heap: Vec<(u32, f32)> = Vec::with_capacity(4 * STACK);
-            self.walk_closest::<COUNT, _>(&rc, &nc, t_min, &mut heap, &mut walk);
+        if self.deep {
+            self.walk_closest_deep::<COUNT>(&rc, &nc, t_min, &mut walk);
+        } else {
+            self.walk_closest::<COUNT, ArrayVec<(u32, f32), STACK>>(&rc, &nc, t_min, &mut walk);
         }
         if COUNT {
             *visits += walk.visits;
@@ -309,35 +311,47 @@ impl Bvh4 {
         walk.best
     }
 
-    /// The closest-hit tree walk with `stack`; false when `stack` ran out of room. Not inlined:
-    /// inlined, it slowed the flat-list path of small scenes by 4 % (code layout), more than the
-    /// call costs a mesh.
+    /// [`Self::walk_closest`] on the heap, kept out of line so the common walk stays compact.
     #[inline(never)]
-    fn walk_closest<const COUNT: bool, S: TraversalStack<(u32, f32)>>(
+    fn walk_closest_deep<const COUNT: bool>(&self, rc: &RayConsts, nc: &NodeConsts, t_min: f32, w: &mut Walk) {
+        self.walk_closest::<COUNT, Vec<(u32, f32)>>(rc, nc, t_min, w);
+    }
+
+    /// [`Self::walk_any`] on the heap, kept out of line so the common walk stays compact.
+    #[inline(never)]
+    fn walk_any_deep(&self, rc: &RayConsts, nc: &NodeConsts, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        self.walk_any::<Vec<u32>>(rc, nc, t_min, t_max)
+    }
+
+    /// The closest-hit tree walk on a stack of type `S`, which must hold 3 × depth + 1 entries.
+    #[inline(always)]
+    fn walk_closest<const COUNT: bool, S: TraversalStack<(u32, f32)> + Default>(
         &self,
         rc: &RayConsts,
         nc: &NodeConsts,
         t_min: f32,
-        stack: &mut S,
         w: &mut Walk,
-    ) -> bool {
+    ) {
+        // Locals, not fields behind a reference, so the loop keeps them in registers.
+        let mut stack = S::default();
+        let (mut best, mut t_best, mut visits) = (w.best, w.t_best, 0);
         stack.put((self.root, t_min));
         while let Some((r, t_near)) = stack.take() {
-            if t_near >= w.t_best {
+            if t_near >= t_best {
                 continue;
             }
             if COUNT {
-                w.visits += 1;
+                visits += 1;
             }
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest(r, rc, t_min, w.t_best) {
-                    w.t_best = h.t;
-                    w.best = Some(h);
+                if let Some(h) = self.packet_closest(r, rc, t_min, t_best) {
+                    t_best = h.t;
+                    best = Some(h);
                 }
                 continue;
             }
             let node = &self.nodes[r as usize];
-            let (mask, tn) = node_test(node, rc, nc, t_min, w.t_best);
+            let (mask, tn) = node_test(node, rc, nc, t_min, t_best);
             if mask == 0 {
                 continue;
             }
@@ -345,9 +359,7 @@ impl Bvh4 {
             if mask & (mask - 1) == 0 {
                 // One child hit: no ordering needed.
                 let i = mask.trailing_zeros() as usize;
-                if !stack.put((node.children[i], tn[i])) {
-                    return false;
-                }
+                stack.put((node.children[i], tn[i]));
                 continue;
             }
             // Several: insertion-sort by entry distance (at most four), far first, so the
@@ -368,12 +380,14 @@ impl Bvh4 {
                 n += 1;
             }
             for &h in &hits[..n] {
-                if !stack.put(h) {
-                    return false;
-                }
+                stack.put(h);
             }
         }
-        true
+        *w = Walk {
+            best,
+            t_best,
+            visits: w.visits + visits,
+        };
     }
 
     /// Some primitive with `t_min < t < t_max` (any hit).
@@ -394,31 +408,28 @@ impl Bvh4 {
             return None;
         }
         let nc = NodeConsts::new(ray);
-        let mut stack: ArrayVec<u32, STACK> = ArrayVec::new();
-        match self.walk_any(&rc, &nc, t_min, t_max, &mut stack) {
-            Some(found) => found,
-            // Too deep for the fixed stack: start over on the heap.
-            None => self
-                .walk_any(&rc, &nc, t_min, t_max, &mut Vec::with_capacity(4 * STACK))
-                .flatten(),
+        if self.deep {
+            self.walk_any_deep(&rc, &nc, t_min, t_max)
+        } else {
+            self.walk_any::<ArrayVec<u32, STACK>>(&rc, &nc, t_min, t_max)
         }
     }
 
-    /// The any-hit tree walk with `stack`; `None` when `stack` ran out of room.
-    #[inline(never)]
-    fn walk_any<S: TraversalStack<u32>>(
+    /// The any-hit tree walk on a stack of type `S`, which must hold 3 × depth + 1 entries.
+    #[inline(always)]
+    fn walk_any<S: TraversalStack<u32> + Default>(
         &self,
         rc: &RayConsts,
         nc: &NodeConsts,
         t_min: f32,
         t_max: f32,
-        stack: &mut S,
-    ) -> Option<Option<PrimRef>> {
+    ) -> Option<PrimRef> {
+        let mut stack = S::default();
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
                 if let Some(h) = self.packet_closest(r, rc, t_min, t_max) {
-                    return Some(Some(h.prim));
+                    return Some(h.prim);
                 }
                 continue;
             }
@@ -427,12 +438,10 @@ impl Bvh4 {
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                if !stack.put(node.children[i]) {
-                    return None;
-                }
+                stack.put(node.children[i]);
             }
         }
-        Some(None)
+        None
     }
 }
 
@@ -443,18 +452,19 @@ struct Walk {
     visits: u32,
 }
 
-/// A traversal stack: the fixed-size one of the fast path, or a heap one for very deep trees.
+/// A traversal stack: the fixed-size one, or a heap one for trees too deep for it.
 trait TraversalStack<T> {
-    /// Pushes `x`; false when there is no room.
-    fn put(&mut self, x: T) -> bool;
+    /// Pushes `x` (the caller has checked that the tree fits).
+    fn put(&mut self, x: T);
     /// Pops the top entry.
     fn take(&mut self) -> Option<T>;
 }
 
 impl<T, const N: usize> TraversalStack<T> for ArrayVec<T, N> {
     #[inline(always)]
-    fn put(&mut self, x: T) -> bool {
-        self.try_push(x).is_ok()
+    fn put(&mut self, x: T) {
+        // Cannot fail: trees too deep for this stack use the heap one (`Bvh4::deep`).
+        let _ = self.try_push(x);
     }
     #[inline(always)]
     fn take(&mut self) -> Option<T> {
@@ -464,9 +474,8 @@ impl<T, const N: usize> TraversalStack<T> for ArrayVec<T, N> {
 
 impl<T> TraversalStack<T> for Vec<T> {
     #[inline(always)]
-    fn put(&mut self, x: T) -> bool {
+    fn put(&mut self, x: T) {
         self.push(x);
-        true
     }
     #[inline(always)]
     fn take(&mut self) -> Option<T> {

@@ -112,6 +112,10 @@ fn wide_equals_binary_and_brute_force() {
         (9, 30, 120, 5),
     ] {
         let scene = random_scene_with_planes(seed, spheres, tris, planes);
+        assert!(
+            !scene.wide.deep,
+            "seed {seed}: ordinary trees fit the fixed traversal stack"
+        );
         let packets = tris.div_ceil(4) + spheres.div_ceil(4);
         assert_eq!(
             scene.wide.flat.len(),
