@@ -541,12 +541,17 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
     bunny = os.path.join(args.out, "bunny_only.txt")
     cs.write_bunny_only_scene(scene, bunny)
     (model,) = scene.objs
+    m = scene.materials[model.material]
+
+    def write_big_bunny(path: str, obj: str) -> None:
+        """The bunny scene's model alone, enlarged BIG_BUNNY_FACTOR times, from OBJ file `obj`."""
+        with open(path, "w", encoding="utf-8") as f:
+            f.write(f'Material "{m.name}" {m.kind} ({", ".join(repr(x) for x in m.colour)}) {m.number!r}\n')
+            o = ", ".join(repr(x) for x in BIG_BUNNY_OFFSET)
+            f.write(f'ObjModel "{model.name}" "{obj}" ({o}) {model.scale * BIG_BUNNY_FACTOR!r} "{m.name}"\n')
+
     big_bunny = os.path.join(args.out, "bunny_big.txt")
-    with open(big_bunny, "w", encoding="utf-8") as f:
-        m = scene.materials[model.material]
-        f.write(f'Material "{m.name}" {m.kind} ({", ".join(repr(x) for x in m.colour)}) {m.number!r}\n')
-        o = ", ".join(repr(x) for x in BIG_BUNNY_OFFSET)
-        f.write(f'ObjModel "{model.name}" "{model.path}" ({o}) {model.scale * BIG_BUNNY_FACTOR!r} "{m.name}"\n')
+    write_big_bunny(big_bunny, model.path)
     scenes = [("bunny (course)", bunny), (f"bunny x{BIG_BUNNY_FACTOR:g}", big_bunny)]
     # The same enlarged bunny with every triangle split into 4^levels: the shape and the screen
     # coverage stay, only the triangle count grows, which isolates what size costs.
@@ -556,11 +561,7 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
         if time.perf_counter() - t0 > 0.5:
             log(f"generated {os.path.relpath(obj, ROOT)} in {time.perf_counter() - t0:.1f} s")
         sub = os.path.join(args.out, f"bunny_big_sub{levels}.txt")
-        with open(sub, "w", encoding="utf-8") as f:
-            m = scene.materials[model.material]
-            f.write(f'Material "{m.name}" {m.kind} ({", ".join(repr(x) for x in m.colour)}) {m.number!r}\n')
-            o = ", ".join(repr(x) for x in BIG_BUNNY_OFFSET)
-            f.write(f'ObjModel "{model.name}" "{obj}" ({o}) {model.scale * BIG_BUNNY_FACTOR!r} "{m.name}"\n')
+        write_big_bunny(sub, obj)
         scenes.append((f"bunny x{BIG_BUNNY_FACTOR:g}, {4 ** levels}x triangles", sub))
     for tris in args.scale_tris:
         t0 = time.perf_counter()

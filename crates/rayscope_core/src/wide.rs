@@ -129,16 +129,18 @@ struct RayConsts {
     d: [Vec4; 3],
 }
 
+/// Each coordinate of `v` in all four lanes.
+#[inline(always)]
+fn splat3(v: Vec3A) -> [Vec4; 3] {
+    [Vec4::splat(v.x), Vec4::splat(v.y), Vec4::splat(v.z)]
+}
+
 impl RayConsts {
     #[inline]
     fn new(ray: &Ray) -> Self {
         Self {
-            o: [
-                Vec4::splat(ray.origin.x),
-                Vec4::splat(ray.origin.y),
-                Vec4::splat(ray.origin.z),
-            ],
-            d: [Vec4::splat(ray.dir.x), Vec4::splat(ray.dir.y), Vec4::splat(ray.dir.z)],
+            o: splat3(ray.origin),
+            d: splat3(ray.dir),
         }
     }
 }
@@ -155,7 +157,7 @@ impl NodeConsts {
     fn new(ray: &Ray) -> Self {
         let inv = ray.dir.recip();
         Self {
-            inv: [Vec4::splat(inv.x), Vec4::splat(inv.y), Vec4::splat(inv.z)],
+            inv: splat3(inv),
             near: [(inv.x < 0.0) as usize, (inv.y < 0.0) as usize, (inv.z < 0.0) as usize],
         }
     }
@@ -383,11 +385,7 @@ impl Bvh4 {
                 stack.put(h);
             }
         }
-        *w = Walk {
-            best,
-            t_best,
-            visits: w.visits + visits,
-        };
+        *w = Walk { best, t_best, visits };
     }
 
     /// Some primitive with `t_min < t < t_max` (any hit).

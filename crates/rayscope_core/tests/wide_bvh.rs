@@ -233,18 +233,9 @@ fn deep_trees_never_lose_a_branch() {
     };
     let mut nodes = Vec::new();
     for (i, t) in triangles.iter().enumerate() {
-        let all = bounds_from(i);
-        let own = t.bounds();
-        if i + 1 == depth {
-            nodes.push(BvhNode {
-                min: own.min,
-                max: own.max,
-                offset: i as u32,
-                count: 1,
-                axis: 0,
-            });
-        } else {
+        if i + 1 < depth {
             // Interior node at 2i: left child (its triangle) at 2i + 1, the rest at 2i + 2.
+            let all = bounds_from(i);
             nodes.push(BvhNode {
                 min: all.min,
                 max: all.max,
@@ -252,14 +243,15 @@ fn deep_trees_never_lose_a_branch() {
                 count: 0,
                 axis: 0,
             });
-            nodes.push(BvhNode {
-                min: own.min,
-                max: own.max,
-                offset: i as u32,
-                count: 1,
-                axis: 0,
-            });
         }
+        let own = t.bounds();
+        nodes.push(BvhNode {
+            min: own.min,
+            max: own.max,
+            offset: i as u32,
+            count: 1,
+            axis: 0,
+        });
     }
     let bvh = Bvh {
         nodes,
