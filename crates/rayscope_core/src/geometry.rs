@@ -181,11 +181,12 @@ impl Primitive for Triangle {
         let v = self.e1.dot(r) * s;
         let t = c.dot(n) * s;
         let inside = u >= 0.0 && v >= 0.0 && u + v <= a;
-        (inside && t > t_min * a && t < t_max * a).then(|| PrimHit {
-            t: t / a,
-            u: u / a,
-            v: v / a,
-        })
+        if !(inside && t > t_min * a && t < t_max * a) {
+            return None;
+        }
+        // The scaled test can pass by a rounding error for a hit no nearer than `t_max`.
+        let t = t / a;
+        (t < t_max).then(|| PrimHit { t, u: u / a, v: v / a })
     }
 
     #[inline]

@@ -41,9 +41,12 @@ use crate::observer::{RayKind, RayObserver};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
-use crate::scene::{Intersect, Material, Scene, Surface};
+use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, RenderSettings, Stage};
 use rayscope_scene::MaterialKind;
+
+mod packets;
+pub use packets::Job;
 
 /// Ray counts gathered while rendering.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -117,6 +120,21 @@ struct PathState {
     medium: Option<u32>,
     /// Split glass into both rays (Whitted) rather than choosing one by its Fresnel weight.
     branch: bool,
+}
+
+/// The rays leaving a glass hit (see [`Integrator::glass`]).
+#[derive(Debug, Clone, Copy)]
+struct Glass {
+    /// Fresnel reflectance.
+    kr: f32,
+    /// The reflected ray.
+    reflected: Ray,
+    /// The refracted ray; none under total internal reflection.
+    refracted: Option<Ray>,
+    /// Medium the reflected ray travels in.
+    refl_medium: Option<u32>,
+    /// Medium the refracted ray travels in.
+    refr_medium: Option<u32>,
 }
 
 /// Radiance arriving along a ray, split so the caller can weight emission by MIS.
@@ -349,8 +367,25 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             return Li::default();
         };
         let s = self.scene.surface(ray, &hit);
+        self.trace_hit(ray, &hit, &s, path, want_reflected, id, rng, obs, c)
+    }
+
+    /// [`Self::trace`] from the ray's closest hit `hit`, whose surface is `s`.
+    #[allow(clippy::too_many_arguments)]
+    fn trace_hit<O: RayObserver>(
+        &self,
+        ray: &Ray,
+        hit: &Hit,
+        s: &Surface,
+        path: PathState,
+        want_reflected: bool,
+        id: u32,
+        rng: &mut Rng,
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Li {
         if O::ENABLED {
-            obs.hit(id, self.scene, hit.t, &s);
+            obs.hit(id, self.scene, hit.t, s);
         }
         let m = &self.scene.materials[s.material as usize];
         let stage = self.settings.stage;
@@ -358,7 +393,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             return Li::reflected(m.color.into());
         }
         let full = stage == Stage::Full;
-        let mut out = match m.kind {
+        let out = match m.kind {
             MaterialKind::Emissive if full => Li {
                 emitted: m.color.into(),
                 reflected: Vec3A::ZERO,
@@ -369,37 +404,25 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 },
             },
             _ if !want_reflected => return Li::default(),
-            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, &s, m, path, id, rng, obs, c),
+            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, s, m, path, id, rng, obs, c),
             MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
-                Li::reflected(self.direct_point_lights(&s, ray, None, Vec3A::from(m.color), id, obs, c))
+                Li::reflected(self.direct_point_lights(s, ray, None, Vec3A::from(m.color), id, obs, c))
             }
             MaterialKind::Reflective => {
                 if path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
-                let eps = offset_eps(s.point, ray.origin);
-                let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-                let child = PathState {
-                    depth: path.depth + 1,
-                    ..path
-                };
+                let (r, child) = Self::mirror(ray, s, path);
                 Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, rng, obs, c))
             }
             MaterialKind::Refractive => {
                 if path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
-                Li::reflected(self.refractive(ray, &s, m, path, id, rng, obs, c))
+                Li::reflected(self.refractive(ray, s, m, path, id, rng, obs, c))
             }
         };
-        // Beer's law over the segment the ray travelled inside an absorbing medium.
-        if let Some(mi) = path.medium {
-            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
-            let att = (-sigma * hit.t).exp();
-            out.emitted *= att;
-            out.reflected *= att;
-        }
-        out
+        self.absorb(path, hit.t, out)
     }
 
     /// Fresnel glass: both rays while the path is still deterministic, one chosen by its
@@ -416,60 +439,107 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         obs: &mut O,
         c: &mut Counters,
     ) -> Vec3A {
-        let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
-        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
-        let kr = fresnel(cos_i, n1, n2);
-        let eps = offset_eps(s.point, ray.origin);
-        let full = self.settings.stage == Stage::Full;
-        let absorbing = full && m.color != glam::Vec3::ZERO;
-        let this = absorbing.then_some(s.material);
-        // Reflected rays stay on the incoming side; refracted rays cross into the other medium
-        // (the outside of every object is air).
-        let refl_medium = if s.front_face { path.medium } else { this };
-        let refr_medium = if s.front_face { this } else { None };
-        let depth = path.depth + 1;
-        let refl = |rng: &mut Rng, obs: &mut O, c: &mut Counters, w: f32| {
-            let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-            let p = PathState {
-                depth,
-                medium: refl_medium,
-                beta: if path.branch || !full { path.beta * w } else { path.beta },
-                ..path
-            };
-            self.secondary(&r, p, id, RayKind::Reflection, w, rng, obs, c)
-        };
-        let refr = |t: Vec3A, rng: &mut Rng, obs: &mut O, c: &mut Counters, w: f32| {
-            let r = Ray::new(s.point - s.normal * eps, t);
-            let p = PathState {
-                depth,
-                medium: refr_medium,
-                beta: if path.branch || !full { path.beta * w } else { path.beta },
-                ..path
-            };
-            self.secondary(&r, p, id, RayKind::Refraction, w, rng, obs, c)
-        };
-        let t = if kr < 1.0 {
-            refract(ray.dir, s.normal, n1 / n2)
-        } else {
-            None
-        };
-        if path.branch || !full {
+        let g = self.glass(ray, s, m, path);
+        if path.branch || self.settings.stage != Stage::Full {
             let mut out = Vec3A::ZERO;
-            if kr > 0.0 && path.beta * kr >= self.branch_cutoff {
-                out += refl(rng, obs, c, kr) * kr;
+            if let Some((r, p)) = self.glass_reflected(&g, path) {
+                out += self.secondary(&r, p, id, RayKind::Reflection, g.kr, rng, obs, c) * g.kr;
             }
-            if let Some(t) = t.filter(|_| path.beta * (1.0 - kr) >= self.branch_cutoff) {
-                out += refr(t, rng, obs, c, 1.0 - kr) * (1.0 - kr);
+            if let Some((r, p)) = self.glass_refracted(&g, path) {
+                out += self.secondary(&r, p, id, RayKind::Refraction, 1.0 - g.kr, rng, obs, c) * (1.0 - g.kr);
             }
             out
         } else {
-            match t {
-                Some(t) if rng.next_f32() >= kr => refr(t, rng, obs, c, 1.0),
-                _ => refl(rng, obs, c, 1.0),
+            let child = |medium| PathState {
+                depth: path.depth + 1,
+                medium,
+                ..path
+            };
+            match g.refracted {
+                Some(r) if rng.next_f32() >= g.kr => {
+                    self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, rng, obs, c)
+                }
+                _ => self.secondary(&g.reflected, child(g.refl_medium), id, RayKind::Reflection, 1.0, rng, obs, c),
             }
         }
     }
 
+    /// The two rays leaving a glass hit, before any is chosen or pruned.
+    #[inline]
+    fn glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
+        let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
+        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
+        let kr = fresnel(cos_i, n1, n2);
+        let eps = offset_eps(s.point, ray.origin);
+        let absorbing = self.settings.stage == Stage::Full && m.color != glam::Vec3::ZERO;
+        let this = absorbing.then_some(s.material);
+        let refracted = if kr < 1.0 {
+            refract(ray.dir, s.normal, n1 / n2)
+        } else {
+            None
+        };
+        Glass {
+            kr,
+            reflected: Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize()),
+            refracted: refracted.map(|t| Ray::new(s.point - s.normal * eps, t)),
+            // Reflected rays stay on the incoming side; refracted rays cross into the other
+            // medium (the outside of every object is air).
+            refl_medium: if s.front_face { path.medium } else { this },
+            refr_medium: if s.front_face { this } else { None },
+        }
+    }
+
+    /// Whitted glass's reflected ray (weight `kr`) and its path, unless it is pruned.
+    #[inline]
+    fn glass_reflected(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
+        (g.kr > 0.0 && path.beta * g.kr >= self.branch_cutoff).then(|| {
+            let p = PathState {
+                depth: path.depth + 1,
+                medium: g.refl_medium,
+                beta: path.beta * g.kr,
+                ..path
+            };
+            (g.reflected, p)
+        })
+    }
+
+    /// Whitted glass's refracted ray (weight 1 − `kr`) and its path, unless there is none (total
+    /// internal reflection) or it is pruned.
+    #[inline]
+    fn glass_refracted(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
+        let r = g.refracted.filter(|_| path.beta * (1.0 - g.kr) >= self.branch_cutoff)?;
+        let p = PathState {
+            depth: path.depth + 1,
+            medium: g.refr_medium,
+            beta: path.beta * (1.0 - g.kr),
+            ..path
+        };
+        Some((r, p))
+    }
+
+    /// A mirror's reflected ray and its path.
+    #[inline]
+    fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
+        let eps = offset_eps(s.point, ray.origin);
+        let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
+        let child = PathState {
+            depth: path.depth + 1,
+            ..path
+        };
+        (r, child)
+    }
+
+    /// Beer's law over the segment of length `t` a ray travelled inside an absorbing medium.
+    #[inline]
+    fn absorb(&self, path: PathState, t: f32, mut out: Li) -> Li {
+        if let Some(mi) = path.medium {
+            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
+            let att = (-sigma * t).exp();
+            out.emitted *= att;
+            out.reflected *= att;
+        }
+        out
+    }
     /// A Diffuse or Glossy hit in the full renderer: point lights, one emitter sample and one
     /// BRDF sample (MIS), and the bounce's indirect light where the rules carry it.
     #[allow(clippy::too_many_arguments)]

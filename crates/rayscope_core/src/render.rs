@@ -8,10 +8,13 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::Film;
-use crate::integrator::{Counters, Integrator};
+use arrayvec::ArrayVec;
+
+use crate::integrator::{Counters, Integrator, Job};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
 use crate::scene::{Intersect, Scene};
 use crate::settings::RenderSettings;
+use crate::wide::{Bvh4, LANES};
 
 /// Tile edge in pixels: small enough to balance two cores on tiny images, large enough to
 /// keep scheduling overhead negligible.
@@ -139,6 +142,10 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
         first_nonfinite: None,
     };
     let inv = 1.0 / spp as f32;
+    if let Some(bvh) = integ.packet_bvh() {
+        render_tile_packets(integ, bvh, &mut r, y1, spp);
+        return r;
+    }
     for y in y0..y1 {
         for x in x0..x1 {
             let mut sum = Vec3A::ZERO;
@@ -155,6 +162,46 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
         }
     }
     r
+}
+
+/// [`render_tile`] with the samples traced [`LANES`] at a time (pixel-major, so a packet holds
+/// one pixel's grid samples, or neighbouring pixels' when there are fewer).
+fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &mut TileResult, y1: u32, spp: u32) {
+    let inv = 1.0 / spp as f32;
+    let mut jobs: ArrayVec<Job, LANES> = ArrayVec::new();
+    let mut vals = [Vec3A::ZERO; LANES];
+    // The pixel being summed: samples arrive in order, so a running sum reproduces the
+    // one-sample-at-a-time loop's additions exactly.
+    let mut sum = Vec3A::ZERO;
+    let mut flush = |jobs: &mut ArrayVec<Job, LANES>, r: &mut TileResult, sum: &mut Vec3A| {
+        integ.sample_packet(bvh, jobs, &mut vals, &mut r.counters);
+        for (&(x, y, s), &v) in jobs.iter().zip(&vals) {
+            if v.is_finite() {
+                *sum += v;
+            } else {
+                r.nonfinite += 1;
+                r.first_nonfinite.get_or_insert((x, y, s));
+            }
+            if s + 1 == spp {
+                r.pixels.push((*sum * inv).into());
+                *sum = Vec3A::ZERO;
+            }
+        }
+        jobs.clear();
+    };
+    for y in r.y0..y1 {
+        for x in r.x0..r.x1 {
+            for s in 0..spp {
+                jobs.push((x, y, s));
+                if jobs.is_full() {
+                    flush(&mut jobs, r, &mut sum);
+                }
+            }
+        }
+    }
+    if !jobs.is_empty() {
+        flush(&mut jobs, r, &mut sum);
+    }
 }
 
 /// Traces sample `sample` of pixel (`x`, `y`) with a recorder and returns its ray tree.

@@ -146,6 +146,11 @@ pub trait Intersect: Sync {
     fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
         self.occluder(ray, t_min, t_max).is_some()
     }
+    /// The wide BVH these queries run on, when ray packets may be traced through it instead.
+    #[inline]
+    fn wide(&self) -> Option<&Bvh4> {
+        None
+    }
 }
 
 impl Intersect for Scene {
@@ -156,6 +161,10 @@ impl Intersect for Scene {
     #[inline]
     fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
         Scene::occluder(self, ray, t_min, t_max)
+    }
+    #[inline]
+    fn wide(&self) -> Option<&Bvh4> {
+        Some(&self.wide)
     }
 }
 

@@ -18,6 +18,9 @@ use crate::geometry::{Plane, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::scene::PrimRef;
 
+mod packet;
+pub use packet::{PacketHits, RayPacket, LANES};
+
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;
 /// Leaf flag: the packet holds spheres, not triangles.
@@ -167,6 +170,9 @@ impl NodeConsts {
 /// and pops one, so a tree of depth d needs at most 3d + 1: 64 covers 21 levels, more than any
 /// reasonable mesh needs; deeper trees (see [`Bvh4::deep`]) are walked with a heap stack.
 const STACK: usize = 64;
+
+/// Factor on a box's exit distance that makes the slab test conservative (≈ 8 ulps).
+const SLAB_SLACK: f32 = 1.0 + 1.0 / (1 << 20) as f32;
 
 /// Scenes that fit in this many packets are tested flat, without a tree.
 const FLAT_PACKETS: usize = 4;
@@ -339,7 +345,7 @@ impl Bvh4 {
         let (mut best, mut t_best, mut visits) = (w.best, w.t_best, 0);
         stack.put((self.root, t_min));
         while let Some((r, t_near)) = stack.take() {
-            if t_near >= t_best {
+            if t_near > t_best * SLAB_SLACK {
                 continue;
             }
             if COUNT {
@@ -496,9 +502,12 @@ fn node_test(node: &Node4, rc: &RayConsts, nc: &NodeConsts, t_min: f32, t_max: f
         t0 = tn.max(t0);
         t1 = tf.min(t1);
     }
-    // Empty slots have inverted bounds and never pass, except for degenerate rays; mask them
-    // out explicitly so traversal can never follow one.
-    (t0.cmple(t1).bitmask() & node.valid, t0)
+    // The exit distance is widened by a few ulps: slab distances are rounded differently from a
+    // primitive's own distance, and a primitive lying on its box's face (a wall) must not be
+    // culled by that rounding while a farther hit is kept. Empty slots have inverted bounds and
+    // never pass, except for degenerate rays; mask them out explicitly so traversal can never
+    // follow one.
+    (t0.cmple(t1 * Vec4::splat(SLAB_SLACK)).bitmask() & node.valid, t0)
 }
 
 #[inline(always)]
@@ -552,9 +561,16 @@ impl TriPacket {
         }
         let t = t / a;
         let i = nearest_lane(mask, t)?;
+        let ti = t.to_array()[i];
+        // The numerator test above can pass by a rounding error for a hit that, divided, is no
+        // nearer than `t_max`; such a hit must not replace the one that set `t_max`, or the
+        // result would depend on the order primitives are visited in.
+        if ti >= t_max {
+            return None;
+        }
         let a = a.to_array()[i];
         Some(WideHit {
-            t: t.to_array()[i],
+            t: ti,
             u: u.to_array()[i] / a,
             v: v.to_array()[i] / a,
             prim: PrimRef::Triangle(self.ids[i]),

@@ -9,7 +9,7 @@ use rayscope_core::math::Ray;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
 use rayscope_core::scene::{Intersect, PrimRef, Scene};
-use rayscope_core::wide::Bvh4;
+use rayscope_core::wide::{Bvh4, RayPacket, LANES};
 use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
 
 fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
@@ -184,6 +184,13 @@ fn axis_parallel_rays_through_slab_planes() {
             let w = scene.intersect(&ray, 0.0, f32::INFINITY);
             let b = scene.intersect_binary(&ray, 0.0, f32::INFINITY);
             assert_eq!(w.map(|h| h.prim), b.map(|h| h.prim));
+            // In a packet, beside an oblique ray (the packet opens nodes for either).
+            let oblique = Ray::new(Vec3A::new(-9.0, 3.0, -2.0), Vec3A::new(1.0, -0.3, 0.8).normalize());
+            let mut p = packet_of(&[ray, oblique], &[f32::INFINITY; 2]);
+            assert_eq!(
+                scene.wide.closest_rays(&mut p, 0.0).get(0).map(|h| h.3),
+                w.map(|h| h.prim)
+            );
         }
     }
 }
@@ -204,6 +211,11 @@ fn degenerate_rays_hit_nothing_and_never_panic() {
             let ray = Ray::new(o, d);
             assert!(scene.intersect(&ray, 0.0, f32::INFINITY).is_none());
             assert!(!scene.occluded(&ray, 0.0, f32::INFINITY));
+            let mut p = packet_of(&[ray; LANES], &[f32::INFINITY; LANES]);
+            let hits = scene.wide.closest_rays(&mut p, 0.0);
+            assert!((0..LANES).all(|i| hits.get(i).is_none()));
+            let mut p = packet_of(&[ray; LANES], &[f32::INFINITY; LANES]);
+            assert_eq!(scene.wide.occluded_rays(&mut p, 0.0), [false; LANES]);
         }
     }
 }
@@ -273,5 +285,82 @@ fn deep_trees_never_lose_a_branch() {
         );
         assert_eq!(wide.any(&ray, 0.0, 1.3).map(|_| ()), None, "nothing nearer than 1.38");
         assert!(wide.any(&ray, 0.0, 1.4).is_some());
+        let mut p = packet_of(&[ray], &[f32::INFINITY]);
+        assert_eq!(
+            wide.closest_rays(&mut p, 0.0).get(0).map(|h| h.3),
+            Some(PrimRef::Triangle(depth as u32 - 1)),
+            "packets too"
+        );
+        let mut p = packet_of(&[ray, ray], &[1.3, 1.4]);
+        assert_eq!(wide.occluded_rays(&mut p, 0.0)[..2], [false, true]);
+    }
+}
+
+/// Packs `rays[..16]` into a ray packet with interval ends `t_max`.
+fn packet_of(rays: &[Ray], t_max: &[f32]) -> RayPacket {
+    let mut p = RayPacket::default();
+    for (i, (r, &t)) in rays.iter().zip(t_max).enumerate() {
+        p.set(i, r, t);
+    }
+    p
+}
+
+#[test]
+fn ray_packets_return_what_single_rays_return() {
+    for (seed, spheres, tris, planes) in [
+        (21, 0, 1, 0),
+        (22, 2, 6, 1),
+        (23, 3, 5, 3),
+        (24, 40, 0, 0),
+        (25, 0, 300, 0),
+        (26, 200, 800, 5),
+    ] {
+        let scene = random_scene_with_planes(seed, spheres, tris, planes);
+        let mut rng = Rng::for_sample(seed, 2, 0);
+        // Incoherent packets, and coherent ones (a shared origin, nearby directions), some
+        // partly filled.
+        let mut packets: Vec<Vec<Ray>> = random_rays(seed, 16 * 150).chunks(16).map(<[Ray]>::to_vec).collect();
+        for (k, r) in random_rays(seed + 100, 150).iter().enumerate() {
+            let n = if k % 5 == 0 { 1 + k % 16 } else { LANES };
+            let spread = 0.05 + 0.2 * rng.next_f32();
+            packets.push(
+                (0..n)
+                    .map(|_| {
+                        let j = Vec3A::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) - Vec3A::splat(0.5);
+                        Ray::new(r.origin, (r.dir + j * spread).normalize())
+                    })
+                    .collect(),
+            );
+        }
+        for rays in &packets {
+            let inf = vec![f32::INFINITY; rays.len()];
+            let mut p = packet_of(rays, &inf);
+            let hits = scene.wide.closest_rays(&mut p, 0.0);
+            for (i, ray) in rays.iter().enumerate() {
+                let single = scene
+                    .intersect(ray, 0.0, f32::INFINITY)
+                    .map(|h| (h.t, h.u, h.v, h.prim));
+                assert_eq!(hits.get(i), single, "seed {seed}: lane {i} of {}, {ray:?}", rays.len());
+            }
+            for i in rays.len()..LANES {
+                assert_eq!(hits.get(i), None, "unused lanes hit nothing");
+            }
+            // Shadow queries with random interval ends around the closest hit.
+            let ends: Vec<f32> = rays
+                .iter()
+                .enumerate()
+                .map(|(i, _)| hits.get(i).map_or(5.0, |h| h.0 * (0.5 + rng.next_f32())))
+                .collect();
+            let mut p = packet_of(rays, &ends);
+            let blocked = scene.wide.occluded_rays(&mut p, 0.0);
+            for (i, ray) in rays.iter().enumerate() {
+                assert_eq!(
+                    blocked[i],
+                    scene.occluded(ray, 0.0, ends[i]),
+                    "seed {seed}: shadow lane {i}"
+                );
+            }
+            assert!(blocked[rays.len()..].iter().all(|b| !b));
+        }
     }
 }

@@ -1,0 +1,618 @@
+//! Ray packets: sixteen rays traced together through the 4-wide BVH.
+//!
+//! Camera rays of one pixel (or of neighbouring pixels) and the shadow rays from their hits
+//! toward one light travel almost together, so the render loop traces them as a packet: each
+//! primitive is loaded once and tested against all sixteen rays with lane-parallel arithmetic,
+//! and each node is opened once for the packet rather than once per ray. The per-lane
+//! arithmetic is that of the single-ray tests, packet by packet, so a packet returns what
+//! tracing its rays one at a time returns (in scenes without a tree bit for bit; in a tree only
+//! the order leaves are visited in differs, which matters only for exact ties).
+//!
+//! The kernels are plain loops over `[f32; LANES]` arrays that the compiler vectorises. The
+//! public entry points run an AVX2 build of them when the CPU has it; see [`dispatch`].
+
+use arrayvec::ArrayVec;
+
+use super::{
+    Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, SLAB_SLACK, SPHERES, STACK,
+};
+use crate::math::Ray;
+use crate::scene::PrimRef;
+
+/// Rays in a packet.
+pub const LANES: usize = 16;
+
+/// One value per lane.
+type F = [f32; LANES];
+
+/// Hit tag: no hit.
+const TAG_NONE: u32 = 0;
+/// Hit tag: a plane (the index is in the low bits).
+const TAG_PLANE: u32 = 1 << 30;
+/// Hit tag: a sphere.
+const TAG_SPHERE: u32 = 2 << 30;
+/// Hit tag: a triangle.
+const TAG_TRI: u32 = 3 << 30;
+/// The tag bits of a hit reference.
+const TAG_MASK: u32 = 3 << 30;
+
+/// Sixteen rays in structure-of-arrays layout. Unused lanes have `t_max = −∞` and never hit.
+#[derive(Debug, Clone)]
+pub struct RayPacket {
+    /// Origins, per axis.
+    pub o: [F; 3],
+    /// Unit directions, per axis.
+    pub d: [F; 3],
+    /// Far end of each ray's interval (the running closest distance during a closest-hit query).
+    pub t_max: F,
+}
+
+impl Default for RayPacket {
+    fn default() -> Self {
+        Self {
+            o: [[0.0; LANES]; 3],
+            d: [[0.0; LANES], [0.0; LANES], [1.0; LANES]],
+            t_max: [f32::NEG_INFINITY; LANES],
+        }
+    }
+}
+
+impl RayPacket {
+    /// Puts `ray` with interval end `t_max` in lane `i`.
+    #[inline]
+    pub fn set(&mut self, i: usize, ray: &Ray, t_max: f32) {
+        for a in 0..3 {
+            self.o[a][i] = ray.origin[a];
+            self.d[a][i] = ray.dir[a];
+        }
+        self.t_max[i] = t_max;
+    }
+
+    /// Empties lane `i`: it will not hit anything.
+    #[inline]
+    pub fn clear(&mut self, i: usize) {
+        self.t_max[i] = f32::NEG_INFINITY;
+    }
+}
+
+/// The closest hits of a packet's rays.
+#[derive(Debug, Clone)]
+pub struct PacketHits {
+    t: F,
+    u: F,
+    v: F,
+    prim: [u32; LANES],
+}
+
+impl PacketHits {
+    /// Lane `i`'s hit: (t, u, v, primitive).
+    #[must_use]
+    #[inline]
+    pub fn get(&self, i: usize) -> Option<(f32, f32, f32, PrimRef)> {
+        let p = self.prim[i];
+        let id = p & !TAG_MASK;
+        let prim = match p & TAG_MASK {
+            TAG_PLANE => PrimRef::Plane(id),
+            TAG_SPHERE => PrimRef::Sphere(id),
+            TAG_TRI => PrimRef::Triangle(id),
+            _ => return None,
+        };
+        Some((self.t[i], self.u[i], self.v[i], prim))
+    }
+}
+
+/// `a` when `c`, else `b`: written so the compiler emits a blend.
+#[inline(always)]
+fn sel(c: bool, a: f32, b: f32) -> f32 {
+    if c {
+        a
+    } else {
+        b
+    }
+}
+
+/// The best hit found so far inside one 4-wide primitive packet, per ray. The single-ray test
+/// filters all four primitives against the distance known when the packet is entered and then
+/// takes the nearest (lowest lane on ties); this replays exactly that.
+struct PacketBest {
+    found: [bool; LANES],
+    t: F,
+    u: F,
+    v: F,
+    prim: [u32; LANES],
+}
+
+impl PacketBest {
+    #[inline(always)]
+    fn new() -> Self {
+        Self {
+            found: [false; LANES],
+            t: [0.0; LANES],
+            u: [0.0; LANES],
+            v: [0.0; LANES],
+            prim: [0; LANES],
+        }
+    }
+
+    /// Offers lane `i` a hit that passed the packet's filter.
+    #[inline(always)]
+    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, prim: u32) {
+        let take = ok && (!self.found[i] || t < self.t[i]);
+        self.t[i] = sel(take, t, self.t[i]);
+        self.u[i] = sel(take, u, self.u[i]);
+        self.v[i] = sel(take, v, self.v[i]);
+        self.prim[i] = if take { prim } else { self.prim[i] };
+        self.found[i] |= take;
+    }
+
+    /// Writes the packet's hits into the running result.
+    #[inline(always)]
+    fn commit(&self, rays: &mut RayPacket, hits: &mut PacketHits) {
+        for i in 0..LANES {
+            let f = self.found[i];
+            rays.t_max[i] = sel(f, self.t[i], rays.t_max[i]);
+            hits.t[i] = sel(f, self.t[i], hits.t[i]);
+            hits.u[i] = sel(f, self.u[i], hits.u[i]);
+            hits.v[i] = sel(f, self.v[i], hits.v[i]);
+            hits.prim[i] = if f { self.prim[i] } else { hits.prim[i] };
+        }
+    }
+}
+
+/// Per-lane hit flags of a primitive-packet test against a packet of rays.
+type Mask = [bool; LANES];
+
+#[inline(always)]
+fn any(m: &Mask) -> bool {
+    m.iter().fold(false, |a, &b| a | b)
+}
+
+impl TriPacket {
+    /// Lane `k`'s triangle tested against every ray: the per-ray arithmetic of
+    /// [`TriPacket::closest`]. Returns (filter passed, t, u, v) per ray, undivided.
+    #[inline(always)]
+    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F, F, F, F) {
+        let g = |v: &[glam::Vec4; 3]| [v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]];
+        let (v0, e1, e2, n) = (g(&self.v0), g(&self.e1), g(&self.e2), g(&self.n));
+        let (mut ok, mut t, mut u, mut v, mut a) =
+            ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
+            let c = [v0[0] - rays.o[0][i], v0[1] - rays.o[1][i], v0[2] - rays.o[2][i]];
+            let den = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
+            let s = 1f32.copysign(den);
+            let ai = den.abs();
+            let ti = (c[0] * n[0] + c[1] * n[1] + c[2] * n[2]) * s;
+            let r = [
+                d[1] * c[2] - d[2] * c[1],
+                d[2] * c[0] - d[0] * c[2],
+                d[0] * c[1] - d[1] * c[0],
+            ];
+            let ui = (e2[0] * r[0] + e2[1] * r[1] + e2[2] * r[2]) * -s;
+            let vi = (e1[0] * r[0] + e1[1] * r[1] + e1[2] * r[2]) * s;
+            ok[i] =
+                (den != 0.0) & (ti > t_min * ai) & (ti < t_max[i] * ai) & (ui >= 0.0) & (vi >= 0.0) & (ui + vi <= ai);
+            t[i] = ti;
+            u[i] = ui;
+            v[i] = vi;
+            a[i] = ai;
+        }
+        (ok, t, u, v, a)
+    }
+
+    #[inline(always)]
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        let mut best = PacketBest::new();
+        let entry = rays.t_max;
+        for k in 0..4 {
+            let id = self.ids[k];
+            if id == NO_PRIM {
+                continue;
+            }
+            let (ok, t, u, v, a) = self.lane_vs_rays(k, rays, t_min, &entry);
+            if !any(&ok) {
+                continue;
+            }
+            for i in 0..LANES {
+                let ti = t[i] / a[i];
+                // As in the single-ray test: no nearer after the division, no hit.
+                best.offer(i, ok[i] & (ti < entry[i]), ti, u[i] / a[i], v[i] / a[i], TAG_TRI | id);
+            }
+        }
+        best.commit(rays, hits);
+    }
+
+    #[inline(always)]
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+        for k in 0..4 {
+            if self.ids[k] == NO_PRIM {
+                continue;
+            }
+            let (ok, ..) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
+            block(rays, blocked, &ok);
+        }
+    }
+}
+
+/// Marks the rays in `ok` as blocked and closes their intervals, so nothing tests them again.
+#[inline(always)]
+fn block(rays: &mut RayPacket, blocked: &mut Mask, ok: &Mask) {
+    for i in 0..LANES {
+        blocked[i] |= ok[i];
+        rays.t_max[i] = sel(ok[i], f32::NEG_INFINITY, rays.t_max[i]);
+    }
+}
+
+impl SpherePacket {
+    /// Lane `k`'s sphere against every ray: the arithmetic of [`SpherePacket::closest`].
+    #[inline(always)]
+    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+        let c = [
+            self.c[0].to_array()[k],
+            self.c[1].to_array()[k],
+            self.c[2].to_array()[k],
+        ];
+        let r2 = self.r2.to_array()[k];
+        let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
+            let f = [rays.o[0][i] - c[0], rays.o[1][i] - c[1], rays.o[2][i] - c[2]];
+            let b = -(f[0] * d[0] + f[1] * d[1] + f[2] * d[2]);
+            let l = [f[0] + d[0] * b, f[1] + d[1] * b, f[2] + d[2] * b];
+            let disc = r2 - (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
+            let cc = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) - r2;
+            let sq = sel(disc > 0.0, disc, 0.0).sqrt();
+            let q = b + sq.copysign(b);
+            let t0 = cc / q;
+            let t1 = q;
+            // minps/maxps semantics (second operand on NaN), as the 4-wide test.
+            let lo = sel(t0 < t1, t0, t1);
+            let hi = sel(t0 > t1, t0, t1);
+            let lo_ok = (lo > t_min) & (lo < t_max[i]);
+            let hi_ok = (hi > t_min) & (hi < t_max[i]);
+            ok[i] = (disc >= 0.0) & (q != 0.0) & (lo_ok | hi_ok);
+            t[i] = sel(lo_ok, lo, hi);
+        }
+        (ok, t)
+    }
+
+    #[inline(always)]
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        let mut best = PacketBest::new();
+        let entry = rays.t_max;
+        for k in 0..4 {
+            let id = self.ids[k];
+            if id == NO_PRIM {
+                continue;
+            }
+            let (ok, t) = self.lane_vs_rays(k, rays, t_min, &entry);
+            for i in 0..LANES {
+                best.offer(i, ok[i], t[i], 0.0, 0.0, TAG_SPHERE | id);
+            }
+        }
+        best.commit(rays, hits);
+    }
+
+    #[inline(always)]
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+        for k in 0..4 {
+            if self.ids[k] == NO_PRIM {
+                continue;
+            }
+            let (ok, _) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
+            block(rays, blocked, &ok);
+        }
+    }
+}
+
+impl PlanePacket {
+    /// Lane `k`'s plane against every ray: the arithmetic of [`PlanePacket::closest`].
+    #[inline(always)]
+    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+        let p = [
+            self.p[0].to_array()[k],
+            self.p[1].to_array()[k],
+            self.p[2].to_array()[k],
+        ];
+        let n = [
+            self.n[0].to_array()[k],
+            self.n[1].to_array()[k],
+            self.n[2].to_array()[k],
+        ];
+        let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            let den = n[0] * rays.d[0][i] + n[1] * rays.d[1][i] + n[2] * rays.d[2][i];
+            let w = [p[0] - rays.o[0][i], p[1] - rays.o[1][i], p[2] - rays.o[2][i]];
+            let ti = (w[0] * n[0] + w[1] * n[1] + w[2] * n[2]) / den;
+            ok[i] = (den != 0.0) & (ti > t_min) & (ti < t_max[i]);
+            t[i] = ti;
+        }
+        (ok, t)
+    }
+
+    #[inline(always)]
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        let mut best = PacketBest::new();
+        let entry = rays.t_max;
+        for k in 0..4 {
+            let id = self.ids[k];
+            if id == NO_PRIM {
+                continue;
+            }
+            let (ok, t) = self.lane_vs_rays(k, rays, t_min, &entry);
+            for i in 0..LANES {
+                best.offer(i, ok[i], t[i], 0.0, 0.0, TAG_PLANE | id);
+            }
+        }
+        best.commit(rays, hits);
+    }
+
+    #[inline(always)]
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+        for k in 0..4 {
+            if self.ids[k] == NO_PRIM {
+                continue;
+            }
+            let (ok, _) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
+            block(rays, blocked, &ok);
+        }
+    }
+}
+
+/// Per-packet constants of the node test.
+struct PacketNodeConsts {
+    inv: [F; 3],
+}
+
+impl PacketNodeConsts {
+    #[inline(always)]
+    fn new(rays: &RayPacket) -> Self {
+        let mut inv = [[0.0; LANES]; 3];
+        for a in 0..3 {
+            for i in 0..LANES {
+                inv[a][i] = 1.0 / rays.d[a][i];
+            }
+        }
+        Self { inv }
+    }
+}
+
+/// Which of a node's children some ray of the packet enters (bit per child), and the nearest
+/// entry distance of each child over the rays that enter it.
+#[inline(always)]
+fn node_test(node: &Node4, rays: &RayPacket, nc: &PacketNodeConsts, t_min: f32) -> (u32, [f32; 4]) {
+    let mut mask = 0;
+    let mut near = [f32::INFINITY; 4];
+    for c in 0..4 {
+        if node.valid & (1 << c) == 0 {
+            continue;
+        }
+        let lo = [node.bounds[0][0][c], node.bounds[1][0][c], node.bounds[2][0][c]];
+        let hi = [node.bounds[0][1][c], node.bounds[1][1][c], node.bounds[2][1][c]];
+        let mut hit = [false; LANES];
+        let mut entry = [f32::INFINITY; LANES];
+        for i in 0..LANES {
+            let mut t0 = t_min;
+            let mut t1 = rays.t_max[i];
+            for a in 0..3 {
+                // Near and far planes by the direction's sign, as in the single-ray test (not
+                // by comparing the distances, which a NaN would confuse).
+                let neg = nc.inv[a][i] < 0.0;
+                let tn = (sel(neg, hi[a], lo[a]) - rays.o[a][i]) * nc.inv[a][i];
+                let tf = (sel(neg, lo[a], hi[a]) - rays.o[a][i]) * nc.inv[a][i];
+                // A NaN from 0·∞ (origin on a slab of an axis-parallel ray) leaves the interval
+                // unchanged, as in the single-ray test.
+                t0 = sel(tn > t0, tn, t0);
+                t1 = sel(tf < t1, tf, t1);
+            }
+            hit[i] = t0 <= t1 * SLAB_SLACK;
+            entry[i] = sel(hit[i], t0, f32::INFINITY);
+        }
+        if any(&hit) {
+            mask |= 1 << c;
+            near[c] = entry.iter().fold(f32::INFINITY, |m, &x| m.min(x));
+        }
+    }
+    (mask, near)
+}
+
+/// The largest interval end over the packet: a child entered beyond it cannot matter.
+#[inline(always)]
+fn max_t(rays: &RayPacket) -> f32 {
+    rays.t_max.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x))
+}
+
+impl Bvh4 {
+    #[inline(always)]
+    fn leaf_closest_rays(&self, r: u32, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        if r & SPHERES != 0 {
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].closest_rays(rays, t_min, hits);
+        } else {
+            self.tris[(r & !LEAF) as usize].closest_rays(rays, t_min, hits);
+        }
+    }
+
+    #[inline(always)]
+    fn leaf_occlude_rays(&self, r: u32, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+        if r & SPHERES != 0 {
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].occlude_rays(rays, t_min, blocked);
+        } else {
+            self.tris[(r & !LEAF) as usize].occlude_rays(rays, t_min, blocked);
+        }
+    }
+
+    /// The packet tree walk for closest hits, on a stack of type `S` (see [`Bvh4::deep`]).
+    #[inline(always)]
+    fn walk_closest_rays<S: TraversalStack<(u32, f32)> + Default>(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        hits: &mut PacketHits,
+    ) {
+        let nc = PacketNodeConsts::new(rays);
+        let mut stack = S::default();
+        stack.put((self.root, t_min));
+        let mut far = max_t(rays);
+        while let Some((r, t_near)) = stack.take() {
+            if t_near > far * SLAB_SLACK {
+                continue;
+            }
+            if r & LEAF != 0 {
+                self.leaf_closest_rays(r, rays, t_min, hits);
+                far = max_t(rays);
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            let (mask, near) = node_test(node, rays, &nc, t_min);
+            // Far children first, so the nearest is taken first.
+            let mut order: ArrayVec<(u32, f32), 4> = ArrayVec::new();
+            let mut m = mask;
+            while m != 0 {
+                let i = m.trailing_zeros() as usize;
+                m &= m - 1;
+                let item = (node.children[i], near[i]);
+                let mut j = order.len();
+                order.push(item);
+                while j > 0 && order[j - 1].1 < item.1 {
+                    order[j] = order[j - 1];
+                    j -= 1;
+                }
+                order[j] = item;
+            }
+            for &e in &order {
+                stack.put(e);
+            }
+        }
+    }
+
+    /// The packet tree walk for shadow rays, on a stack of type `S`.
+    #[inline(always)]
+    fn walk_occlude_rays<S: TraversalStack<u32> + Default>(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        blocked: &mut Mask,
+    ) {
+        let nc = PacketNodeConsts::new(rays);
+        let mut stack = S::default();
+        stack.put(self.root);
+        while let Some(r) = stack.take() {
+            if r & LEAF != 0 {
+                self.leaf_occlude_rays(r, rays, t_min, blocked);
+                if max_t(rays) == f32::NEG_INFINITY {
+                    return;
+                }
+                continue;
+            }
+            let node = &self.nodes[r as usize];
+            let (mut mask, _) = node_test(node, rays, &nc, t_min);
+            while mask != 0 {
+                let i = mask.trailing_zeros() as usize;
+                mask &= mask - 1;
+                stack.put(node.children[i]);
+            }
+        }
+    }
+
+    #[inline(always)]
+    fn closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        for p in &self.planes {
+            p.closest_rays(rays, t_min, hits);
+        }
+        for &r in &self.flat {
+            self.leaf_closest_rays(r, rays, t_min, hits);
+        }
+        if self.root == EMPTY {
+            return;
+        }
+        if self.deep {
+            self.walk_closest_rays::<Vec<(u32, f32)>>(rays, t_min, hits);
+        } else {
+            self.walk_closest_rays::<ArrayVec<(u32, f32), STACK>>(rays, t_min, hits);
+        }
+    }
+
+    #[inline(always)]
+    fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+        let mut blocked = [false; LANES];
+        for p in &self.planes {
+            p.occlude_rays(rays, t_min, &mut blocked);
+        }
+        for &r in &self.flat {
+            self.leaf_occlude_rays(r, rays, t_min, &mut blocked);
+        }
+        if self.root == EMPTY || max_t(rays) == f32::NEG_INFINITY {
+            return blocked;
+        }
+        if self.deep {
+            self.walk_occlude_rays::<Vec<u32>>(rays, t_min, &mut blocked);
+        } else {
+            self.walk_occlude_rays::<ArrayVec<u32, STACK>>(rays, t_min, &mut blocked);
+        }
+        blocked
+    }
+
+    /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
+    /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
+    pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+        let mut hits = PacketHits {
+            t: [0.0; LANES],
+            u: [0.0; LANES],
+            v: [0.0; LANES],
+            prim: [TAG_NONE; LANES],
+        };
+        dispatch::closest(self, rays, t_min, &mut hits);
+        hits
+    }
+
+    /// For every ray in the packet, whether anything lies on it with `t_min < t < t_max`.
+    /// The packet's `t_max` is consumed (blocked lanes are closed).
+    pub fn occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
+        dispatch::occluded(self, rays, t_min)
+    }
+}
+
+/// Run-time selection of the kernels' instruction set.
+///
+/// The kernels are written once; the AVX2 copies are the same code compiled with AVX2 enabled
+/// (the compiler then uses 8-wide registers). FMA is not enabled and Rust never fuses a multiply
+/// and an add on its own, so both copies compute identical results. This is the one place the
+/// core uses `unsafe`: calling a function compiled for AVX2 is only sound on a CPU that has it,
+/// which is checked immediately before. Measured in BENCHMARKS.md ("Ray packets").
+#[allow(unsafe_code)]
+mod dispatch {
+    use super::{Bvh4, Mask, PacketHits, RayPacket};
+
+    #[inline]
+    pub(super) fn closest(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked on the line above.
+            unsafe { closest_avx2(bvh, rays, t_min, hits) };
+            return;
+        }
+        bvh.closest_rays_impl(rays, t_min, hits);
+    }
+
+    #[inline]
+    pub(super) fn occluded(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2, checked on the line above.
+            return unsafe { occluded_avx2(bvh, rays, t_min) };
+        }
+        bvh.occluded_rays_impl(rays, t_min)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn closest_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        bvh.closest_rays_impl(rays, t_min, hits);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2")]
+    fn occluded_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
+        bvh.occluded_rays_impl(rays, t_min)
+    }
+}
