@@ -459,7 +459,16 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 Some(r) if rng.next_f32() >= g.kr => {
                     self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, rng, obs, c)
                 }
-                _ => self.secondary(&g.reflected, child(g.refl_medium), id, RayKind::Reflection, 1.0, rng, obs, c),
+                _ => self.secondary(
+                    &g.reflected,
+                    child(g.refl_medium),
+                    id,
+                    RayKind::Reflection,
+                    1.0,
+                    rng,
+                    obs,
+                    c,
+                ),
             }
         }
     }

@@ -9,7 +9,7 @@
 
 use glam::Vec3A;
 
-use super::{Counters, Integrator, PathState};
+use super::{Counters, Integrator, Li, PathState};
 use crate::math::{offset_eps, Ray};
 use crate::observer::NoObserver;
 use crate::rng::Rng;
@@ -51,59 +51,138 @@ impl<I: Intersect> Integrator<'_, I> {
     /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
     pub fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let mut rays = RayPacket::default();
-        let mut cam = [Ray::new(Vec3A::ZERO, Vec3A::Z); LANES];
+        let mut lanes = [None; LANES];
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
             let (u, v) = self.sample_position(x, y, s);
-            cam[i] = self.camera.ray(u, v);
-            rays.set(i, &cam[i], f32::INFINITY);
+            let path = PathState {
+                depth: 0,
+                bounces: 0,
+                beta: 1.0,
+                medium: None,
+                branch: true,
+            };
+            lanes[i] = Some((self.camera.ray(u, v), path));
         }
         c.camera += jobs.len() as u64;
-        let hits = bvh.closest_rays(&mut rays, 0.0);
+        let vals = self.trace_packet(bvh, &lanes, jobs, c);
+        out[..jobs.len()].copy_from_slice(&vals[..jobs.len()]);
+    }
 
-        // Lanes shaded by point lights: their surface and albedo.
-        let mut lit: [Option<(Surface, Vec3A)>; LANES] = [None; LANES];
-        for (i, &(x, y, s)) in jobs.iter().enumerate() {
-            out[i] = Vec3A::ZERO;
-            let Some((t, u, v, prim)) = hits.get(i) else {
-                continue;
-            };
-            let hit = Hit { t, u, v, prim };
-            let surf = self.scene.surface(&cam[i], &hit);
-            let m = &self.scene.materials[surf.material as usize];
-            if self.settings.stage == Stage::One {
-                out[i] = Vec3A::ZERO + Vec3A::from(m.color);
-            } else if self.point_lit_only(m) {
-                lit[i] = Some((surf, m.color.into()));
-            } else {
-                let pixel = y as u64 * self.settings.width as u64 + x as u64;
-                let mut rng = Rng::for_sample(self.settings.seed, pixel, s as u64);
-                let path = PathState {
-                    depth: 0,
-                    bounces: 0,
-                    beta: 1.0,
-                    medium: None,
-                    branch: true,
-                };
-                out[i] = self
-                    .trace_hit(&cam[i], &hit, &surf, path, true, 0, &mut rng, &mut NoObserver, c)
-                    .total();
+    /// [`Self::trace`]'s total for each lane's ray: the rays are traced as a packet, then the
+    /// shadow rays of point-lit hits (one packet per light), then the reflected rays of mirrors
+    /// and glass (one packet) and glass's refracted rays (another), recursively. `jobs[i]` is
+    /// the sample lane `i` belongs to.
+    fn trace_packet(&self, bvh: &Bvh4, lanes: &Lanes, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
+        let mut vals = [Vec3A::ZERO; LANES];
+        if lanes.iter().flatten().any(|(_, p)| p.depth >= MAX_PACKET_DEPTH) {
+            // Deep recursion continues one ray at a time, whose stack frames are smaller.
+            for (i, lane) in lanes.iter().enumerate() {
+                if let Some((ray, path)) = lane {
+                    let mut rng = self.lane_rng(jobs[i]);
+                    vals[i] = self.trace(ray, *path, true, 0, &mut rng, &mut NoObserver, c).total();
+                }
+            }
+            return vals;
+        }
+        let mut rays = RayPacket::default();
+        for (i, lane) in lanes.iter().enumerate() {
+            if let Some((ray, _)) = lane {
+                rays.set(i, ray, f32::INFINITY);
             }
         }
-        if lit.iter().all(Option::is_none) {
-            return;
+        let hits = bvh.closest_rays(&mut rays, 0.0);
+
+        let mut next = [Next::Done; LANES];
+        let (mut reflected, mut refracted): (Lanes, Lanes) = ([None; LANES], [None; LANES]);
+        for (i, lane) in lanes.iter().enumerate() {
+            let (Some((ray, path)), Some((t, u, v, prim))) = (lane, hits.get(i)) else {
+                continue;
+            };
+            let (ray, path) = (*ray, *path);
+            let hit = Hit { t, u, v, prim };
+            let s = self.scene.surface(&ray, &hit);
+            let m = &self.scene.materials[s.material as usize];
+            next[i] = match m.kind {
+                _ if self.settings.stage == Stage::One => {
+                    vals[i] = Vec3A::ZERO + Vec3A::from(m.color);
+                    Next::Done
+                }
+                _ if self.point_lit_only(m) => Next::Lit(s, m.color.into(), t, path),
+                MaterialKind::Reflective | MaterialKind::Refractive if path.depth >= self.settings.max_depth => {
+                    Next::Done
+                }
+                MaterialKind::Reflective => {
+                    reflected[i] = Some(Self::mirror(&ray, &s, path));
+                    Next::Mirror(t, path)
+                }
+                MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
+                    let g = self.glass(&ray, &s, m, path);
+                    reflected[i] = self.glass_reflected(&g, path);
+                    refracted[i] = self.glass_refracted(&g, path);
+                    Next::Glass(g.kr, t, path)
+                }
+                _ => {
+                    let mut rng = self.lane_rng(jobs[i]);
+                    vals[i] = self
+                        .trace_hit(&ray, &hit, &s, path, true, 0, &mut rng, &mut NoObserver, c)
+                        .total();
+                    Next::Done
+                }
+            };
         }
 
-        // Shadow rays, one packet per light; each lane sums its lights in order, as
-        // `direct_point_lights` does.
+        let lights = self.point_lights_packet(bvh, lanes, &next, c);
+        // Children in the order the one-ray recursion traces them: each lane's reflected ray
+        // before its refracted one (lanes are independent, so only the per-lane order matters).
+        let from_reflected = self.children(bvh, &reflected, jobs, c);
+        let from_refracted = self.children(bvh, &refracted, jobs, c);
+        for i in 0..LANES {
+            let (li, t, path) = match next[i] {
+                Next::Done => continue,
+                Next::Lit(_, _, t, path) => (Li::reflected(lights[i]), t, path),
+                Next::Mirror(t, path) => (Li::reflected(from_reflected[i]), t, path),
+                Next::Glass(kr, t, path) => {
+                    let mut out = Vec3A::ZERO;
+                    if reflected[i].is_some() {
+                        out += from_reflected[i] * kr;
+                    }
+                    if refracted[i].is_some() {
+                        out += from_refracted[i] * (1.0 - kr);
+                    }
+                    (Li::reflected(out), t, path)
+                }
+            };
+            vals[i] = self.absorb(path, t, li).total();
+        }
+        vals
+    }
+
+    /// The child rays `lanes` traced as a packet (and counted), or nothing when there are none.
+    fn children(&self, bvh: &Bvh4, lanes: &Lanes, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
+        let n = lanes.iter().flatten().count();
+        if n == 0 {
+            return [Vec3A::ZERO; LANES];
+        }
+        c.secondary += n as u64;
+        self.trace_packet(bvh, lanes, jobs, c)
+    }
+
+    /// Point-light shading of the `Lit` lanes, with their shadow rays traced as one packet per
+    /// light; each lane sums its lights in order, as `direct_point_lights` does.
+    fn point_lights_packet(&self, bvh: &Bvh4, lanes: &Lanes, next: &[Next; LANES], c: &mut Counters) -> [Vec3A; LANES] {
         let mut sums = [Vec3A::ZERO; LANES];
+        if !next.iter().any(|n| matches!(n, Next::Lit(..))) {
+            return sums;
+        }
         for light in &self.scene.lights {
             let mut shadow = RayPacket::default();
             let mut cos = [0f32; LANES];
             let mut any = false;
-            for (i, l) in lit.iter().enumerate() {
-                let Some((s, _)) = l else { continue };
-                let origin = s.point + s.normal * offset_eps(s.point, cam[i].origin);
+            for (i, n) in next.iter().enumerate() {
+                let (Next::Lit(s, ..), Some((ray, _))) = (n, lanes[i]) else {
+                    continue;
+                };
+                let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
                 let to = Vec3A::from(light.position) - origin;
                 let dist = to.length();
                 if dist == 0.0 {
@@ -123,8 +202,8 @@ impl<I: Intersect> Integrator<'_, I> {
             } else {
                 [true; LANES]
             };
-            for (i, l) in lit.iter().enumerate() {
-                let Some((_, albedo)) = l else { continue };
+            for (i, n) in next.iter().enumerate() {
+                let Next::Lit(_, albedo, ..) = n else { continue };
                 let contrib = if cos[i] > 0.0 && !blocked[i] {
                     *albedo * Vec3A::from(light.color) * cos[i]
                 } else {
@@ -133,11 +212,32 @@ impl<I: Intersect> Integrator<'_, I> {
                 sums[i] += contrib;
             }
         }
-        for (i, l) in lit.iter().enumerate() {
-            if l.is_some() {
-                // The emitted part (zero) plus the reflected part, as `Li::total` adds them.
-                out[i] = Vec3A::ZERO + sums[i];
-            }
-        }
+        sums
     }
+
+    /// The random stream of a sample, for lanes that continue one ray at a time.
+    fn lane_rng(&self, (x, y, s): Job) -> Rng {
+        let pixel = y as u64 * self.settings.width as u64 + x as u64;
+        Rng::for_sample(self.settings.seed, pixel, s as u64)
+    }
+}
+
+/// Each lane's ray and path state, `None` for an unused lane.
+type Lanes = [Option<(Ray, PathState)>; LANES];
+
+/// Packet recursion deeper than this continues one ray at a time (each level holds a few
+/// kilobytes of stack).
+const MAX_PACKET_DEPTH: u32 = 12;
+
+/// What a lane still needs once its packet's closest hits are known.
+#[derive(Debug, Clone, Copy)]
+enum Next {
+    /// Nothing: its value is final.
+    Done,
+    /// Point lights at this surface with this albedo; hit distance and path (Beer's law).
+    Lit(Surface, Vec3A, f32, PathState),
+    /// A mirror: its reflected ray's radiance.
+    Mirror(f32, PathState),
+    /// Glass with this Fresnel reflectance: its reflected and refracted rays' radiance.
+    Glass(f32, f32, PathState),
 }

@@ -169,35 +169,44 @@ fn any(m: &Mask) -> bool {
 
 impl TriPacket {
     /// Lane `k`'s triangle tested against every ray: the per-ray arithmetic of
-    /// [`TriPacket::closest`]. Returns (filter passed, t, u, v) per ray, undivided.
+    /// [`TriPacket::closest`]. Returns (hit, t, u, v, |d·n|) per ray, undivided; `None` when no
+    /// ray meets the triangle's plane inside its interval (checked before the edge tests, as the
+    /// single-ray test does, so shadow rays that end before a wall cost a third).
     #[inline(always)]
-    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F, F, F, F) {
+    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> Option<(Mask, F, F, F, F)> {
         let g = |v: &[glam::Vec4; 3]| [v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]];
-        let (v0, e1, e2, n) = (g(&self.v0), g(&self.e1), g(&self.e2), g(&self.n));
-        let (mut ok, mut t, mut u, mut v, mut a) =
-            ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let (v0, n) = (g(&self.v0), g(&self.n));
+        let (mut ok, mut t, mut den, mut a) = ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let mut c = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            for ax in 0..3 {
+                c[ax][i] = v0[ax] - rays.o[ax][i];
+            }
+            den[i] = rays.d[0][i] * n[0] + rays.d[1][i] * n[1] + rays.d[2][i] * n[2];
+            let s = 1f32.copysign(den[i]);
+            a[i] = den[i].abs();
+            t[i] = (c[0][i] * n[0] + c[1][i] * n[1] + c[2][i] * n[2]) * s;
+            ok[i] = (den[i] != 0.0) & (t[i] > t_min * a[i]) & (t[i] < t_max[i] * a[i]);
+        }
+        if !any(&ok) {
+            return None;
+        }
+        let (e1, e2) = (g(&self.e1), g(&self.e2));
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         for i in 0..LANES {
             let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
-            let c = [v0[0] - rays.o[0][i], v0[1] - rays.o[1][i], v0[2] - rays.o[2][i]];
-            let den = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
-            let s = 1f32.copysign(den);
-            let ai = den.abs();
-            let ti = (c[0] * n[0] + c[1] * n[1] + c[2] * n[2]) * s;
+            let c = [c[0][i], c[1][i], c[2][i]];
+            let s = 1f32.copysign(den[i]);
             let r = [
                 d[1] * c[2] - d[2] * c[1],
                 d[2] * c[0] - d[0] * c[2],
                 d[0] * c[1] - d[1] * c[0],
             ];
-            let ui = (e2[0] * r[0] + e2[1] * r[1] + e2[2] * r[2]) * -s;
-            let vi = (e1[0] * r[0] + e1[1] * r[1] + e1[2] * r[2]) * s;
-            ok[i] =
-                (den != 0.0) & (ti > t_min * ai) & (ti < t_max[i] * ai) & (ui >= 0.0) & (vi >= 0.0) & (ui + vi <= ai);
-            t[i] = ti;
-            u[i] = ui;
-            v[i] = vi;
-            a[i] = ai;
+            u[i] = (e2[0] * r[0] + e2[1] * r[1] + e2[2] * r[2]) * -s;
+            v[i] = (e1[0] * r[0] + e1[1] * r[1] + e1[2] * r[2]) * s;
+            ok[i] &= (u[i] >= 0.0) & (v[i] >= 0.0) & (u[i] + v[i] <= a[i]);
         }
-        (ok, t, u, v, a)
+        Some((ok, t, u, v, a))
     }
 
     #[inline(always)]
@@ -209,7 +218,9 @@ impl TriPacket {
             if id == NO_PRIM {
                 continue;
             }
-            let (ok, t, u, v, a) = self.lane_vs_rays(k, rays, t_min, &entry);
+            let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &entry) else {
+                continue;
+            };
             if !any(&ok) {
                 continue;
             }
@@ -228,8 +239,9 @@ impl TriPacket {
             if self.ids[k] == NO_PRIM {
                 continue;
             }
-            let (ok, ..) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
-            block(rays, blocked, &ok);
+            if let Some((ok, ..)) = self.lane_vs_rays(k, rays, t_min, &rays.t_max) {
+                block(rays, blocked, &ok);
+            }
         }
     }
 }
@@ -539,6 +551,10 @@ impl Bvh4 {
             p.occlude_rays(rays, t_min, &mut blocked);
         }
         for &r in &self.flat {
+            // Every ray blocked: nothing left to test.
+            if max_t(rays) == f32::NEG_INFINITY {
+                return blocked;
+            }
             self.leaf_occlude_rays(r, rays, t_min, &mut blocked);
         }
         if self.root == EMPTY || max_t(rays) == f32::NEG_INFINITY {
@@ -586,6 +602,12 @@ mod dispatch {
     #[inline]
     pub(super) fn closest(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F, checked on the line above.
+            unsafe { closest_avx512(bvh, rays, t_min, hits) };
+            return;
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked on the line above.
             unsafe { closest_avx2(bvh, rays, t_min, hits) };
@@ -597,6 +619,11 @@ mod dispatch {
     #[inline]
     pub(super) fn occluded(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
         #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx512f") {
+            // SAFETY: the CPU supports AVX-512F, checked on the line above.
+            return unsafe { occluded_avx512(bvh, rays, t_min) };
+        }
+        #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") {
             // SAFETY: the CPU supports AVX2, checked on the line above.
             return unsafe { occluded_avx2(bvh, rays, t_min) };
@@ -606,13 +633,100 @@ mod dispatch {
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn closest_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    pub(super) fn closest_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         bvh.closest_rays_impl(rays, t_min, hits);
     }
 
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2")]
-    fn occluded_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
+    pub(super) fn occluded_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
         bvh.occluded_rays_impl(rays, t_min)
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn closest_avx512(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        bvh.closest_rays_impl(rays, t_min, hits);
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f")]
+    pub(super) fn occluded_avx512(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
+        bvh.occluded_rays_impl(rays, t_min)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::fmt::Write;
+    use std::path::Path;
+
+    use glam::Vec3A;
+
+    use super::*;
+    use crate::rng::Rng;
+    use crate::scene::Scene;
+
+    /// Every instruction-set build of the kernels this CPU can run returns the same hits, bit
+    /// for bit (the render path picks one at run time; the others must not drift).
+    #[test]
+    fn every_kernel_build_agrees() {
+        let mut rng = Rng::for_sample(7, 0, 0);
+        let mut r = move || rng.next_f32();
+        let mut text = String::from("Material \"M\" Diffuse (1, 1, 1) 1\nPlane \"P\" (0, -3, 0) (0, 1, 0) \"M\"\n");
+        for i in 0..300 {
+            let c = [r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0];
+            let mut v = || format!("({}, {}, {})", c[0] + r() - 0.5, c[1] + r() - 0.5, c[2] + r() - 0.5);
+            let (a, b, d) = (v(), v(), v());
+            writeln!(text, "Triangle \"T{i}\" {a} {b} {d} \"M\"").unwrap();
+        }
+        for i in 0..20 {
+            let (x, y, z, rad) = (r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0, 0.1 + r() * 0.5);
+            writeln!(text, "Sphere \"S{i}\" ({x}, {y}, {z}) {rad} \"M\"").unwrap();
+        }
+        let scene = Scene::from_file(&rayscope_scene::parse_str(&text, Path::new("k.txt")).unwrap());
+        let bvh = &scene.wide;
+        for _ in 0..200 {
+            let mut rays = RayPacket::default();
+            let o = Vec3A::new(r() - 0.5, r() - 0.5, r() - 2.0);
+            for i in 0..LANES {
+                let d = Vec3A::new(r() - 0.5, r() - 0.5, 1.0).normalize();
+                rays.set(i, &Ray::new(o, d), if i % 3 == 0 { 6.0 } else { f32::INFINITY });
+            }
+            let fresh = || PacketHits {
+                t: [0.0; LANES],
+                u: [0.0; LANES],
+                v: [0.0; LANES],
+                prim: [TAG_NONE; LANES],
+            };
+            let (mut base_rays, mut base) = (rays.clone(), fresh());
+            bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base);
+            let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0);
+            #[allow(unsafe_code)]
+            #[cfg(target_arch = "x86_64")]
+            for (name, has) in [
+                ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+                ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+            ] {
+                if !has {
+                    continue;
+                }
+                let (mut wide_rays, mut wide) = (rays.clone(), fresh());
+                // SAFETY: the CPU supports the feature the kernel is built for, checked above.
+                let wide_blocked = unsafe {
+                    if name == "avx2" {
+                        dispatch::closest_avx2(bvh, &mut wide_rays, 0.0, &mut wide);
+                        dispatch::occluded_avx2(bvh, &mut rays.clone(), 0.0)
+                    } else {
+                        dispatch::closest_avx512(bvh, &mut wide_rays, 0.0, &mut wide);
+                        dispatch::occluded_avx512(bvh, &mut rays.clone(), 0.0)
+                    }
+                };
+                for i in 0..LANES {
+                    assert_eq!(wide.get(i), base.get(i), "{name} lane {i}");
+                }
+                assert_eq!(wide_blocked, blocked, "{name}");
+            }
+        }
     }
 }
