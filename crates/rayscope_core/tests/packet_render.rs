@@ -125,3 +125,36 @@ fn a_triangle_edge_between_packet_lanes_is_not_a_crack() {
     assert_eq!(p.film.pixels, one.film.pixels);
     assert!(p.film.pixels.iter().all(|c| c.x > 0.0), "a pixel of the quad is black");
 }
+
+#[test]
+fn deep_mirror_recursion_matches_past_the_packet_depth() {
+    // Two facing mirrors: every ray bounces until max_depth, beyond the depth where packets hand
+    // over to one ray at a time.
+    let text = "Material \"W\" Diffuse (0.8, 0.6, 0.4) 1\nMaterial \"M\" Reflective (1, 1, 1) 1\n\
+        Material \"G\" Refractive (0, 0, 0) 1.5\nPointLight \"L\" (0, 1.5, 3) (1, 1, 1)\n\
+        Plane \"Left\" (-2, 0, 0) (1, 0, 0) \"M\"\nPlane \"Right\" (2, 0, 0) (-1, 0, 0) \"M\"\n\
+        Plane \"Floor\" (0, -1, 0) (0, 1, 0) \"W\"\nSphere \"Ball\" (0.5, -0.4, 3) 0.6 \"W\"\n\
+        Sphere \"Glass\" (-0.6, -0.5, 2.5) 0.4 \"G\"\n";
+    let file = rayscope_scene::parse_str(text, Path::new("mirrors.txt")).unwrap();
+    let scene = Scene::from_file(&file);
+    for max_depth in [3, 20] {
+        let s = RenderSettings {
+            width: 40,
+            height: 30,
+            aa: 2,
+            stage: Stage::Two,
+            max_depth,
+            ..RenderSettings::default()
+        };
+        let (p, one) = both(&scene, &s);
+        assert_eq!(p.counters, one.counters, "max_depth {max_depth}");
+        assert_eq!(p.film.pixels, one.film.pixels, "max_depth {max_depth}");
+        if max_depth > 12 {
+            assert!(
+                p.counters.secondary > 5 * p.counters.camera,
+                "rays bounce deep: {:?}",
+                p.counters
+            );
+        }
+    }
+}
