@@ -18,6 +18,7 @@ use crate::geometry::{Plane, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::scene::PrimRef;
 
+mod dispatch;
 mod packet;
 pub use packet::{PacketHits, RayPacket, LANES};
 

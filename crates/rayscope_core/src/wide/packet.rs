@@ -9,7 +9,7 @@
 //! the order leaves are visited in differs, which matters only for exact ties).
 //!
 //! The kernels are plain loops over `[f32; LANES]` arrays that the compiler vectorises. The
-//! public entry points run an AVX2 build of them when the CPU has it; see [`dispatch`].
+//! public entry points run an AVX-512 or AVX2 build of them when the CPU has it (`dispatch.rs`).
 
 use arrayvec::ArrayVec;
 
@@ -25,8 +25,6 @@ pub const LANES: usize = 16;
 /// One value per lane.
 type F = [f32; LANES];
 
-/// Hit tag: no hit.
-const TAG_NONE: u32 = 0;
 /// Hit tag: a plane (the index is in the low bits).
 const TAG_PLANE: u32 = 1 << 30;
 /// Hit tag: a sphere.
@@ -75,8 +73,8 @@ impl RayPacket {
     }
 }
 
-/// The closest hits of a packet's rays.
-#[derive(Debug, Clone)]
+/// The closest hits of a packet's rays (none by default).
+#[derive(Debug, Clone, Default)]
 pub struct PacketHits {
     t: F,
     u: F,
@@ -95,6 +93,7 @@ impl PacketHits {
             TAG_PLANE => PrimRef::Plane(id),
             TAG_SPHERE => PrimRef::Sphere(id),
             TAG_TRI => PrimRef::Triangle(id),
+            // Tag 0: no hit (the default).
             _ => return None,
         };
         Some((self.t[i], self.u[i], self.v[i], prim))
@@ -160,7 +159,7 @@ impl PacketBest {
 }
 
 /// Per-lane hit flags of a primitive-packet test against a packet of rays.
-type Mask = [bool; LANES];
+pub(super) type Mask = [bool; LANES];
 
 #[inline(always)]
 fn any(m: &Mask) -> bool {
@@ -527,7 +526,7 @@ impl Bvh4 {
     }
 
     #[inline(always)]
-    fn closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    pub(super) fn closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         for p in &self.planes {
             p.closest_rays(rays, t_min, hits);
         }
@@ -545,7 +544,7 @@ impl Bvh4 {
     }
 
     #[inline(always)]
-    fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+    pub(super) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
         let mut blocked = [false; LANES];
         for p in &self.planes {
             p.occlude_rays(rays, t_min, &mut blocked);
@@ -571,162 +570,14 @@ impl Bvh4 {
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
     /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
-        let mut hits = PacketHits {
-            t: [0.0; LANES],
-            u: [0.0; LANES],
-            v: [0.0; LANES],
-            prim: [TAG_NONE; LANES],
-        };
-        dispatch::closest(self, rays, t_min, &mut hits);
+        let mut hits = PacketHits::default();
+        super::dispatch::closest_rays(self, rays, t_min, &mut hits);
         hits
     }
 
     /// For every ray in the packet, whether anything lies on it with `t_min < t < t_max`.
     /// The packet's `t_max` is consumed (blocked lanes are closed).
     pub fn occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
-        dispatch::occluded(self, rays, t_min)
-    }
-}
-
-/// Run-time selection of the kernels' instruction set.
-///
-/// The kernels are written once; the AVX2 copies are the same code compiled with AVX2 enabled
-/// (the compiler then uses 8-wide registers). FMA is not enabled and Rust never fuses a multiply
-/// and an add on its own, so both copies compute identical results. This is the one place the
-/// core uses `unsafe`: calling a function compiled for AVX2 is only sound on a CPU that has it,
-/// which is checked immediately before. Measured in BENCHMARKS.md ("Ray packets").
-#[allow(unsafe_code)]
-mod dispatch {
-    use super::{Bvh4, Mask, PacketHits, RayPacket};
-
-    #[inline]
-    pub(super) fn closest(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F, checked on the line above.
-            unsafe { closest_avx512(bvh, rays, t_min, hits) };
-            return;
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked on the line above.
-            unsafe { closest_avx2(bvh, rays, t_min, hits) };
-            return;
-        }
-        bvh.closest_rays_impl(rays, t_min, hits);
-    }
-
-    #[inline]
-    pub(super) fn occluded(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx512f") {
-            // SAFETY: the CPU supports AVX-512F, checked on the line above.
-            return unsafe { occluded_avx512(bvh, rays, t_min) };
-        }
-        #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU supports AVX2, checked on the line above.
-            return unsafe { occluded_avx2(bvh, rays, t_min) };
-        }
-        bvh.occluded_rays_impl(rays, t_min)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    pub(super) fn closest_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        bvh.closest_rays_impl(rays, t_min, hits);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2")]
-    pub(super) fn occluded_avx2(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
-        bvh.occluded_rays_impl(rays, t_min)
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    pub(super) fn closest_avx512(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        bvh.closest_rays_impl(rays, t_min, hits);
-    }
-
-    #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx512f")]
-    pub(super) fn occluded_avx512(bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask {
-        bvh.occluded_rays_impl(rays, t_min)
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use std::fmt::Write;
-    use std::path::Path;
-
-    use glam::Vec3A;
-
-    use super::*;
-    use crate::rng::Rng;
-    use crate::scene::Scene;
-
-    /// Every instruction-set build of the kernels this CPU can run returns the same hits, bit
-    /// for bit (the render path picks one at run time; the others must not drift).
-    #[test]
-    fn every_kernel_build_agrees() {
-        let mut rng = Rng::for_sample(7, 0, 0);
-        let mut r = move || rng.next_f32();
-        let mut text = String::from("Material \"M\" Diffuse (1, 1, 1) 1\nPlane \"P\" (0, -3, 0) (0, 1, 0) \"M\"\n");
-        for i in 0..300 {
-            let c = [r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0];
-            let mut v = || format!("({}, {}, {})", c[0] + r() - 0.5, c[1] + r() - 0.5, c[2] + r() - 0.5);
-            let (a, b, d) = (v(), v(), v());
-            writeln!(text, "Triangle \"T{i}\" {a} {b} {d} \"M\"").unwrap();
-        }
-        for i in 0..20 {
-            let (x, y, z, rad) = (r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0, 0.1 + r() * 0.5);
-            writeln!(text, "Sphere \"S{i}\" ({x}, {y}, {z}) {rad} \"M\"").unwrap();
-        }
-        let scene = Scene::from_file(&rayscope_scene::parse_str(&text, Path::new("k.txt")).unwrap());
-        let bvh = &scene.wide;
-        for _ in 0..200 {
-            let mut rays = RayPacket::default();
-            let o = Vec3A::new(r() - 0.5, r() - 0.5, r() - 2.0);
-            for i in 0..LANES {
-                let d = Vec3A::new(r() - 0.5, r() - 0.5, 1.0).normalize();
-                rays.set(i, &Ray::new(o, d), if i % 3 == 0 { 6.0 } else { f32::INFINITY });
-            }
-            let fresh = || PacketHits {
-                t: [0.0; LANES],
-                u: [0.0; LANES],
-                v: [0.0; LANES],
-                prim: [TAG_NONE; LANES],
-            };
-            let (mut base_rays, mut base) = (rays.clone(), fresh());
-            bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base);
-            let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0);
-            #[allow(unsafe_code)]
-            #[cfg(target_arch = "x86_64")]
-            for (name, has) in [
-                ("avx2", std::arch::is_x86_feature_detected!("avx2")),
-                ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
-            ] {
-                if !has {
-                    continue;
-                }
-                let (mut wide_rays, mut wide) = (rays.clone(), fresh());
-                // SAFETY: the CPU supports the feature the kernel is built for, checked above.
-                let wide_blocked = unsafe {
-                    if name == "avx2" {
-                        dispatch::closest_avx2(bvh, &mut wide_rays, 0.0, &mut wide);
-                        dispatch::occluded_avx2(bvh, &mut rays.clone(), 0.0)
-                    } else {
-                        dispatch::closest_avx512(bvh, &mut wide_rays, 0.0, &mut wide);
-                        dispatch::occluded_avx512(bvh, &mut rays.clone(), 0.0)
-                    }
-                };
-                for i in 0..LANES {
-                    assert_eq!(wide.get(i), base.get(i), "{name} lane {i}");
-                }
-                assert_eq!(wide_blocked, blocked, "{name}");
-            }
-        }
+        super::dispatch::occluded_rays(self, rays, t_min)
     }
 }

@@ -1,0 +1,145 @@
+//! Run-time selection of the SIMD kernels' instruction set.
+//!
+//! The sixteen-lane ray-packet kernels are written once as plain loops;
+//! the copies here are the same code compiled with AVX-512 or AVX2 enabled, so the compiler uses
+//! 16- or 8-wide registers. FMA is not enabled and Rust never fuses a multiply and an add on its
+//! own, so every copy computes identical results (a test compares them). This is the one place
+//! the core uses `unsafe`: a function compiled for an instruction set may only be called on a CPU
+//! that has it, which is checked immediately before each call (the check is a cached load).
+//! Measured in BENCHMARKS.md, session 3.
+#![allow(unsafe_code)]
+
+use super::packet::{Mask, PacketHits, RayPacket};
+use super::Bvh4;
+
+/// Defines `$name`, which runs `$body` (an expression over the arguments) with the best
+/// instruction set the CPU has, and its AVX-512 and AVX2 builds `$name_avx512`, `$name_avx2`.
+macro_rules! dispatched {
+    ($(#[$doc:meta])* $name:ident, $avx512:ident, $avx2:ident, ($($arg:ident: $ty:ty),*) -> $ret:ty, $body:expr) => {
+        $(#[$doc])*
+        #[inline]
+        pub(super) fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            {
+                if std::arch::is_x86_feature_detected!("avx512f") {
+                    // SAFETY: the CPU supports AVX-512F, checked on the line above.
+                    return unsafe { $avx512($($arg),*) };
+                }
+                if std::arch::is_x86_feature_detected!("avx2") {
+                    // SAFETY: the CPU supports AVX2, checked on the line above.
+                    return unsafe { $avx2($($arg),*) };
+                }
+            }
+            $body
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx512f")]
+        pub(super) fn $avx512($($arg: $ty),*) -> $ret {
+            $body
+        }
+
+        #[cfg(target_arch = "x86_64")]
+        #[target_feature(enable = "avx2")]
+        pub(super) fn $avx2($($arg: $ty),*) -> $ret {
+            $body
+        }
+    };
+}
+
+dispatched!(
+    /// Closest hits of a ray packet.
+    closest_rays, closest_rays_avx512, closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
+    bvh.closest_rays_impl(rays, t_min, hits)
+);
+
+dispatched!(
+    /// Which rays of a packet are blocked.
+    occluded_rays, occluded_rays_avx512, occluded_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
+    bvh.occluded_rays_impl(rays, t_min)
+);
+
+#[cfg(test)]
+mod tests {
+    use std::fmt::Write;
+    use std::path::Path;
+
+    use glam::Vec3A;
+
+    use super::*;
+    use crate::math::Ray;
+    use crate::rng::Rng;
+    use crate::scene::Scene;
+    use crate::wide::LANES;
+
+    fn scene(triangles: usize, spheres: usize, seed: u64) -> Scene {
+        let mut rng = Rng::for_sample(seed, 0, 0);
+        let mut r = move || rng.next_f32();
+        let mut text = String::from("Material \"M\" Diffuse (1, 1, 1) 1\nPlane \"P\" (0, -3, 0) (0, 1, 0) \"M\"\n");
+        for i in 0..triangles {
+            let c = [r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0];
+            let mut v = || format!("({}, {}, {})", c[0] + r() - 0.5, c[1] + r() - 0.5, c[2] + r() - 0.5);
+            let (a, b, d) = (v(), v(), v());
+            writeln!(text, "Triangle \"T{i}\" {a} {b} {d} \"M\"").unwrap();
+        }
+        for i in 0..spheres {
+            let (x, y, z, rad) = (r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0, 0.1 + r() * 0.5);
+            writeln!(text, "Sphere \"S{i}\" ({x}, {y}, {z}) {rad} \"M\"").unwrap();
+        }
+        Scene::from_file(&rayscope_scene::parse_str(&text, Path::new("k.txt")).unwrap())
+    }
+
+    /// Every instruction-set build of the kernels this CPU can run returns the same hits, bit
+    /// for bit, as the baseline build (the render path picks one at run time; none may drift).
+    #[test]
+    fn every_kernel_build_agrees() {
+        // A tree, and a flat scene of groups.
+        for (tris, spheres, seed) in [(300, 20, 7), (8, 3, 8)] {
+            let scene = scene(tris, spheres, seed);
+            assert_eq!(scene.wide.flat.is_empty(), tris > 16, "flat only when small");
+            let bvh = &scene.wide;
+            let mut rng = Rng::for_sample(seed, 1, 0);
+            let mut r = move || rng.next_f32();
+            for _ in 0..200 {
+                let mut rays = RayPacket::default();
+                let o = Vec3A::new(r() - 0.5, r() - 0.5, r() - 2.0);
+                for i in 0..LANES {
+                    let d = Vec3A::new(r() - 0.5, r() - 0.5, 1.0).normalize();
+                    let t_max = if i % 3 == 0 { 6.0 } else { f32::INFINITY };
+                    rays.set(i, &Ray::new(o, d), t_max);
+                }
+                let (mut base_rays, mut base) = (rays.clone(), PacketHits::default());
+                bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base);
+                let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0);
+                #[cfg(target_arch = "x86_64")]
+                for (name, has) in [
+                    ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+                    ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+                ] {
+                    if !has {
+                        continue;
+                    }
+                    let (mut wide_rays, mut wide) = (rays.clone(), PacketHits::default());
+                    // SAFETY: the CPU supports the instruction set the kernels are built for,
+                    // checked above.
+                    let wide_blocked = unsafe {
+                        if name == "avx2" {
+                            closest_rays_avx2(bvh, &mut wide_rays, 0.0, &mut wide);
+                            occluded_rays_avx2(bvh, &mut rays.clone(), 0.0)
+                        } else {
+                            closest_rays_avx512(bvh, &mut wide_rays, 0.0, &mut wide);
+                            occluded_rays_avx512(bvh, &mut rays.clone(), 0.0)
+                        }
+                    };
+                    for i in 0..LANES {
+                        assert_eq!(wide.get(i), base.get(i), "{name} lane {i}");
+                    }
+                    assert_eq!(wide_blocked, blocked, "{name}");
+                }
+                assert!((0..LANES).any(|i| base.get(i).is_some()), "some rays hit");
+            }
+        }
+    }
+}
