@@ -300,6 +300,10 @@ pub struct BenchRaysArgs {
     /// Timed passes over the rays; the median is reported.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     pub repeat: u32,
+    /// Trace the rays as packets of 16, as renders trace camera and shadow rays: consecutive
+    /// rays of the file, or 4×4 pixel blocks of the primary image.
+    #[arg(long)]
+    pub packets: bool,
 }
 
 /// `rayscope bench render`.

@@ -384,6 +384,7 @@ fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
 
 fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     use rayon::prelude::*;
+    use rayscope_core::wide::{RayPacket, LANES};
     use rayscope_core::{Camera, CameraSettings, Ray};
 
     if let Some(n) = a.threads {
@@ -423,8 +424,21 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         }
         (None, Some((w, h))) => {
             let cam = Camera::new(CameraSettings::default(), w, h);
-            (0..h)
-                .flat_map(|y| (0..w).map(move |x| (x, y)))
+            let pixels: Vec<(u32, u32)> = if a.packets {
+                // 4×4 blocks, so each packet of 16 is a compact bundle.
+                let (bw, bh) = (w.div_ceil(4), h.div_ceil(4));
+                (0..bw * bh)
+                    .flat_map(|b| {
+                        let (bx, by) = (b % bw * 4, b / bw * 4);
+                        (0..16).map(move |i| (bx + i % 4, by + i / 4))
+                    })
+                    .filter(|&(x, y)| x < w && y < h)
+                    .collect()
+            } else {
+                (0..h).flat_map(|y| (0..w).map(move |x| (x, y))).collect()
+            };
+            pixels
+                .into_iter()
                 .map(|(x, y)| {
                     let (u, v) = cam.pixel_center(x, y);
                     cam.ray(u, v)
@@ -438,10 +452,24 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         let hits = rays
             .par_chunks(4096)
             .map(|chunk| {
-                chunk
-                    .iter()
-                    .filter(|r| scene.intersect(r, 0.0, f32::INFINITY).is_some())
-                    .count() as u64
+                if a.packets {
+                    chunk
+                        .chunks(LANES)
+                        .map(|group| {
+                            let mut p = RayPacket::default();
+                            for (i, r) in group.iter().enumerate() {
+                                p.set(i, r, f32::INFINITY);
+                            }
+                            let h = scene.wide.closest_rays(&mut p, 0.0);
+                            (0..group.len()).filter(|&i| h.get(i).is_some()).count() as u64
+                        })
+                        .sum()
+                } else {
+                    chunk
+                        .iter()
+                        .filter(|r| scene.intersect(r, 0.0, f32::INFINITY).is_some())
+                        .count() as u64
+                }
             })
             .sum();
         (hits, start.elapsed().as_secs_f64())
@@ -459,6 +487,9 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
             as f64
             / scene.triangles.len().max(1) as f64
     );
+    if a.packets {
+        println!("mode: ray packets of {LANES}");
+    }
     println!(
         "rays={} hits={hits} seconds={secs:.6} mrays_per_s={:.2} threads={}",
         rays.len(),

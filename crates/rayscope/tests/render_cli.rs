@@ -297,3 +297,63 @@ fn ctrl_c_stops_promptly_writes_nothing_and_exits_130() {
         "no temporary file left behind"
     );
 }
+
+/// The last line of `bench rays`: `rays=N hits=H seconds=S mrays_per_s=M threads=T`.
+fn bench_rays(args: &[&str], scene: &std::path::Path) -> (u64, u64) {
+    let out = rayscope()
+        .args(["bench", "rays", "--repeat", "1", "--threads", "2", "-f"])
+        .arg(scene)
+        .args(args)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    let last = text.lines().last().unwrap();
+    let field = |k: &str| -> String {
+        last.split_whitespace()
+            .find_map(|f| f.strip_prefix(&format!("{k}=")).map(str::to_owned))
+            .unwrap_or_else(|| panic!("no {k}= in {last:?}"))
+    };
+    assert!(field("seconds").parse::<f64>().unwrap() > 0.0);
+    assert!(field("mrays_per_s").parse::<f64>().unwrap() > 0.0);
+    assert_eq!(field("threads"), "2");
+    (field("rays").parse().unwrap(), field("hits").parse().unwrap())
+}
+
+#[test]
+fn bench_rays_counts_hits_the_same_one_ray_at_a_time_and_in_packets() {
+    let scene = reference("tests/sample_scene_obj.txt");
+    let single = bench_rays(&["--primary", "67x45"], &scene);
+    let packets = bench_rays(&["--primary", "67x45", "--packets"], &scene);
+    assert_eq!(single.0, 67 * 45);
+    assert_eq!(single, packets, "same rays, same hits");
+    assert!(single.1 > 0);
+
+    // A rays file: one ray into the room (hits), one away from it through the open front
+    // (misses), and one more lane than a packet holds.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("rays.bin");
+    let mut bytes = Vec::new();
+    let mut records = vec![[0.0, 0.0, 0.0, 0.0, 0.0, 1.0f32], [0.0, 0.0, 0.0, 0.0, 0.0, -1.0]];
+    records.extend((0..15).map(|i| [0.0, 0.0, 0.0, 0.01 * i as f32, 0.1, 1.0]));
+    for r in &records {
+        for v in r {
+            bytes.extend_from_slice(&v.to_le_bytes());
+        }
+    }
+    fs::write(&path, &bytes).unwrap();
+    let file = path.to_str().unwrap();
+    assert_eq!(bench_rays(&["--rays-file", file], &scene), (17, 16));
+    assert_eq!(bench_rays(&["--rays-file", file, "--packets"], &scene), (17, 16));
+
+    // A file that is not whole records is refused.
+    fs::write(&path, &bytes[..25]).unwrap();
+    rayscope()
+        .args(["bench", "rays", "--rays-file", file, "-f"])
+        .arg(&scene)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("not a whole number of 24-byte ray records"));
+}
