@@ -344,9 +344,12 @@ impl Bvh4 {
         // Locals, not fields behind a reference, so the loop keeps them in registers.
         let mut stack = S::default();
         let (mut best, mut t_best, mut visits) = (w.best, w.t_best, 0);
+        // Stack entries are culled against the best distance widened like box exits (see
+        // `node_test`), recomputed only when a hit is found.
+        let mut t_cull = t_best * SLAB_SLACK;
         stack.put((self.root, t_min));
         while let Some((r, t_near)) = stack.take() {
-            if t_near > t_best * SLAB_SLACK {
+            if t_near > t_cull {
                 continue;
             }
             if COUNT {
@@ -355,6 +358,7 @@ impl Bvh4 {
             if r & LEAF != 0 {
                 if let Some(h) = self.packet_closest(r, rc, t_min, t_best) {
                     t_best = h.t;
+                    t_cull = t_best * SLAB_SLACK;
                     best = Some(h);
                 }
                 continue;
