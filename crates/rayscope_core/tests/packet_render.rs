@@ -78,6 +78,32 @@ fn packet_renders_equal_single_ray_renders() {
 }
 
 #[test]
+fn lanes_that_continue_one_ray_at_a_time_match_too() {
+    // A switched-off emitter (zero radiance) keeps the render deterministic, so it is traced as
+    // packets, but its hits are shaded by the full renderer's general path, one lane at a time;
+    // seen directly, through a mirror and through coloured (absorbing) glass.
+    let text = "Material \"W\" Diffuse (0.8, 0.8, 0.8) 1\nMaterial \"Off\" Emissive (0, 0, 0) 1\n\
+        Material \"M\" Reflective (1, 1, 1) 1\nMaterial \"G\" Refractive (0.4, 0.1, 0.1) 1.5\n\
+        PointLight \"L\" (0, 2, 1) (1, 1, 1)\nPlane \"Floor\" (0, -1, 0) (0, 1, 0) \"W\"\n\
+        Sphere \"Lamp\" (-0.7, 0, 3) 0.5 \"Off\"\nSphere \"Mirror\" (0.7, 0, 3.5) 0.5 \"M\"\n\
+        Sphere \"Glass\" (0, -0.5, 2.2) 0.4 \"G\"\nTriangle \"T\" (-2, -1, 5) (0, 2, 5) (2, -1, 5) \"Off\"\n";
+    let file = rayscope_scene::parse_str(text, Path::new("off.txt")).unwrap();
+    let scene = Scene::from_file(&file);
+    let s = RenderSettings {
+        width: 48,
+        height: 36,
+        aa: 2,
+        ..RenderSettings::default()
+    };
+    assert!(rayscope_core::integrator::Integrator::new(&scene, &s)
+        .packet_bvh()
+        .is_some());
+    let (p, one) = both(&scene, &s);
+    assert_eq!(p.counters, one.counters);
+    assert_eq!(p.film.pixels, one.film.pixels);
+}
+
+#[test]
 fn packets_are_used_only_where_they_apply() {
     use rayscope_core::integrator::Integrator;
     let scene = load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/whitted.txt"));

@@ -215,7 +215,9 @@ impl<I: Intersect> Integrator<'_, I> {
         sums
     }
 
-    /// The random stream of a sample, for lanes that continue one ray at a time.
+    /// The random stream of a sample, for lanes that continue one ray at a time. Each such lane
+    /// starts the stream afresh, as the sample's own stream would be at that point: renders
+    /// traced as packets have no stochastic effect, so nothing before draws from it.
     fn lane_rng(&self, (x, y, s): Job) -> Rng {
         let pixel = y as u64 * self.settings.width as u64 + x as u64;
         Rng::for_sample(self.settings.seed, pixel, s as u64)
