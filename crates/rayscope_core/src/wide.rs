@@ -20,7 +20,7 @@ use crate::scene::PrimRef;
 
 mod dispatch;
 mod packet;
-pub use packet::{PacketHits, RayPacket, LANES};
+pub use packet::{LightRays, PacketHits, RayPacket, LANES};
 
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;

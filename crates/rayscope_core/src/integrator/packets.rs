@@ -167,45 +167,39 @@ impl<I: Intersect> Integrator<'_, I> {
         self.trace_packet(bvh, lanes, jobs, c)
     }
 
-    /// Point-light shading of the `Lit` lanes, with their shadow rays traced as one packet per
-    /// light; each lane sums its lights in order, as `direct_point_lights` does.
+    /// Point-light shading of the `Lit` lanes, with their shadow rays made and traced as one
+    /// packet per light ([`Bvh4::light_rays`], which runs the single-ray code's arithmetic per
+    /// lane), so each lane's sum is what `direct_point_lights` adds up.
     fn point_lights_packet(&self, bvh: &Bvh4, lanes: &Lanes, next: &[Next; LANES], c: &mut Counters) -> [Vec3A; LANES] {
         let mut sums = [Vec3A::ZERO; LANES];
-        if !next.iter().any(|n| matches!(n, Next::Lit(..))) {
+        // Lit lanes in structure-of-arrays form: shadow-ray origins, shading normals, albedos.
+        let mut lit = [false; LANES];
+        let (mut org, mut ns, mut alb) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3], [[0f32; LANES]; 3]);
+        for (i, n) in next.iter().enumerate() {
+            let (Next::Lit(s, albedo, ..), Some((ray, _))) = (n, lanes[i]) else {
+                continue;
+            };
+            lit[i] = true;
+            let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
+            for a in 0..3 {
+                org[a][i] = origin[a];
+                ns[a][i] = s.shading_normal[a];
+                alb[a][i] = albedo[a];
+            }
+        }
+        if !lit.iter().any(|&l| l) {
             return sums;
         }
         for light in &self.scene.lights {
-            let mut shadow = RayPacket::default();
-            let mut cos = [0f32; LANES];
-            let mut any = false;
-            for (i, n) in next.iter().enumerate() {
-                let (Next::Lit(s, ..), Some((ray, _))) = (n, lanes[i]) else {
-                    continue;
-                };
-                let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
-                let to = Vec3A::from(light.position) - origin;
-                let dist = to.length();
-                if dist == 0.0 {
+            let vis = bvh.light_rays(&org, &ns, &lit, light.position.to_array());
+            c.shadow += u64::from(vis.rays);
+            let col = Vec3A::from(light.color);
+            for i in 0..LANES {
+                if !lit[i] {
                     continue;
                 }
-                let dir = to / dist;
-                cos[i] = s.shading_normal.dot(dir);
-                c.shadow += 1;
-                // Rays behind the surface cannot contribute and are not traced.
-                if cos[i] > 0.0 {
-                    shadow.set(i, &Ray::new(origin, dir), dist);
-                    any = true;
-                }
-            }
-            let blocked = if any {
-                bvh.occluded_rays(&mut shadow, 0.0)
-            } else {
-                [true; LANES]
-            };
-            for (i, n) in next.iter().enumerate() {
-                let Next::Lit(_, albedo, ..) = n else { continue };
-                let contrib = if cos[i] > 0.0 && !blocked[i] {
-                    *albedo * Vec3A::from(light.color) * cos[i]
+                let contrib = if vis.visible[i] {
+                    Vec3A::new(alb[0][i], alb[1][i], alb[2][i]) * col * vis.cos[i]
                 } else {
                     Vec3A::ZERO
                 };

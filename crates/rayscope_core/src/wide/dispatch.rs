@@ -9,8 +9,9 @@
 //! Measured in BENCHMARKS.md, session 3.
 #![allow(unsafe_code)]
 
-use super::packet::{Mask, PacketHits, RayPacket};
+use super::packet::{LightRays, Mask, PacketHits, RayPacket};
 use super::Bvh4;
+use super::LANES;
 
 /// Defines `$name`, which runs `$body` (an expression over the arguments) with the best
 /// instruction set the CPU has, and its AVX-512 and AVX2 builds `$name_avx512`, `$name_avx2`.
@@ -61,6 +62,13 @@ dispatched!(
     bvh.occluded_rays_impl(rays, t_min)
 );
 
+dispatched!(
+    /// Shadow rays toward a point light, built and traced.
+    light_rays, light_rays_avx512, light_rays_avx2,
+    (bvh: &Bvh4, org: &[[f32; LANES]; 3], ns: &[[f32; LANES]; 3], lit: &Mask, light: [f32; 3]) -> LightRays,
+    bvh.light_rays_impl(org, ns, lit, light)
+);
+
 #[cfg(test)]
 mod tests {
     use std::fmt::Write;
@@ -72,7 +80,6 @@ mod tests {
     use crate::math::Ray;
     use crate::rng::Rng;
     use crate::scene::Scene;
-    use crate::wide::LANES;
 
     fn scene(triangles: usize, spheres: usize, seed: u64) -> Scene {
         let mut rng = Rng::for_sample(seed, 0, 0);

@@ -73,6 +73,17 @@ impl RayPacket {
     }
 }
 
+/// What [`Bvh4::light_rays`] finds for each lane.
+#[derive(Debug, Clone)]
+pub struct LightRays {
+    /// N·L with the shading normal (0 for lanes without a ray).
+    pub cos: [f32; LANES],
+    /// The light is in front of the surface and nothing blocks it.
+    pub visible: [bool; LANES],
+    /// Shadow rays counted (lanes with a surface not at the light's position).
+    pub rays: u32,
+}
+
 /// The closest hits of a packet's rays (none by default).
 #[derive(Debug, Clone, Default)]
 pub struct PacketHits {
@@ -565,6 +576,57 @@ impl Bvh4 {
             self.walk_occlude_rays::<ArrayVec<u32, STACK>>(rays, t_min, &mut blocked);
         }
         blocked
+    }
+
+    /// Shadow rays from points `org` (one per lane in `lit`) toward a point light at `light`,
+    /// lane-parallel; see [`LightRays`].
+    #[inline(always)]
+    pub(super) fn light_rays_impl(&self, org: &[F; 3], ns: &[F; 3], lit: &Mask, light: [f32; 3]) -> LightRays {
+        let mut shadow = RayPacket::default();
+        let mut out = LightRays {
+            cos: [0.0; LANES],
+            visible: [false; LANES],
+            rays: 0,
+        };
+        let mut traced = [false; LANES];
+        for i in 0..LANES {
+            let to = [light[0] - org[0][i], light[1] - org[1][i], light[2] - org[2][i]];
+            // glam's length and division by a scalar, per component.
+            let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
+            let dir = [to[0] / dist, to[1] / dist, to[2] / dist];
+            let valid = lit[i] & (dist != 0.0);
+            let cos = ns[0][i] * dir[0] + ns[1][i] * dir[1] + ns[2][i] * dir[2];
+            out.cos[i] = sel(valid, cos, 0.0);
+            out.rays += u32::from(valid);
+            // Rays behind the surface cannot contribute and are not traced.
+            traced[i] = valid & (cos > 0.0);
+            for a in 0..3 {
+                shadow.o[a][i] = org[a][i];
+                shadow.d[a][i] = dir[a];
+            }
+            shadow.t_max[i] = sel(traced[i], dist, f32::NEG_INFINITY);
+        }
+        if any(&traced) {
+            let blocked = self.occluded_rays_impl(&mut shadow, 0.0);
+            for i in 0..LANES {
+                out.visible[i] = traced[i] & !blocked[i];
+            }
+        }
+        out
+    }
+
+    /// For each lane in `lit`, the shadow ray from `org` toward a point light at `light`: its
+    /// cosine with the shading normal `ns`, and whether the light is visible (in front of the
+    /// surface and unblocked). The arithmetic is the single-ray code's, per lane.
+    #[must_use]
+    pub fn light_rays(
+        &self,
+        org: &[[f32; LANES]; 3],
+        ns: &[[f32; LANES]; 3],
+        lit: &[bool; LANES],
+        light: [f32; 3],
+    ) -> LightRays {
+        super::dispatch::light_rays(self, org, ns, lit, light)
     }
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
