@@ -137,6 +137,17 @@ struct Glass {
     refr_medium: Option<u32>,
 }
 
+impl PathState {
+    /// The state of a camera ray.
+    const CAMERA: PathState = PathState {
+        depth: 0,
+        bounces: 0,
+        beta: 1.0,
+        medium: None,
+        branch: true,
+    };
+}
+
 /// Radiance arriving along a ray, split so the caller can weight emission by MIS.
 #[derive(Debug, Clone, Copy, Default)]
 struct Li {
@@ -312,14 +323,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Radiance along `ray` (a camera ray, reported to `obs` as `id`) with a fresh path state.
     #[inline]
     pub fn radiance<O: RayObserver>(&self, ray: &Ray, id: u32, rng: &mut Rng, obs: &mut O, c: &mut Counters) -> Vec3A {
-        let path = PathState {
-            depth: 0,
-            bounces: 0,
-            beta: 1.0,
-            medium: None,
-            branch: true,
-        };
-        self.trace(ray, path, true, id, rng, obs, c).total()
+        self.trace(ray, PathState::CAMERA, true, id, rng, obs, c).total()
     }
 
     fn channel<O: RayObserver>(&self, ray: &Ray, obs: &mut O) -> Vec3A {

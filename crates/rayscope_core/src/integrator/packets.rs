@@ -3,9 +3,10 @@
 //! Whenever a render has no stochastic effect (so every camera ray is a pinhole ray through a
 //! fixed grid position) the render loop hands the integrator up to [`LANES`] samples at once.
 //! Their camera rays are traced as one packet; every lane whose hit is lit by point lights alone
-//! (stage 2's diffuse shading) gets its shadow rays traced as one packet per light; mirrors and
-//! glass continue one ray at a time. Each lane runs exactly the arithmetic [`Integrator::sample`]
-//! runs, in the same order, so the colours and ray counts are the same.
+//! (stage 2's diffuse shading) gets its shadow rays traced as one packet per light; the rays that
+//! mirrors and glass send on form the next packets, recursively. Each lane runs exactly the
+//! arithmetic [`Integrator::sample`] runs, in the same order, so the colours and ray counts are
+//! the same (the test `packet_render` renders both ways).
 
 use glam::Vec3A;
 
@@ -54,14 +55,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut lanes = [None; LANES];
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
             let (u, v) = self.sample_position(x, y, s);
-            let path = PathState {
-                depth: 0,
-                bounces: 0,
-                beta: 1.0,
-                medium: None,
-                branch: true,
-            };
-            lanes[i] = Some((self.camera.ray(u, v), path));
+            lanes[i] = Some((self.camera.ray(u, v), PathState::CAMERA));
         }
         c.camera += jobs.len() as u64;
         let vals = self.trace_packet(bvh, &lanes, jobs, c);
