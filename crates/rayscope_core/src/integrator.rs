@@ -46,7 +46,7 @@ use crate::settings::{Channel, RenderSettings, Stage};
 use rayscope_scene::MaterialKind;
 
 mod packets;
-pub use packets::Job;
+pub(crate) use packets::Job;
 
 /// Ray counts gathered while rendering.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]

@@ -20,7 +20,7 @@ use crate::wide::{Bvh4, RayPacket, LANES};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
-pub type Job = (u32, u32, u32);
+pub(crate) type Job = (u32, u32, u32);
 
 impl<I: Intersect> Integrator<'_, I> {
     /// The BVH to trace packets through, when this render's samples may be traced as packets:
@@ -50,7 +50,7 @@ impl<I: Intersect> Integrator<'_, I> {
 
     /// The colours of `jobs` (at most [`LANES`]) into `out`: what [`Self::sample`] returns for
     /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
-    pub fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
+    pub(crate) fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
         let mut lanes = [None; LANES];
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
