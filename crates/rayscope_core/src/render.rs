@@ -164,13 +164,17 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
     r
 }
 
-/// [`render_tile`] with the samples traced [`LANES`] at a time (pixel-major, so a packet holds
-/// one pixel's grid samples, or neighbouring pixels' when there are fewer).
+/// [`render_tile`] with the samples traced [`LANES`] at a time: a pixel's samples in order, and
+/// when a pixel has fewer than [`LANES`], the pixels of a 4×4 block one after another, so a
+/// packet's rays stay close together.
 fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &mut TileResult, y1: u32, spp: u32) {
     let inv = 1.0 / spp as f32;
+    let (x0, y0, x1) = (r.x0, r.y0, r.x1);
+    let tw = x1 - x0;
+    r.pixels = vec![glam::Vec3::ZERO; (tw * (y1 - y0)) as usize];
     let mut jobs: ArrayVec<Job, LANES> = ArrayVec::new();
     let mut vals = [Vec3A::ZERO; LANES];
-    // The pixel being summed: samples arrive in order, so a running sum reproduces the
+    // The pixel being summed: its samples arrive in order, so a running sum reproduces the
     // one-sample-at-a-time loop's additions exactly.
     let mut sum = Vec3A::ZERO;
     let mut flush = |jobs: &mut ArrayVec<Job, LANES>, r: &mut TileResult, sum: &mut Vec3A| {
@@ -180,21 +184,29 @@ fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &
                 *sum += v;
             } else {
                 r.nonfinite += 1;
-                r.first_nonfinite.get_or_insert((x, y, s));
+                // The first in raster order, whatever order the pixels were traced in.
+                if r.first_nonfinite.is_none_or(|(fx, fy, fs)| (y, x, s) < (fy, fx, fs)) {
+                    r.first_nonfinite = Some((x, y, s));
+                }
             }
             if s + 1 == spp {
-                r.pixels.push((*sum * inv).into());
+                r.pixels[((y - y0) * tw + (x - x0)) as usize] = (*sum * inv).into();
                 *sum = Vec3A::ZERO;
             }
         }
         jobs.clear();
     };
-    for y in r.y0..y1 {
-        for x in r.x0..r.x1 {
-            for s in 0..spp {
-                jobs.push((x, y, s));
-                if jobs.is_full() {
-                    flush(&mut jobs, r, &mut sum);
+    let block = if (spp as usize) < LANES { 4 } else { 1 };
+    for by in (y0..y1).step_by(block) {
+        for bx in (x0..x1).step_by(block) {
+            for y in by..(by + block as u32).min(y1) {
+                for x in bx..(bx + block as u32).min(x1) {
+                    for s in 0..spp {
+                        jobs.push((x, y, s));
+                        if jobs.is_full() {
+                            flush(&mut jobs, r, &mut sum);
+                        }
+                    }
                 }
             }
         }
