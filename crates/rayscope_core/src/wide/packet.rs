@@ -300,30 +300,14 @@ impl SpherePacket {
 
     #[inline(always)]
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        let mut best = PacketBest::new();
-        let entry = rays.t_max;
-        for k in 0..4 {
-            let id = self.ids[k];
-            if id == NO_PRIM {
-                continue;
-            }
-            let (ok, t) = self.lane_vs_rays(k, rays, t_min, &entry);
-            for i in 0..LANES {
-                best.offer(i, ok[i], t[i], 0.0, 0.0, TAG_SPHERE | id);
-            }
-        }
-        best.commit(rays, hits);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        lanes_closest_rays(&self.ids, TAG_SPHERE, test, rays, hits);
     }
 
     #[inline(always)]
     fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        for k in 0..4 {
-            if self.ids[k] == NO_PRIM {
-                continue;
-            }
-            let (ok, _) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
-            block(rays, blocked, &ok);
-        }
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        lanes_occlude_rays(&self.ids, test, rays, blocked);
     }
 }
 
@@ -354,30 +338,56 @@ impl PlanePacket {
 
     #[inline(always)]
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        let mut best = PacketBest::new();
-        let entry = rays.t_max;
-        for k in 0..4 {
-            let id = self.ids[k];
-            if id == NO_PRIM {
-                continue;
-            }
-            let (ok, t) = self.lane_vs_rays(k, rays, t_min, &entry);
-            for i in 0..LANES {
-                best.offer(i, ok[i], t[i], 0.0, 0.0, TAG_PLANE | id);
-            }
-        }
-        best.commit(rays, hits);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        lanes_closest_rays(&self.ids, TAG_PLANE, test, rays, hits);
     }
 
     #[inline(always)]
     fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        for k in 0..4 {
-            if self.ids[k] == NO_PRIM {
-                continue;
-            }
-            let (ok, _) = self.lane_vs_rays(k, rays, t_min, &rays.t_max);
-            block(rays, blocked, &ok);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        lanes_occlude_rays(&self.ids, test, rays, blocked);
+    }
+}
+
+/// The closest hits among a packet's four spheres or planes, `test(k, rays, t_max)` giving lane
+/// `k`'s (hit, t) per ray: all four filtered against the distances known on entry, then each ray
+/// takes its nearest, as the single-ray test does packet by packet.
+#[inline(always)]
+fn lanes_closest_rays(
+    ids: &[u32; 4],
+    tag: u32,
+    test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
+    rays: &mut RayPacket,
+    hits: &mut PacketHits,
+) {
+    let mut best = PacketBest::new();
+    let entry = rays.t_max;
+    for (k, &id) in ids.iter().enumerate() {
+        if id == NO_PRIM {
+            continue;
         }
+        let (ok, t) = test(k, rays, &entry);
+        for i in 0..LANES {
+            best.offer(i, ok[i], t[i], 0.0, 0.0, tag | id);
+        }
+    }
+    best.commit(rays, hits);
+}
+
+/// [`lanes_closest_rays`] for shadow rays: marks the rays some lane blocks.
+#[inline(always)]
+fn lanes_occlude_rays(
+    ids: &[u32; 4],
+    test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
+    rays: &mut RayPacket,
+    blocked: &mut Mask,
+) {
+    for (k, &id) in ids.iter().enumerate() {
+        if id == NO_PRIM {
+            continue;
+        }
+        let (ok, _) = test(k, rays, &rays.t_max);
+        block(rays, blocked, &ok);
     }
 }
 
