@@ -65,12 +65,6 @@ impl RayPacket {
         }
         self.t_max[i] = t_max;
     }
-
-    /// Empties lane `i`: it will not hit anything.
-    #[inline]
-    pub fn clear(&mut self, i: usize) {
-        self.t_max[i] = f32::NEG_INFINITY;
-    }
 }
 
 /// What [`Bvh4::light_rays`] finds for each lane.
