@@ -4,12 +4,11 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
+use arrayvec::ArrayVec;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::Film;
-use arrayvec::ArrayVec;
-
 use crate::integrator::{Counters, Integrator, Job};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
 use crate::scene::{Intersect, Scene};
@@ -131,6 +130,22 @@ struct TileResult {
     first_nonfinite: Option<(u32, u32, u32)>,
 }
 
+impl TileResult {
+    /// Adds sample `s` of pixel (`x`, `y`) to `sum`, or counts it when it is NaN or infinite
+    /// (remembering the first such sample in raster order, whatever order samples come in).
+    #[inline]
+    fn add_sample(&mut self, sum: &mut Vec3A, (x, y, s): (u32, u32, u32), v: Vec3A) {
+        if v.is_finite() {
+            *sum += v;
+        } else {
+            self.nonfinite += 1;
+            if self.first_nonfinite.is_none_or(|(fx, fy, fs)| (y, x, s) < (fy, fx, fs)) {
+                self.first_nonfinite = Some((x, y, s));
+            }
+        }
+    }
+}
+
 fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u32, y1: u32, spp: u32) -> TileResult {
     let mut r = TileResult {
         x0,
@@ -141,22 +156,17 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
         nonfinite: 0,
         first_nonfinite: None,
     };
-    let inv = 1.0 / spp as f32;
     if let Some(bvh) = integ.packet_bvh() {
         render_tile_packets(integ, bvh, &mut r, y1, spp);
         return r;
     }
+    let inv = 1.0 / spp as f32;
     for y in y0..y1 {
         for x in x0..x1 {
             let mut sum = Vec3A::ZERO;
             for s in 0..spp {
                 let v = integ.sample(x, y, s, &mut NoObserver, &mut r.counters);
-                if v.is_finite() {
-                    sum += v;
-                } else {
-                    r.nonfinite += 1;
-                    r.first_nonfinite.get_or_insert((x, y, s));
-                }
+                r.add_sample(&mut sum, (x, y, s), v);
             }
             r.pixels.push((sum * inv).into());
         }
@@ -180,15 +190,7 @@ fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &
     let mut flush = |jobs: &mut ArrayVec<Job, LANES>, r: &mut TileResult, sum: &mut Vec3A| {
         integ.sample_packet(bvh, jobs, &mut vals, &mut r.counters);
         for (&(x, y, s), &v) in jobs.iter().zip(&vals) {
-            if v.is_finite() {
-                *sum += v;
-            } else {
-                r.nonfinite += 1;
-                // The first in raster order, whatever order the pixels were traced in.
-                if r.first_nonfinite.is_none_or(|(fx, fy, fs)| (y, x, s) < (fy, fx, fs)) {
-                    r.first_nonfinite = Some((x, y, s));
-                }
-            }
+            r.add_sample(sum, (x, y, s), v);
             if s + 1 == spp {
                 r.pixels[((y - y0) * tw + (x - x0)) as usize] = (*sum * inv).into();
                 *sum = Vec3A::ZERO;
