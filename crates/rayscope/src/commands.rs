@@ -197,14 +197,19 @@ pub fn render_with_progress(
 fn summary(s: &RenderSettings, out: &RenderOutput, path: &Path) -> String {
     let secs = out.elapsed.as_secs_f64();
     let rays = out.counters.total();
+    let m = |n: u64| n as f64 / 1e6;
+    let c = &out.counters;
     format!(
-        "{}×{}, {} spp, {:.3} s, {:.2} M rays ({:.1} Mrays/s) → {}",
+        "{}×{}, {} spp, {:.3} s, {:.2} M rays ({:.1} Mrays/s; camera {:.2} M, secondary {:.2} M, shadow {:.2} M) → {}",
         s.width,
         s.height,
         out.samples_per_pixel,
         secs,
-        rays as f64 / 1e6,
-        rays as f64 / 1e6 / secs.max(1e-9),
+        m(rays),
+        m(rays) / secs.max(1e-9),
+        m(c.camera),
+        m(c.secondary),
+        m(c.shadow),
         path.display()
     )
 }

@@ -462,8 +462,8 @@ fn redact(stderr: &str, dir: &Path) -> String {
     lines
         .iter()
         .map(|l| {
-            // The summary line: "16×12, 1 spp, 0.004 s, 0.00 M rays (0.1 Mrays/s) → out.png".
-            if l.contains(" spp, ") && l.contains(" Mrays/s) → ") {
+            // The summary line: "16×12, 1 spp, 0.004 s, 0.00 M rays (0.1 Mrays/s; camera …) → out.png".
+            if l.contains(" spp, ") && l.contains(" Mrays/s; camera ") {
                 let (size, _) = l.split_once(',').unwrap();
                 let (_, path) = l.rsplit_once(" → ").unwrap();
                 format!("{size}, [summary] → {path}")

@@ -91,6 +91,8 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub stochastic: bool,
     /// Whitted glass branches with a smaller path weight are not traced (0: trace all).
     pub branch_cutoff: f32,
+    /// Per material: a hit on it is shaded by point lights alone (see `point_lit_only`).
+    pub(crate) point_lit: Vec<bool>,
 }
 
 /// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
@@ -247,7 +249,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             emitters,
             stochastic,
             branch_cutoff,
+            point_lit: Vec::new(),
         }
+        .with_point_lit()
     }
 
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.

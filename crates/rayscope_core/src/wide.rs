@@ -20,7 +20,9 @@ use crate::scene::PrimRef;
 
 mod dispatch;
 mod packet;
+mod surface;
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
+pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;

@@ -8,15 +8,19 @@
 //! arithmetic [`Integrator::sample`] runs, in the same order, so the colours and ray counts are
 //! the same (the test `packet_render` renders both ways).
 
+// Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
+// clearly as index loops than as zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
 use glam::Vec3A;
 
 use super::{Counters, Integrator, Li, PathState};
-use crate::math::{offset_eps, Ray};
+use crate::math::Ray;
 use crate::observer::NoObserver;
 use crate::rng::Rng;
-use crate::scene::{Hit, Intersect, Material, Surface};
+use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
 use crate::settings::{Channel, Stage};
-use crate::wide::{Bvh4, RayPacket, LANES};
+use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SurfaceFrames, LANES};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
@@ -31,6 +35,12 @@ impl<I: Intersect> Integrator<'_, I> {
             return None;
         }
         self.isect.wide()
+    }
+
+    /// Fills in [`Self::point_lit`].
+    pub(super) fn with_point_lit(mut self) -> Self {
+        self.point_lit = self.scene.materials.iter().map(|m| self.point_lit_only(m)).collect();
+        self
     }
 
     /// True when a hit on `m` is shaded by point lights alone with the course's formula, so its
@@ -52,10 +62,20 @@ impl<I: Intersect> Integrator<'_, I> {
     /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
     pub(crate) fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let mut lanes = [None; LANES];
+        // Unused lanes aim at the image centre; they are never switched on.
+        let (mut u, mut v) = ([0.5; LANES], [0.5; LANES]);
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
-            let (u, v) = self.sample_position(x, y, s);
-            lanes[i] = Some((self.camera.ray(u, v), PathState::CAMERA));
+            (u[i], v[i]) = self.sample_position(x, y, s);
+        }
+        let mut lanes = PathPacket::default();
+        lanes.rays.d = self.camera.ray_dirs(&u, &v);
+        let o = self.camera.origin.to_array();
+        for i in 0..jobs.len() {
+            for a in 0..3 {
+                lanes.rays.o[a][i] = o[a];
+            }
+            lanes.rays.t_max[i] = f32::INFINITY;
+            lanes.on[i] = true;
         }
         c.camera += jobs.len() as u64;
         let vals = self.trace_packet(bvh, &lanes, jobs, c);
@@ -66,57 +86,71 @@ impl<I: Intersect> Integrator<'_, I> {
     /// shadow rays of point-lit hits (one packet per light), then the reflected rays of mirrors
     /// and glass (one packet) and glass's refracted rays (another), recursively. `jobs[i]` is
     /// the sample lane `i` belongs to.
-    fn trace_packet(&self, bvh: &Bvh4, lanes: &Lanes, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
+    fn trace_packet(&self, bvh: &Bvh4, lanes: &PathPacket, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
         let mut vals = [Vec3A::ZERO; LANES];
-        if lanes.iter().flatten().any(|(_, p)| p.depth >= MAX_PACKET_DEPTH) {
+        if (0..LANES).any(|i| lanes.on[i] && lanes.paths[i].depth >= MAX_PACKET_DEPTH) {
             // Deep recursion continues one ray at a time, whose stack frames are smaller.
-            for (i, lane) in lanes.iter().enumerate() {
-                if let Some((ray, path)) = lane {
-                    let mut rng = self.lane_rng(jobs[i]);
-                    vals[i] = self.trace(ray, *path, true, 0, &mut rng, &mut NoObserver, c).total();
-                }
+            for i in (0..LANES).filter(|&i| lanes.on[i]) {
+                let mut rng = self.lane_rng(jobs[i]);
+                let ray = lanes.ray(i);
+                vals[i] = self
+                    .trace(&ray, lanes.paths[i], true, 0, &mut rng, &mut NoObserver, c)
+                    .total();
             }
             return vals;
         }
-        let mut rays = RayPacket::default();
-        for (i, lane) in lanes.iter().enumerate() {
-            if let Some((ray, _)) = lane {
-                rays.set(i, ray, f32::INFINITY);
-            }
-        }
+        let mut rays = lanes.rays.clone();
         let hits = bvh.closest_rays(&mut rays, 0.0);
+        let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
         let mut next = [Next::Done; LANES];
-        let (mut reflected, mut refracted): (Lanes, Lanes) = ([None; LANES], [None; LANES]);
-        for (i, lane) in lanes.iter().enumerate() {
-            let (Some((ray, path)), Some((t, u, v, prim))) = (lane, hits.get(i)) else {
+        // Lit lanes in structure-of-arrays form, for their shadow-ray packets.
+        let mut lit = LitLanes::default();
+        // Most packets make no child rays, so the child packets are made when needed.
+        let (mut reflected, mut refracted): (Option<PathPacket>, Option<PathPacket>) = (None, None);
+        for i in 0..LANES {
+            if !(lanes.on[i] && surf.hit[i]) {
                 continue;
-            };
-            let (ray, path) = (*ray, *path);
-            let hit = Hit { t, u, v, prim };
-            let s = self.scene.surface(&ray, &hit);
-            let m = &self.scene.materials[s.material as usize];
+            }
+            let (path, t) = (lanes.paths[i], surf.t[i]);
+            let m = &self.scene.materials[surf.material[i] as usize];
+            // The common case first, as a plain test (a `match` here compiles to a jump table,
+            // whose indirect jump mispredicts as often as lanes change material).
+            if self.point_lit[surf.material[i] as usize] {
+                lit.set(i, &surf, m.color.into());
+                next[i] = Next::Lit(t, path);
+                continue;
+            }
             next[i] = match m.kind {
                 _ if self.settings.stage == Stage::One => {
                     vals[i] = Vec3A::ZERO + Vec3A::from(m.color);
                     Next::Done
                 }
-                _ if self.point_lit_only(m) => Next::Lit(s, m.color.into(), t, path),
                 MaterialKind::Reflective | MaterialKind::Refractive if path.depth >= self.settings.max_depth => {
                     Next::Done
                 }
                 MaterialKind::Reflective => {
-                    reflected[i] = Some(Self::mirror(&ray, &s, path));
+                    let (r, p) = Self::mirror(&lanes.ray(i), &surf.get(i), path);
+                    reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
                     Next::Mirror(t, path)
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
-                    let g = self.glass(&ray, &s, m, path);
-                    reflected[i] = self.glass_reflected(&g, path);
-                    refracted[i] = self.glass_refracted(&g, path);
+                    let g = self.glass(&lanes.ray(i), &surf.get(i), m, path);
+                    if let Some((r, p)) = self.glass_reflected(&g, path) {
+                        reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
+                    }
+                    if let Some((r, p)) = self.glass_refracted(&g, path) {
+                        refracted.get_or_insert_with(PathPacket::default).set(i, &r, p);
+                    }
                     Next::Glass(g.kr, t, path)
                 }
                 _ => {
                     let mut rng = self.lane_rng(jobs[i]);
+                    let Some((t, u, v, prim)) = hits.get(i) else {
+                        unreachable!("lane {i} has a surface, so it has a hit")
+                    };
+                    let hit = Hit { t, u, v, prim };
+                    let (ray, s) = (lanes.ray(i), surf.get(i));
                     vals[i] = self
                         .trace_hit(&ray, &hit, &s, path, true, 0, &mut rng, &mut NoObserver, c)
                         .total();
@@ -125,22 +159,23 @@ impl<I: Intersect> Integrator<'_, I> {
             };
         }
 
-        let lights = self.point_lights_packet(bvh, lanes, &next, c);
+        let lights = self.point_lights_packet(bvh, &lit, c);
         // Children in the order the one-ray recursion traces them: each lane's reflected ray
         // before its refracted one (lanes are independent, so only the per-lane order matters).
-        let from_reflected = self.children(bvh, &reflected, jobs, c);
-        let from_refracted = self.children(bvh, &refracted, jobs, c);
+        let from_reflected = self.children(bvh, reflected.as_ref(), jobs, c);
+        let from_refracted = self.children(bvh, refracted.as_ref(), jobs, c);
+        let on = |p: &Option<PathPacket>, i: usize| p.as_ref().is_some_and(|p| p.on[i]);
         for i in 0..LANES {
             let (li, t, path) = match next[i] {
                 Next::Done => continue,
-                Next::Lit(_, _, t, path) => (Li::reflected(lights[i]), t, path),
+                Next::Lit(t, path) => (Li::reflected(lights[i]), t, path),
                 Next::Mirror(t, path) => (Li::reflected(from_reflected[i]), t, path),
                 Next::Glass(kr, t, path) => {
                     let mut out = Vec3A::ZERO;
-                    if reflected[i].is_some() {
+                    if on(&reflected, i) {
                         out += from_reflected[i] * kr;
                     }
-                    if refracted[i].is_some() {
+                    if on(&refracted, i) {
                         out += from_refracted[i] * (1.0 - kr);
                     }
                     (Li::reflected(out), t, path)
@@ -152,48 +187,33 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 
     /// The child rays `lanes` traced as a packet (and counted), or nothing when there are none.
-    fn children(&self, bvh: &Bvh4, lanes: &Lanes, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
-        let n = lanes.iter().flatten().count();
-        if n == 0 {
+    fn children(&self, bvh: &Bvh4, lanes: Option<&PathPacket>, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
+        let Some(lanes) = lanes else {
             return [Vec3A::ZERO; LANES];
-        }
+        };
+        let n = lanes.on.iter().filter(|&&on| on).count();
         c.secondary += n as u64;
         self.trace_packet(bvh, lanes, jobs, c)
     }
 
-    /// Point-light shading of the `Lit` lanes, with their shadow rays made and traced as one
+    /// Point-light shading of the `lit` lanes, with their shadow rays made and traced as one
     /// packet per light ([`Bvh4::light_rays`], which runs the single-ray code's arithmetic per
     /// lane), so each lane's sum is what `direct_point_lights` adds up.
-    fn point_lights_packet(&self, bvh: &Bvh4, lanes: &Lanes, next: &[Next; LANES], c: &mut Counters) -> [Vec3A; LANES] {
+    fn point_lights_packet(&self, bvh: &Bvh4, lit: &LitLanes, c: &mut Counters) -> [Vec3A; LANES] {
         let mut sums = [Vec3A::ZERO; LANES];
-        // Lit lanes in structure-of-arrays form: shadow-ray origins, shading normals, albedos.
-        let mut lit = [false; LANES];
-        let (mut org, mut ns, mut alb) = ([[0f32; LANES]; 3], [[0f32; LANES]; 3], [[0f32; LANES]; 3]);
-        for (i, n) in next.iter().enumerate() {
-            let (Next::Lit(s, albedo, ..), Some((ray, _))) = (n, lanes[i]) else {
-                continue;
-            };
-            lit[i] = true;
-            let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
-            for a in 0..3 {
-                org[a][i] = origin[a];
-                ns[a][i] = s.shading_normal[a];
-                alb[a][i] = albedo[a];
-            }
-        }
-        if !lit.iter().any(|&l| l) {
+        if !lit.on.iter().any(|&l| l) {
             return sums;
         }
         for light in &self.scene.lights {
-            let vis = bvh.light_rays(&org, &ns, &lit, light.position.to_array());
+            let vis = bvh.light_rays(&lit.org, &lit.ns, &lit.on, light.position.to_array());
             c.shadow += u64::from(vis.rays);
             let col = Vec3A::from(light.color);
             for i in 0..LANES {
-                if !lit[i] {
+                if !lit.on[i] {
                     continue;
                 }
                 let contrib = if vis.visible[i] {
-                    Vec3A::new(alb[0][i], alb[1][i], alb[2][i]) * col * vis.cos[i]
+                    Vec3A::new(lit.alb[0][i], lit.alb[1][i], lit.alb[2][i]) * col * vis.cos[i]
                 } else {
                     Vec3A::ZERO
                 };
@@ -212,22 +232,252 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 }
 
-/// Each lane's ray and path state, `None` for an unused lane.
-type Lanes = [Option<(Ray, PathState)>; LANES];
+/// A packet of rays to trace with each lane's path state.
+#[derive(Clone)]
+struct PathPacket {
+    /// The rays: `t_max` is +∞ for lanes in use, −∞ for the others.
+    rays: RayPacket,
+    /// Which lanes are in use.
+    on: [bool; LANES],
+    /// Each lane's path state.
+    paths: [PathState; LANES],
+}
+
+impl Default for PathPacket {
+    fn default() -> Self {
+        Self {
+            rays: RayPacket::default(),
+            on: [false; LANES],
+            paths: [PathState::CAMERA; LANES],
+        }
+    }
+}
+
+impl PathPacket {
+    /// Puts `ray` with `path` in lane `i`.
+    #[inline]
+    fn set(&mut self, i: usize, ray: &Ray, path: PathState) {
+        self.rays.set(i, ray, f32::INFINITY);
+        self.on[i] = true;
+        self.paths[i] = path;
+    }
+
+    /// Lane `i`'s ray.
+    #[inline]
+    fn ray(&self, i: usize) -> Ray {
+        let r = &self.rays;
+        Ray::new(
+            Vec3A::new(r.o[0][i], r.o[1][i], r.o[2][i]),
+            Vec3A::new(r.d[0][i], r.d[1][i], r.d[2][i]),
+        )
+    }
+}
 
 /// Packet recursion deeper than this continues one ray at a time (each level holds a few
 /// kilobytes of stack).
 const MAX_PACKET_DEPTH: u32 = 12;
+
+/// The lanes whose hits are lit by point lights alone, in structure-of-arrays form.
+#[derive(Default)]
+struct LitLanes {
+    /// Which lanes.
+    on: [bool; LANES],
+    /// Shadow-ray origins: the hit point moved off the surface.
+    org: [[f32; LANES]; 3],
+    /// Shading normals.
+    ns: [[f32; LANES]; 3],
+    /// Albedos.
+    alb: [[f32; LANES]; 3],
+}
+
+impl LitLanes {
+    /// Lane `i`: its ray hit surface `i` of `surf`, whose albedo is `albedo`.
+    #[inline]
+    fn set(&mut self, i: usize, surf: &PacketSurfaces, albedo: Vec3A) {
+        self.on[i] = true;
+        for a in 0..3 {
+            self.org[a][i] = surf.frames.outside[a][i];
+            self.ns[a][i] = surf.frames.shading_normal[a][i];
+            self.alb[a][i] = albedo[a];
+        }
+    }
+}
+
+/// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
+/// [`Scene::surface`] returns ([`surface_frames`] computes the geometry).
+struct PacketSurfaces {
+    /// Lanes whose ray hit something.
+    hit: [bool; LANES],
+    /// Hit distance.
+    t: [f32; LANES],
+    /// Hit points, normals and offset origins.
+    frames: SurfaceFrames,
+    /// Entity index.
+    entity: [u32; LANES],
+    /// Material index.
+    material: [u32; LANES],
+}
+
+impl PacketSurfaces {
+    /// The surfaces of `hits`, found by tracing `rays`.
+    fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
+        let mut g = HitPrims::default();
+        let (mut entity, mut material) = ([0; LANES], [0; LANES]);
+        let put = |dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]| {
+            for (ax, x) in v.into_iter().enumerate() {
+                dst[ax][i] = x;
+            }
+        };
+        for i in 0..LANES {
+            let Some((t, u, v, prim)) = hits.get(i) else {
+                continue;
+            };
+            g.hit[i] = true;
+            g.t[i] = t;
+            (entity[i], material[i]) = scene.prim_info(prim);
+            match prim {
+                PrimRef::Plane(k) => put(&mut g.a, i, scene.planes[k as usize].normal.to_array()),
+                PrimRef::Sphere(k) => {
+                    let sp = &scene.spheres[k as usize];
+                    g.sphere[i] = true;
+                    put(&mut g.a, i, sp.center.to_array());
+                    g.radius[i] = sp.radius;
+                }
+                PrimRef::Triangle(k) => {
+                    let tri = &scene.triangles[k as usize];
+                    g.triangle[i] = true;
+                    put(&mut g.a, i, tri.e1.to_array());
+                    put(&mut g.b, i, tri.e2.to_array());
+                    if let Some(ns) = scene.triangle_info[k as usize].normals {
+                        let sm = g.smooth.get_or_insert_with(SmoothNormals::default);
+                        sm.on[i] = true;
+                        for (c, n) in ns.iter().enumerate() {
+                            put(&mut sm.vn[c], i, n.to_array());
+                        }
+                        (sm.bu[i], sm.bv[i]) = (u, v);
+                    }
+                }
+            }
+        }
+        Self {
+            frames: surface_frames(rays, &g),
+            hit: g.hit,
+            t: g.t,
+            entity,
+            material,
+        }
+    }
+
+    /// Lane `i`'s surface as [`Scene::surface`] returns it.
+    #[inline]
+    fn get(&self, i: usize) -> Surface {
+        let f = &self.frames;
+        let lane = |v: &[[f32; LANES]; 3]| Vec3A::new(v[0][i], v[1][i], v[2][i]);
+        Surface {
+            point: lane(&f.point),
+            normal: lane(&f.normal),
+            shading_normal: lane(&f.shading_normal),
+            front_face: f.front_face[i],
+            entity: self.entity[i],
+            material: self.material[i],
+        }
+    }
+}
 
 /// What a lane still needs once its packet's closest hits are known.
 #[derive(Debug, Clone, Copy)]
 enum Next {
     /// Nothing: its value is final.
     Done,
-    /// Point lights at this surface with this albedo; hit distance and path (Beer's law).
-    Lit(Surface, Vec3A, f32, PathState),
+    /// Point lights (the lane is in the packet's [`LitLanes`]); hit distance and path (Beer's law).
+    Lit(f32, PathState),
     /// A mirror: its reflected ray's radiance.
     Mirror(f32, PathState),
     /// Glass with this Fresnel reflectance: its reflected and refracted rays' radiance.
     Glass(f32, f32, PathState),
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::math::offset_eps;
+    use crate::rng::Rng;
+
+    /// Random packets from points inside and outside `scene`'s objects, in random directions.
+    fn packets(scene: &Scene, seed: u64, mut check: impl FnMut(&RayPacket, &PacketSurfaces, usize)) {
+        let bvh = &scene.wide;
+        let mut rng = Rng::for_sample(seed, 0, 0);
+        let mut r = move || rng.next_f32() * 2.0 - 1.0;
+        let mut hits = 0;
+        for _ in 0..300 {
+            let mut rays = RayPacket::default();
+            let o = Vec3A::new(r() * 0.9, r() * 0.9, 1.5 + r() * 1.4);
+            for i in 0..LANES {
+                // Some lanes off, so unused lanes are covered too.
+                if i % 7 != 3 {
+                    let d = Vec3A::new(r(), r(), r()).normalize();
+                    rays.set(i, &Ray::new(o, d), f32::INFINITY);
+                }
+            }
+            let mut traced = rays.clone();
+            let h = bvh.closest_rays(&mut traced, 0.0);
+            let surf = PacketSurfaces::new(scene, &rays, &h);
+            for i in 0..LANES {
+                assert_eq!(surf.hit[i], h.get(i).is_some(), "lane {i}");
+                if surf.hit[i] {
+                    hits += 1;
+                    check(&rays, &surf, i);
+                }
+            }
+        }
+        assert!(hits > 1000, "only {hits} hits");
+    }
+
+    fn load(name: &str) -> Scene {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../..").join(name);
+        Scene::from_file(&rayscope_scene::load(&path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display())))
+    }
+
+    /// Each lane's surface is what `Scene::surface` returns for its ray and hit, bit for bit,
+    /// and its offset origin is the single-ray code's: on planes, spheres (from inside and out),
+    /// flat triangles and the bunny's smooth ones.
+    #[test]
+    fn packet_surfaces_are_scene_surfaces() {
+        for (name, seed) in [
+            ("shared/reference/tests/sample_scene_2.txt", 1),
+            ("shared/reference/tests/sample_scene_obj.txt", 2),
+        ] {
+            let scene = load(name);
+            let mut kinds = [0; 3];
+            packets(&scene, seed, |rays, surf, i| {
+                let ray = Ray::new(
+                    Vec3A::new(rays.o[0][i], rays.o[1][i], rays.o[2][i]),
+                    Vec3A::new(rays.d[0][i], rays.d[1][i], rays.d[2][i]),
+                );
+                let mut traced = rays.clone();
+                let (t, u, v, prim) = scene.wide.closest_rays(&mut traced, 0.0).get(i).unwrap();
+                kinds[match prim {
+                    PrimRef::Plane(_) => 0,
+                    PrimRef::Sphere(_) => 1,
+                    PrimRef::Triangle(_) => 2,
+                }] += 1;
+                let want = scene.surface(&ray, &Hit { t, u, v, prim });
+                let got = surf.get(i);
+                let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(got.point), bits(want.point), "{name} lane {i} point");
+                assert_eq!(bits(got.normal), bits(want.normal), "{name} lane {i} normal");
+                assert_eq!(bits(got.shading_normal), bits(want.shading_normal), "{name} lane {i}");
+                assert_eq!(
+                    (got.front_face, got.entity, got.material),
+                    (want.front_face, want.entity, want.material)
+                );
+                let outside = want.point + want.normal * offset_eps(want.point, ray.origin);
+                let f = &surf.frames.outside;
+                assert_eq!([f[0][i], f[1][i], f[2][i]].map(f32::to_bits), bits(outside));
+            });
+            assert!(kinds.iter().filter(|&&k| k > 0).count() >= 2, "{name}: {kinds:?}");
+        }
+    }
 }

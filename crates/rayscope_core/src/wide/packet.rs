@@ -94,12 +94,18 @@ impl PacketHits {
     pub fn get(&self, i: usize) -> Option<(f32, f32, f32, PrimRef)> {
         let p = self.prim[i];
         let id = p & !TAG_MASK;
-        let prim = match p & TAG_MASK {
-            TAG_PLANE => PrimRef::Plane(id),
-            TAG_SPHERE => PrimRef::Sphere(id),
-            TAG_TRI => PrimRef::Triangle(id),
+        // Tests rather than a `match`, which compiles to a jump table whose indirect jump
+        // mispredicts whenever neighbouring lanes hit different kinds of primitive.
+        let tag = p & TAG_MASK;
+        let prim = if tag == TAG_TRI {
+            PrimRef::Triangle(id)
+        } else if tag == TAG_PLANE {
+            PrimRef::Plane(id)
+        } else if tag == TAG_SPHERE {
+            PrimRef::Sphere(id)
+        } else {
             // Tag 0: no hit (the default).
-            _ => return None,
+            return None;
         };
         Some((self.t[i], self.u[i], self.v[i], prim))
     }
@@ -587,29 +593,30 @@ impl Bvh4 {
     #[inline(always)]
     pub(super) fn light_rays_impl(&self, org: &[F; 3], ns: &[F; 3], lit: &Mask, light: [f32; 3]) -> LightRays {
         let mut shadow = RayPacket::default();
-        let mut out = LightRays {
-            cos: [0.0; LANES],
-            visible: [false; LANES],
-            rays: 0,
-        };
-        let mut traced = [false; LANES];
+        let mut cos = [0.0; LANES];
+        let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
+        // Only locals are written here: a running count in `LightRays` kept the loop scalar.
         for i in 0..LANES {
             let to = [light[0] - org[0][i], light[1] - org[1][i], light[2] - org[2][i]];
             // glam's length and division by a scalar, per component.
             let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
             let dir = [to[0] / dist, to[1] / dist, to[2] / dist];
-            let valid = lit[i] & (dist != 0.0);
-            let cos = ns[0][i] * dir[0] + ns[1][i] * dir[1] + ns[2][i] * dir[2];
-            out.cos[i] = sel(valid, cos, 0.0);
-            out.rays += u32::from(valid);
+            valid[i] = lit[i] & (dist != 0.0);
+            let c = ns[0][i] * dir[0] + ns[1][i] * dir[1] + ns[2][i] * dir[2];
+            cos[i] = sel(valid[i], c, 0.0);
             // Rays behind the surface cannot contribute and are not traced.
-            traced[i] = valid & (cos > 0.0);
+            traced[i] = valid[i] & (c > 0.0);
             for a in 0..3 {
                 shadow.o[a][i] = org[a][i];
                 shadow.d[a][i] = dir[a];
             }
             shadow.t_max[i] = sel(traced[i], dist, f32::NEG_INFINITY);
         }
+        let mut out = LightRays {
+            cos,
+            visible: [false; LANES],
+            rays: valid.iter().map(|&v| u32::from(v)).sum(),
+        };
         if any(&traced) {
             let blocked = self.occluded_rays_impl(&mut shadow, 0.0);
             for i in 0..LANES {
