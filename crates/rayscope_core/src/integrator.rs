@@ -93,7 +93,16 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub branch_cutoff: f32,
     /// Per material: a hit on it is shaded by point lights alone (see `point_lit_only`).
     pub(crate) point_lit: Vec<bool>,
+    /// Side of the sample grid: N for `-x N`, 1 when a pixel takes one sample.
+    grid: u32,
+    /// Each grid cell's offset inside its pixel, ((i + 0.5)/N, (j + 0.5)/N), row by row; empty
+    /// for grids too large to tabulate. Looked up rather than recomputed because the integer
+    /// divisions that find (i, j) cost as much as making the camera ray.
+    cells: Vec<[f32; 2]>,
 }
+
+/// Largest grid side whose cell offsets are tabulated (16,384 cells, 128 KiB).
+const MAX_TABULATED_GRID: u32 = 128;
 
 /// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
 type Frame = (Vec3A, Vec3A, Vec3A, Vec3A);
@@ -250,8 +259,44 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             stochastic,
             branch_cutoff,
             point_lit: Vec::new(),
+            grid: 1,
+            cells: Vec::new(),
         }
         .with_point_lit()
+        .with_grid()
+    }
+
+    /// Fills in [`Self::grid`] and [`Self::cells`].
+    fn with_grid(mut self) -> Self {
+        let n = if self.samples_per_pixel() == 1 {
+            1
+        } else {
+            self.settings.aa.max(1)
+        };
+        self.grid = n;
+        if n <= MAX_TABULATED_GRID {
+            self.cells = (0..n * n).map(|c| Self::cell_offset_of(c, n)).collect();
+        }
+        self
+    }
+
+    /// Offset of cell `cell` of an `n`×`n` grid inside its pixel.
+    #[inline]
+    fn cell_offset_of(cell: u32, n: u32) -> [f32; 2] {
+        let (i, j) = (cell % n, cell / n);
+        [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32]
+    }
+
+    /// Offset inside its pixel of sample `s`: that of cell `s mod N²`.
+    #[inline]
+    pub(crate) fn cell_offset(&self, s: u32) -> [f32; 2] {
+        let nn = self.grid * self.grid;
+        // Samples come in order, so `s < N²` (no division) unless `-q` repeats the grid.
+        let cell = if s < nn { s } else { s % nn };
+        match self.cells.get(cell as usize) {
+            Some(&o) => o,
+            None => Self::cell_offset_of(cell, self.grid),
+        }
     }
 
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
@@ -280,19 +325,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[must_use]
     #[inline]
     pub fn sample_position(&self, x: u32, y: u32, s: u32) -> (f32, f32) {
-        let n = if self.samples_per_pixel() == 1 {
-            1
-        } else {
-            self.settings.aa
-        };
-        let cell = s % (n * n);
-        let (i, j) = (cell % n, cell / n);
+        let [ox, oy] = self.cell_offset(s);
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;
-        (
-            (x as f32 + (i as f32 + 0.5) / n as f32) / w,
-            (y as f32 + (j as f32 + 0.5) / n as f32) / h,
-        )
+        ((x as f32 + ox) / w, (y as f32 + oy) / h)
     }
 
     /// The camera ray of sample `s` of pixel (`x`, `y`).

@@ -62,10 +62,16 @@ impl<I: Intersect> Integrator<'_, I> {
     /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
     pub(crate) fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        // Unused lanes aim at the image centre; they are never switched on.
-        let (mut u, mut v) = ([0.5; LANES], [0.5; LANES]);
+        // Self::sample_position, with the divisions done for all lanes at once. Unused lanes
+        // aim at the image's corner; they are never switched on.
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
-            (u[i], v[i]) = self.sample_position(x, y, s);
+            let [ox, oy] = self.cell_offset(s);
+            (u[i], v[i]) = (x as f32 + ox, y as f32 + oy);
+        }
+        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+        for i in 0..LANES {
+            (u[i], v[i]) = (u[i] / w, v[i] / h);
         }
         let mut lanes = PathPacket::default();
         lanes.rays.d = self.camera.ray_dirs(&u, &v);
@@ -103,24 +109,30 @@ impl<I: Intersect> Integrator<'_, I> {
         let hits = bvh.closest_rays(&mut rays, 0.0);
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
-        let mut next = [Next::Done; LANES];
-        // Lit lanes in structure-of-arrays form, for their shadow-ray packets.
+        // Lanes lit by point lights alone (the common case) are found without a branch per
+        // lane; the others go through `next`.
         let mut lit = LitLanes::default();
+        let mut other = [false; LANES];
+        for i in 0..LANES {
+            // Lanes without a hit have material 0, which a scene without objects lacks.
+            let mat = surf.material[i] as usize;
+            let on = lanes.on[i] & surf.hit[i];
+            lit.on[i] = on & self.point_lit.get(mat).copied().unwrap_or(false);
+            other[i] = on & !lit.on[i];
+            let albedo = self.scene.materials.get(mat).map_or(glam::Vec3::ZERO, |m| m.color);
+            for a in 0..3 {
+                lit.alb[a][i] = albedo[a];
+            }
+        }
+        let mut next = [Next::Done; LANES];
         // Most packets make no child rays, so the child packets are made when needed.
         let (mut reflected, mut refracted): (Option<PathPacket>, Option<PathPacket>) = (None, None);
         for i in 0..LANES {
-            if !(lanes.on[i] && surf.hit[i]) {
+            if !other[i] {
                 continue;
             }
             let (path, t) = (lanes.paths[i], surf.t[i]);
             let m = &self.scene.materials[surf.material[i] as usize];
-            // The common case first, as a plain test (a `match` here compiles to a jump table,
-            // whose indirect jump mispredicts as often as lanes change material).
-            if self.point_lit[surf.material[i] as usize] {
-                lit.set(i, &surf, m.color.into());
-                next[i] = Next::Lit(t, path);
-                continue;
-            }
             next[i] = match m.kind {
                 _ if self.settings.stage == Stage::One => {
                     vals[i] = Vec3A::ZERO + Vec3A::from(m.color);
@@ -159,16 +171,20 @@ impl<I: Intersect> Integrator<'_, I> {
             };
         }
 
-        let lights = self.point_lights_packet(bvh, &lit, c);
+        let lights = self.point_lights_packet(bvh, &lit, &surf.frames, c);
         // Children in the order the one-ray recursion traces them: each lane's reflected ray
         // before its refracted one (lanes are independent, so only the per-lane order matters).
         let from_reflected = self.children(bvh, reflected.as_ref(), jobs, c);
         let from_refracted = self.children(bvh, refracted.as_ref(), jobs, c);
         let on = |p: &Option<PathPacket>, i: usize| p.as_ref().is_some_and(|p| p.on[i]);
         for i in 0..LANES {
+            if lit.on[i] {
+                let light = Vec3A::new(lights[0][i], lights[1][i], lights[2][i]);
+                vals[i] = self.absorb(lanes.paths[i], surf.t[i], Li::reflected(light)).total();
+                continue;
+            }
             let (li, t, path) = match next[i] {
                 Next::Done => continue,
-                Next::Lit(t, path) => (Li::reflected(lights[i]), t, path),
                 Next::Mirror(t, path) => (Li::reflected(from_reflected[i]), t, path),
                 Next::Glass(kr, t, path) => {
                     let mut out = Vec3A::ZERO;
@@ -196,28 +212,40 @@ impl<I: Intersect> Integrator<'_, I> {
         self.trace_packet(bvh, lanes, jobs, c)
     }
 
-    /// Point-light shading of the `lit` lanes, with their shadow rays made and traced as one
-    /// packet per light ([`Bvh4::light_rays`], which runs the single-ray code's arithmetic per
-    /// lane), so each lane's sum is what `direct_point_lights` adds up.
-    fn point_lights_packet(&self, bvh: &Bvh4, lit: &LitLanes, c: &mut Counters) -> [Vec3A; LANES] {
-        let mut sums = [Vec3A::ZERO; LANES];
+    /// Point-light shading of the `lit` lanes at surfaces `frames`, per axis, with their shadow
+    /// rays made and traced as one packet per light ([`Bvh4::light_rays`], which runs the
+    /// single-ray code's arithmetic per lane), so each lane's sum is what `direct_point_lights`
+    /// adds up, in the same order.
+    fn point_lights_packet(
+        &self,
+        bvh: &Bvh4,
+        lit: &LitLanes,
+        frames: &SurfaceFrames,
+        c: &mut Counters,
+    ) -> [[f32; LANES]; 3] {
+        let mut sums = [[0.0; LANES]; 3];
         if !lit.on.iter().any(|&l| l) {
             return sums;
         }
         for light in &self.scene.lights {
-            let vis = bvh.light_rays(&lit.org, &lit.ns, &lit.on, light.position.to_array());
+            let vis = bvh.light_rays(
+                &frames.outside,
+                &frames.shading_normal,
+                &lit.on,
+                light.position.to_array(),
+            );
             c.shadow += u64::from(vis.rays);
-            let col = Vec3A::from(light.color);
-            for i in 0..LANES {
-                if !lit.on[i] {
-                    continue;
+            let col = light.color.to_array();
+            for a in 0..3 {
+                for i in 0..LANES {
+                    // albedo × colour × cosine, or zero when the light is hidden (glam's order).
+                    let contrib = if vis.visible[i] {
+                        lit.alb[a][i] * col[a] * vis.cos[i]
+                    } else {
+                        0.0
+                    };
+                    sums[a][i] += contrib;
                 }
-                let contrib = if vis.visible[i] {
-                    Vec3A::new(lit.alb[0][i], lit.alb[1][i], lit.alb[2][i]) * col * vis.cos[i]
-                } else {
-                    Vec3A::ZERO
-                };
-                sums[i] += contrib;
             }
         }
         sums
@@ -277,30 +305,14 @@ impl PathPacket {
 /// kilobytes of stack).
 const MAX_PACKET_DEPTH: u32 = 12;
 
-/// The lanes whose hits are lit by point lights alone, in structure-of-arrays form.
+/// The lanes whose hits are lit by point lights alone, and their albedos (the shadow rays start
+/// from the packet's [`SurfaceFrames`]).
 #[derive(Default)]
 struct LitLanes {
     /// Which lanes.
     on: [bool; LANES],
-    /// Shadow-ray origins: the hit point moved off the surface.
-    org: [[f32; LANES]; 3],
-    /// Shading normals.
-    ns: [[f32; LANES]; 3],
-    /// Albedos.
+    /// Albedos, per axis.
     alb: [[f32; LANES]; 3],
-}
-
-impl LitLanes {
-    /// Lane `i`: its ray hit surface `i` of `surf`, whose albedo is `albedo`.
-    #[inline]
-    fn set(&mut self, i: usize, surf: &PacketSurfaces, albedo: Vec3A) {
-        self.on[i] = true;
-        for a in 0..3 {
-            self.org[a][i] = surf.frames.outside[a][i];
-            self.ns[a][i] = surf.frames.shading_normal[a][i];
-            self.alb[a][i] = albedo[a];
-        }
-    }
 }
 
 /// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
@@ -389,8 +401,6 @@ impl PacketSurfaces {
 enum Next {
     /// Nothing: its value is final.
     Done,
-    /// Point lights (the lane is in the packet's [`LitLanes`]); hit distance and path (Beer's law).
-    Lit(f32, PathState),
     /// A mirror: its reflected ray's radiance.
     Mirror(f32, PathState),
     /// Glass with this Fresnel reflectance: its reflected and refracted rays' radiance.
