@@ -442,16 +442,47 @@ fn node_test(node: &Node4, rays: &RayPacket, nc: &PacketNodeConsts, t_min: f32) 
         }
         if any(&hit) {
             mask |= 1 << c;
-            near[c] = entry.iter().fold(f32::INFINITY, |m, &x| m.min(x));
+            near[c] = min_lane(entry);
         }
     }
     (mask, near)
 }
 
+/// The smallest of sixteen values, none NaN (entry distances start at `t_min` and only take
+/// values that compare greater), by halving: a fold compiles to a chain of dependent minima.
+#[inline(always)]
+fn min_lane(mut m: F) -> f32 {
+    let mut w = LANES / 2;
+    while w > 0 {
+        for i in 0..w {
+            m[i] = if m[i + w] < m[i] { m[i + w] } else { m[i] };
+        }
+        w /= 2;
+    }
+    m[0]
+}
+
 /// The largest interval end over the packet: a child entered beyond it cannot matter.
 #[inline(always)]
 fn max_t(rays: &RayPacket) -> f32 {
-    rays.t_max.iter().fold(f32::NEG_INFINITY, |m, &x| m.max(x))
+    // Halving rather than a fold: `f32::max` treats NaN specially, so a fold compiles to a
+    // chain of sixteen dependent scalar maxima. Interval ends are never NaN (a NaN distance
+    // fails every comparison that would store it), so the order does not matter.
+    let mut m = rays.t_max;
+    let mut w = LANES / 2;
+    while w > 0 {
+        for i in 0..w {
+            m[i] = if m[i + w] > m[i] { m[i + w] } else { m[i] };
+        }
+        w /= 2;
+    }
+    m[0]
+}
+
+/// True when every ray of the packet is closed (blocked, or unused).
+#[inline(always)]
+fn all_closed(rays: &RayPacket) -> bool {
+    rays.t_max.iter().fold(true, |a, &t| a & (t == f32::NEG_INFINITY))
 }
 
 impl Bvh4 {
@@ -531,7 +562,7 @@ impl Bvh4 {
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
                 self.leaf_occlude_rays(r, rays, t_min, blocked);
-                if max_t(rays) == f32::NEG_INFINITY {
+                if all_closed(rays) {
                     return;
                 }
                 continue;
@@ -572,12 +603,12 @@ impl Bvh4 {
         }
         for &r in &self.flat {
             // Every ray blocked: nothing left to test.
-            if max_t(rays) == f32::NEG_INFINITY {
+            if all_closed(rays) {
                 return blocked;
             }
             self.leaf_occlude_rays(r, rays, t_min, &mut blocked);
         }
-        if self.root == EMPTY || max_t(rays) == f32::NEG_INFINITY {
+        if self.root == EMPTY || all_closed(rays) {
             return blocked;
         }
         if self.deep {
