@@ -524,21 +524,32 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
         let kr = fresnel(cos_i, n1, n2);
         let eps = offset_eps(s.point, ray.origin);
-        let absorbing = self.settings.stage == Stage::Full && m.color != glam::Vec3::ZERO;
-        let this = absorbing.then_some(s.material);
         let refracted = if kr < 1.0 {
             refract(ray.dir, s.normal, n1 / n2)
         } else {
             None
         };
+        let (refl_medium, refr_medium) = self.glass_media(s, m, path);
         Glass {
             kr,
             reflected: Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize()),
             refracted: refracted.map(|t| Ray::new(s.point - s.normal * eps, t)),
-            // Reflected rays stay on the incoming side; refracted rays cross into the other
-            // medium (the outside of every object is air).
-            refl_medium: if s.front_face { path.medium } else { this },
-            refr_medium: if s.front_face { this } else { None },
+            refl_medium,
+            refr_medium,
+        }
+    }
+
+    /// The media a glass hit's reflected and refracted rays travel in.
+    #[inline]
+    fn glass_media(&self, s: &Surface, m: &Material, path: PathState) -> (Option<u32>, Option<u32>) {
+        let absorbing = self.settings.stage == Stage::Full && m.color != glam::Vec3::ZERO;
+        let this = absorbing.then_some(s.material);
+        // Reflected rays stay on the incoming side; refracted rays cross into the other medium
+        // (the outside of every object is air).
+        if s.front_face {
+            (path.medium, this)
+        } else {
+            (this, None)
         }
     }
 

@@ -22,7 +22,7 @@ mod dispatch;
 mod packet;
 mod surface;
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
-pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
+pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
 
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;

@@ -14,13 +14,16 @@
 
 use glam::Vec3A;
 
-use super::{Counters, Integrator, Li, PathState};
+use super::{Counters, Glass, Integrator, Li, PathState};
 use crate::math::Ray;
 use crate::observer::NoObserver;
 use crate::rng::Rng;
 use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
 use crate::settings::{Channel, Stage};
-use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SurfaceFrames, LANES};
+use crate::wide::{
+    specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SpecularRays, SurfaceFrames,
+    LANES,
+};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
@@ -113,20 +116,29 @@ impl<I: Intersect> Integrator<'_, I> {
         // lane; the others go through `next`.
         let mut lit = LitLanes::default();
         let mut other = [false; LANES];
+        let mut ior = [1.0; LANES];
         for i in 0..LANES {
             // Lanes without a hit have material 0, which a scene without objects lacks.
             let mat = surf.material[i] as usize;
             let on = lanes.on[i] & surf.hit[i];
             lit.on[i] = on & self.point_lit.get(mat).copied().unwrap_or(false);
             other[i] = on & !lit.on[i];
-            let albedo = self.scene.materials.get(mat).map_or(glam::Vec3::ZERO, |m| m.color);
+            let (albedo, value) = self
+                .scene
+                .materials
+                .get(mat)
+                .map_or((glam::Vec3::ZERO, 1.0), |m| (m.color, m.value));
             for a in 0..3 {
                 lit.alb[a][i] = albedo[a];
             }
+            ior[i] = value;
         }
         let mut next = [Next::Done; LANES];
         // Most packets make no child rays, so the child packets are made when needed.
         let (mut reflected, mut refracted): (Option<PathPacket>, Option<PathPacket>) = (None, None);
+        // Mirror and glass rays, computed for the whole packet once some lane needs them.
+        let mut specular: Option<SpecularRays> = None;
+        let lane = |v: &[[f32; LANES]; 3], i: usize| Vec3A::new(v[0][i], v[1][i], v[2][i]);
         for i in 0..LANES {
             if !other[i] {
                 continue;
@@ -142,12 +154,27 @@ impl<I: Intersect> Integrator<'_, I> {
                     Next::Done
                 }
                 MaterialKind::Reflective => {
-                    let (r, p) = Self::mirror(&lanes.ray(i), &surf.get(i), path);
+                    // Self::mirror.
+                    let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
+                    let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
+                    let p = PathState {
+                        depth: path.depth + 1,
+                        ..path
+                    };
                     reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
                     Next::Mirror(t, path)
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
-                    let g = self.glass(&lanes.ray(i), &surf.get(i), m, path);
+                    // Self::glass.
+                    let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
+                    let (refl_medium, refr_medium) = self.glass_media(&surf.get(i), m, path);
+                    let g = Glass {
+                        kr: sp.kr[i],
+                        reflected: Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i)),
+                        refracted: sp.has_refracted[i].then(|| Ray::new(lane(&sp.inside, i), lane(&sp.refracted, i))),
+                        refl_medium,
+                        refr_medium,
+                    };
                     if let Some((r, p)) = self.glass_reflected(&g, path) {
                         reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
                     }

@@ -10,7 +10,7 @@
 #![allow(unsafe_code)]
 
 use super::packet::{LightRays, Mask, PacketHits, RayPacket};
-use super::surface::{surface_frames_impl, HitPrims, SurfaceFrames};
+use super::surface::{specular_rays_impl, surface_frames_impl, HitPrims, SpecularRays, SurfaceFrames};
 use super::Bvh4;
 use super::LANES;
 
@@ -75,6 +75,13 @@ dispatched!(
     surface_frames, surface_frames_avx512, surface_frames_avx2,
     (rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames,
     surface_frames_impl(rays, prims)
+);
+
+dispatched!(
+    /// The rays mirrors and glass send on from a packet's hits.
+    specular_rays, specular_rays_avx512, specular_rays_avx2,
+    (rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays,
+    specular_rays_impl(rays, frames, ior)
 );
 
 #[cfg(test)]
@@ -162,6 +169,7 @@ mod tests {
     /// on random lanes of every kind (smooth triangles included) and on degenerate ones.
     #[test]
     fn every_surface_kernel_build_agrees() {
+        // The geometry kernel, and the mirror and glass kernel on its output.
         use crate::wide::surface::{surface_frames_impl, HitPrims, SmoothNormals};
         let mut rng = Rng::for_sample(11, 0, 0);
         let mut r = move || rng.next_f32() * 4.0 - 2.0;
@@ -190,6 +198,21 @@ mod tests {
             }
             g.smooth = (round % 2 == 0).then_some(sm);
             let base = surface_frames_impl(&rays, &g);
+            // Glass of index 1 to 2.5 and one of 0.5 (total internal reflection from outside).
+            let ior: [f32; LANES] = std::array::from_fn(|i| if i == 2 { 0.5 } else { 1.75 + r() * 0.375 });
+            let base_spec = specular_rays_impl(&rays, &base, &ior);
+            // Bits, except that a NaN is any NaN: which operand's NaN an addition or a product
+            // passes on is not fixed (the compiler may swap them), and a NaN's sign with it.
+            let canon = |x: &f32| if x.is_nan() { f32::NAN.to_bits() } else { x.to_bits() };
+            let spec_bits = |s: &SpecularRays| {
+                let mut v: Vec<u32> = [s.reflected, s.refracted, s.inside]
+                    .iter()
+                    .flat_map(|a| a.iter().flatten().map(canon))
+                    .collect();
+                v.extend(s.kr.iter().map(canon));
+                v.extend(s.has_refracted.iter().map(|&b| u32::from(b)));
+                v
+            };
             let bits = |f: &SurfaceFrames| {
                 let mut v: Vec<u32> = [f.point, f.normal, f.shading_normal, f.outside]
                     .iter()
@@ -216,6 +239,15 @@ mod tests {
                     }
                 };
                 assert_eq!(bits(&wide), bits(&base), "{name}, round {round}");
+                // SAFETY: as above.
+                let wide_spec = unsafe {
+                    if name == "avx2" {
+                        specular_rays_avx2(&rays, &base, &ior)
+                    } else {
+                        specular_rays_avx512(&rays, &base, &ior)
+                    }
+                };
+                assert_eq!(spec_bits(&wide_spec), spec_bits(&base_spec), "{name}, round {round}");
             }
         }
     }

@@ -213,3 +213,76 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
 pub fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
     super::dispatch::surface_frames(rays, prims)
 }
+
+/// The rays mirrors and glass send on from a packet's hits: per lane, the arithmetic of the
+/// single-ray code's `mirror`, `glass`, `fresnel` and `refract` (meaningless in other lanes).
+#[derive(Debug, Clone)]
+pub struct SpecularRays {
+    /// Unit mirror-reflection direction.
+    pub reflected: [F; 3],
+    /// Fresnel reflectance of glass with the lane's index of refraction.
+    pub kr: F,
+    /// Lanes where light also refracts (reflectance below 1, no total internal reflection).
+    pub has_refracted: Mask,
+    /// Unit refracted direction, in those lanes.
+    pub refracted: [F; 3],
+    /// Where refracted rays start: the hit point moved off the surface to the far side.
+    pub inside: [F; 3],
+}
+
+/// The mirror and glass rays of the hits `f` of `rays`, glass having index of refraction `ior`.
+#[inline(always)]
+pub(super) fn specular_rays_impl(rays: &RayPacket, f: &SurfaceFrames, ior: &F) -> SpecularRays {
+    let mut out = SpecularRays {
+        reflected: [[0.0; LANES]; 3],
+        kr: [0.0; LANES],
+        has_refracted: [false; LANES],
+        refracted: [[0.0; LANES]; 3],
+        inside: [[0.0; LANES]; 3],
+    };
+    let (d, n, p) = (&rays.d, &f.normal, &f.point);
+    for i in 0..LANES {
+        let dn = d[0][i] * n[0][i] + d[1][i] * n[1][i] + d[2][i] * n[2][i];
+        // reflect(d, n) = d − n·(2 d·n), normalised.
+        let r: [f32; 3] = std::array::from_fn(|a| d[a][i] - n[a][i] * (2.0 * dn));
+        let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+        for a in 0..3 {
+            out.reflected[a][i] = r[a] / len;
+        }
+        // fresnel(cos_i, n1, n2) with cos_i = clamp(−d·n, 0, 1) (NaN passes through clamp).
+        let front = f.front_face[i];
+        let (n1, n2) = (sel(front, 1.0, ior[i]), sel(front, ior[i], 1.0));
+        let neg = -dn;
+        let cos_i = sel(neg < 0.0, 0.0, sel(neg > 1.0, 1.0, neg));
+        let eta = n1 / n2;
+        let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
+        let cos_t = (1.0 - sin2_t).sqrt();
+        let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+        let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
+        let kr = sel(sin2_t >= 1.0, 1.0, 0.5 * (rs * rs + rp * rp));
+        out.kr[i] = kr;
+        // refract(d, n, n1 / n2), tried only when kr < 1; its cosine is not clamped.
+        let sin2_r = eta * eta * (1.0 - neg * neg).max(0.0);
+        let cos_r = (1.0 - sin2_r).sqrt();
+        out.has_refracted[i] = (kr < 1.0) & (sin2_r < 1.0);
+        let t: [f32; 3] = std::array::from_fn(|a| d[a][i] * eta + n[a][i] * (eta * neg - cos_r));
+        let len = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
+        for a in 0..3 {
+            out.refracted[a][i] = t[a] / len;
+        }
+        // offset_eps, as for `SurfaceFrames::outside`, on the other side.
+        let c: [f32; 3] = std::array::from_fn(|a| maxps(p[a][i].abs(), rays.o[a][i].abs()));
+        let m = maxps(maxps(c[0], c[2]), maxps(c[1], c[2]));
+        let eps = (1e-5 * m).max(1e-30);
+        for a in 0..3 {
+            out.inside[a][i] = p[a][i] - n[a][i] * eps;
+        }
+    }
+    out
+}
+
+/// The rays mirrors and glass send on from the hits `frames` of `rays`; see [`SpecularRays`].
+#[must_use]
+pub fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
+    super::dispatch::specular_rays(rays, frames, ior)
+}
