@@ -144,20 +144,24 @@ impl PacketBest {
         }
     }
 
-    /// Offers lane `i` a hit that passed the packet's filter.
+    /// Offers lane `i` a hit that passed the packet's filter; true when it is taken.
     #[inline(always)]
-    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, prim: u32) {
+    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, prim: u32) -> bool {
         let take = ok && (!self.found[i] || t < self.t[i]);
         self.t[i] = sel(take, t, self.t[i]);
         self.u[i] = sel(take, u, self.u[i]);
         self.v[i] = sel(take, v, self.v[i]);
         self.prim[i] = if take { prim } else { self.prim[i] };
         self.found[i] |= take;
+        take
     }
 
     /// Writes the packet's hits into the running result.
     #[inline(always)]
     fn commit(&self, rays: &mut RayPacket, hits: &mut PacketHits) {
+        if !any(&self.found) {
+            return;
+        }
         for i in 0..LANES {
             let f = self.found[i];
             rays.t_max[i] = sel(f, self.t[i], rays.t_max[i]);
@@ -223,6 +227,8 @@ impl TriPacket {
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         let mut best = PacketBest::new();
         let entry = rays.t_max;
+        // |d·n| of each lane's best hit, which its barycentrics are divided by.
+        let mut scale = [1.0; LANES];
         for k in 0..4 {
             let id = self.ids[k];
             if id == NO_PRIM {
@@ -237,8 +243,15 @@ impl TriPacket {
             for i in 0..LANES {
                 let ti = t[i] / a[i];
                 // As in the single-ray test: no nearer after the division, no hit.
-                best.offer(i, ok[i] & (ti < entry[i]), ti, u[i] / a[i], v[i] / a[i], TAG_TRI | id);
+                let take = best.offer(i, ok[i] & (ti < entry[i]), ti, u[i], v[i], TAG_TRI | id);
+                scale[i] = sel(take, a[i], scale[i]);
             }
+        }
+        // The barycentrics are divided once, for the nearest hit only (as the single-ray test
+        // does), rather than for every candidate.
+        for i in 0..LANES {
+            best.u[i] /= scale[i];
+            best.v[i] /= scale[i];
         }
         best.commit(rays, hits);
     }
