@@ -24,6 +24,19 @@ mod surface;
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
 pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
 
+/// Directions of the camera rays through pixel positions (`px`, `py`) of a `w` × `h` image:
+/// [`crate::camera::Camera::ray_dirs`] of (`px`/`w`, `py`/`h`), sixteen lanes at once.
+#[must_use]
+pub fn camera_dirs(
+    camera: &crate::camera::Camera,
+    px: &[f32; LANES],
+    py: &[f32; LANES],
+    w: f32,
+    h: f32,
+) -> [[f32; LANES]; 3] {
+    dispatch::camera_dirs(camera, px, py, w, h)
+}
+
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;
 /// Leaf flag: the packet holds spheres, not triangles.

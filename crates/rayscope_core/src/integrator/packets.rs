@@ -21,8 +21,8 @@ use crate::rng::Rng;
 use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::wide::{
-    specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SpecularRays, SurfaceFrames,
-    LANES,
+    camera_dirs, specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SpecularRays,
+    SurfaceFrames, LANES,
 };
 use rayscope_scene::MaterialKind;
 
@@ -65,19 +65,16 @@ impl<I: Intersect> Integrator<'_, I> {
     /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
     pub(crate) fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        // Self::sample_position, with the divisions done for all lanes at once. Unused lanes
-        // aim at the image's corner; they are never switched on.
+        // Self::sample_position, its divisions done for all lanes at once with the directions.
+        // Unused lanes aim at the image's corner; they are never switched on.
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
             let [ox, oy] = self.cell_offset(s);
             (u[i], v[i]) = (x as f32 + ox, y as f32 + oy);
         }
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        for i in 0..LANES {
-            (u[i], v[i]) = (u[i] / w, v[i] / h);
-        }
         let mut lanes = PathPacket::default();
-        lanes.rays.d = self.camera.ray_dirs(&u, &v);
+        lanes.rays.d = camera_dirs(&self.camera, &u, &v, w, h);
         let o = self.camera.origin.to_array();
         for i in 0..jobs.len() {
             for a in 0..3 {

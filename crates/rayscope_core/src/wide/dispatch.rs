@@ -13,6 +13,7 @@ use super::packet::{LightRays, Mask, PacketHits, RayPacket};
 use super::surface::{specular_rays_impl, surface_frames_impl, HitPrims, SpecularRays, SurfaceFrames};
 use super::Bvh4;
 use super::LANES;
+use crate::camera::Camera;
 
 /// Defines `$name`, which runs `$body` (an expression over the arguments) with the best
 /// instruction set the CPU has, and its AVX-512 and AVX2 builds `$name_avx512`, `$name_avx2`.
@@ -82,6 +83,20 @@ dispatched!(
     specular_rays, specular_rays_avx512, specular_rays_avx2,
     (rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays,
     specular_rays_impl(rays, frames, ior)
+);
+
+dispatched!(
+    /// Directions of the pinhole camera rays through pixel positions (`px`, `py`) (pixels, not
+    /// normalised) of a `w` × `h` image: [`Camera::ray_dirs`] of (`px`/`w`, `py`/`h`).
+    camera_dirs, camera_dirs_avx512, camera_dirs_avx2,
+    (camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3],
+    {
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            (u[i], v[i]) = (px[i] / w, py[i] / h);
+        }
+        camera.ray_dirs(&u, &v)
+    }
 );
 
 #[cfg(test)]
@@ -248,6 +263,42 @@ mod tests {
                     }
                 };
                 assert_eq!(spec_bits(&wide_spec), spec_bits(&base_spec), "{name}, round {round}");
+            }
+        }
+    }
+
+    /// The instruction-set builds of the camera kernel agree with `Camera::ray` bit for bit.
+    #[test]
+    fn every_camera_kernel_build_agrees() {
+        use crate::camera::CameraSettings;
+        let settings = CameraSettings {
+            axis: glam::Vec3::new(0.2, 1.0, -0.4),
+            angle_deg: 23.0,
+            ..CameraSettings::default()
+        };
+        let cam = Camera::new(settings, 333, 190);
+        let px: [f32; LANES] = std::array::from_fn(|i| i as f32 * 20.7 + 0.125);
+        let py: [f32; LANES] = std::array::from_fn(|i| 189.875 - i as f32 * 11.3);
+        let want: Vec<u32> = (0..LANES)
+            .flat_map(|i| cam.ray(px[i] / 333.0, py[i] / 190.0).dir.to_array())
+            .map(f32::to_bits)
+            .collect();
+        let bits = |d: [[f32; LANES]; 3]| -> Vec<u32> {
+            (0..LANES)
+                .flat_map(|i| [d[0][i], d[1][i], d[2][i]])
+                .map(f32::to_bits)
+                .collect()
+        };
+        assert_eq!(bits(camera_dirs(&cam, &px, &py, 333.0, 190.0)), want);
+        #[cfg(target_arch = "x86_64")]
+        {
+            if std::arch::is_x86_feature_detected!("avx2") {
+                // SAFETY: the CPU supports AVX2, checked above.
+                assert_eq!(bits(unsafe { camera_dirs_avx2(&cam, &px, &py, 333.0, 190.0) }), want);
+            }
+            if std::arch::is_x86_feature_detected!("avx512f") {
+                // SAFETY: the CPU supports AVX-512F, checked above.
+                assert_eq!(bits(unsafe { camera_dirs_avx512(&cam, &px, &py, 333.0, 190.0) }), want);
             }
         }
     }
