@@ -99,6 +99,15 @@ fn maxps(a: f32, b: f32) -> f32 {
     }
 }
 
+/// `crate::math::offset_eps` of lane `i` of points `p` and ray origins `o`: 1e-5 × the largest
+/// |coordinate| of either (glam's abs, max and max_element, in that order), at least 1e-30.
+#[inline(always)]
+fn offset_eps(p: &[F; 3], o: &[F; 3], i: usize) -> f32 {
+    let c: [f32; 3] = std::array::from_fn(|a| maxps(p[a][i].abs(), o[a][i].abs()));
+    let m = maxps(maxps(c[0], c[2]), maxps(c[1], c[2]));
+    (1e-5 * m).max(1e-30)
+}
+
 /// `a` when `c`, else `b`.
 #[inline(always)]
 fn sel(c: bool, a: f32, b: f32) -> f32 {
@@ -195,11 +204,7 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
         for ax in 0..3 {
             out.shading_normal[ax][i] = sel(flip, -ns[ax][i], ns[ax][i]);
         }
-        // offset_eps(p, o): 1e-5 × the largest |coordinate| of either (glam's abs, max and
-        // max_element), at least 1e-30.
-        let c: [f32; 3] = std::array::from_fn(|ax| maxps(point[ax][i].abs(), rays.o[ax][i].abs()));
-        let m = maxps(maxps(c[0], c[2]), maxps(c[1], c[2]));
-        let eps = (1e-5 * m).max(1e-30);
+        let eps = offset_eps(&point, &rays.o, i);
         for ax in 0..3 {
             out.outside[ax][i] = point[ax][i] + out.normal[ax][i] * eps;
         }
@@ -270,10 +275,8 @@ pub(super) fn specular_rays_impl(rays: &RayPacket, f: &SurfaceFrames, ior: &F) -
         for a in 0..3 {
             out.refracted[a][i] = t[a] / len;
         }
-        // offset_eps, as for `SurfaceFrames::outside`, on the other side.
-        let c: [f32; 3] = std::array::from_fn(|a| maxps(p[a][i].abs(), rays.o[a][i].abs()));
-        let m = maxps(maxps(c[0], c[2]), maxps(c[1], c[2]));
-        let eps = (1e-5 * m).max(1e-30);
+        // As for `SurfaceFrames::outside`, on the other side.
+        let eps = offset_eps(p, &rays.o, i);
         for a in 0..3 {
             out.inside[a][i] = p[a][i] - n[a][i] * eps;
         }
