@@ -128,6 +128,21 @@ mod tests {
         Scene::from_file(&rayscope_scene::parse_str(&text, Path::new("k.txt")).unwrap())
     }
 
+    /// The instruction-set builds (besides the baseline) this CPU can run.
+    #[cfg(target_arch = "x86_64")]
+    fn builds() -> Vec<&'static str> {
+        let mut v = Vec::new();
+        for (name, feature) in [
+            ("avx2", std::arch::is_x86_feature_detected!("avx2")),
+            ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
+        ] {
+            if feature {
+                v.push(name);
+            }
+        }
+        v
+    }
+
     /// Every instruction-set build of the kernels this CPU can run returns the same hits, bit
     /// for bit, as the baseline build (the render path picks one at run time; none may drift).
     #[test]
@@ -151,16 +166,10 @@ mod tests {
                 bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base);
                 let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0);
                 #[cfg(target_arch = "x86_64")]
-                for (name, has) in [
-                    ("avx2", std::arch::is_x86_feature_detected!("avx2")),
-                    ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
-                ] {
-                    if !has {
-                        continue;
-                    }
+                for name in builds() {
                     let (mut wide_rays, mut wide) = (rays.clone(), PacketHits::default());
-                    // SAFETY: the CPU supports the instruction set the kernels are built for,
-                    // checked above.
+                    // SAFETY: the CPU supports the instruction set the kernels are built for
+                    // (`builds`).
                     let wide_blocked = unsafe {
                         if name == "avx2" {
                             closest_rays_avx2(bvh, &mut wide_rays, 0.0, &mut wide);
@@ -237,15 +246,8 @@ mod tests {
                 v
             };
             #[cfg(target_arch = "x86_64")]
-            for (name, has) in [
-                ("avx2", std::arch::is_x86_feature_detected!("avx2")),
-                ("avx512f", std::arch::is_x86_feature_detected!("avx512f")),
-            ] {
-                if !has {
-                    continue;
-                }
-                // SAFETY: the CPU supports the instruction set the kernel is built for, checked
-                // above.
+            for name in builds() {
+                // SAFETY: the CPU supports the instruction set the kernel is built for (`builds`).
                 let wide = unsafe {
                     if name == "avx2" {
                         surface_frames_avx2(&rays, &g)
@@ -291,15 +293,16 @@ mod tests {
         };
         assert_eq!(bits(camera_dirs(&cam, &px, &py, 333.0, 190.0)), want);
         #[cfg(target_arch = "x86_64")]
-        {
-            if std::arch::is_x86_feature_detected!("avx2") {
-                // SAFETY: the CPU supports AVX2, checked above.
-                assert_eq!(bits(unsafe { camera_dirs_avx2(&cam, &px, &py, 333.0, 190.0) }), want);
-            }
-            if std::arch::is_x86_feature_detected!("avx512f") {
-                // SAFETY: the CPU supports AVX-512F, checked above.
-                assert_eq!(bits(unsafe { camera_dirs_avx512(&cam, &px, &py, 333.0, 190.0) }), want);
-            }
+        for name in builds() {
+            // SAFETY: the CPU supports the instruction set the kernel is built for (`builds`).
+            let d = unsafe {
+                if name == "avx2" {
+                    camera_dirs_avx2(&cam, &px, &py, 333.0, 190.0)
+                } else {
+                    camera_dirs_avx512(&cam, &px, &py, 333.0, 190.0)
+                }
+            };
+            assert_eq!(bits(d), want, "{name}");
         }
     }
 }
