@@ -149,6 +149,15 @@ struct Glass {
 }
 
 impl PathState {
+    /// The state of the ray a mirror reflects this path into.
+    #[inline]
+    fn mirrored(self) -> PathState {
+        PathState {
+            depth: self.depth + 1,
+            ..self
+        }
+    }
+
     /// The state of a camera ray.
     const CAMERA: PathState = PathState {
         depth: 0,
@@ -586,11 +595,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
         let eps = offset_eps(s.point, ray.origin);
         let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-        let child = PathState {
-            depth: path.depth + 1,
-            ..path
-        };
-        (r, child)
+        (r, path.mirrored())
     }
 
     /// Beer's law over the segment of length `t` a ray travelled inside an absorbing medium.

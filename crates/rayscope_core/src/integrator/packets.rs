@@ -154,11 +154,9 @@ impl<I: Intersect> Integrator<'_, I> {
                     // Self::mirror.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
-                    let p = PathState {
-                        depth: path.depth + 1,
-                        ..path
-                    };
-                    reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
+                    reflected
+                        .get_or_insert_with(PathPacket::default)
+                        .set(i, &r, path.mirrored());
                     Next::Mirror(t, path)
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
