@@ -1,4 +1,5 @@
-//! The geometry at a packet's hits, sixteen lanes at once.
+//! The geometry at a packet's hits and the mirror and glass rays leaving them, sixteen lanes
+//! at once.
 //!
 //! After a packet's closest hits are found, each lane's hit point, normals and shadow-ray origin
 //! are what [`crate::scene::Scene::surface`] and the single-ray shading code compute. The
@@ -7,6 +8,7 @@
 //! three products are `(x + y) + z`, `normalize` divides by the length), without branching on
 //! the kind of primitive, so the compiler can vectorise it. A plane, a sphere and a triangle
 //! side by side in one packet is the common case, and per-lane branches on it mispredict.
+//! [`specular_rays`] does the same for the rays mirrors and glass send on.
 
 use super::packet::{Mask, RayPacket, LANES};
 
