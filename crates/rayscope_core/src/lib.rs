@@ -1,7 +1,7 @@
 //! rayscope's renderer: geometry, BVH, camera, materials, integrators and the parallel render loop.
 //!
 //! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
-//! [`render`] turns into a [`Film`] under [`RenderSettings`].
+//! [`render()`] turns into a [`Film`] under [`RenderSettings`].
 
 pub mod bsdf;
 pub mod bvh;

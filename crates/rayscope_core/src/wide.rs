@@ -46,7 +46,7 @@ const EMPTY: u32 = u32::MAX;
 /// Lane id of an unused packet lane.
 const NO_PRIM: u32 = u32::MAX;
 
-/// One 4-wide node: child bounds as [axis][min/max] lanes, and child references.
+/// One 4-wide node: child bounds as `[axis][min/max]` lanes, and child references.
 #[derive(Debug, Clone, Copy)]
 #[repr(C, align(64))]
 pub struct Node4 {
