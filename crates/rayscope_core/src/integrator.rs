@@ -152,8 +152,17 @@ impl PathState {
     /// The state of the ray a mirror reflects this path into.
     #[inline]
     fn mirrored(self) -> PathState {
+        self.specular(self.medium, self.beta)
+    }
+
+    /// The state of a ray a mirror or glass sends on: one level deeper, travelling in `medium`,
+    /// with path weight `beta`.
+    #[inline]
+    fn specular(self, medium: Option<u32>, beta: f32) -> PathState {
         PathState {
             depth: self.depth + 1,
+            medium,
+            beta,
             ..self
         }
     }
@@ -503,11 +512,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             }
             out
         } else {
-            let child = |medium| PathState {
-                depth: path.depth + 1,
-                medium,
-                ..path
-            };
+            let child = |medium| path.specular(medium, path.beta);
             match g.refracted {
                 Some(r) if rng.next_f32() >= g.kr => {
                     self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, rng, obs, c)
@@ -565,15 +570,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Whitted glass's reflected ray (weight `kr`) and its path, unless it is pruned.
     #[inline]
     fn glass_reflected(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
-        (g.kr > 0.0 && path.beta * g.kr >= self.branch_cutoff).then(|| {
-            let p = PathState {
-                depth: path.depth + 1,
-                medium: g.refl_medium,
-                beta: path.beta * g.kr,
-                ..path
-            };
-            (g.reflected, p)
-        })
+        (g.kr > 0.0 && path.beta * g.kr >= self.branch_cutoff)
+            .then(|| (g.reflected, path.specular(g.refl_medium, path.beta * g.kr)))
     }
 
     /// Whitted glass's refracted ray (weight 1 − `kr`) and its path, unless there is none (total
@@ -581,13 +579,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[inline]
     fn glass_refracted(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
         let r = g.refracted.filter(|_| path.beta * (1.0 - g.kr) >= self.branch_cutoff)?;
-        let p = PathState {
-            depth: path.depth + 1,
-            medium: g.refr_medium,
-            beta: path.beta * (1.0 - g.kr),
-            ..path
-        };
-        Some((r, p))
+        Some((r, path.specular(g.refr_medium, path.beta * (1.0 - g.kr))))
     }
 
     /// A mirror's reflected ray and its path.

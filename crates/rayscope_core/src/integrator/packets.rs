@@ -135,7 +135,6 @@ impl<I: Intersect> Integrator<'_, I> {
         let (mut reflected, mut refracted): (Option<PathPacket>, Option<PathPacket>) = (None, None);
         // Mirror and glass rays, computed for the whole packet once some lane needs them.
         let mut specular: Option<SpecularRays> = None;
-        let lane = |v: &[[f32; LANES]; 3], i: usize| Vec3A::new(v[0][i], v[1][i], v[2][i]);
         for i in 0..LANES {
             if !other[i] {
                 continue;
@@ -201,7 +200,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let on = |p: &Option<PathPacket>, i: usize| p.as_ref().is_some_and(|p| p.on[i]);
         for i in 0..LANES {
             if lit.on[i] {
-                let light = Vec3A::new(lights[0][i], lights[1][i], lights[2][i]);
+                let light = lane(&lights, i);
                 vals[i] = self.absorb(lanes.paths[i], surf.t[i], Li::reflected(light)).total();
                 continue;
             }
@@ -282,6 +281,12 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 }
 
+/// Lane `i` of a vector stored per axis.
+#[inline]
+fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
+    Vec3A::new(v[0][i], v[1][i], v[2][i])
+}
+
 /// A packet of rays to trace with each lane's path state.
 #[derive(Clone)]
 struct PathPacket {
@@ -316,10 +321,7 @@ impl PathPacket {
     #[inline]
     fn ray(&self, i: usize) -> Ray {
         let r = &self.rays;
-        Ray::new(
-            Vec3A::new(r.o[0][i], r.o[1][i], r.o[2][i]),
-            Vec3A::new(r.d[0][i], r.d[1][i], r.d[2][i]),
-        )
+        Ray::new(lane(&r.o, i), lane(&r.d, i))
     }
 }
 
@@ -406,11 +408,10 @@ impl PacketSurfaces {
     #[inline]
     fn get(&self, i: usize) -> Surface {
         let f = &self.frames;
-        let lane = |v: &[[f32; LANES]; 3]| Vec3A::new(v[0][i], v[1][i], v[2][i]);
         Surface {
-            point: lane(&f.point),
-            normal: lane(&f.normal),
-            shading_normal: lane(&f.shading_normal),
+            point: lane(&f.point, i),
+            normal: lane(&f.normal, i),
+            shading_normal: lane(&f.shading_normal, i),
             front_face: f.front_face[i],
             entity: self.entity[i],
             material: self.material[i],
@@ -484,10 +485,7 @@ mod tests {
             let scene = load(name);
             let mut kinds = [0; 3];
             packets(&scene, seed, |rays, surf, i| {
-                let ray = Ray::new(
-                    Vec3A::new(rays.o[0][i], rays.o[1][i], rays.o[2][i]),
-                    Vec3A::new(rays.d[0][i], rays.d[1][i], rays.d[2][i]),
-                );
+                let ray = Ray::new(lane(&rays.o, i), lane(&rays.d, i));
                 let mut traced = rays.clone();
                 let (t, u, v, prim) = scene.wide.closest_rays(&mut traced, 0.0).get(i).unwrap();
                 kinds[match prim {

@@ -111,6 +111,12 @@ impl PacketHits {
     }
 }
 
+/// Lane `k` of a 4-wide primitive packet's vector stored per axis.
+#[inline(always)]
+fn lane_of(v: &[glam::Vec4; 3], k: usize) -> [f32; 3] {
+    [v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]]
+}
+
 /// `a` when `c`, else `b`: written so the compiler emits a blend.
 #[inline(always)]
 fn sel(c: bool, a: f32, b: f32) -> f32 {
@@ -188,8 +194,7 @@ impl TriPacket {
     /// single-ray test does, so shadow rays that end before a wall cost a third).
     #[inline(always)]
     fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> Option<(Mask, F, F, F, F)> {
-        let g = |v: &[glam::Vec4; 3]| [v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]];
-        let (v0, n) = (g(&self.v0), g(&self.n));
+        let (v0, n) = (lane_of(&self.v0, k), lane_of(&self.n, k));
         let (mut ok, mut t, mut den, mut a) = ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         let mut c = [[0.0; LANES]; 3];
         for i in 0..LANES {
@@ -205,7 +210,7 @@ impl TriPacket {
         if !any(&ok) {
             return None;
         }
-        let (e1, e2) = (g(&self.e1), g(&self.e2));
+        let (e1, e2) = (lane_of(&self.e1, k), lane_of(&self.e2, k));
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         for i in 0..LANES {
             let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
@@ -282,11 +287,7 @@ impl SpherePacket {
     /// Lane `k`'s sphere against every ray: the arithmetic of [`SpherePacket::closest`].
     #[inline(always)]
     fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
-        let c = [
-            self.c[0].to_array()[k],
-            self.c[1].to_array()[k],
-            self.c[2].to_array()[k],
-        ];
+        let c = lane_of(&self.c, k);
         let r2 = self.r2.to_array()[k];
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
@@ -328,16 +329,7 @@ impl PlanePacket {
     /// Lane `k`'s plane against every ray: the arithmetic of [`PlanePacket::closest`].
     #[inline(always)]
     fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
-        let p = [
-            self.p[0].to_array()[k],
-            self.p[1].to_array()[k],
-            self.p[2].to_array()[k],
-        ];
-        let n = [
-            self.n[0].to_array()[k],
-            self.n[1].to_array()[k],
-            self.n[2].to_array()[k],
-        ];
+        let (p, n) = (lane_of(&self.p, k), lane_of(&self.n, k));
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
             let den = n[0] * rays.d[0][i] + n[1] * rays.d[1][i] + n[2] * rays.d[2][i];
