@@ -22,6 +22,7 @@ mod dispatch;
 mod packet;
 mod surface;
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
+use packet::{TAG_PLANE, TAG_SPHERE, TAG_TRI};
 pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
 
 /// Directions of the camera rays through pixel positions (`px`, `py`) of a `w` × `h` image:
@@ -120,6 +121,19 @@ pub struct WideHit {
     pub prim: PrimRef,
 }
 
+impl WideHit {
+    /// The primitive's key, which breaks ties between hits at the same distance (see [`beats`]):
+    /// planes, then spheres, then triangles, each by index; never 0.
+    #[inline(always)]
+    fn key(&self) -> u32 {
+        match self.prim {
+            PrimRef::Plane(i) => TAG_PLANE | i,
+            PrimRef::Sphere(i) => TAG_SPHERE | i,
+            PrimRef::Triangle(i) => TAG_TRI | i,
+        }
+    }
+}
+
 /// The 4-wide BVH.
 #[derive(Debug, Clone, Default)]
 pub struct Bvh4 {
@@ -190,6 +204,18 @@ const STACK: usize = 64;
 /// Factor on a box's exit distance that makes the slab test conservative (≈ 8 ulps).
 const SLAB_SLACK: f32 = 1.0 + 1.0 / (1 << 20) as f32;
 
+/// The bound a triangle's undivided distance is filtered against: `t_max` itself, or with
+/// `ties` widened by a few ulps so a hit whose divided distance equals `t_max` (which the tie
+/// rule may prefer) is not lost to the rounding of `t_max · |d·n|`.
+#[inline(always)]
+fn far(ties: bool, t_max: f32) -> f32 {
+    if ties {
+        t_max * SLAB_SLACK
+    } else {
+        t_max
+    }
+}
+
 /// Scenes that fit in this many packets are tested flat, without a tree.
 const FLAT_PACKETS: usize = 4;
 
@@ -241,32 +267,32 @@ impl Bvh4 {
 
     /// The closest hit among the flat packets.
     #[inline(always)]
-    fn closest_flat<const COUNT: bool>(
-        &self,
-        rc: &RayConsts,
-        t_min: f32,
-        t_best: &mut f32,
-        best: &mut Option<WideHit>,
-        visits: &mut u32,
-    ) {
+    fn closest_flat<const COUNT: bool>(&self, rc: &RayConsts, t_min: f32, w: &mut Walk, visits: &mut u32) {
         for &r in &self.flat {
             if COUNT {
                 *visits += 1;
             }
-            if let Some(h) = self.packet_closest(r, rc, t_min, *t_best) {
-                *t_best = h.t;
-                *best = Some(h);
+            if let Some(h) = self.packet_closest::<true>(r, rc, t_min, w.t_best, w.key) {
+                w.take(h);
             }
         }
     }
 
-    /// The closest hit in leaf packet `r`.
+    /// The closest hit in leaf packet `r`: with `TIES`, one that [`beats`] (`t_max`, `key_max`),
+    /// else one with `t < t_max`.
     #[inline(always)]
-    fn packet_closest(&self, r: u32, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+    fn packet_closest<const TIES: bool>(
+        &self,
+        r: u32,
+        rc: &RayConsts,
+        t_min: f32,
+        t_max: f32,
+        key_max: u32,
+    ) -> Option<WideHit> {
         if r & SPHERES != 0 {
-            self.spheres[(r & !(LEAF | SPHERES)) as usize].closest(rc, t_min, t_max)
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].closest::<TIES>(rc, t_min, t_max, key_max)
         } else {
-            self.tris[(r & !LEAF) as usize].closest(rc, t_min, t_max)
+            self.tris[(r & !LEAF) as usize].closest::<TIES>(rc, t_min, t_max, key_max)
         }
     }
 
@@ -301,29 +327,28 @@ impl Bvh4 {
     #[inline]
     pub fn closest<const COUNT: bool>(&self, ray: &Ray, t_min: f32, t_max: f32, visits: &mut u32) -> Option<WideHit> {
         let rc = RayConsts::new(ray);
-        let mut best: Option<WideHit> = None;
-        let mut t_best = t_max;
+        // Key 0: nothing found yet, so a hit at exactly `t_max` does not count.
+        let mut walk = Walk {
+            best: None,
+            t_best: t_max,
+            key: 0,
+            visits: 0,
+        };
         // Planes first: their hit bounds the tree walk, and for rays inside a room most hits are
         // on a floor or a wall.
         for p in &self.planes {
             if COUNT {
                 *visits += p.ids.iter().filter(|&&id| id != NO_PRIM).count() as u32;
             }
-            if let Some(h) = p.closest(&rc, t_min, t_best) {
-                t_best = h.t;
-                best = Some(h);
+            if let Some(h) = p.closest::<true>(&rc, t_min, walk.t_best, walk.key) {
+                walk.take(h);
             }
         }
-        self.closest_flat::<COUNT>(&rc, t_min, &mut t_best, &mut best, visits);
+        self.closest_flat::<COUNT>(&rc, t_min, &mut walk, visits);
         if self.root == EMPTY {
-            return best;
+            return walk.best;
         }
         let nc = NodeConsts::new(ray);
-        let mut walk = Walk {
-            best,
-            t_best,
-            visits: 0,
-        };
         if self.deep {
             self.walk_closest_deep::<COUNT>(&rc, &nc, t_min, &mut walk);
         } else {
@@ -358,9 +383,10 @@ impl Bvh4 {
     ) {
         // Locals, not fields behind a reference, so the loop keeps them in registers.
         let mut stack = S::default();
-        let (mut best, mut t_best, mut visits) = (w.best, w.t_best, 0);
+        let (mut best, mut t_best, mut key, mut visits) = (w.best, w.t_best, w.key, 0);
         // Stack entries are culled against the best distance widened like box exits (see
-        // `node_test`), recomputed only when a hit is found.
+        // `node_test`), recomputed only when a hit is found. The widening also keeps boxes that
+        // hold a hit at exactly the best distance, which the tie rule may still prefer.
         let mut t_cull = t_best * SLAB_SLACK;
         stack.put((self.root, t_min));
         while let Some((r, t_near)) = stack.take() {
@@ -371,8 +397,8 @@ impl Bvh4 {
                 visits += 1;
             }
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest(r, rc, t_min, t_best) {
-                    t_best = h.t;
+                if let Some(h) = self.packet_closest::<true>(r, rc, t_min, t_best, key) {
+                    (t_best, key) = (h.t, h.key());
                     t_cull = t_best * SLAB_SLACK;
                     best = Some(h);
                 }
@@ -411,7 +437,12 @@ impl Bvh4 {
                 stack.put(h);
             }
         }
-        *w = Walk { best, t_best, visits };
+        *w = Walk {
+            best,
+            t_best,
+            key,
+            visits,
+        };
     }
 
     /// Some primitive with `t_min < t < t_max` (any hit).
@@ -419,12 +450,12 @@ impl Bvh4 {
     pub fn any(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
         let rc = RayConsts::new(ray);
         for p in &self.planes {
-            if let Some(h) = p.closest(&rc, t_min, t_max) {
+            if let Some(h) = p.closest::<false>(&rc, t_min, t_max, 0) {
                 return Some(h.prim);
             }
         }
         for &r in &self.flat {
-            if let Some(h) = self.packet_closest(r, &rc, t_min, t_max) {
+            if let Some(h) = self.packet_closest::<false>(r, &rc, t_min, t_max, 0) {
                 return Some(h.prim);
             }
         }
@@ -452,7 +483,7 @@ impl Bvh4 {
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest(r, rc, t_min, t_max) {
+                if let Some(h) = self.packet_closest::<false>(r, rc, t_min, t_max, 0) {
                     return Some(h.prim);
                 }
                 continue;
@@ -473,7 +504,29 @@ impl Bvh4 {
 struct Walk {
     best: Option<WideHit>,
     t_best: f32,
+    /// The best hit's [`WideHit::key`], 0 while there is none.
+    key: u32,
     visits: u32,
+}
+
+impl Walk {
+    /// Makes `h` the best hit.
+    #[inline(always)]
+    fn take(&mut self, h: WideHit) {
+        (self.t_best, self.key) = (h.t, h.key());
+        self.best = Some(h);
+    }
+}
+
+/// True when a hit at `t` on the primitive with key `key` is preferred to the best so far at
+/// `t_best` with key `key_best`: it is nearer, or exactly as near and its key is lower. With
+/// `key_best` = 0 (nothing found), `t_best` is a strict bound. Ties broken this way make the
+/// closest hit independent of the order primitives are visited in, so a packet walk and a
+/// single-ray walk (which visit leaves in different orders) agree even where a ray meets two
+/// primitives at exactly the same distance, as at the corner of two walls.
+#[inline(always)]
+pub(crate) fn beats(t: f32, key: u32, t_best: f32, key_best: u32) -> bool {
+    t < t_best || (t == t_best && key < key_best)
 }
 
 /// A traversal stack: the fixed-size one, or a heap one for trees too deep for it.
@@ -544,7 +597,9 @@ fn dot(a: &[Vec4; 3], b: &[Vec4; 3]) -> Vec4 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
-/// The lane with the smallest `t` among `mask`.
+/// The lane with the smallest `t` among `mask`; of lanes at exactly the same `t`, the lowest,
+/// which holds the lowest primitive index (packets keep their ids in ascending order), as the
+/// tie rule ([`beats`]) wants.
 #[inline(always)]
 fn nearest_lane(mask: BVec4A, t: Vec4) -> Option<usize> {
     if !mask.any() {
@@ -559,7 +614,7 @@ impl TriPacket {
     /// Möller–Trumbore on four triangles at once, rearranged around the stored normal so the
     /// division is made only when some lane hits (same arithmetic as [`Triangle`]'s routine).
     #[inline(always)]
-    fn closest(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
         let c = [self.v0[0] - rc.o[0], self.v0[1] - rc.o[1], self.v0[2] - rc.o[2]];
         let den = dot(&rc.d, &self.n);
         let s = Vec4::ONE.copysign(den);
@@ -567,7 +622,8 @@ impl TriPacket {
         let t = dot(&c, &self.n) * s;
         // The supporting planes first: a shadow ray that ends before every plane (a wall behind
         // the light) is done after a third of the work.
-        let in_range = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(t_max) * a);
+        let in_range =
+            den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(far(TIES, t_max)) * a);
         if !in_range.any() {
             return None;
         }
@@ -582,10 +638,9 @@ impl TriPacket {
         let t = t / a;
         let i = nearest_lane(mask, t)?;
         let ti = t.to_array()[i];
-        // The numerator test above can pass by a rounding error for a hit that, divided, is no
-        // nearer than `t_max`; such a hit must not replace the one that set `t_max`, or the
-        // result would depend on the order primitives are visited in.
-        if ti >= t_max {
+        // The numerator test above can pass by a rounding error (or, with `TIES`, by its slack)
+        // for a hit that, divided, is no nearer than `t_max`; the divided distance decides.
+        if !beats(ti, TAG_TRI | self.ids[i], t_max, key_max) {
             return None;
         }
         let a = a.to_array()[i];
@@ -601,7 +656,7 @@ impl TriPacket {
 impl SpherePacket {
     /// The numerically careful sphere test of [`Sphere`] on four spheres at once.
     #[inline(always)]
-    fn closest(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
         let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
         let b = -dot(&f, &rc.d);
         let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
@@ -619,10 +674,14 @@ impl SpherePacket {
         let hi = t0.max(t1);
         let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
         let ok = ok & q.cmpne(Vec4::ZERO);
-        let lo_ok = lo.cmpgt(tmin) & lo.cmplt(tmax);
-        let hi_ok = hi.cmpgt(tmin) & hi.cmplt(tmax);
+        let below = |x: Vec4| if TIES { x.cmple(tmax) } else { x.cmplt(tmax) };
+        let lo_ok = lo.cmpgt(tmin) & below(lo);
+        let hi_ok = hi.cmpgt(tmin) & below(hi);
         let t = Vec4::select(lo_ok, lo, hi);
         let i = nearest_lane(ok & (lo_ok | hi_ok), t)?;
+        if TIES && !beats(t.to_array()[i], TAG_SPHERE | self.ids[i], t_max, key_max) {
+            return None;
+        }
         Some(WideHit {
             t: t.to_array()[i],
             u: 0.0,
@@ -653,12 +712,17 @@ impl PlanePacket {
 
     /// [`Plane`]'s routine on four planes at once (same arithmetic).
     #[inline(always)]
-    fn closest(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<WideHit> {
+    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
         let den = dot(&self.n, &rc.d);
         let w = [self.p[0] - rc.o[0], self.p[1] - rc.o[1], self.p[2] - rc.o[2]];
         let t = dot(&w, &self.n) / den;
-        let mask = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min)) & t.cmplt(Vec4::splat(t_max));
+        let tmax = Vec4::splat(t_max);
+        let below = if TIES { t.cmple(tmax) } else { t.cmplt(tmax) };
+        let mask = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min)) & below;
         let i = nearest_lane(mask, t)?;
+        if TIES && !beats(t.to_array()[i], TAG_PLANE | self.ids[i], t_max, key_max) {
+            return None;
+        }
         Some(WideHit {
             t: t.to_array()[i],
             u: 0.0,
@@ -823,7 +887,7 @@ impl Builder<'_> {
     fn tri_packet(&mut self, ids: &[u32]) -> u32 {
         let mut lanes = [[[0f32; 4]; 3]; 3];
         let mut lane_ids = [NO_PRIM; 4];
-        for (l, &id) in ids.iter().enumerate() {
+        for (l, id) in sorted(ids).enumerate() {
             let t = &self.triangles[id as usize];
             for (k, v) in [t.v0, t.e1, t.e2].iter().enumerate() {
                 for a in 0..3 {
@@ -854,7 +918,7 @@ impl Builder<'_> {
         // Padding lanes get r² = −1: the discriminant is negative and they never hit.
         let (mut c, mut r2) = ([[0f32; 4]; 3], [-1f32; 4]);
         let mut lane_ids = [NO_PRIM; 4];
-        for (l, &id) in ids.iter().enumerate() {
+        for (l, id) in sorted(ids).enumerate() {
             let s = &self.spheres[id as usize];
             for a in 0..3 {
                 c[a][l] = s.center[a];
@@ -869,6 +933,14 @@ impl Builder<'_> {
         });
         LEAF | SPHERES | (self.out.spheres.len() - 1) as u32
     }
+}
+
+/// A packet's primitive indices in ascending order, so the lowest lane among equal distances
+/// holds the lowest index (the tie rule, see [`beats`]).
+fn sorted(ids: &[u32]) -> impl Iterator<Item = u32> {
+    let mut v = ids.to_vec();
+    v.sort_unstable();
+    v.into_iter()
 }
 
 fn area(n: &BvhNode) -> f32 {

@@ -78,6 +78,69 @@ fn packet_renders_equal_single_ray_renders() {
 }
 
 #[test]
+fn hits_at_exactly_the_same_distance_go_to_the_first_declared_primitive() {
+    // Two coincident walls with different materials: every ray that meets one meets the other at
+    // exactly the same distance. Scattered spheres and triangles make the scene a tree, whose
+    // single-ray and packet walks visit leaves in different orders. Whatever the order, the tie
+    // goes to the primitive declared first, so a render shows that wall, and packet and
+    // single-ray renders agree; both declaration orders are checked.
+    let mut extra = String::new();
+    for i in 0..12 {
+        let (x, y) = ((i % 4) as f32 * 0.6 - 0.9, (i / 4) as f32 * 0.6 - 0.6);
+        extra += &format!("Sphere \"S{i}\" ({x}, {y}, 1.6) 0.08 \"Blue\"\n");
+        extra += &format!(
+            "Triangle \"T{i}\" ({x}, {y}, 2.2) ({}, {y}, 2.2) ({x}, {}, 2.2) \"Blue\"\n",
+            x + 0.1,
+            y + 0.1
+        );
+    }
+    let wall = |name: &str, mat: &str| {
+        format!(
+            "Triangle \"{name}A\" (-1, -1, 3) (-1, 1, 3) (1, 1, 3) \"{mat}\"\n\
+             Triangle \"{name}B\" (-1, -1, 3) (1, 1, 3) (1, -1, 3) \"{mat}\"\n\
+             Sphere \"{name}Ball\" (0.3, 0.2, 2.6) 0.2 \"{mat}\"\n"
+        )
+    };
+    let materials = "Material \"Red\" Diffuse (1, 0, 0) 1\nMaterial \"Green\" Diffuse (0, 1, 0) 1\n\
+        Material \"Blue\" Diffuse (0, 0, 1) 1\nPointLight \"L\" (0, 0, 0) (1, 1, 1)\n";
+    for (first, second, want) in [("Red", "Green", 0), ("Green", "Red", 1)] {
+        let text = format!("{materials}{}{}{extra}", wall("W1", first), wall("W2", second));
+        let file = rayscope_scene::parse_str(&text, Path::new("coincident.txt")).unwrap();
+        let scene = Scene::from_file(&file);
+        assert!(
+            scene.wide.root != u32::MAX && !scene.wide.nodes.is_empty(),
+            "the scene is a tree"
+        );
+        let s = RenderSettings {
+            width: 40,
+            height: 40,
+            stage: Stage::One,
+            camera: rayscope_core::CameraSettings {
+                fov_deg: 50.0,
+                ..Default::default()
+            },
+            ..RenderSettings::default()
+        };
+        let (p, one) = both(&scene, &s);
+        assert_eq!(p.film.pixels, one.film.pixels, "{first} first");
+        // Pixels showing the wall or its ball (not blue, not background) are the first one's.
+        let shown: Vec<_> = p
+            .film
+            .pixels
+            .iter()
+            .filter(|c| c.z == 0.0 && c.max_element() > 0.0)
+            .collect();
+        assert!(shown.len() > 500, "{first} first: {} wall pixels", shown.len());
+        let right = shown.iter().filter(|c| c.to_array()[want] == 1.0).count();
+        assert_eq!(
+            right,
+            shown.len(),
+            "{first} first: the tie went to {second} in some pixels"
+        );
+    }
+}
+
+#[test]
 fn lanes_that_continue_one_ray_at_a_time_match_too() {
     // A switched-off emitter (zero radiance) keeps the render deterministic, so it is traced as
     // packets, but its hits are shaded by the full renderer's general path, one lane at a time;

@@ -4,7 +4,7 @@
 
 use glam::{DVec3, Vec3A};
 use rayscope_core::bvh::{Bvh, BvhNode};
-use rayscope_core::geometry::Triangle;
+use rayscope_core::geometry::{Primitive, Triangle};
 use rayscope_core::math::Ray;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
@@ -363,4 +363,40 @@ fn ray_packets_return_what_single_rays_return() {
             assert!(blocked[rays.len()..].iter().all(|b| !b));
         }
     }
+}
+
+#[test]
+fn exact_ties_go_to_the_lower_primitive_whatever_the_walk_order() {
+    // This camera ray of `scenes/emissive.txt` meets the edge where the ceiling (triangle 2) and
+    // the right wall (triangle 7) touch, at exactly the same distance on both. The single-ray
+    // walk and packet walks (whose leaf order depends on the other rays in the packet) must all
+    // return the same hit: the lower-indexed triangle.
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/emissive.txt");
+    let scene = Scene::from_file(&rayscope_scene::load(&path).unwrap());
+    let edge = Ray::new(Vec3A::ZERO, Vec3A::new(0.33964857, 0.3396486, 0.8770848));
+    let ts = [2usize, 7].map(|i| scene.triangles[i].intersect(&edge, 0.0, f32::INFINITY).map(|h| h.t));
+    assert!(ts[0].is_some() && ts[0] == ts[1], "a tie: {ts:?}");
+    let single = scene.intersect(&edge, 0.0, f32::INFINITY).expect("a hit");
+    assert_eq!(single.prim, PrimRef::Triangle(2));
+    let mut rng = Rng::for_sample(7, 0, 0);
+    let mut in_packets = 0;
+    for k in 0..400 {
+        let mut rays: Vec<Ray> = (0..LANES)
+            .map(|_| {
+                let d = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5);
+                Ray::new(Vec3A::new(0.0, 0.0, 0.5 * rng.next_f32()), d.normalize())
+            })
+            .collect();
+        rays[k % LANES] = edge;
+        let mut p = packet_of(&rays, &[f32::INFINITY; LANES]);
+        let hits = scene.wide.closest_rays(&mut p, 0.0);
+        for (i, ray) in rays.iter().enumerate() {
+            let one = scene
+                .intersect(ray, 0.0, f32::INFINITY)
+                .map(|h| (h.t, h.u, h.v, h.prim));
+            assert_eq!(hits.get(i), one, "packet {k}, lane {i}");
+        }
+        in_packets += 1;
+    }
+    assert_eq!(in_packets, 400);
 }

@@ -14,7 +14,8 @@
 use arrayvec::ArrayVec;
 
 use super::{
-    Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, SLAB_SLACK, SPHERES, STACK,
+    beats, far, Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, SLAB_SLACK,
+    SPHERES, STACK,
 };
 use crate::math::Ray;
 use crate::scene::PrimRef;
@@ -26,11 +27,11 @@ pub const LANES: usize = 16;
 type F = [f32; LANES];
 
 /// Hit tag: a plane (the index is in the low bits).
-const TAG_PLANE: u32 = 1 << 30;
+pub(super) const TAG_PLANE: u32 = 1 << 30;
 /// Hit tag: a sphere.
-const TAG_SPHERE: u32 = 2 << 30;
+pub(super) const TAG_SPHERE: u32 = 2 << 30;
 /// Hit tag: a triangle.
-const TAG_TRI: u32 = 3 << 30;
+pub(super) const TAG_TRI: u32 = 3 << 30;
 /// The tag bits of a hit reference.
 const TAG_MASK: u32 = 3 << 30;
 
@@ -128,8 +129,9 @@ fn sel(c: bool, a: f32, b: f32) -> f32 {
 }
 
 /// The best hit found so far inside one 4-wide primitive packet, per ray. The single-ray test
-/// filters all four primitives against the distance known when the packet is entered and then
-/// takes the nearest (lowest lane on ties); this replays exactly that.
+/// filters all four primitives against the best hit known when the packet is entered and then
+/// takes the nearest (the lowest lane on ties, which holds the lowest index: see [`beats`]);
+/// this replays exactly that.
 struct PacketBest {
     found: [bool; LANES],
     t: F,
@@ -150,7 +152,8 @@ impl PacketBest {
         }
     }
 
-    /// Offers lane `i` a hit that passed the packet's filter; true when it is taken.
+    /// Offers lane `i` a hit that passed the packet's filter and beats the lane's best hit on
+    /// entry; true when it is taken. Offers come in lane order, so on a tie the earlier stays.
     #[inline(always)]
     fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, prim: u32) -> bool {
         let take = ok && (!self.found[i] || t < self.t[i]);
@@ -176,6 +179,17 @@ impl PacketBest {
             hits.v[i] = sel(f, self.v[i], hits.v[i]);
             hits.prim[i] = if f { self.prim[i] } else { hits.prim[i] };
         }
+    }
+}
+
+/// `x < t_max`, or with `TIES` `x <= t_max`: a closest-hit query keeps hits at exactly the best
+/// distance so far for the tie rule ([`beats`]) to decide; a shadow query's bound is strict.
+#[inline(always)]
+fn below<const TIES: bool>(x: f32, t_max: f32) -> bool {
+    if TIES {
+        x <= t_max
+    } else {
+        x < t_max
     }
 }
 
@@ -231,7 +245,9 @@ impl TriPacket {
     #[inline(always)]
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         let mut best = PacketBest::new();
-        let entry = rays.t_max;
+        let (entry, entry_key) = (rays.t_max, hits.prim);
+        // The single-ray test's filter bound (see `far`).
+        let bound = entry.map(|t| far(true, t));
         // |d·n| of each lane's best hit, which its barycentrics are divided by.
         let mut scale = [1.0; LANES];
         for k in 0..4 {
@@ -239,16 +255,18 @@ impl TriPacket {
             if id == NO_PRIM {
                 continue;
             }
-            let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &entry) else {
+            let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &bound) else {
                 continue;
             };
             if !any(&ok) {
                 continue;
             }
+            let key = TAG_TRI | id;
             for i in 0..LANES {
                 let ti = t[i] / a[i];
-                // As in the single-ray test: no nearer after the division, no hit.
-                let take = best.offer(i, ok[i] & (ti < entry[i]), ti, u[i], v[i], TAG_TRI | id);
+                // As in the single-ray test: the divided distance decides.
+                let ok = ok[i] & beats(ti, key, entry[i], entry_key[i]);
+                let take = best.offer(i, ok, ti, u[i], v[i], key);
                 scale[i] = sel(take, a[i], scale[i]);
             }
         }
@@ -286,7 +304,7 @@ fn block(rays: &mut RayPacket, blocked: &mut Mask, ok: &Mask) {
 impl SpherePacket {
     /// Lane `k`'s sphere against every ray: the arithmetic of [`SpherePacket::closest`].
     #[inline(always)]
-    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
         let c = lane_of(&self.c, k);
         let r2 = self.r2.to_array()[k];
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
@@ -304,8 +322,8 @@ impl SpherePacket {
             // minps/maxps semantics (second operand on NaN), as the 4-wide test.
             let lo = sel(t0 < t1, t0, t1);
             let hi = sel(t0 > t1, t0, t1);
-            let lo_ok = (lo > t_min) & (lo < t_max[i]);
-            let hi_ok = (hi > t_min) & (hi < t_max[i]);
+            let lo_ok = (lo > t_min) & below::<TIES>(lo, t_max[i]);
+            let hi_ok = (hi > t_min) & below::<TIES>(hi, t_max[i]);
             ok[i] = (disc >= 0.0) & (q != 0.0) & (lo_ok | hi_ok);
             t[i] = sel(lo_ok, lo, hi);
         }
@@ -314,13 +332,13 @@ impl SpherePacket {
 
     #[inline(always)]
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<true>(k, r, t_min, t_max);
         lanes_closest_rays(&self.ids, TAG_SPHERE, test, rays, hits);
     }
 
     #[inline(always)]
     fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<false>(k, r, t_min, t_max);
         lanes_occlude_rays(&self.ids, test, rays, blocked);
     }
 }
@@ -328,14 +346,14 @@ impl SpherePacket {
 impl PlanePacket {
     /// Lane `k`'s plane against every ray: the arithmetic of [`PlanePacket::closest`].
     #[inline(always)]
-    fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
         let (p, n) = (lane_of(&self.p, k), lane_of(&self.n, k));
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
             let den = n[0] * rays.d[0][i] + n[1] * rays.d[1][i] + n[2] * rays.d[2][i];
             let w = [p[0] - rays.o[0][i], p[1] - rays.o[1][i], p[2] - rays.o[2][i]];
             let ti = (w[0] * n[0] + w[1] * n[1] + w[2] * n[2]) / den;
-            ok[i] = (den != 0.0) & (ti > t_min) & (ti < t_max[i]);
+            ok[i] = (den != 0.0) & (ti > t_min) & below::<TIES>(ti, t_max[i]);
             t[i] = ti;
         }
         (ok, t)
@@ -343,13 +361,13 @@ impl PlanePacket {
 
     #[inline(always)]
     fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<true>(k, r, t_min, t_max);
         lanes_closest_rays(&self.ids, TAG_PLANE, test, rays, hits);
     }
 
     #[inline(always)]
     fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays(k, r, t_min, t_max);
+        let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<false>(k, r, t_min, t_max);
         lanes_occlude_rays(&self.ids, test, rays, blocked);
     }
 }
@@ -366,14 +384,15 @@ fn lanes_closest_rays(
     hits: &mut PacketHits,
 ) {
     let mut best = PacketBest::new();
-    let entry = rays.t_max;
+    let (entry, entry_key) = (rays.t_max, hits.prim);
     for (k, &id) in ids.iter().enumerate() {
         if id == NO_PRIM {
             continue;
         }
         let (ok, t) = test(k, rays, &entry);
+        let key = tag | id;
         for i in 0..LANES {
-            best.offer(i, ok[i], t[i], 0.0, 0.0, tag | id);
+            best.offer(i, ok[i] & beats(t[i], key, entry[i], entry_key[i]), t[i], 0.0, 0.0, key);
         }
     }
     best.commit(rays, hits);
