@@ -154,6 +154,9 @@ pub struct Bvh4 {
     /// a binned SAH can build for pathological inputs: queries then use a heap stack, so no
     /// branch is ever lost, and ordinary trees pay nothing for the check.
     pub deep: bool,
+    /// True when the nodes and packets outgrow the per-core cache (see [`PREFETCH_BYTES`]), so
+    /// single-ray walks prefetch the children they will visit.
+    pub prefetch: bool,
 }
 
 /// Per-ray constants for the packet tests.
@@ -216,6 +219,12 @@ fn far(ties: bool, t_max: f32) -> f32 {
     }
 }
 
+/// Trees larger than this prefetch (about a core's L2 cache). Below it the prefetches find their
+/// lines already cached and only cost instructions (the path-traced box, 8 packets: +1.5 %);
+/// above it they let the misses of a node's children overlap (a 50 k-triangle torus, 4 MB:
+/// incoherent rays +8 %; 1 M triangles: +25 %).
+const PREFETCH_BYTES: usize = 1 << 20;
+
 /// Scenes that fit in this many packets are tested flat, without a tree.
 const FLAT_PACKETS: usize = 4;
 
@@ -262,6 +271,7 @@ impl Bvh4 {
         let root = b.node_ref(0);
         out.root = root;
         out.deep = 3 * out.depth() + 1 > STACK;
+        out.prefetch = out.memory_bytes() > PREFETCH_BYTES;
         out
     }
 
@@ -410,6 +420,16 @@ impl Bvh4 {
                 continue;
             }
             let tn = tn.to_array();
+            if self.prefetch {
+                // Start loading every child the ray enters, so their cache misses overlap instead
+                // of coming one after another as the walk reaches them.
+                let mut m = mask;
+                while m != 0 {
+                    let i = m.trailing_zeros() as usize;
+                    m &= m - 1;
+                    self.prefetch_child(node.children[i]);
+                }
+            }
             if mask & (mask - 1) == 0 {
                 // One child hit: no ordering needed.
                 let i = mask.trailing_zeros() as usize;
@@ -443,6 +463,21 @@ impl Bvh4 {
             key,
             visits,
         };
+    }
+
+    /// Prefetches the node or packet `r` refers to.
+    #[inline(always)]
+    fn prefetch_child(&self, r: u32) {
+        if r & LEAF == 0 {
+            let p = std::ptr::from_ref(&self.nodes[r as usize]).cast::<u8>();
+            dispatch::prefetch(p);
+            dispatch::prefetch(p.wrapping_add(64));
+        } else if r & SPHERES == 0 {
+            let p = std::ptr::from_ref(&self.tris[(r & !LEAF) as usize]).cast::<u8>();
+            for k in 0..4 {
+                dispatch::prefetch(p.wrapping_add(64 * k));
+            }
+        }
     }
 
     /// Some primitive with `t_min < t < t_max` (any hit).
@@ -493,6 +528,9 @@ impl Bvh4 {
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
+                if self.prefetch {
+                    self.prefetch_child(node.children[i]);
+                }
                 stack.put(node.children[i]);
             }
         }

@@ -110,12 +110,20 @@ fn wide_equals_binary_and_brute_force() {
         (7, 2, 6, 1),
         (8, 0, 0, 5),
         (9, 30, 120, 5),
+        // Large enough (over 1 MiB of nodes and packets) for the walks to prefetch.
+        (10, 100, 12_000, 0),
     ] {
         let scene = random_scene_with_planes(seed, spheres, tris, planes);
         assert!(
             !scene.wide.deep,
             "seed {seed}: ordinary trees fit the fixed traversal stack"
         );
+        assert_eq!(
+            scene.wide.prefetch,
+            scene.wide.memory_bytes() > 1 << 20,
+            "seed {seed}: prefetching only for trees larger than a core's cache"
+        );
+        assert_eq!(scene.wide.prefetch, seed == 10, "seed {seed}");
         let packets = tris.div_ceil(4) + spheres.div_ceil(4);
         assert_eq!(
             scene.wide.flat.len(),

@@ -5,8 +5,9 @@
 //! 16- or 8-wide registers. FMA is not enabled and Rust never fuses a multiply and an add on its
 //! own, so every copy computes identical results (a test compares them). This is the one place
 //! the core uses `unsafe`: a function compiled for an instruction set may only be called on a CPU
-//! that has it, which is checked immediately before each call (the check is a cached load).
-//! Measured in BENCHMARKS.md, session 3.
+//! that has it, which is checked immediately before each call (the check is a cached load). The
+//! cache prefetch hint the tree walks use in large scenes is here too, since its intrinsic is
+//! `unsafe` to call as well. Measured in BENCHMARKS.md, sessions 3 and 5.
 #![allow(unsafe_code)]
 
 use super::packet::{LightRays, Mask, PacketHits, RayPacket};
@@ -14,6 +15,17 @@ use super::surface::{specular_rays_impl, surface_frames_impl, HitPrims, Specular
 use super::Bvh4;
 use super::LANES;
 use crate::camera::Camera;
+
+/// Asks the CPU to start loading the cache line at `p` (a hint: it never faults, whatever `p`).
+#[inline(always)]
+pub(super) fn prefetch<T>(p: *const T) {
+    #[cfg(target_arch = "x86_64")]
+    // SAFETY: SSE is part of the x86_64 baseline, and a prefetch of any address has no effect
+    // beyond the cache.
+    unsafe {
+        std::arch::x86_64::_mm_prefetch::<{ std::arch::x86_64::_MM_HINT_T0 }>(p.cast::<i8>());
+    }
+}
 
 /// Defines `$name`, which runs `$body` (an expression over the arguments) with the best
 /// instruction set the CPU has, and its AVX-512 and AVX2 builds `$name_avx512`, `$name_avx2`.
