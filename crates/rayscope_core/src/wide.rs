@@ -155,7 +155,7 @@ pub struct Bvh4 {
     /// branch is ever lost, and ordinary trees pay nothing for the check.
     pub deep: bool,
     /// True when the nodes and packets outgrow the per-core cache (see [`PREFETCH_BYTES`]), so
-    /// single-ray walks prefetch the children they will visit.
+    /// the walks prefetch the children they will visit.
     pub prefetch: bool,
 }
 
@@ -467,7 +467,7 @@ impl Bvh4 {
 
     /// Prefetches the node or packet `r` refers to.
     #[inline(always)]
-    fn prefetch_child(&self, r: u32) {
+    pub(crate) fn prefetch_child(&self, r: u32) {
         if r & LEAF == 0 {
             let p = std::ptr::from_ref(&self.nodes[r as usize]).cast::<u8>();
             dispatch::prefetch(p);

@@ -322,8 +322,11 @@ fn ray_packets_return_what_single_rays_return() {
         (24, 40, 0, 0),
         (25, 0, 300, 0),
         (26, 200, 800, 5),
+        // Over 1 MiB: the packet walks prefetch.
+        (27, 100, 12_000, 0),
     ] {
         let scene = random_scene_with_planes(seed, spheres, tris, planes);
+        assert_eq!(scene.wide.prefetch, seed == 27, "seed {seed}");
         let mut rng = Rng::for_sample(seed, 2, 0);
         // Incoherent packets, and coherent ones (a shared origin, nearby directions), some
         // partly filled.
