@@ -225,6 +225,18 @@ fn far(ties: bool, t_max: f32) -> f32 {
 /// incoherent rays +8 %; 1 M triangles: +25 %).
 const PREFETCH_BYTES: usize = 1 << 20;
 
+/// `x < t_max` per lane, or with `TIES` `x <= t_max`: a closest-hit query keeps hits at exactly
+/// the best distance so far for the tie rule ([`beats`]) to decide; a shadow query's bound is
+/// strict. (Triangles filter their undivided distance with [`far`] instead.)
+#[inline(always)]
+fn below<const TIES: bool>(x: Vec4, t_max: Vec4) -> BVec4A {
+    if TIES {
+        x.cmple(t_max)
+    } else {
+        x.cmplt(t_max)
+    }
+}
+
 /// Scenes that fit in this many packets are tested flat, without a tree.
 const FLAT_PACKETS: usize = 4;
 
@@ -420,19 +432,10 @@ impl Bvh4 {
                 continue;
             }
             let tn = tn.to_array();
-            if self.prefetch {
-                // Start loading every child the ray enters, so their cache misses overlap instead
-                // of coming one after another as the walk reaches them.
-                let mut m = mask;
-                while m != 0 {
-                    let i = m.trailing_zeros() as usize;
-                    m &= m - 1;
-                    self.prefetch_child(node.children[i]);
-                }
-            }
             if mask & (mask - 1) == 0 {
                 // One child hit: no ordering needed.
                 let i = mask.trailing_zeros() as usize;
+                self.prefetch_child(node.children[i]);
                 stack.put((node.children[i], tn[i]));
                 continue;
             }
@@ -444,6 +447,7 @@ impl Bvh4 {
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
+                self.prefetch_child(node.children[i]);
                 let item = (node.children[i], tn[i]);
                 let mut j = n;
                 while j > 0 && hits[j - 1].1 < item.1 {
@@ -465,9 +469,14 @@ impl Bvh4 {
         };
     }
 
-    /// Prefetches the node or packet `r` refers to.
+    /// In trees with [`Self::prefetch`], starts loading the node or packet `r` refers to, so the
+    /// cache misses of a node's children overlap instead of coming one after another as the
+    /// walk reaches them.
     #[inline(always)]
     pub(crate) fn prefetch_child(&self, r: u32) {
+        if !self.prefetch {
+            return;
+        }
         if r & LEAF == 0 {
             let p = std::ptr::from_ref(&self.nodes[r as usize]).cast::<u8>();
             dispatch::prefetch(p);
@@ -528,9 +537,7 @@ impl Bvh4 {
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                if self.prefetch {
-                    self.prefetch_child(node.children[i]);
-                }
+                self.prefetch_child(node.children[i]);
                 stack.put(node.children[i]);
             }
         }
@@ -712,9 +719,8 @@ impl SpherePacket {
         let hi = t0.max(t1);
         let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
         let ok = ok & q.cmpne(Vec4::ZERO);
-        let below = |x: Vec4| if TIES { x.cmple(tmax) } else { x.cmplt(tmax) };
-        let lo_ok = lo.cmpgt(tmin) & below(lo);
-        let hi_ok = hi.cmpgt(tmin) & below(hi);
+        let lo_ok = lo.cmpgt(tmin) & below::<TIES>(lo, tmax);
+        let hi_ok = hi.cmpgt(tmin) & below::<TIES>(hi, tmax);
         let t = Vec4::select(lo_ok, lo, hi);
         let i = nearest_lane(ok & (lo_ok | hi_ok), t)?;
         if TIES && !beats(t.to_array()[i], TAG_SPHERE | self.ids[i], t_max, key_max) {
@@ -755,8 +761,7 @@ impl PlanePacket {
         let w = [self.p[0] - rc.o[0], self.p[1] - rc.o[1], self.p[2] - rc.o[2]];
         let t = dot(&w, &self.n) / den;
         let tmax = Vec4::splat(t_max);
-        let below = if TIES { t.cmple(tmax) } else { t.cmplt(tmax) };
-        let mask = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min)) & below;
+        let mask = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min)) & below::<TIES>(t, tmax);
         let i = nearest_lane(mask, t)?;
         if TIES && !beats(t.to_array()[i], TAG_PLANE | self.ids[i], t_max, key_max) {
             return None;
@@ -976,7 +981,7 @@ impl Builder<'_> {
 /// A packet's primitive indices in ascending order, so the lowest lane among equal distances
 /// holds the lowest index (the tie rule, see [`beats`]).
 fn sorted(ids: &[u32]) -> impl Iterator<Item = u32> {
-    let mut v = ids.to_vec();
+    let mut v: ArrayVec<u32, 4> = ids.iter().copied().collect();
     v.sort_unstable();
     v.into_iter()
 }

@@ -557,9 +557,7 @@ impl Bvh4 {
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
-                if self.prefetch {
-                    self.prefetch_child(node.children[i]);
-                }
+                self.prefetch_child(node.children[i]);
                 let item = (node.children[i], near[i]);
                 let mut j = order.len();
                 order.push(item);
@@ -599,9 +597,7 @@ impl Bvh4 {
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
-                if self.prefetch {
-                    self.prefetch_child(node.children[i]);
-                }
+                self.prefetch_child(node.children[i]);
                 stack.put(node.children[i]);
             }
         }
