@@ -452,6 +452,7 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         }
         (None, None) => return Err(Failure::input("give --primary WxH or --rays-file FILE")),
     };
+    const BATCH: usize = 512;
     let trace = || -> (u64, f64) {
         let start = Instant::now();
         let hits = rays
@@ -471,9 +472,15 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
                         .sum()
                 } else {
                     chunk
-                        .iter()
-                        .filter(|r| scene.intersect(r, 0.0, f32::INFINITY).is_some())
-                        .count() as u64
+                        .chunks(BATCH)
+                        .map(|batch| {
+                            let mut hits = 0;
+                            scene
+                                .wide
+                                .closest_many(batch, 0.0, f32::INFINITY, |_, h| hits += u64::from(h.is_some()));
+                            hits
+                        })
+                        .sum::<u64>()
                 }
             })
             .sum();
@@ -494,6 +501,11 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     );
     if a.packets {
         println!("mode: ray packets of {LANES}");
+    } else {
+        // Chunks of 4096 split into batches of BATCH are the batches of BATCH from the start.
+        let batches = rays.len().div_ceil(BATCH);
+        let interleaved = rays.chunks(BATCH).filter(|b| scene.wide.interleaves(b)).count();
+        println!("mode: one ray at a time; walks interleaved in {interleaved} of {batches} batches of {BATCH}");
     }
     println!(
         "rays={} hits={hits} seconds={secs:.6} mrays_per_s={:.2} threads={}",

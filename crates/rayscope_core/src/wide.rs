@@ -20,9 +20,11 @@ use crate::scene::PrimRef;
 
 mod dispatch;
 mod packet;
+mod stream;
 mod surface;
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
 use packet::{TAG_PLANE, TAG_SPHERE, TAG_TRI};
+pub use stream::INTERLEAVE_BYTES;
 pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
 
 /// Directions of the camera rays through pixel positions (`px`, `py`) of a `w` × `h` image:
@@ -428,38 +430,7 @@ impl Bvh4 {
             }
             let node = &self.nodes[r as usize];
             let (mask, tn) = node_test(node, rc, nc, t_min, t_best);
-            if mask == 0 {
-                continue;
-            }
-            let tn = tn.to_array();
-            if mask & (mask - 1) == 0 {
-                // One child hit: no ordering needed.
-                let i = mask.trailing_zeros() as usize;
-                self.prefetch_child(node.children[i]);
-                stack.put((node.children[i], tn[i]));
-                continue;
-            }
-            // Several: insertion-sort by entry distance (at most four), far first, so the
-            // nearest is popped first.
-            let mut hits: [(u32, f32); 4] = [(EMPTY, 0.0); 4];
-            let mut n = 0;
-            let mut m = mask;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                self.prefetch_child(node.children[i]);
-                let item = (node.children[i], tn[i]);
-                let mut j = n;
-                while j > 0 && hits[j - 1].1 < item.1 {
-                    hits[j] = hits[j - 1];
-                    j -= 1;
-                }
-                hits[j] = item;
-                n += 1;
-            }
-            for &h in &hits[..n] {
-                stack.put(h);
-            }
+            self.push_children(node, mask, tn, &mut stack);
         }
         *w = Walk {
             best,
@@ -467,6 +438,43 @@ impl Bvh4 {
             key,
             visits,
         };
+    }
+
+    /// Pushes the children of `node` in `mask` (entry distances `tn`), far first, so the nearest
+    /// is popped first, prefetching each (see [`Self::prefetch_child`]).
+    #[inline(always)]
+    fn push_children<S: TraversalStack<(u32, f32)>>(&self, node: &Node4, mask: u32, tn: Vec4, stack: &mut S) {
+        if mask == 0 {
+            return;
+        }
+        let tn = tn.to_array();
+        if mask & (mask - 1) == 0 {
+            // One child hit: no ordering needed.
+            let i = mask.trailing_zeros() as usize;
+            self.prefetch_child(node.children[i]);
+            stack.put((node.children[i], tn[i]));
+            return;
+        }
+        // Several: insertion-sort by entry distance (at most four).
+        let mut hits: [(u32, f32); 4] = [(EMPTY, 0.0); 4];
+        let mut n = 0;
+        let mut m = mask;
+        while m != 0 {
+            let i = m.trailing_zeros() as usize;
+            m &= m - 1;
+            self.prefetch_child(node.children[i]);
+            let item = (node.children[i], tn[i]);
+            let mut j = n;
+            while j > 0 && hits[j - 1].1 < item.1 {
+                hits[j] = hits[j - 1];
+                j -= 1;
+            }
+            hits[j] = item;
+            n += 1;
+        }
+        for &h in &hits[..n] {
+            stack.put(h);
+        }
     }
 
     /// In trees with [`Self::prefetch`], starts loading the node or packet `r` refers to, so the

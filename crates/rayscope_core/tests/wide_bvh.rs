@@ -9,7 +9,7 @@ use rayscope_core::math::Ray;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
 use rayscope_core::scene::{Intersect, PrimRef, Scene};
-use rayscope_core::wide::{Bvh4, RayPacket, LANES};
+use rayscope_core::wide::{Bvh4, RayPacket, WideHit, INTERLEAVE_BYTES, LANES};
 use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
 
 fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
@@ -410,4 +410,43 @@ fn exact_ties_go_to_the_lower_primitive_whatever_the_walk_order() {
         in_packets += 1;
     }
     assert_eq!(in_packets, 400);
+}
+
+#[test]
+fn many_rays_at_once_return_what_single_rays_return() {
+    // Large enough that scattered rays' walks are interleaved (planes and spheres included, as
+    // the walk tests them before the tree).
+    let scene = random_scene_with_planes(31, 2000, 200_000, 3);
+    assert!(
+        scene.wide.memory_bytes() > INTERLEAVE_BYTES,
+        "{} bytes",
+        scene.wide.memory_bytes()
+    );
+    let scattered = random_rays(32, 4000);
+    assert!(scene.wide.interleaves(&scattered));
+    // Camera rays: one origin, neighbouring directions, walked one after another.
+    let fan: Vec<Ray> = (0..4000)
+        .map(|i| {
+            let (x, y) = ((i % 80) as f32 / 80.0 - 0.5, (i / 80) as f32 / 50.0 - 0.5);
+            Ray::new(Vec3A::new(0.0, 0.0, -2.0), Vec3A::new(x, y, 1.0).normalize())
+        })
+        .collect();
+    assert!(!scene.wide.interleaves(&fan));
+    // A tree that fits the caches never interleaves.
+    assert!(!random_scene(33, 50, 3000).wide.interleaves(&scattered));
+    for rays in [&scattered, &fan] {
+        for (t_min, t_max) in [(0.0, f32::INFINITY), (0.5, 6.0)] {
+            let mut got: Vec<Option<Option<WideHit>>> = vec![None; rays.len()];
+            scene.wide.closest_many(rays, t_min, t_max, |i, h| {
+                assert!(got[i].replace(h).is_none(), "ray {i} reported twice");
+            });
+            let mut hits = 0;
+            for (i, (ray, got)) in rays.iter().zip(&got).enumerate() {
+                let want = scene.wide.closest::<false>(ray, t_min, t_max, &mut 0);
+                hits += usize::from(want.is_some());
+                assert_eq!(*got, Some(want), "ray {i}, t in ({t_min}, {t_max})");
+            }
+            assert!(hits > rays.len() / 10, "the rays must mostly hit something: {hits}");
+        }
+    }
 }
