@@ -47,13 +47,10 @@ struct Lane {
 }
 
 impl Bvh4 {
-    /// The closest hit with `t_min < t < t_max` of each of `rays` into `out` (as long as
-    /// `rays`): what [`Self::closest`] returns for each, found faster where the tree is far
-    /// larger than the caches and the rays scattered, by interleaving their walks (see
-    /// [`Self::interleaves`]).
-    ///
-    /// # Panics
-    /// If `out` and `rays` differ in length.
+    /// Calls `each(i, hit)` once for every ray `rays[i]`, with its closest hit with
+    /// `t_min < t < t_max`: what [`Self::closest`] returns for it. Where the tree is far larger
+    /// than the caches and the rays are scattered, their walks are interleaved (see
+    /// [`Self::interleaves`]) and the calls come in the order the walks end, not in ray order.
     #[inline]
     pub fn closest_many(&self, rays: &[Ray], t_min: f32, t_max: f32, mut each: impl FnMut(usize, Option<WideHit>)) {
         if self.interleaves(rays) {
