@@ -306,6 +306,10 @@ pub struct BenchRaysArgs {
     /// rays of the file, or 4×4 pixel blocks of the primary image.
     #[arg(long)]
     pub packets: bool,
+    /// Walk every ray alone, one after another, even where interleaving the walks of scattered
+    /// rays would be faster (to measure the plain single-ray walk).
+    #[arg(long, conflicts_with = "packets")]
+    pub no_interleave: bool,
 }
 
 /// `rayscope bench render`.

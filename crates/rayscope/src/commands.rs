@@ -453,37 +453,47 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         (None, None) => return Err(Failure::input("give --primary WxH or --rays-file FILE")),
     };
     const BATCH: usize = 512;
+    // Each mode gets a loop of its own (the hot loop's code generation is sensitive enough that
+    // a mode test inside it cost the bunny 10 %).
+    let count = |hits_of: &(dyn Fn(&[Ray]) -> u64 + Sync)| -> u64 { rays.par_chunks(4096).map(hits_of).sum() };
+    let packets = |chunk: &[Ray]| -> u64 {
+        chunk
+            .chunks(LANES)
+            .map(|group| {
+                let mut p = RayPacket::default();
+                for (i, r) in group.iter().enumerate() {
+                    p.set(i, r, f32::INFINITY);
+                }
+                let h = scene.wide.closest_rays(&mut p, 0.0);
+                (0..group.len()).filter(|&i| h.get(i).is_some()).count() as u64
+            })
+            .sum()
+    };
+    let alone = |chunk: &[Ray]| -> u64 {
+        chunk
+            .iter()
+            .filter(|r| scene.intersect(r, 0.0, f32::INFINITY).is_some())
+            .count() as u64
+    };
+    let many = |chunk: &[Ray]| -> u64 {
+        chunk
+            .chunks(BATCH)
+            .map(|batch| {
+                let mut hits = 0;
+                scene.intersect_many(batch, 0.0, f32::INFINITY, |_, h| hits += u64::from(h.is_some()));
+                hits
+            })
+            .sum()
+    };
     let trace = || -> (u64, f64) {
         let start = Instant::now();
-        let hits = rays
-            .par_chunks(4096)
-            .map(|chunk| {
-                if a.packets {
-                    chunk
-                        .chunks(LANES)
-                        .map(|group| {
-                            let mut p = RayPacket::default();
-                            for (i, r) in group.iter().enumerate() {
-                                p.set(i, r, f32::INFINITY);
-                            }
-                            let h = scene.wide.closest_rays(&mut p, 0.0);
-                            (0..group.len()).filter(|&i| h.get(i).is_some()).count() as u64
-                        })
-                        .sum()
-                } else {
-                    chunk
-                        .chunks(BATCH)
-                        .map(|batch| {
-                            let mut hits = 0;
-                            scene
-                                .wide
-                                .closest_many(batch, 0.0, f32::INFINITY, |_, h| hits += u64::from(h.is_some()));
-                            hits
-                        })
-                        .sum::<u64>()
-                }
-            })
-            .sum();
+        let hits = if a.packets {
+            count(&packets)
+        } else if a.no_interleave {
+            count(&alone)
+        } else {
+            count(&many)
+        };
         (hits, start.elapsed().as_secs_f64())
     };
     let (hits, _) = trace(); // warm-up
@@ -501,6 +511,8 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     );
     if a.packets {
         println!("mode: ray packets of {LANES}");
+    } else if a.no_interleave {
+        println!("mode: one ray at a time, walks never interleaved");
     } else {
         // Chunks of 4096 split into batches of BATCH are the batches of BATCH from the start.
         let batches = rays.len().div_ceil(BATCH);

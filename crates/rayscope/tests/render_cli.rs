@@ -323,12 +323,13 @@ fn bench_rays(args: &[&str], scene: &std::path::Path) -> (u64, u64) {
 }
 
 #[test]
-fn bench_rays_counts_hits_the_same_one_ray_at_a_time_and_in_packets() {
+fn bench_rays_counts_hits_the_same_in_every_mode() {
     let scene = reference("tests/sample_scene_obj.txt");
     let single = bench_rays(&["--primary", "67x45"], &scene);
     let packets = bench_rays(&["--primary", "67x45", "--packets"], &scene);
     assert_eq!(single.0, 67 * 45);
     assert_eq!(single, packets, "same rays, same hits");
+    assert_eq!(single, bench_rays(&["--primary", "67x45", "--no-interleave"], &scene));
     assert!(single.1 > 0);
 
     // A rays file: one ray into the room (hits), one away from it through the open front
@@ -347,6 +348,7 @@ fn bench_rays_counts_hits_the_same_one_ray_at_a_time_and_in_packets() {
     let file = path.to_str().unwrap();
     assert_eq!(bench_rays(&["--rays-file", file], &scene), (17, 16));
     assert_eq!(bench_rays(&["--rays-file", file, "--packets"], &scene), (17, 16));
+    assert_eq!(bench_rays(&["--rays-file", file, "--no-interleave"], &scene), (17, 16));
 
     // A file that is not whole records is refused.
     fs::write(&path, &bytes[..25]).unwrap();

@@ -283,6 +283,24 @@ impl Scene {
         self.intersect_counting::<false>(ray, t_min, t_max, &mut 0)
     }
 
+    /// Calls `each(i, hit)` once for every ray `rays[i]` with what [`Self::intersect`] returns
+    /// for it, in no particular order; faster than one call per ray for scattered rays in very
+    /// large scenes (see [`Bvh4::closest_many`]).
+    #[inline]
+    pub fn intersect_many(&self, rays: &[Ray], t_min: f32, t_max: f32, mut each: impl FnMut(usize, Option<Hit>)) {
+        self.wide.closest_many(rays, t_min, t_max, |i, h| {
+            each(
+                i,
+                h.map(|h| Hit {
+                    t: h.t,
+                    u: h.u,
+                    v: h.v,
+                    prim: h.prim,
+                }),
+            );
+        });
+    }
+
     #[inline]
     fn intersect_counting<const COUNT: bool>(
         &self,

@@ -348,7 +348,7 @@ impl Bvh4 {
 
     /// The closest hit with `t_min < t < t_max`. When `COUNT`, adds the node and packet tests
     /// made to `visits` (a plane counts as one test).
-    #[inline]
+    #[inline(always)]
     pub fn closest<const COUNT: bool>(&self, ray: &Ray, t_min: f32, t_max: f32, visits: &mut u32) -> Option<WideHit> {
         let rc = RayConsts::new(ray);
         // Key 0: nothing found yet, so a hit at exactly `t_max` does not count.

@@ -449,4 +449,11 @@ fn many_rays_at_once_return_what_single_rays_return() {
             assert!(hits > rays.len() / 10, "the rays must mostly hit something: {hits}");
         }
     }
+    // The scene-level query reports the same hits as `Scene::intersect`.
+    let mut n = 0;
+    scene.intersect_many(&scattered, 0.0, f32::INFINITY, |i, h| {
+        n += 1;
+        assert_eq!(h, scene.intersect(&scattered[i], 0.0, f32::INFINITY), "ray {i}");
+    });
+    assert_eq!(n, scattered.len());
 }
