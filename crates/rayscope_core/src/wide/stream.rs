@@ -20,9 +20,9 @@ use super::{node_test, Bvh4, NodeConsts, RayConsts, Walk, WideHit, EMPTY, LEAF, 
 use crate::math::Ray;
 
 /// Walks in flight at once on one thread: enough to cover a miss to memory with the other
-/// walks' steps (8 covered less of it), few enough that their state stays in the first-level
-/// cache (about 12 KB).
-const IN_FLIGHT: usize = 16;
+/// walks' steps (with 16 the 4 M-triangle torus ran 12 % slower, with 8 slower still), few
+/// enough that their state stays in the first-level cache (about 18 KB).
+const IN_FLIGHT: usize = 24;
 
 /// Trees whose nodes and packets exceed this (half the development machine's shared L3 cache)
 /// interleave scattered rays. Below it their misses mostly hit the L3, too short a wait to
