@@ -277,9 +277,10 @@ pub struct DiffArgs {
 pub enum BenchCommand {
     /// Time a render (median of several runs, render loop only).
     Render(BenchRenderArgs),
-    /// Closest-hit throughput: build the BVH, trace a batch of rays, report Mrays/s. Rays go one at
-    /// a time (walks interleaved for scattered rays in trees over 16 MiB) or, with --packets, as
-    /// packets of 16.
+    /// Closest-hit throughput: build the BVH, trace a batch of rays, report Mrays/s.
+    ///
+    /// Rays go one at a time (walks interleaved for scattered rays in trees over 16 MiB) or, with
+    /// --packets, as packets of 16.
     Rays(BenchRaysArgs),
 }
 
