@@ -453,9 +453,11 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         (None, None) => return Err(Failure::input("give --primary WxH or --rays-file FILE")),
     };
     const BATCH: usize = 512;
+    // A whole number of batches, so the batches are those of BATCH rays from the start.
+    const CHUNK: usize = 8 * BATCH;
     // Each mode gets a loop of its own (the hot loop's code generation is sensitive enough that
     // a mode test inside it cost the bunny 10 %).
-    let count = |hits_of: &(dyn Fn(&[Ray]) -> u64 + Sync)| -> u64 { rays.par_chunks(4096).map(hits_of).sum() };
+    let count = |hits_of: &(dyn Fn(&[Ray]) -> u64 + Sync)| -> u64 { rays.par_chunks(CHUNK).map(hits_of).sum() };
     let packets = |chunk: &[Ray]| -> u64 {
         chunk
             .chunks(LANES)
@@ -514,7 +516,6 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     } else if a.no_interleave {
         println!("mode: one ray at a time, walks never interleaved");
     } else {
-        // Chunks of 4096 split into batches of BATCH are the batches of BATCH from the start.
         let batches = rays.len().div_ceil(BATCH);
         let interleaved = rays.chunks(BATCH).filter(|b| scene.wide.interleaves(b)).count();
         println!("mode: one ray at a time; walks interleaved in {interleaved} of {batches} batches of {BATCH}");

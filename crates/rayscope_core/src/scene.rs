@@ -8,7 +8,7 @@ use serde::Serialize;
 use crate::bvh::{BuildPrim, Bvh};
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
-use crate::wide::Bvh4;
+use crate::wide::{Bvh4, WideHit};
 
 /// A material as the integrators use it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -57,6 +57,19 @@ pub struct Hit {
     pub v: f32,
     /// The primitive hit.
     pub prim: PrimRef,
+}
+
+impl From<WideHit> for Hit {
+    /// The scene-level hit of a wide-BVH query.
+    #[inline(always)]
+    fn from(h: WideHit) -> Self {
+        Hit {
+            t: h.t,
+            u: h.u,
+            v: h.v,
+            prim: h.prim,
+        }
+    }
 }
 
 /// Local geometry at a hit, ready for shading.
@@ -288,17 +301,8 @@ impl Scene {
     /// large scenes (see [`Bvh4::closest_many`]).
     #[inline]
     pub fn intersect_many(&self, rays: &[Ray], t_min: f32, t_max: f32, mut each: impl FnMut(usize, Option<Hit>)) {
-        self.wide.closest_many(rays, t_min, t_max, |i, h| {
-            each(
-                i,
-                h.map(|h| Hit {
-                    t: h.t,
-                    u: h.u,
-                    v: h.v,
-                    prim: h.prim,
-                }),
-            );
-        });
+        self.wide
+            .closest_many(rays, t_min, t_max, |i, h| each(i, h.map(Hit::from)));
     }
 
     #[inline]
@@ -309,12 +313,7 @@ impl Scene {
         t_max: f32,
         visits: &mut u32,
     ) -> Option<Hit> {
-        self.wide.closest::<COUNT>(ray, t_min, t_max, visits).map(|h| Hit {
-            t: h.t,
-            u: h.u,
-            v: h.v,
-            prim: h.prim,
-        })
+        self.wide.closest::<COUNT>(ray, t_min, t_max, visits).map(Hit::from)
     }
 
     /// True when anything lies on the ray with `t_min < t < t_max` (shadow rays).
