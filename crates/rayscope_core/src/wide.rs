@@ -44,6 +44,10 @@ pub fn camera_dirs(
 const LEAF: u32 = 1 << 31;
 /// Leaf flag: the packet holds spheres, not triangles.
 const SPHERES: u32 = 1 << 30;
+/// Leaf field: how many triangle packets after the one referenced belong to the same leaf (a
+/// run of up to [`MAX_RUN`] packets, stored one after another and tested in turn).
+const RUN: u32 = 3 << RUN_SHIFT;
+const RUN_SHIFT: u32 = 28;
 /// An empty child slot.
 const EMPTY: u32 = u32::MAX;
 /// Lane id of an unused packet lane.
@@ -55,7 +59,8 @@ const NO_PRIM: u32 = u32::MAX;
 pub struct Node4 {
     /// `bounds[axis][0]` = min of the four children on that axis, `[1]` = max.
     pub bounds: [[Vec4; 2]; 3],
-    /// Node index, `LEAF | packet`, `LEAF | SPHERES | packet`, or `EMPTY`.
+    /// Node index, `LEAF | packet` (with a [`RUN`] of more packets), `LEAF | SPHERES | packet`,
+    /// or `EMPTY`.
     pub children: [u32; 4],
     /// Bit i set when `children[i]` is used (sits in the padding of the 128-byte node).
     pub valid: u32,
@@ -239,6 +244,11 @@ fn below<const TIES: bool>(x: Vec4, t_max: Vec4) -> BVec4A {
     }
 }
 
+/// The most triangle packets in one leaf (at most 4, the [`RUN`] field's range). Three measured
+/// best: a run spares the node that would sit over its packets, and a longer one tests packets
+/// whose own bounds would have culled them.
+const MAX_RUN: usize = 3;
+
 /// Scenes that fit in this many packets are tested flat, without a tree.
 const FLAT_PACKETS: usize = 4;
 
@@ -302,8 +312,8 @@ impl Bvh4 {
         }
     }
 
-    /// The closest hit in leaf packet `r`: with `TIES`, one that [`beats`] (`t_max`, `key_max`),
-    /// else one with `t < t_max`.
+    /// The closest hit in packet `r` (a flat-list entry, never a run): with `TIES`, one that
+    /// [`beats`] (`t_max`, `key_max`), else one with `t < t_max`.
     #[inline(always)]
     fn packet_closest<const TIES: bool>(
         &self,
@@ -318,6 +328,33 @@ impl Bvh4 {
         } else {
             self.tris[(r & !LEAF) as usize].closest::<TIES>(rc, t_min, t_max, key_max)
         }
+    }
+
+    /// [`Self::packet_closest`] for a tree leaf `r`, which may be a [`RUN`] of packets.
+    #[inline(always)]
+    fn leaf_closest<const TIES: bool>(
+        &self,
+        r: u32,
+        rc: &RayConsts,
+        t_min: f32,
+        t_max: f32,
+        key_max: u32,
+    ) -> Option<WideHit> {
+        if r & SPHERES != 0 {
+            return self.spheres[(r & !(LEAF | SPHERES)) as usize].closest::<TIES>(rc, t_min, t_max, key_max);
+        }
+        let i = (r & !(LEAF | RUN)) as usize;
+        let (mut best, mut t, mut key) = (None, t_max, key_max);
+        for p in &self.tris[i..=i + ((r & RUN) >> RUN_SHIFT) as usize] {
+            if let Some(h) = p.closest::<TIES>(rc, t_min, t, key) {
+                if !TIES {
+                    return Some(h);
+                }
+                (t, key) = (h.t, h.key());
+                best = Some(h);
+            }
+        }
+        best
     }
 
     /// Node levels on the longest root-to-leaf path (0 without a tree).
@@ -421,7 +458,7 @@ impl Bvh4 {
                 visits += 1;
             }
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest::<true>(r, rc, t_min, t_best, key) {
+                if let Some(h) = self.leaf_closest::<true>(r, rc, t_min, t_best, key) {
                     (t_best, key) = (h.t, h.key());
                     t_cull = t_best * SLAB_SLACK;
                     best = Some(h);
@@ -490,9 +527,15 @@ impl Bvh4 {
             dispatch::prefetch(p);
             dispatch::prefetch(p.wrapping_add(64));
         } else if r & SPHERES == 0 {
-            let p = std::ptr::from_ref(&self.tris[(r & !LEAF) as usize]).cast::<u8>();
+            let p = std::ptr::from_ref(&self.tris[(r & !(LEAF | RUN)) as usize]).cast::<u8>();
             for k in 0..4 {
                 dispatch::prefetch(p.wrapping_add(64 * k));
+            }
+            if r & RUN != 0 {
+                let bytes = (1 + ((r & RUN) >> RUN_SHIFT) as usize) * std::mem::size_of::<TriPacket>();
+                for k in 4..bytes.div_ceil(64) {
+                    dispatch::prefetch(p.wrapping_add(64 * k));
+                }
             }
         }
     }
@@ -535,7 +578,7 @@ impl Bvh4 {
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest::<false>(r, rc, t_min, t_max, 0) {
+                if let Some(h) = self.leaf_closest::<false>(r, rc, t_min, t_max, 0) {
                     return Some(h.prim);
                 }
                 continue;
@@ -813,7 +856,12 @@ impl Builder<'_> {
         // a packet tests four primitives for the price of one, so small binary leaves would
         // waste lanes and add node tests.
         let mut refs = Vec::with_capacity(8);
-        self.collect_small(i, &mut refs).then(|| self.leaf_ref_of(&refs))
+        if self.collect_small(i, &mut refs) {
+            return Some(self.leaf_ref_of(&refs));
+        }
+        // A few small triangle-only subtrees: a run of packets, so no node is spent on them.
+        let mut groups = Vec::with_capacity(4);
+        self.tri_groups(i, &mut groups).then(|| self.tri_run(&groups))
     }
 
     /// Makes 4-wide node `idx` from interior binary node `i`. A node's interior children are
@@ -884,8 +932,8 @@ impl Builder<'_> {
         self.leaf_ref_of(&refs)
     }
 
-    /// A leaf: one packet, or a small node over a triangle packet and a sphere packet when the
-    /// leaf mixes them.
+    /// A leaf: one packet, a run of triangle packets, or a small node over triangle and sphere
+    /// packets when the leaf mixes them.
     fn leaf_ref_of(&mut self, refs: &[u32]) -> u32 {
         let tris: Vec<u32> = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
         let sph: Vec<u32> = refs
@@ -893,6 +941,10 @@ impl Builder<'_> {
             .filter(|r| *r & self.sphere_bit != 0)
             .map(|r| r & !self.sphere_bit)
             .collect();
+        if sph.is_empty() && tris.len() <= 4 * MAX_RUN {
+            let groups: Vec<Vec<u32>> = tris.chunks(4).map(<[u32]>::to_vec).collect();
+            return self.tri_run(&groups);
+        }
         let mut parts = Vec::new();
         for chunk in tris.chunks(4) {
             parts.push(self.tri_packet(chunk));
@@ -935,6 +987,32 @@ impl Builder<'_> {
         idx as u32
     }
 
+    /// Appends the triangles under node `i` to `groups`, one group per subtree small enough for a
+    /// packet; false when the subtree holds spheres or needs more than [`MAX_RUN`] packets.
+    fn tri_groups(&self, i: usize, groups: &mut Vec<Vec<u32>>) -> bool {
+        let n = &self.bvh.nodes[i];
+        let mut refs = Vec::with_capacity(8);
+        if n.count > 0 {
+            refs.extend_from_slice(&self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]);
+        } else if !self.collect_small(i, &mut refs) {
+            return self.tri_groups(i + 1, groups) && self.tri_groups(n.offset as usize, groups);
+        }
+        if refs.iter().any(|r| r & self.sphere_bit != 0) {
+            return false;
+        }
+        groups.extend(refs.chunks(4).map(<[u32]>::to_vec));
+        groups.len() <= MAX_RUN
+    }
+
+    /// A leaf of consecutive triangle packets, one per group (at most [`MAX_RUN`]).
+    fn tri_run(&mut self, groups: &[Vec<u32>]) -> u32 {
+        let first = self.tri_packet(&groups[0]);
+        for g in &groups[1..] {
+            self.tri_packet(g);
+        }
+        first | ((groups.len() as u32 - 1) << RUN_SHIFT)
+    }
+
     fn tri_packet(&mut self, ids: &[u32]) -> u32 {
         let mut lanes = [[[0f32; 4]; 3]; 3];
         let mut lane_ids = [NO_PRIM; 4];
@@ -962,6 +1040,8 @@ impl Builder<'_> {
             n: cross(&e1, &e2),
             ids: lane_ids,
         });
+        // 2^28 packets would be a billion triangles, far beyond memory.
+        debug_assert!(self.out.tris.len() <= 1 << RUN_SHIFT);
         LEAF | (self.out.tris.len() - 1) as u32
     }
 

@@ -111,7 +111,7 @@ fn wide_equals_binary_and_brute_force() {
         (8, 0, 0, 5),
         (9, 30, 120, 5),
         // Large enough (over 1 MiB of nodes and packets) for the walks to prefetch.
-        (10, 100, 12_000, 0),
+        (10, 100, 16_000, 0),
     ] {
         let scene = random_scene_with_planes(seed, spheres, tris, planes);
         assert!(
@@ -323,7 +323,7 @@ fn ray_packets_return_what_single_rays_return() {
         (25, 0, 300, 0),
         (26, 200, 800, 5),
         // Over 1 MiB: the packet walks prefetch.
-        (27, 100, 12_000, 0),
+        (27, 100, 16_000, 0),
     ] {
         let scene = random_scene_with_planes(seed, spheres, tris, planes);
         assert_eq!(scene.wide.prefetch, seed == 27, "seed {seed}");
@@ -416,7 +416,7 @@ fn exact_ties_go_to_the_lower_primitive_whatever_the_walk_order() {
 fn many_rays_at_once_return_what_single_rays_return() {
     // Large enough that scattered rays' walks are interleaved (planes and spheres included, as
     // the walk tests them before the tree).
-    let scene = random_scene_with_planes(31, 2000, 200_000, 3);
+    let scene = random_scene_with_planes(31, 2000, 260_000, 3);
     assert!(
         scene.wide.memory_bytes() > INTERLEAVE_BYTES,
         "{} bytes",

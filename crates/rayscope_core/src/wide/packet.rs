@@ -14,8 +14,8 @@
 use arrayvec::ArrayVec;
 
 use super::{
-    beats, far, Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, SLAB_SLACK,
-    SPHERES, STACK,
+    beats, far, Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, RUN,
+    RUN_SHIFT, SLAB_SLACK, SPHERES, STACK,
 };
 use crate::math::Ray;
 use crate::scene::PrimRef;
@@ -510,21 +510,33 @@ fn all_closed(rays: &RayPacket) -> bool {
 }
 
 impl Bvh4 {
+    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
     #[inline(always)]
-    fn leaf_closest_rays(&self, r: u32, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    fn leaf_closest_rays<const RUNS: bool>(&self, r: u32, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         if r & SPHERES != 0 {
             self.spheres[(r & !(LEAF | SPHERES)) as usize].closest_rays(rays, t_min, hits);
-        } else {
+        } else if !RUNS {
             self.tris[(r & !LEAF) as usize].closest_rays(rays, t_min, hits);
+        } else {
+            let i = (r & !(LEAF | RUN)) as usize;
+            for p in &self.tris[i..=i + ((r & RUN) >> RUN_SHIFT) as usize] {
+                p.closest_rays(rays, t_min, hits);
+            }
         }
     }
 
+    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
     #[inline(always)]
-    fn leaf_occlude_rays(&self, r: u32, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    fn leaf_occlude_rays<const RUNS: bool>(&self, r: u32, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
         if r & SPHERES != 0 {
             self.spheres[(r & !(LEAF | SPHERES)) as usize].occlude_rays(rays, t_min, blocked);
-        } else {
+        } else if !RUNS {
             self.tris[(r & !LEAF) as usize].occlude_rays(rays, t_min, blocked);
+        } else {
+            let i = (r & !(LEAF | RUN)) as usize;
+            for p in &self.tris[i..=i + ((r & RUN) >> RUN_SHIFT) as usize] {
+                p.occlude_rays(rays, t_min, blocked);
+            }
         }
     }
 
@@ -545,7 +557,7 @@ impl Bvh4 {
                 continue;
             }
             if r & LEAF != 0 {
-                self.leaf_closest_rays(r, rays, t_min, hits);
+                self.leaf_closest_rays::<true>(r, rays, t_min, hits);
                 far = max_t(rays);
                 continue;
             }
@@ -586,7 +598,7 @@ impl Bvh4 {
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                self.leaf_occlude_rays(r, rays, t_min, blocked);
+                self.leaf_occlude_rays::<true>(r, rays, t_min, blocked);
                 if all_closed(rays) {
                     return;
                 }
@@ -609,7 +621,7 @@ impl Bvh4 {
             p.closest_rays(rays, t_min, hits);
         }
         for &r in &self.flat {
-            self.leaf_closest_rays(r, rays, t_min, hits);
+            self.leaf_closest_rays::<false>(r, rays, t_min, hits);
         }
         if self.root == EMPTY {
             return;
@@ -632,7 +644,7 @@ impl Bvh4 {
             if all_closed(rays) {
                 return blocked;
             }
-            self.leaf_occlude_rays(r, rays, t_min, &mut blocked);
+            self.leaf_occlude_rays::<false>(r, rays, t_min, &mut blocked);
         }
         if self.root == EMPTY || all_closed(rays) {
             return blocked;

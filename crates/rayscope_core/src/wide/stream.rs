@@ -160,7 +160,7 @@ impl Bvh4 {
                 continue;
             }
             if r & LEAF != 0 {
-                if let Some(h) = self.packet_closest::<true>(r, &lane.rc, t_min, lane.walk.t_best, lane.walk.key) {
+                if let Some(h) = self.leaf_closest::<true>(r, &lane.rc, t_min, lane.walk.t_best, lane.walk.key) {
                     lane.walk.take(h);
                     lane.t_cull = lane.walk.t_best * SLAB_SLACK;
                 }
