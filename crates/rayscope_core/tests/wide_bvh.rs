@@ -457,3 +457,66 @@ fn many_rays_at_once_return_what_single_rays_return() {
     });
     assert_eq!(n, scattered.len());
 }
+
+/// A bumpy grid of `n`×`n` quads (two triangles each), like a finely tessellated mesh.
+fn grid_scene(n: usize) -> Scene {
+    let mut file = SceneFile {
+        materials: vec![MaterialDef {
+            name: "M".into(),
+            kind: MaterialKind::Diffuse,
+            color: DVec3::ONE,
+            value: 1.0,
+            line: 1,
+        }],
+        ..SceneFile::default()
+    };
+    let p = |i: usize, j: usize| {
+        let (x, y) = (i as f64 / n as f64 * 4.0 - 2.0, j as f64 / n as f64 * 4.0 - 2.0);
+        DVec3::new(x, y, 3.0 + 0.2 * (3.0 * x).sin() * (2.0 * y).cos())
+    };
+    for i in 0..n {
+        for j in 0..n {
+            for vertices in [
+                [p(i, j), p(i + 1, j), p(i + 1, j + 1)],
+                [p(i, j), p(i + 1, j + 1), p(i, j + 1)],
+            ] {
+                file.entities.push(EntityDef {
+                    name: format!("T{i}_{j}"),
+                    shape: Shape::Triangle { vertices },
+                    material: 0,
+                    line: file.entities.len() + 2,
+                });
+            }
+        }
+    }
+    Scene::from_file(&file)
+}
+
+#[test]
+fn a_fine_mesh_gets_about_one_node_per_three_packets() {
+    // The collapse used to leave a node over each pair of packets it could not give a slot of
+    // its own (half the nodes of a million-triangle mesh); leaves now hold such runs, so nodes
+    // are few, and a query must still test every packet of a run.
+    let scene = grid_scene(120);
+    let wide = &scene.wide;
+    assert!(
+        wide.nodes.len() * 3 <= wide.tris.len(),
+        "{} nodes for {} packets",
+        wide.nodes.len(),
+        wide.tris.len()
+    );
+    let mut rng = Rng::for_sample(41, 0, 0);
+    for k in 0..20_000 {
+        let o = Vec3A::new(rng.next_f32() * 4.0 - 2.0, rng.next_f32() * 4.0 - 2.0, 0.0);
+        let d = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 2.0).normalize();
+        let ray = Ray::new(o, d);
+        let one = scene.intersect(&ray, 0.0, f32::INFINITY).map(|h| h.prim);
+        let binary = scene.intersect_binary(&ray, 0.0, f32::INFINITY).map(|h| h.prim);
+        assert_eq!(one, binary, "ray {k}");
+        assert_eq!(
+            scene.occluded(&ray, 0.0, f32::INFINITY),
+            binary.is_some(),
+            "ray {k}, any hit"
+        );
+    }
+}
