@@ -520,3 +520,47 @@ fn a_fine_mesh_gets_about_one_node_per_three_packets() {
         );
     }
 }
+
+#[test]
+fn a_small_room_is_a_list_for_single_rays_and_a_tree_for_packets() {
+    // Our emitter-lit box (open at the front): ten walls, a block and two spheres. Single rays test a short list of
+    // full packets (every wall's box overlaps the others, so the walk would open most of the
+    // tree); ray packets walk the tree. Both must find the binary BVH's distances and the same
+    // hits as one another, ties included (the block's floor lies on the room's floor).
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/emissive.txt");
+    let scene = Scene::from_file(&rayscope_scene::load(&path).expect("our scene loads"));
+    assert!(!scene.wide.single.is_empty(), "the room gets a list for single rays");
+    assert!(
+        scene.wide.root != u32::MAX && scene.wide.flat.is_empty(),
+        "and keeps its tree"
+    );
+    let mut rng = Rng::for_sample(51, 0, 0);
+    let mut r = move || rng.next_f32();
+    for k in 0..400 {
+        let o = Vec3A::new(r() * 1.9 - 0.95, r() * 1.9 - 0.95, r() * 3.6 - 0.15);
+        let rays: Vec<Ray> = (0..LANES)
+            .map(|_| Ray::new(o, (Vec3A::new(r(), r(), r()) - Vec3A::splat(0.5)).normalize()))
+            .collect();
+        let mut p = packet_of(&rays, &[f32::INFINITY; LANES]);
+        let hits = scene.wide.closest_rays(&mut p, 0.0);
+        for (i, ray) in rays.iter().enumerate() {
+            let one = scene
+                .intersect(ray, 0.0, f32::INFINITY)
+                .map(|h| (h.t, h.u, h.v, h.prim));
+            // The binary BVH has no tie rule, so where the block's floor lies on the room's
+            // floor it may name the other triangle; the distance must agree.
+            let binary = scene.intersect_binary(ray, 0.0, f32::INFINITY).map(|h| h.t);
+            assert_eq!(hits.get(i), one, "ray {k}.{i}: packet against single");
+            let Some((t, ..)) = one else {
+                // Out through the open front.
+                assert_eq!(binary, None, "ray {k}.{i}");
+                assert!(!scene.occluded(ray, 0.0, f32::INFINITY), "ray {k}.{i}: any hit");
+                continue;
+            };
+            let b = binary.expect("the binary BVH hits too");
+            assert!((t - b).abs() <= 1e-5 * (1.0 + b), "ray {k}.{i}: {t} against {b}");
+            assert!(scene.occluded(ray, 0.0, t * 1.0001 + 1e-6), "ray {k}.{i}: any hit");
+            assert!(!scene.occluded(ray, 0.0, t * 0.999), "ray {k}.{i}: nothing nearer");
+        }
+    }
+}

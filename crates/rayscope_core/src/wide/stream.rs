@@ -144,7 +144,7 @@ impl Bvh4 {
                 lane.walk.take(h);
             }
         }
-        self.closest_flat::<false>(&lane.rc, t_min, &mut lane.walk, &mut 0);
+        self.closest_flat::<false>(&self.flat, &lane.rc, t_min, &mut lane.walk, &mut 0);
         lane.t_cull = lane.walk.t_best * SLAB_SLACK;
         lane.stack.clear();
         lane.stack.push((self.root, t_min));
