@@ -401,7 +401,7 @@ impl Bvh4 {
         key_max: u32,
     ) -> Option<WideHit> {
         if r & SPHERES != 0 {
-            return self.spheres[(r & !(LEAF | SPHERES)) as usize].closest::<TIES>(rc, t_min, t_max, key_max);
+            return self.packet_closest::<TIES>(r, rc, t_min, t_max, key_max);
         }
         let i = (r & !(LEAF | RUN)) as usize;
         let (mut best, mut t, mut key) = (None, t_max, key_max);

@@ -16,10 +16,9 @@ fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
     random_scene_with_planes(seed, spheres, triangles, 0)
 }
 
-fn random_scene_with_planes(seed: u64, spheres: usize, triangles: usize, planes: usize) -> Scene {
-    let mut rng = Rng::for_sample(seed, 0, 0);
-    let mut r = move || rng.next_f32() as f64;
-    let mut file = SceneFile {
+/// A scene file with one diffuse material, "M", and no entities yet.
+fn one_material_file() -> SceneFile {
+    SceneFile {
         materials: vec![MaterialDef {
             name: "M".into(),
             kind: MaterialKind::Diffuse,
@@ -28,7 +27,13 @@ fn random_scene_with_planes(seed: u64, spheres: usize, triangles: usize, planes:
             line: 1,
         }],
         ..SceneFile::default()
-    };
+    }
+}
+
+fn random_scene_with_planes(seed: u64, spheres: usize, triangles: usize, planes: usize) -> Scene {
+    let mut rng = Rng::for_sample(seed, 0, 0);
+    let mut r = move || rng.next_f32() as f64;
+    let mut file = one_material_file();
     for i in 0..spheres {
         let c = DVec3::new(r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0);
         file.entities.push(EntityDef {
@@ -460,16 +465,7 @@ fn many_rays_at_once_return_what_single_rays_return() {
 
 /// A bumpy grid of `n`×`n` quads (two triangles each), like a finely tessellated mesh.
 fn grid_scene(n: usize) -> Scene {
-    let mut file = SceneFile {
-        materials: vec![MaterialDef {
-            name: "M".into(),
-            kind: MaterialKind::Diffuse,
-            color: DVec3::ONE,
-            value: 1.0,
-            line: 1,
-        }],
-        ..SceneFile::default()
-    };
+    let mut file = one_material_file();
     let p = |i: usize, j: usize| {
         let (x, y) = (i as f64 / n as f64 * 4.0 - 2.0, j as f64 / n as f64 * 4.0 - 2.0);
         DVec3::new(x, y, 3.0 + 0.2 * (3.0 * x).sin() * (2.0 * y).cos())
