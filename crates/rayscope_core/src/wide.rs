@@ -48,6 +48,7 @@ const SPHERES: u32 = 1 << 30;
 /// run of up to [`MAX_RUN`] packets, stored one after another and tested in turn).
 const RUN: u32 = 3 << RUN_SHIFT;
 const RUN_SHIFT: u32 = 28;
+
 /// An empty child slot.
 const EMPTY: u32 = u32::MAX;
 /// Lane id of an unused packet lane.
@@ -294,13 +295,13 @@ impl Bvh4 {
             sphere_bit,
             out: &mut out,
         };
-        if triangles.len().div_ceil(4) + spheres.len().div_ceil(4) <= FLAT_PACKETS {
+        let packets = triangles.len().div_ceil(4) + spheres.len().div_ceil(4);
+        if packets <= FLAT_PACKETS {
             out.flat = b.full_packets();
             return out;
         }
         let root = b.node_ref(0);
-        let packets = triangles.len().div_ceil(4) + spheres.len().div_ceil(4);
-        if packets <= SINGLE_PACKETS && (packets as f32) < b.out.walk_cost(root) {
+        if packets <= SINGLE_PACKETS && (packets as f32) < b.out.walk_cost(root, area(&bvh.nodes[0])) {
             out.single = b.full_packets();
         }
         out.root = root;
@@ -309,10 +310,11 @@ impl Bvh4 {
         out
     }
 
-    /// The expected number of tests, in packet tests, of a ray that enters the tree under `root`
-    /// (surface area heuristic: a box is entered with a probability proportional to its area).
-    /// A node visit counts as [`NODE_COST`] packet tests.
-    fn walk_cost(&self, root: u32) -> f32 {
+    /// The expected number of tests, in packet tests, of a ray that enters the tree under `root`,
+    /// whose bounds have surface area ∝ `root_area` (surface area heuristic: a box is entered
+    /// with a probability proportional to its area). A node visit counts as [`NODE_COST`] packet
+    /// tests.
+    fn walk_cost(&self, root: u32, root_area: f32) -> f32 {
         fn area(node: &Node4, i: usize) -> f32 {
             let d = |a: usize| (node.bounds[a][1][i] - node.bounds[a][0][i]).max(0.0);
             d(0) * d(1) + d(1) * d(2) + d(2) * d(0)
@@ -333,19 +335,6 @@ impl Bvh4 {
                 .sum();
             a * NODE_COST + children
         }
-        if root & LEAF != 0 {
-            return 1.0;
-        }
-        let node = &self.nodes[root as usize];
-        let (mut lo, mut hi) = (Vec3A::INFINITY, Vec3A::NEG_INFINITY);
-        for i in (0..4).filter(|&i| node.valid & (1 << i) != 0) {
-            for a in 0..3 {
-                lo[a] = lo[a].min(node.bounds[a][0][i]);
-                hi[a] = hi[a].max(node.bounds[a][1][i]);
-            }
-        }
-        let d = (hi - lo).max(Vec3A::ZERO);
-        let root_area = d.x * d.y + d.y * d.z + d.z * d.x;
         if root_area <= 0.0 {
             return 1.0;
         }
