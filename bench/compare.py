@@ -166,8 +166,9 @@ def rmse(a: np.ndarray, b: np.ndarray, keep: np.ndarray | None = None) -> float:
 
 def away_from_emitters(*refs: np.ndarray, threshold: float = 2.0) -> np.ndarray:
     """Pixels more than one pixel away from any pixel that shows an emitter (a channel >= threshold
-    in any reference). rayscope's -x N samples fixed sub-pixel positions (cell centres, no jitter),
-    so its pixels on an emitter's edge converge to a different value than a box-filtered pixel."""
+    in any reference). Away from emitters the RMSE measures noise alone; on an emitter's edge a
+    pixel's value depends on how each renderer spreads samples over the pixel (both box-filter:
+    Mitsuba with its box reconstruction filter, rayscope by jittering paths within -x cells)."""
     bright = np.zeros(refs[0].shape[:2], dtype=bool)
     for r in refs:
         bright |= r.max(axis=-1) >= threshold
@@ -361,7 +362,7 @@ def reference_images(args, rs: Rayscope, notes: list[str]):
     q = int(round(math.log2(ref_spp / 4)))
     assert 4 * 2**q == ref_spp, "--ref-spp must be 4 * 2^q"
     mi_ref = os.path.join(args.out, f"ref_box_mitsuba_{size}_{ref_spp}spp.exr")
-    rs_ref = os.path.join(args.out, f"ref_box_rayscope_{size}_{ref_spp}spp.exr")
+    rs_ref = os.path.join(args.out, f"ref_box_rayscope_{size}_{ref_spp}spp_jitter.exr")
     if not os.path.exists(mi_ref):
         log(f"rendering the Mitsuba reference ({ref_spp} spp, once; cached as {mi_ref})")
         mi.set_variant("llvm_ad_rgb")

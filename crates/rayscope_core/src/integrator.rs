@@ -27,9 +27,11 @@
 //!   direct light only; point lights are evaluated with the whole BRDF, π·f·Cl·max(0, N·L).
 //! * **Beer (F).** A ray travelling inside a Refractive object whose colour σ is non-zero is
 //!   attenuated by exp(−σ·d) per channel over the distance d it travels inside.
-//! * **Quality (`-q`).** Each of the `-x N` grid positions gets 2^q paths when a stochastic
+//! * **Quality (`-q`).** Each of the `-x N` grid cells gets 2^q paths when a stochastic
 //!   effect is on (emissive or glossy surfaces, `-l`, or an aperture), else one; sample `s`
-//!   of a pixel is grid cell `s mod N²` and path `s div N²`, with its own random stream.
+//!   of a pixel is grid cell `s mod N²` and path `s div N²`, with its own random stream. With a
+//!   stochastic effect each path starts at a random point of its cell (stratified jitter), so
+//!   pixels converge to their area's mean; otherwise samples sit at the cell centres.
 
 use glam::Vec3A;
 
@@ -337,23 +339,46 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
-    /// Normalised image position of sample `s` of pixel (`x`, `y`): cell `s mod N²` of the N×N
-    /// regular grid for `-x N` (sample (i, j) at ((x + (i + 0.5)/N)/W, (y + (j + 0.5)/N)/H)),
-    /// the pixel centre for stage 1 and debug channels.
+    /// Normalised image position of sample `s` of pixel (`x`, `y`): in cell `s mod N²` of the
+    /// N×N regular grid for `-x N`, at its centre ((x + (i + 0.5)/N)/W, (y + (j + 0.5)/N)/H)
+    /// when nothing is stochastic, else at a random point of the cell (stratified jitter, the
+    /// first two numbers of the sample's stream); the pixel centre for stage 1 and debug channels.
     #[must_use]
     #[inline]
     pub fn sample_position(&self, x: u32, y: u32, s: u32) -> (f32, f32) {
-        let [ox, oy] = self.cell_offset(s);
+        self.position_in_cell(x, y, s, &mut self.sample_rng(x, y, s))
+    }
+
+    /// The random stream of sample `s` of pixel (`x`, `y`).
+    #[must_use]
+    #[inline]
+    pub fn sample_rng(&self, x: u32, y: u32, s: u32) -> Rng {
+        let pixel = y as u64 * self.settings.width as u64 + x as u64;
+        Rng::for_sample(self.settings.seed, pixel, s as u64)
+    }
+
+    /// [`Self::sample_position`], drawing the jitter from `rng`, the sample's fresh stream.
+    #[inline]
+    fn position_in_cell(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> (f32, f32) {
+        let [mut ox, mut oy] = self.cell_offset(s);
+        if self.stochastic && self.settings.channel == Channel::Color {
+            // Paths spread over their cell, so a pixel converges to the integral over its area
+            // (edges antialiased as a box filter would) rather than to N×N point samples.
+            let n = self.grid as f32;
+            ox += (rng.next_f32() - 0.5) / n;
+            oy += (rng.next_f32() - 0.5) / n;
+        }
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;
         ((x as f32 + ox) / w, (y as f32 + oy) / h)
     }
 
-    /// The camera ray of sample `s` of pixel (`x`, `y`).
+    /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's fresh stream
+    /// ([`Self::sample_rng`]).
     #[must_use]
     #[inline]
     pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {
-        let (u, v) = self.sample_position(x, y, s);
+        let (u, v) = self.position_in_cell(x, y, s, rng);
         if self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0 {
             self.camera
                 .lens_ray(u, v, concentric_disk(rng.next_f32(), rng.next_f32()))
@@ -365,8 +390,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Colour of one sample of pixel (`x`, `y`).
     #[inline]
     pub fn sample<O: RayObserver>(&self, x: u32, y: u32, s: u32, obs: &mut O, c: &mut Counters) -> Vec3A {
-        let pixel = y as u64 * self.settings.width as u64 + x as u64;
-        let mut rng = Rng::for_sample(self.settings.seed, pixel, s as u64);
+        let mut rng = self.sample_rng(x, y, s);
         let ray = self.camera_ray(x, y, s, &mut rng);
         c.camera += 1;
         if self.settings.channel != Channel::Color {

@@ -159,16 +159,19 @@ fn depth_of_field_is_sharp_at_the_focal_distance_and_blurs_away_from_it() {
     let sharp = edge_spread(4.0, 0.2);
     assert!(sharp < 1e-3, "in focus: {sharp}");
     // The circle of confusion on the image plane (distance 1) has diameter 2 r |1/z − 1/f|;
-    // pixels of a 64-pixel-wide 60° image are 2 tan 30° / 64 wide. A pixel centre k + ½ pixels
-    // from the edge is wrong by P(X > k + ½), X one coordinate of a uniform point on a disk of
-    // radius R: (acos(a) − a √(1 − a²)) / π with a = (k + ½) / R.
+    // pixels of a 64-pixel-wide 60° image are 2 tan 30° / 64 wide. A point d pixels from the
+    // edge is wrong by P(X > d), X one coordinate of a uniform point on a disk of radius R:
+    // (acos(a) − a √(1 − a²)) / π with a = d / R. Samples spread over their pixel, so pixel k
+    // is wrong by the mean of that over d in [k, k + 1].
     let expected = |z: f32| {
         let radius = 0.2 * (1.0 / z - 0.25f32).abs() / (2.0 * 30f32.to_radians().tan() / 64.0);
-        (0..32)
-            .map(|k| {
-                let a = ((k as f32 + 0.5) / radius).min(1.0);
-                2.0 * (a.acos() - a * (1.0 - a * a).sqrt()) / std::f32::consts::PI
-            })
+        let wrong = |d: f32| {
+            let a = (d / radius).min(1.0);
+            (a.acos() - a * (1.0 - a * a).sqrt()) / std::f32::consts::PI
+        };
+        let steps = 64;
+        (0..32 * steps)
+            .map(|i| 2.0 * wrong((i as f32 + 0.5) / steps as f32) / steps as f32)
             .sum::<f32>()
     };
     let mut last = sharp;

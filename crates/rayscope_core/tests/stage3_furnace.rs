@@ -12,11 +12,17 @@ fn scene(text: &str) -> Scene {
     Scene::from_file(&file)
 }
 
-/// A 1×1 image whose single ray is the camera's axis.
+/// Image size for the estimates: odd, so the centre pixel ([`CENTRE`]) is centred on the
+/// camera's axis, and large, so its rays (spread over the pixel) stay within 0.15° of it.
+const SIZE: u32 = 201;
+/// The pixel the estimates sample.
+const CENTRE: u32 = SIZE / 2;
+
+/// An image whose centre pixel looks along the camera's axis.
 fn settings(camera: CameraSettings, ambient: bool) -> RenderSettings {
     RenderSettings {
-        width: 1,
-        height: 1,
+        width: SIZE,
+        height: SIZE,
         ambient,
         camera,
         seed: 11,
@@ -24,13 +30,13 @@ fn settings(camera: CameraSettings, ambient: bool) -> RenderSettings {
     }
 }
 
-/// Mean and standard error of `n` samples of the single pixel.
+/// Mean and standard error of `n` samples of the centre pixel.
 fn estimate(scene: &Scene, s: &RenderSettings, n: u32) -> (Vec3A, Vec3A) {
     let integ = Integrator::new(scene, s);
     let mut c = Counters::default();
     let (mut sum, mut sum2) = (Vec3A::ZERO, Vec3A::ZERO);
     for i in 0..n {
-        let v = integ.sample(0, 0, i, &mut NoObserver, &mut c);
+        let v = integ.sample(CENTRE, CENTRE, i, &mut NoObserver, &mut c);
         assert!(v.is_finite());
         sum += v;
         sum2 += v * v;

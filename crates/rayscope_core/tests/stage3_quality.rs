@@ -43,12 +43,25 @@ fn samples_per_pixel_follow_the_quality_rule() {
         let integ = Integrator::new(&sc, &s);
         assert!(integ.stochastic);
         assert_eq!(integ.samples_per_pixel(), 4 << q);
-        // Sample s is grid cell s mod N².
+        // Sample s lies in grid cell s mod N², at a point of its own within it (stratified
+        // jitter, so pixels converge to their area's mean), the same every time it is asked for.
+        let (w, h) = (s.width as f32, s.height as f32);
+        let mut seen = Vec::new();
         for sample in 0..integ.samples_per_pixel() {
-            assert_eq!(
-                integ.sample_position(3, 5, sample),
-                integ.sample_position(3, 5, sample % 4)
+            let (u, v) = integ.sample_position(3, 5, sample);
+            assert_eq!(integ.sample_position(3, 5, sample), (u, v), "deterministic");
+            let cell = sample % 4;
+            let (i, j) = ((cell % 2) as f32, (cell / 2) as f32);
+            let (fx, fy) = (u * w - 3.0, v * h - 5.0);
+            assert!(
+                fx > i / 2.0 - 1e-4
+                    && fx < (i + 1.0) / 2.0 + 1e-4
+                    && fy > j / 2.0 - 1e-4
+                    && fy < (j + 1.0) / 2.0 + 1e-4,
+                "sample {sample} at ({fx}, {fy}) in the pixel, outside cell {cell}"
             );
+            assert!(!seen.contains(&(u, v)), "sample {sample} repeats a position");
+            seen.push((u, v));
         }
     }
     // Nothing stochastic: -q changes nothing.
@@ -59,6 +72,15 @@ fn samples_per_pixel_follow_the_quality_rule() {
     let integ = Integrator::new(&plain, &s);
     assert!(!integ.stochastic);
     assert_eq!(integ.samples_per_pixel(), 4);
+    // ... and samples sit at the centres of their cells, as the course's grid has them.
+    for cell in 0..4 {
+        let (i, j) = ((cell % 2) as f32, (cell / 2) as f32);
+        let want = (
+            (3.0 + (i + 0.5) / 2.0) / s.width as f32,
+            (5.0 + (j + 0.5) / 2.0) / s.height as f32,
+        );
+        assert_eq!(integ.sample_position(3, 5, cell), want, "cell {cell}");
+    }
     assert_eq!(film(&plain, &s), film(&plain, &small(0)));
     // -l, an aperture or a stage-2 render decide too.
     for (s, want) in [

@@ -37,7 +37,6 @@ use glam::Vec3;
 use rayon::prelude::*;
 use rayscope_core::integrator::Integrator;
 use rayscope_core::reference::ReferenceIntersector;
-use rayscope_core::rng::Rng;
 use rayscope_core::scene::{Intersect, Scene};
 use rayscope_core::{render, trace_pixel_with, Channel, FovAxis, RenderSettings, Stage};
 use rayscope_scene::{SceneFile, Shape};
@@ -1095,9 +1094,7 @@ fn run_check(scene: &Scene, settings: &RenderSettings) -> (Vec<Mismatch>, u64) {
         .map(|y| {
             let mut out = Vec::new();
             for x in 0..w {
-                let pixel = y as u64 * w as u64 + x as u64;
-                let mut rng = Rng::for_sample(settings.seed, pixel, 0);
-                let ray = integ.camera_ray(x, y, 0, &mut rng);
+                let ray = integ.camera_ray(x, y, 0, &mut integ.sample_rng(x, y, 0));
                 let a = scene.intersect(&ray, 0.0, f32::INFINITY);
                 let b = reference.intersect(&ray, 0.0, f32::INFINITY);
                 let kind = match (&a, &b) {

@@ -14,7 +14,6 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use rayscope_core::integrator::Integrator;
-use rayscope_core::rng::Rng;
 use rayscope_core::scene::{PrimRef, Scene};
 use rayscope_core::{Camera, Ray, RayKind, RayTree, RenderSettings};
 use rayscope_scene::MaterialKind;
@@ -1103,9 +1102,7 @@ impl Overlay<'_, '_> {
             }
         }
         for s in 0..spp {
-            let pixel = y as u64 * settings.width as u64 + x as u64;
-            let mut rng = Rng::for_sample(settings.seed, pixel, s as u64);
-            let ray = integ.camera_ray(x, y, s, &mut rng);
+            let ray = integ.camera_ray(x, y, s, &mut integ.sample_rng(x, y, s));
             let (u, v) = integ.sample_position(x, y, s);
             if spp <= 64 {
                 self.ray_to_hit(&ray, cyan, 0.5, 0.9, 0.0);

@@ -276,8 +276,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// starts the stream afresh, as the sample's own stream would be at that point: renders
     /// traced as packets have no stochastic effect, so nothing before draws from it.
     fn lane_rng(&self, (x, y, s): Job) -> Rng {
-        let pixel = y as u64 * self.settings.width as u64 + x as u64;
-        Rng::for_sample(self.settings.seed, pixel, s as u64)
+        self.sample_rng(x, y, s)
     }
 }
 
