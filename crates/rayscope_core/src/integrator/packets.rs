@@ -114,21 +114,37 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut lit = LitLanes::default();
         let mut other = [false; LANES];
         let mut ior = [1.0; LANES];
-        for i in 0..LANES {
-            // Lanes without a hit have material 0, which a scene without objects lacks.
-            let mat = surf.material[i] as usize;
-            let on = lanes.on[i] & surf.hit[i];
-            lit.on[i] = on & self.point_lit.get(mat).copied().unwrap_or(false);
-            other[i] = on & !lit.on[i];
+        // Lanes without a hit have material 0, which a scene without objects lacks.
+        let material = |mat: u32| {
+            let point_lit = self.point_lit.get(mat as usize).copied().unwrap_or(false);
             let (albedo, value) = self
                 .scene
                 .materials
-                .get(mat)
+                .get(mat as usize)
                 .map_or((glam::Vec3::ZERO, 1.0), |m| (m.color, m.value));
+            (point_lit, albedo, value)
+        };
+        if surf.one_prim {
+            // Every lane hit (so is on) and has the same material: looked up once and written
+            // to every lane from registers.
+            let (point_lit, albedo, value) = material(surf.material[0]);
+            lit.on = [point_lit; LANES];
+            other = [!point_lit; LANES];
             for a in 0..3 {
-                lit.alb[a][i] = albedo[a];
+                lit.alb[a] = [albedo[a]; LANES];
             }
-            ior[i] = value;
+            ior = [value; LANES];
+        } else {
+            for i in 0..LANES {
+                let (point_lit, albedo, value) = material(surf.material[i]);
+                let on = lanes.on[i] & surf.hit[i];
+                lit.on[i] = on & point_lit;
+                other[i] = on & !lit.on[i];
+                for a in 0..3 {
+                    lit.alb[a][i] = albedo[a];
+                }
+                ior[i] = value;
+            }
         }
         let mut next = [Next::Done; LANES];
         // Most packets make no child rays, so the child packets are made when needed.
@@ -280,6 +296,20 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 }
 
+/// Stores lane `i` of the per-axis vector `dst`.
+#[inline]
+fn put(dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]) {
+    for (ax, x) in v.into_iter().enumerate() {
+        dst[ax][i] = x;
+    }
+}
+
+/// Copies lane 0 of `v` to every lane.
+#[inline]
+fn broadcast<T: Copy>(v: &mut [T; LANES]) {
+    *v = [v[0]; LANES];
+}
+
 /// Lane `i` of a vector stored per axis.
 #[inline]
 fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
@@ -341,6 +371,8 @@ struct LitLanes {
 /// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
 /// [`Scene::surface`] returns ([`surface_frames`] computes the geometry).
 struct PacketSurfaces {
+    /// Every lane hit the same primitive.
+    one_prim: bool,
     /// Lanes whose ray hit something.
     hit: [bool; LANES],
     /// Hit distance.
@@ -358,12 +390,11 @@ impl PacketSurfaces {
     fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
         let mut g = HitPrims::default();
         let (mut entity, mut material) = ([0; LANES], [0; LANES]);
-        let put = |dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]| {
-            for (ax, x) in v.into_iter().enumerate() {
-                dst[ax][i] = x;
-            }
-        };
-        for i in 0..LANES {
+        // One pixel's samples mostly meet one primitive: its data is then looked up for the
+        // first lane and copied to the others (the same values a lookup per lane finds).
+        let one_prim = hits.one_prim();
+        let lanes = if one_prim { 1 } else { LANES };
+        for i in 0..lanes {
             let Some((t, u, v, prim)) = hits.get(i) else {
                 continue;
             };
@@ -394,8 +425,32 @@ impl PacketSurfaces {
                 }
             }
         }
+        if one_prim {
+            for i in 1..LANES {
+                // Per lane: where on the primitive the ray hit.
+                let Some((t, u, v, _)) = hits.get(i) else {
+                    unreachable!("every lane hit the primitive")
+                };
+                g.t[i] = t;
+                if let Some(sm) = &mut g.smooth {
+                    (sm.bu[i], sm.bv[i]) = (u, v);
+                }
+            }
+            broadcast(&mut g.hit);
+            broadcast(&mut g.sphere);
+            broadcast(&mut g.triangle);
+            g.a.iter_mut().chain(g.b.iter_mut()).for_each(broadcast);
+            broadcast(&mut g.radius);
+            broadcast(&mut entity);
+            broadcast(&mut material);
+            if let Some(sm) = &mut g.smooth {
+                broadcast(&mut sm.on);
+                sm.vn.iter_mut().flatten().for_each(broadcast);
+            }
+        }
         Self {
             frames: surface_frames(rays, &g),
+            one_prim,
             hit: g.hit,
             t: g.t,
             entity,

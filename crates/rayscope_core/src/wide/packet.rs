@@ -89,6 +89,16 @@ pub struct PacketHits {
 }
 
 impl PacketHits {
+    /// True when every lane hit the same primitive: the common case for a packet of one
+    /// pixel's samples, whose shading data can then be looked up once.
+    #[must_use]
+    #[inline]
+    pub fn one_prim(&self) -> bool {
+        let p = self.prim[0];
+        // A fold rather than `all`, which would stop early and keep the loop scalar.
+        p & TAG_MASK != 0 && self.prim.iter().fold(true, |a, &q| a & (q == p))
+    }
+
     /// Lane `i`'s hit: (t, u, v, primitive).
     #[must_use]
     #[inline]
