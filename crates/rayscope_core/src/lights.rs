@@ -28,6 +28,9 @@ pub struct Emitter {
     pub radiance: Vec3A,
     /// Surface area.
     pub area: f32,
+    /// A triangle's e1 × e2 (twice its area along its normal), kept because every sample and
+    /// density needs it; zero for spheres.
+    pub cross: Vec3A,
 }
 
 /// A point drawn on an emitter, seen from a shading point.
@@ -84,6 +87,7 @@ impl Emitters {
                     entity: ent,
                     radiance,
                     area: 4.0 * std::f32::consts::PI * s.radius * s.radius,
+                    cross: Vec3A::ZERO,
                 });
             }
         }
@@ -98,6 +102,7 @@ impl Emitters {
                     entity: info.entity,
                     radiance,
                     area: 0.5 * t.e1.cross(t.e2).length(),
+                    cross: t.e1.cross(t.e2),
                 });
             }
         }
@@ -150,7 +155,9 @@ impl Emitters {
         let e = &self.list[i];
         let (dir, dist, pdf) = match e.prim {
             PrimRef::Sphere(s) => sample_sphere(&scene.spheres[s as usize], p, u1, u2)?,
-            PrimRef::Triangle(t) => sample_triangle(&scene.triangles[t as usize], p, u1, u2)?,
+            PrimRef::Triangle(t) => {
+                sample_triangle_with(&scene.triangles[t as usize], e.cross, 2.0 * e.area, p, u1, u2)?
+            }
             PrimRef::Plane(_) => return None,
         };
         let pdf = pdf * self.pmf[i];
@@ -174,7 +181,10 @@ impl Emitters {
         };
         let pdf = match prim {
             PrimRef::Sphere(s) => sphere_pdf(&scene.spheres[s as usize], origin, point),
-            PrimRef::Triangle(t) => triangle_pdf(&scene.triangles[t as usize], origin, point),
+            PrimRef::Triangle(_) => {
+                let e = &self.list[i as usize];
+                triangle_pdf_with(e.cross, 2.0 * e.area, origin, point)
+            }
             PrimRef::Plane(_) => 0.0,
         };
         pdf * self.pmf[i as usize]
@@ -249,6 +259,13 @@ pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
 /// Direction, distance and solid-angle density of a point drawn uniformly on triangle `t` from `p`.
 #[must_use]
 pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+    let c = t.e1.cross(t.e2);
+    sample_triangle_with(t, c, c.length(), p, u1, u2)
+}
+
+/// [`sample_triangle`] with the triangle's e1 × e2 and its length given.
+#[inline]
+fn sample_triangle_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
     let (b1, b2) = uniform_triangle(u1, u2);
     let y = t.v0 + t.e1 * b1 + t.e2 * b2;
     let w = y - p;
@@ -258,8 +275,6 @@ pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3
         return None;
     }
     let dir = w / dist;
-    let c = t.e1.cross(t.e2);
-    let area2 = c.length();
     let pdf = area_to_solid_angle(dist2, c.dot(dir).abs() / area2, 0.5 * area2)?;
     Some((dir, dist, pdf))
 }
@@ -267,9 +282,14 @@ pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3
 /// Solid-angle density of [`sample_triangle`] from `p` for the point `y` on the triangle.
 #[must_use]
 pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
+    let c = t.e1.cross(t.e2);
+    triangle_pdf_with(c, c.length(), p, y)
+}
+
+/// [`triangle_pdf`] with the triangle's e1 × e2 and its length given.
+#[inline]
+fn triangle_pdf_with(c: Vec3A, area2: f32, p: Vec3A, y: Vec3A) -> f32 {
     let w = y - p;
     let dist2 = w.length_squared();
-    let c = t.e1.cross(t.e2);
-    let area2 = c.length();
     area_to_solid_angle(dist2, c.dot(w).abs() / (area2 * dist2.sqrt()), 0.5 * area2).unwrap_or(0.0)
 }
