@@ -198,3 +198,49 @@ fn stage_two_scenes_are_unchanged_by_the_full_renderer() {
         assert_eq!(film(sc, &s), film(sc, &RenderSettings { stage: Stage::Two, ..s }));
     }
 }
+
+/// A stochastic render spreads each pixel's paths over the pixel, so a pixel an edge crosses
+/// converges to the share of it the lit side covers (as a box filter gives it), not to whatever
+/// its sample points happen to see. A lamp covers everything right of a vertical edge that
+/// crosses pixel 32 of a 64-pixel row 30 % of the way in; the pixel must converge to 0.7, at
+/// `-x 1` (where a sample at the pixel centre would give 1) and at `-x 2` (cell centres: 0.5).
+#[test]
+fn a_pixel_an_edge_crosses_converges_to_the_covered_share() {
+    let pixel = 2.0 * 30f32.to_radians().tan() / 64.0;
+    let e = 4.0 * 0.3 * pixel;
+    let sc = scene(&format!(
+        "Material \"Lamp\" Emissive (1, 1, 1) 1\n\
+         Triangle \"A\" ({e}, -100, 4) ({e}, 100, 4) (100, 100, 4) \"Lamp\"\n\
+         Triangle \"B\" ({e}, -100, 4) (100, 100, 4) (100, -100, 4) \"Lamp\"\n"
+    ));
+    for aa in [1, 2] {
+        let s = RenderSettings {
+            width: 64,
+            height: 1,
+            aa,
+            quality: 10,
+            ..RenderSettings::default()
+        };
+        let integ = Integrator::new(&sc, &s);
+        assert!(integ.stochastic);
+        let mut c = rayscope_core::integrator::Counters::default();
+        let n = integ.samples_per_pixel();
+        let mut value = |x: u32| {
+            (0..n)
+                .map(|k| integ.sample(x, 0, k, &mut rayscope_core::NoObserver, &mut c).x)
+                .sum::<f32>()
+                / n as f32
+        };
+        let v = value(32);
+        // 1024 or 4096 samples of a 0/1 value with mean 0.7: standard error under 0.015.
+        assert!(
+            (v - 0.7).abs() < 0.05,
+            "-x {aa}: the edge pixel converges to {v}, not 0.7"
+        );
+        assert_eq!(
+            (value(31), value(33)),
+            (0.0, 1.0),
+            "-x {aa}: its neighbours are dark and lit"
+        );
+    }
+}
