@@ -375,8 +375,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's fresh stream
     /// ([`Self::sample_rng`]).
+    // Always inlined: with the jitter it grew past the inliner's limit, and as a call it cost
+    // the path-traced box 3 % (BENCHMARKS.md, session 8).
     #[must_use]
-    #[inline]
+    #[inline(always)]
     pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {
         let (u, v) = self.position_in_cell(x, y, s, rng);
         if self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0 {
