@@ -97,12 +97,13 @@ impl Emitters {
                     e.triangle_slot = vec![u32::MAX; scene.triangles.len()];
                 }
                 e.triangle_slot[i] = e.list.len() as u32;
+                let cross = t.e1.cross(t.e2);
                 e.list.push(Emitter {
                     prim: PrimRef::Triangle(i as u32),
                     entity: info.entity,
                     radiance,
-                    area: 0.5 * t.e1.cross(t.e2).length(),
-                    cross: t.e1.cross(t.e2),
+                    area: 0.5 * cross.length(),
+                    cross,
                 });
             }
         }
