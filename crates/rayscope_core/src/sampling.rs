@@ -4,7 +4,7 @@
 //! Densities are in solid angle (directions) or area (points). Every routine here has a χ²
 //! goodness-of-fit test in `tests/stage3_sampling.rs`.
 
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
 
 use glam::{Vec2, Vec3A};
 
@@ -17,12 +17,32 @@ pub fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
     if a == 0.0 && b == 0.0 {
         return Vec2::ZERO;
     }
-    let (r, phi) = if a.abs() > b.abs() {
-        (a, FRAC_PI_4 * (b / a))
+    if a.abs() > b.abs() {
+        let (sin, cos) = sin_cos_eighth(FRAC_PI_4 * (b / a));
+        Vec2::new(a * cos, a * sin)
     } else {
-        (b, FRAC_PI_2 - FRAC_PI_4 * (a / b))
-    };
-    Vec2::new(r * phi.cos(), r * phi.sin())
+        // The angle is π/2 − x, whose cosine is sin x and whose sine is cos x.
+        let (sin, cos) = sin_cos_eighth(FRAC_PI_4 * (a / b));
+        Vec2::new(b * sin, b * cos)
+    }
+}
+
+/// `(sin x, cos x)` for `|x| ≤ π/4`, within 1e-7 of the exact values (as close as `f32::sin`).
+///
+/// The polynomials are least-squares fits on that interval alone, so no range reduction is
+/// needed; libm's `sincosf` had been 3.6 % of a path-traced box's time, nearly all of it from
+/// sampling cosine-weighted bounces.
+#[must_use]
+#[inline]
+pub fn sin_cos_eighth(x: f32) -> (f32, f32) {
+    let z = x * x;
+    let sin = x + x * z * (-0.166_666_51 + z * (0.008_331_979 + z * -0.000_194_956_35));
+    // 1 − z/2 is rounded once and its rounding error added back with the small terms, which
+    // keeps the cosine within one ulp near 1.
+    let half = 0.5 * z;
+    let head = 1.0 - half;
+    let tail = z * z * (0.041_666_646 + z * (-0.001_388_736_8 + z * 0.000_024_438_45));
+    (sin, head + (((1.0 - head) - half) + tail))
 }
 
 /// Cosine-weighted direction about +z (Malley's method); density `cosθ / π`.
@@ -200,6 +220,29 @@ mod tests {
             let d = uniform_cone(i as f32 / 15.0, 0.3, omc);
             assert!(1.0 - d.z <= omc * 1.0001 + 1e-7);
             assert!((d.length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn sin_cos_eighth_is_as_close_as_libm() {
+        let steps = 200_000;
+        let (mut worst, mut worst_libm) = (0.0f64, 0.0f64);
+        for i in 0..=steps {
+            let x = FRAC_PI_4 * (2.0 * i as f32 / steps as f32 - 1.0);
+            let (s, c) = sin_cos_eighth(x);
+            let exact = (x as f64).sin_cos();
+            worst = worst.max((s as f64 - exact.0).abs()).max((c as f64 - exact.1).abs());
+            worst_libm = worst_libm
+                .max((x.sin() as f64 - exact.0).abs())
+                .max((x.cos() as f64 - exact.1).abs());
+        }
+        assert!(worst < 1e-7, "{worst}");
+        assert!(worst < 2.0 * worst_libm, "{worst} against libm's {worst_libm}");
+        // The disk's points lie on it: radius |max(|a|, |b|)|, as the exact mapping gives.
+        for (u1, u2) in [(0.9, 0.6), (0.2, 0.95), (0.5, 0.0), (0.0, 0.5), (1.0, 1.0)] {
+            let p = concentric_disk(u1, u2);
+            let r = (2.0 * u1 - 1.0f32).abs().max((2.0 * u2 - 1.0f32).abs());
+            assert!((p.length() - r).abs() < 1e-6, "{u1} {u2}: {p}");
         }
     }
 
