@@ -44,6 +44,18 @@ def median(xs):
     return statistics.median(xs)
 
 
+# Dr.Jit's worker threads go on spinning for a few tens of milliseconds after a render returns, and
+# on a 2-core machine they take a core from whatever runs next: rayscope's scene-2 render measured
+# 0.110 s started straight after a Mitsuba `llvm_ad_rgb` render and 0.097 s after a 50 ms pause
+# (0.098 s alone). So every timed run, the peer's and rayscope's alike, starts after a pause.
+SETTLE_S = 0.2
+
+
+def settle():
+    """Waits for the previous run's threads to go idle before the next timed run."""
+    time.sleep(SETTLE_S)
+
+
 # ----------------------------------------------------------------------------------------------
 # rayscope
 
@@ -332,7 +344,9 @@ def bench_direct(args, rs: Rayscope, table: Table, notes: list[str]):
             mitsuba_render(mi, dr, scene, spp)  # warm-up: JIT compilation
             peer, ours = [], []
             for _ in range(args.reps):
+                settle()
                 peer.append(mitsuba_render(mi, dr, scene, spp)[0])
+                settle()
                 ours.append(
                     rs.render(path, f"{tag}.png", ["-w", str(size), "-h", str(size), "-x", str(aa), "--stage", "2"])[0]
                 )
@@ -344,7 +358,9 @@ def bench_direct(args, rs: Rayscope, table: Table, notes: list[str]):
             mitsuba_render(mi, dr, scene, spp)
             peer, ours = [], []
             for _ in range(args.reps):
+                settle()
                 peer.append(mitsuba_render(mi, dr, scene, spp)[0])
+                settle()
                 ours.append(
                     rs.render(SCENE_2, "s2.png", ["-w", str(size), "-h", str(size), "-x", str(aa), "--stage", "2"])[0]
                 )
@@ -422,9 +438,11 @@ def bench_path(args, rs: Rayscope, table: Table, notes: list[str]):
         peer, ours = [], []
         img_peer = img_ours = None
         for _ in range(args.reps):
+            settle()
             t, img = mitsuba_render(mi, dr, scene, spp)
             peer.append(t)
             img_peer = np.array(img, dtype=np.float64)
+            settle()
             t, path = rs.render(SCENE_BOX, "box64.exr", ["-w", str(size), "-h", str(size), "-x", "2", "-q", "4", "-l"])
             ours.append(t)
             img_ours = read_exr(path)
@@ -508,11 +526,13 @@ def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
             try:
                 for _ in range(args.reps):
                     times = []
+                    settle()
                     for _ in range(args.ray_passes):
                         t, h = workers.one_pass()
                         times.append(t)
                         hits_peer.add(h)
                     peer.append(len(rays) / 1e6 / median(times))
+                    settle()
                     r = rs.bench_rays(mesh_scene, path, threads, args.ray_passes)
                     assert r["threads"] == threads and r["rays"] == len(rays), r
                     ours.append(r["mrays"])
