@@ -97,7 +97,7 @@ impl Emitters {
                     e.triangle_slot = vec![u32::MAX; scene.triangles.len()];
                 }
                 e.triangle_slot[i] = e.list.len() as u32;
-                let cross = t.e1.cross(t.e2);
+                let cross = t.e1().cross(t.e2());
                 e.list.push(Emitter {
                     prim: PrimRef::Triangle(i as u32),
                     entity: info.entity,
@@ -271,7 +271,7 @@ pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
 /// Direction, distance and solid-angle density of a point drawn uniformly on triangle `t` from `p`.
 #[must_use]
 pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
-    let c = t.e1.cross(t.e2);
+    let c = t.e1().cross(t.e2());
     sample_triangle_with(t, c, c.length(), p, u1, u2)
 }
 
@@ -279,7 +279,7 @@ pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3
 #[inline]
 fn sample_triangle_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
     let (b1, b2) = uniform_triangle(u1, u2);
-    let y = t.v0 + t.e1 * b1 + t.e2 * b2;
+    let y = t.v0() + t.e1() * b1 + t.e2() * b2;
     let w = y - p;
     let dist2 = w.length_squared();
     let dist = dist2.sqrt();
@@ -294,7 +294,7 @@ fn sample_triangle_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, u1: f32, u
 /// Solid-angle density of [`sample_triangle`] from `p` for the point `y` on the triangle.
 #[must_use]
 pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
-    let c = t.e1.cross(t.e2);
+    let c = t.e1().cross(t.e2());
     triangle_pdf_with(c, c.length(), p, y)
 }
 

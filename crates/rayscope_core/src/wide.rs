@@ -1086,7 +1086,7 @@ impl Builder<'_> {
         let mut lane_ids = [NO_PRIM; 4];
         for (l, id) in sorted(ids).enumerate() {
             let t = &self.triangles[id as usize];
-            for (k, v) in [t.v0, t.e1, t.e2].iter().enumerate() {
+            for (k, v) in [t.v0(), t.e1(), t.e2()].iter().enumerate() {
                 for a in 0..3 {
                     lanes[k][a][l] = v[a];
                 }

@@ -412,8 +412,8 @@ impl PacketSurfaces {
                 PrimRef::Triangle(k) => {
                     let tri = &scene.triangles[k as usize];
                     g.triangle[i] = true;
-                    put(&mut g.a, i, tri.e1.to_array());
-                    put(&mut g.b, i, tri.e2.to_array());
+                    put(&mut g.a, i, tri.e1().to_array());
+                    put(&mut g.b, i, tri.e2().to_array());
                     if let Some(ns) = scene.triangle_info[k as usize].normals {
                         let sm = g.smooth.get_or_insert_with(SmoothNormals::default);
                         sm.on[i] = true;
