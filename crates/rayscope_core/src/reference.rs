@@ -38,9 +38,9 @@ pub fn triangle(tri: &Triangle, ray: &Ray, t_min: f32, t_max: f32) -> Option<Pri
         return None;
     }
     // Barycentrics of the hit point, for smooth normals.
-    let q = ray.at(t) - tri.v0();
-    let (d00, d01, d11) = (tri.e1().dot(tri.e1()), tri.e1().dot(tri.e2()), tri.e2().dot(tri.e2()));
-    let (d20, d21) = (q.dot(tri.e1()), q.dot(tri.e2()));
+    let (q, e1, e2) = (ray.at(t) - a, tri.e1(), tri.e2());
+    let (d00, d01, d11) = (e1.dot(e1), e1.dot(e2), e2.dot(e2));
+    let (d20, d21) = (q.dot(e1), q.dot(e2));
     let den = d00 * d11 - d01 * d01;
     let u = (d11 * d20 - d01 * d21) / den;
     let v = (d00 * d21 - d01 * d20) / den;
