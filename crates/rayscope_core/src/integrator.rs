@@ -179,6 +179,27 @@ impl PathState {
     };
 }
 
+/// An emitter sample's shadow ray and the light it brings when nothing blocks it.
+#[derive(Debug, Clone, Copy)]
+struct ShadowRay {
+    ray: Ray,
+    /// Just short of the sampled point, so the emitter does not block itself.
+    t_max: f32,
+    /// The weighted light the sample adds when the ray is not blocked.
+    unblocked: Vec3A,
+    /// Beer's-law transmittance to the emitter, inside an absorbing medium.
+    attenuation: Option<Vec3A>,
+}
+
+impl ShadowRay {
+    /// What the sample adds, given whether the ray is blocked.
+    #[inline(always)]
+    fn contrib(&self, blocked: bool) -> Vec3A {
+        let c = if blocked { Vec3A::ZERO } else { self.unblocked };
+        self.attenuation.map_or(c, |a| c * a)
+    }
+}
+
 /// Radiance arriving along a ray, split so the caller can weight emission by MIS.
 #[derive(Debug, Clone, Copy, Default)]
 struct Li {
@@ -670,7 +691,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             .medium
             .map(|mi| Vec3A::from(self.scene.materials[mi as usize].color));
 
-        // Emitter sampling, weighted against BRDF sampling.
+        // Emitter sampling, weighted against BRDF sampling. With no observer recording the
+        // rays, the shadow ray waits and is traced together with the bounce ray below, whose
+        // query does not depend on it (`Intersect::intersect_and_occluded`); its light is still
+        // added before the bounce's, so the sum is the same.
+        let mut pending: Option<ShadowRay> = None;
         if !self.emitters.is_empty() {
             let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
             if let Some(ls) = self.emitters.sample(self.scene, origin, u0, u1, u2) {
@@ -681,44 +706,47 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                     let t_max = ls.dist * (1.0 - 1e-4);
                     c.shadow += 1;
                     let sid = obs.ray(Some(id), RayKind::Emitter, path.depth, &shadow, t_max);
-                    let blocked = if O::ENABLED {
+                    let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
+                    let sr = ShadowRay {
+                        ray: shadow,
+                        t_max,
+                        unblocked: f * ls.radiance * (wi.z * w / ls.pdf),
+                        attenuation: sigma.map(|sigma| (-sigma * ls.dist).exp()),
+                    };
+                    if O::ENABLED {
                         let blocker = self
                             .isect
                             .occluder(&shadow, 0.0, t_max)
                             .map(|p| self.scene.prim_info(p).0);
                         let e = &self.emitters.list[ls.emitter as usize];
                         obs.shadow(sid, self.scene, &self.scene.entities[e.entity as usize].name, blocker);
-                        blocker.is_some()
+                        let contrib = sr.contrib(blocker.is_some());
+                        obs.result(sid, w, contrib);
+                        l += contrib;
                     } else {
-                        self.isect.occluded(&shadow, 0.0, t_max)
-                    };
-                    let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
-                    let mut contrib = if blocked {
-                        Vec3A::ZERO
-                    } else {
-                        f * ls.radiance * (wi.z * w / ls.pdf)
-                    };
-                    if let Some(sigma) = sigma {
-                        contrib *= (-sigma * ls.dist).exp();
+                        pending = Some(sr);
                     }
-                    obs.result(sid, w, contrib);
-                    l += contrib;
                 }
             }
         }
+        // Where no bounce ray follows, the waiting shadow ray is traced alone.
+        let alone = |l: Vec3A, pending: Option<ShadowRay>| match pending {
+            Some(sr) => l + sr.contrib(self.isect.occluded(&sr.ray, 0.0, sr.t_max)),
+            None => l,
+        };
 
         // BRDF sampling: emitters it finds (MIS) and, where carried, indirect light.
         let coated = !lambert;
         if !(self.emitters.any_emission || ambient || coated) {
-            return Li::reflected(l);
+            return Li::reflected(alone(l, pending));
         }
         let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
         let Some(bs) = bsdf.sample(wo, u0, u1, u2) else {
-            return Li::reflected(l);
+            return Li::reflected(alone(l, pending));
         };
         let wi_w = to_world(bs.wi, t, b, n).normalize();
         if wi_w.dot(s.normal) <= 0.0 {
-            return Li::reflected(l);
+            return Li::reflected(alone(l, pending));
         }
         let w_total = bs.f * (bs.wi.z / bs.pdf);
         let mut carry = if ambient {
@@ -751,12 +779,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             child.depth += 1;
         }
         if !want && self.emitters.is_empty() && !self.emitters.any_emission {
-            return Li::reflected(l);
+            return Li::reflected(alone(l, pending));
         }
         let r = Ray::new(origin, wi_w);
         c.secondary += 1;
         let cid = obs.ray(Some(id), RayKind::Bounce, child.depth, &r, f32::INFINITY);
-        let li = self.trace(&r, child, want, cid, rng, obs, c);
+        let hit = match pending {
+            Some(sr) => {
+                let (hit, blocked) = self.isect.intersect_and_occluded(&r, &sr.ray, sr.t_max);
+                l += sr.contrib(blocked);
+                hit
+            }
+            None => self.isect.intersect(&r, 0.0, f32::INFINITY),
+        };
+        // Self::trace from the hit found above.
+        let li = hit.map_or_else(Li::default, |hit| {
+            let hs = self.scene.surface(&r, &hit);
+            self.trace_hit(&r, &hit, &hs, child, want, cid, rng, obs, c)
+        });
         let mis = if li.light_pdf > 0.0 {
             power_heuristic(bs.pdf, li.light_pdf)
         } else {

@@ -159,6 +159,15 @@ pub trait Intersect: Sync {
     fn occluded(&self, ray: &Ray, t_min: f32, t_max: f32) -> bool {
         self.occluder(ray, t_min, t_max).is_some()
     }
+    /// The closest hit on `ray` with `0 < t`, and whether anything lies on `shadow` with
+    /// `0 < t < shadow_t_max`: what [`Self::intersect`] and [`Self::occluded`] answer, asked
+    /// together because the path tracer needs both at each vertex and neither depends on the
+    /// other.
+    #[inline]
+    fn intersect_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<Hit>, bool) {
+        let blocked = self.occluded(shadow, 0.0, shadow_t_max);
+        (self.intersect(ray, 0.0, f32::INFINITY), blocked)
+    }
     /// The wide BVH these queries run on, when ray packets may be traced through it instead.
     #[inline]
     fn wide(&self) -> Option<&Bvh4> {
@@ -174,6 +183,11 @@ impl Intersect for Scene {
     #[inline]
     fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
         Scene::occluder(self, ray, t_min, t_max)
+    }
+    #[inline]
+    fn intersect_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<Hit>, bool) {
+        let (hit, blocked) = self.wide.closest_and_occluded(ray, shadow, shadow_t_max);
+        (hit.map(Hit::from), blocked)
     }
     #[inline]
     fn wide(&self) -> Option<&Bvh4> {

@@ -379,6 +379,34 @@ impl Bvh4 {
         }
     }
 
+    /// True when [`Self::packet_closest`] without ties finds a hit in packet `r`.
+    #[inline(always)]
+    fn packet_occludes(&self, r: u32, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
+        if r & SPHERES != 0 {
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].occludes(rc, t_min, t_max)
+        } else {
+            self.tris[(r & !LEAF) as usize].occludes(rc, t_min, t_max)
+        }
+    }
+
+    /// The primitive [`Self::leaf_closest`] without ties reports in leaf `r`, if any. Each packet
+    /// is first asked only whether it holds a hit, which spares the search for the nearest lane
+    /// in the packets that do not; the one that does is then searched as `leaf_closest` would.
+    #[inline(always)]
+    fn leaf_occluder(&self, r: u32, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        if r & SPHERES != 0 {
+            let p = &self.spheres[(r & !(LEAF | SPHERES)) as usize];
+            if !p.occludes(rc, t_min, t_max) {
+                return None;
+            }
+            return p.closest::<false>(rc, t_min, t_max, 0).map(|h| h.prim);
+        }
+        let first = (r & !(LEAF | RUN)) as usize;
+        let run = &self.tris[first..=first + ((r & RUN) >> RUN_SHIFT) as usize];
+        let p = run.iter().find(|p| p.occludes(rc, t_min, t_max))?;
+        p.closest::<false>(rc, t_min, t_max, 0).map(|h| h.prim)
+    }
+
     /// [`Self::packet_closest`] for a tree leaf `r`, which may be a [`RUN`] of packets.
     #[inline(always)]
     fn leaf_closest<const TIES: bool>(
@@ -608,8 +636,8 @@ impl Bvh4 {
             &self.single
         };
         for &r in list {
-            if let Some(h) = self.packet_closest::<false>(r, &rc, t_min, t_max, 0) {
-                return Some(h.prim);
+            if let Some(p) = self.leaf_occluder(r, &rc, t_min, t_max) {
+                return Some(p);
             }
         }
         if self.root == EMPTY || !self.single.is_empty() {
@@ -621,6 +649,40 @@ impl Bvh4 {
         } else {
             self.walk_any::<ArrayVec<u32, STACK>>(&rc, &nc, t_min, t_max)
         }
+    }
+
+    /// [`Self::closest`] for `ray` (`0 < t`) together with whether [`Self::any`] finds
+    /// something on `shadow` with `0 < t < shadow_t_max`: the same two answers as the two
+    /// queries. In small rooms (the single-ray list) both rays go through the list in one loop,
+    /// so the two independent tests overlap in the core instead of one query waiting for the
+    /// other; otherwise the two queries run one after the other.
+    #[inline(always)]
+    pub fn closest_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<WideHit>, bool) {
+        if self.single.is_empty() {
+            let blocked = self.any(shadow, 0.0, shadow_t_max).is_some();
+            return (self.closest::<false>(ray, 0.0, f32::INFINITY, &mut 0), blocked);
+        }
+        let (rc, sc) = (RayConsts::new(ray), RayConsts::new(shadow));
+        let mut walk = Walk {
+            best: None,
+            t_best: f32::INFINITY,
+            key: 0,
+            visits: 0,
+        };
+        let mut blocked = false;
+        for p in &self.planes {
+            if let Some(h) = p.closest::<true>(&rc, 0.0, walk.t_best, walk.key) {
+                walk.take(h);
+            }
+            blocked |= p.closest::<false>(&sc, 0.0, shadow_t_max, 0).is_some();
+        }
+        for &r in &self.single {
+            blocked = blocked || self.packet_occludes(r, &sc, 0.0, shadow_t_max);
+            if let Some(h) = self.packet_closest::<true>(r, &rc, 0.0, walk.t_best, walk.key) {
+                walk.take(h);
+            }
+        }
+        (walk.best, blocked)
     }
 
     /// The any-hit tree walk on a stack of type `S`, which must hold 3 × depth + 1 entries.
@@ -636,8 +698,8 @@ impl Bvh4 {
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                if let Some(h) = self.leaf_closest::<false>(r, rc, t_min, t_max, 0) {
-                    return Some(h.prim);
+                if let Some(p) = self.leaf_occluder(r, rc, t_min, t_max) {
+                    return Some(p);
                 }
                 continue;
             }
@@ -807,7 +869,56 @@ impl TriPacket {
     }
 }
 
+impl TriPacket {
+    /// True when [`Self::closest`] without ties would find a hit: some lane's triangle meets
+    /// the ray with `t_min < t < t_max`, without choosing the nearest.
+    #[inline(always)]
+    fn occludes(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
+        let c = [self.v0[0] - rc.o[0], self.v0[1] - rc.o[1], self.v0[2] - rc.o[2]];
+        let den = dot(&rc.d, &self.n);
+        let s = Vec4::ONE.copysign(den);
+        let a = den.abs();
+        let t = dot(&c, &self.n) * s;
+        let in_range =
+            den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(far(false, t_max)) * a);
+        if !in_range.any() {
+            return false;
+        }
+        let r = cross(&rc.d, &c);
+        let u = dot(&self.e2, &r) * -s;
+        let v = dot(&self.e1, &r) * s;
+        let zero = Vec4::ZERO;
+        let mask = in_range & u.cmpge(zero) & v.cmpge(zero) & (u + v).cmple(a);
+        // As in `closest`, the divided distance decides; the nearest lane is below `t_max`
+        // exactly when some lane is.
+        mask.any() && (mask & (t / a).cmplt(Vec4::splat(t_max))).any()
+    }
+}
+
 impl SpherePacket {
+    /// True when [`Self::closest`] without ties would find a hit: some lane's sphere meets the
+    /// ray with `t_min < t < t_max`, without choosing the nearest.
+    #[inline(always)]
+    fn occludes(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
+        let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
+        let b = -dot(&f, &rc.d);
+        let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
+        let disc = self.r2 - dot(&l, &l);
+        let ok = disc.cmpge(Vec4::ZERO);
+        if !ok.any() {
+            return false;
+        }
+        let c = dot(&f, &f) - self.r2;
+        let sq = Vec4::from_array(disc.max(Vec4::ZERO).to_array().map(f32::sqrt));
+        let q = b + sq.copysign(b);
+        let t0 = c / q;
+        let (lo, hi) = (t0.min(q), t0.max(q));
+        let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
+        let lo_ok = lo.cmpgt(tmin) & below::<false>(lo, tmax);
+        let hi_ok = hi.cmpgt(tmin) & below::<false>(hi, tmax);
+        (ok & q.cmpne(Vec4::ZERO) & (lo_ok | hi_ok)).any()
+    }
+
     /// The numerically careful sphere test of [`Sphere`] on four spheres at once.
     #[inline(always)]
     fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {

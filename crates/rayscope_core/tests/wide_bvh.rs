@@ -157,10 +157,17 @@ fn wide_equals_binary_and_brute_force() {
             // Any-hit agrees with closest-hit about whether something is there.
             assert_eq!(scene.occluded(ray, 0.0, f32::INFINITY), w.is_some());
             if let Some(w) = w {
-                assert!(scene.occluded(ray, 0.0, w.t * 1.0001 + 1e-6));
+                let t_max = w.t * 1.0001 + 1e-6;
+                assert!(scene.occluded(ray, 0.0, t_max));
                 assert!(
                     !scene.occluded(ray, 0.0, w.t * 0.999),
                     "nothing is nearer than the closest hit"
+                );
+                // The occluder it names (the debugger shows it) really lies on the ray.
+                let p = scene.occluder(ray, 0.0, t_max).expect("occluded");
+                assert!(
+                    prim_hit(&scene, p, ray, t_max),
+                    "seed {seed}: {p:?} named as the occluder is not on the ray"
                 );
             }
         }
@@ -168,6 +175,65 @@ fn wide_equals_binary_and_brute_force() {
             disagree <= rays.len() / 500,
             "seed {seed}: {disagree} of {} rays disagree with parry3d",
             rays.len()
+        );
+    }
+}
+
+/// True when primitive `p` of `scene` meets `ray` with `0 < t < t_max`, by its own test.
+fn prim_hit(scene: &Scene, p: PrimRef, ray: &Ray, t_max: f32) -> bool {
+    match p {
+        PrimRef::Plane(i) => scene.planes[i as usize].intersect(ray, 0.0, t_max).is_some(),
+        PrimRef::Sphere(i) => scene.spheres[i as usize].intersect(ray, 0.0, t_max).is_some(),
+        PrimRef::Triangle(i) => scene.triangles[i as usize].intersect(ray, 0.0, t_max).is_some(),
+    }
+}
+
+#[test]
+fn paired_queries_return_what_the_two_queries_return() {
+    // The path tracer asks for a bounce ray's closest hit and a shadow ray's any hit together.
+    // In a small room both go through the single-ray list in one loop; elsewhere one after the
+    // other. Either way the answers are the separate queries' answers, with the shadow ray's
+    // end placed just before, at and just after what it meets.
+    let room = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/emissive.txt");
+    let room = Scene::from_file(&rayscope_scene::load(&room).expect("our scene loads"));
+    assert!(!room.wide.single.is_empty(), "the room is a list for single rays");
+    let mut scenes = vec![("room", room)];
+    for (seed, spheres, tris, planes) in [(61, 3, 10, 2), (62, 40, 300, 0), (63, 30, 120, 5)] {
+        scenes.push(("random", random_scene_with_planes(seed, spheres, tris, planes)));
+    }
+    for (k, (name, scene)) in scenes.iter().enumerate() {
+        // Rays from inside the scene's bounds, as from a path's vertices; a shadow ray starts
+        // where its bounce ray does.
+        let mut rng = Rng::for_sample(70 + k as u64, 0, 0);
+        let mut r = move || rng.next_f32();
+        let (lo, size) = (scene.bounds.min, scene.bounds.max - scene.bounds.min);
+        let (mut blocked, mut clear) = (0, 0);
+        for _ in 0..1000 {
+            let o = lo + size * Vec3A::new(r(), r(), r()).clamp(Vec3A::splat(0.05), Vec3A::splat(0.95));
+            let mut dir = || (Vec3A::new(r(), r(), r()) - Vec3A::splat(0.5)).normalize();
+            let (bounce, shadow) = (Ray::new(o, dir()), Ray::new(o, dir()));
+            let bounce = &bounce;
+            let first = scene.intersect(&shadow, 0.0, f32::INFINITY).map_or(5.0, |h| h.t);
+            for t_max in [first * 0.999, first, first * 1.001, f32::INFINITY] {
+                let want = (
+                    scene.intersect(bounce, 0.0, f32::INFINITY),
+                    scene.occluded(&shadow, 0.0, t_max),
+                );
+                assert_eq!(
+                    scene.intersect_and_occluded(bounce, &shadow, t_max),
+                    want,
+                    "{name} {k}: {bounce:?}, {shadow:?} to {t_max}"
+                );
+                if want.1 {
+                    blocked += 1;
+                } else {
+                    clear += 1;
+                }
+            }
+        }
+        assert!(
+            blocked > 200 && clear > 200,
+            "{name} {k}: {blocked} blocked, {clear} clear"
         );
     }
 }
