@@ -361,6 +361,7 @@ const MAX_PACKET_DEPTH: u32 = 12;
 /// The lanes whose hits are lit by point lights alone, and their albedos (the shadow rays start
 /// from the packet's [`SurfaceFrames`]).
 #[derive(Default)]
+#[repr(align(64))]
 struct LitLanes {
     /// Which lanes.
     on: [bool; LANES],
@@ -370,6 +371,7 @@ struct LitLanes {
 
 /// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
 /// [`Scene::surface`] returns ([`surface_frames`] computes the geometry).
+#[repr(align(64))]
 struct PacketSurfaces {
     /// Every lane hit the same primitive.
     one_prim: bool,

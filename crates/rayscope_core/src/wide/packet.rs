@@ -37,6 +37,12 @@ const TAG_MASK: u32 = 3 << 30;
 
 /// Sixteen rays in structure-of-arrays layout. Unused lanes have `t_max = −∞` and never hit.
 #[derive(Debug, Clone)]
+// Aligned to a cache line, like the packet code's other sixteen-lane structs: the kernels load
+// each sixteen-lane array as 512-bit (or 256-bit) vectors, and a vector that straddles two lines
+// costs two loads.
+// Left to the compiler, where such a struct landed on the stack depended on unrelated code, and
+// direct-lighting renders moved by 4-7 % with it (BENCHMARKS.md, session 11).
+#[repr(align(64))]
 pub struct RayPacket {
     /// Origins, per axis.
     pub o: [F; 3],
@@ -70,6 +76,7 @@ impl RayPacket {
 
 /// What [`Bvh4::light_rays`] finds for each lane.
 #[derive(Debug, Clone)]
+#[repr(align(64))]
 pub struct LightRays {
     /// N·L with the shading normal (0 for lanes without a ray).
     pub cos: [f32; LANES],
@@ -81,6 +88,7 @@ pub struct LightRays {
 
 /// The closest hits of a packet's rays (none by default).
 #[derive(Debug, Clone, Default)]
+#[repr(align(64))]
 pub struct PacketHits {
     t: F,
     u: F,
@@ -142,6 +150,7 @@ fn sel(c: bool, a: f32, b: f32) -> f32 {
 /// filters all four primitives against the best hit known when the packet is entered and then
 /// takes the nearest (the lowest lane on ties, which holds the lowest index: see [`beats`]);
 /// this replays exactly that.
+#[repr(align(64))]
 struct PacketBest {
     found: [bool; LANES],
     t: F,
@@ -426,6 +435,7 @@ fn lanes_occlude_rays(
 }
 
 /// Per-packet constants of the node test.
+#[repr(align(64))]
 struct PacketNodeConsts {
     inv: [F; 3],
 }

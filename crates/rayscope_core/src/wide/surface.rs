@@ -17,6 +17,7 @@ type F = [f32; LANES];
 
 /// Per-lane data of the primitives a packet's rays hit, gathered for [`surface_frames`].
 #[derive(Debug, Clone)]
+#[repr(align(64))]
 pub struct HitPrims {
     /// Lanes with a hit.
     pub hit: Mask,
@@ -53,6 +54,7 @@ impl Default for HitPrims {
 
 /// The vertex normals of a packet's hits on triangles that have them.
 #[derive(Debug, Clone)]
+#[repr(align(64))]
 pub struct SmoothNormals {
     /// Lanes whose triangle has vertex normals.
     pub on: Mask,
@@ -77,6 +79,7 @@ impl Default for SmoothNormals {
 
 /// The local geometry at each lane's hit (meaningless in lanes without one).
 #[derive(Debug, Clone)]
+#[repr(align(64))]
 pub struct SurfaceFrames {
     /// Hit point.
     pub point: [F; 3],
@@ -224,6 +227,7 @@ pub fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
 /// The rays mirrors and glass send on from a packet's hits: per lane, the arithmetic of the
 /// single-ray code's `mirror`, `glass`, `fresnel` and `refract` (meaningless in other lanes).
 #[derive(Debug, Clone)]
+#[repr(align(64))]
 pub struct SpecularRays {
     /// Unit mirror-reflection direction.
     pub reflected: [F; 3],
