@@ -13,7 +13,7 @@ use crate::integrator::{Counters, Integrator, Job};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
 use crate::scene::{Intersect, Scene};
 use crate::settings::RenderSettings;
-use crate::wide::{Bvh4, LANES};
+use crate::wide::LANES;
 
 /// Tile edge in pixels: small enough to balance two cores on tiny images, large enough to
 /// keep scheduling overhead negligible.
@@ -157,7 +157,13 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
         first_nonfinite: None,
     };
     if let Some(bvh) = integ.packet_bvh() {
-        render_tile_packets(integ, bvh, &mut r, y1, spp);
+        render_tile_packets(&mut r, y1, spp, |jobs, vals, c| integ.sample_packet(bvh, jobs, vals, c));
+        return r;
+    }
+    if let Some(bvh) = integ.camera_packet_bvh() {
+        render_tile_packets(&mut r, y1, spp, |jobs, vals, c| {
+            integ.sample_camera_packet(bvh, jobs, vals, c);
+        });
         return r;
     }
     let inv = 1.0 / spp as f32;
@@ -174,10 +180,15 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
     r
 }
 
-/// [`render_tile`] with the samples traced [`LANES`] at a time: a pixel's samples in order, and
-/// when a pixel has fewer than [`LANES`], the pixels of a 4×4 block one after another, so a
-/// packet's rays stay close together.
-fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &mut TileResult, y1: u32, spp: u32) {
+/// [`render_tile`] with the samples handed to `trace` [`LANES`] at a time: a pixel's samples in
+/// order, and when a pixel has fewer than [`LANES`], the pixels of a 4×4 block one after
+/// another, so a packet's rays stay close together.
+fn render_tile_packets(
+    r: &mut TileResult,
+    y1: u32,
+    spp: u32,
+    mut trace: impl FnMut(&[Job], &mut [Vec3A], &mut Counters),
+) {
     let inv = 1.0 / spp as f32;
     let (x0, y0, x1) = (r.x0, r.y0, r.x1);
     let tw = x1 - x0;
@@ -188,7 +199,7 @@ fn render_tile_packets<I: Intersect>(integ: &Integrator<'_, I>, bvh: &Bvh4, r: &
     // one-sample-at-a-time loop's additions exactly.
     let mut sum = Vec3A::ZERO;
     let mut flush = |jobs: &mut ArrayVec<Job, LANES>, r: &mut TileResult, sum: &mut Vec3A| {
-        integ.sample_packet(bvh, jobs, &mut vals, &mut r.counters);
+        trace(jobs, &mut vals, &mut r.counters);
         for (&(x, y, s), &v) in jobs.iter().zip(&vals) {
             r.add_sample(sum, (x, y, s), v);
             if s + 1 == spp {

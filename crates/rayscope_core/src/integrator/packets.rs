@@ -7,11 +7,17 @@
 //! mirrors and glass send on form the next packets, recursively. Each lane runs exactly the
 //! arithmetic [`Integrator::sample`] runs, in the same order, so the colours and ray counts are
 //! the same (the test `packet_render` renders both ways).
+//!
+//! Stochastic renders (path tracing, glossy coats, depth of field) hand over samples the same
+//! way, but only their camera rays go as a packet: a pixel's camera rays stay together while
+//! its paths scatter after the first hit, so each path goes on one ray at a time from its
+//! camera ray's hit, with its own random stream, exactly as [`Integrator::sample`] would.
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
+use arrayvec::ArrayVec;
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
@@ -38,6 +44,45 @@ impl<I: Intersect> Integrator<'_, I> {
             return None;
         }
         self.isect.wide()
+    }
+
+    /// The BVH to trace camera rays through [`LANES`] at a time, when this render's samples are
+    /// stochastic paths (so not whole packets): colour renders on rayscope's own BVH.
+    #[must_use]
+    pub fn camera_packet_bvh(&self) -> Option<&Bvh4> {
+        if self.settings.channel != Channel::Color || !self.stochastic {
+            return None;
+        }
+        self.isect.wide()
+    }
+
+    /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with
+    /// the rays counted in `c`: the camera rays traced as one packet, each path then one ray at
+    /// a time from its camera ray's hit. A pixel's camera rays stay together even where its
+    /// paths scatter after the first bounce.
+    pub(crate) fn sample_camera_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
+        debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
+        let mut packet = RayPacket::default();
+        let mut lanes: ArrayVec<(Ray, Rng), LANES> = ArrayVec::new();
+        for (i, &(x, y, s)) in jobs.iter().enumerate() {
+            let mut rng = self.sample_rng(x, y, s);
+            let ray = self.camera_ray(x, y, s, &mut rng);
+            put(&mut packet.o, i, ray.origin.to_array());
+            put(&mut packet.d, i, ray.dir.to_array());
+            packet.t_max[i] = f32::INFINITY;
+            lanes.push((ray, rng));
+        }
+        c.camera += jobs.len() as u64;
+        let hits = bvh.closest_rays(&mut packet, 0.0);
+        for (i, (ray, rng)) in lanes.iter_mut().enumerate() {
+            // Self::radiance from the hit found above.
+            out[i] = hits.get(i).map_or(Vec3A::ZERO, |(t, u, v, prim)| {
+                let hit = Hit { t, u, v, prim };
+                let s = self.scene.surface(ray, &hit);
+                self.trace_hit(ray, &hit, &s, PathState::CAMERA, true, 0, rng, &mut NoObserver, c)
+                    .total()
+            });
+        }
     }
 
     /// Fills in [`Self::point_lit`].
