@@ -826,11 +826,22 @@ fn nearest_lane(mask: BVec4A, t: Vec4) -> Option<usize> {
     Some((t.cmpeq(Vec4::splat(m)) & mask).bitmask().trailing_zeros() as usize)
 }
 
+/// The lanes of a triangle packet a ray meets, before the division: the hit mask, and per lane
+/// the distance, u and v, each still multiplied by `a` = |d · n|.
+struct Undivided {
+    mask: BVec4A,
+    t: Vec4,
+    u: Vec4,
+    v: Vec4,
+    a: Vec4,
+}
+
 impl TriPacket {
-    /// Möller–Trumbore on four triangles at once, rearranged around the stored normal so the
-    /// division is made only when some lane hits (same arithmetic as [`Triangle`]'s routine).
+    /// Möller–Trumbore on four triangles at once up to the division, rearranged around the
+    /// stored normal: the lanes whose triangle the ray meets with `t_min < t < t_far` (compared
+    /// undivided, so the caller decides on the divided distance), or `None` when there are none.
     #[inline(always)]
-    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
+    fn undivided(&self, rc: &RayConsts, t_min: f32, t_far: f32) -> Option<Undivided> {
         let c = [self.v0[0] - rc.o[0], self.v0[1] - rc.o[1], self.v0[2] - rc.o[2]];
         let den = dot(&rc.d, &self.n);
         let s = Vec4::ONE.copysign(den);
@@ -838,8 +849,7 @@ impl TriPacket {
         let t = dot(&c, &self.n) * s;
         // The supporting planes first: a shadow ray that ends before every plane (a wall behind
         // the light) is done after a third of the work.
-        let in_range =
-            den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(far(TIES, t_max)) * a);
+        let in_range = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(t_far) * a);
         if !in_range.any() {
             return None;
         }
@@ -848,80 +858,48 @@ impl TriPacket {
         let v = dot(&self.e1, &r) * s;
         let zero = Vec4::ZERO;
         let mask = in_range & u.cmpge(zero) & v.cmpge(zero) & (u + v).cmple(a);
-        if !mask.any() {
-            return None;
-        }
-        let t = t / a;
-        let i = nearest_lane(mask, t)?;
+        mask.any().then_some(Undivided { mask, t, u, v, a })
+    }
+
+    /// The closest hit in the packet (same arithmetic as [`Triangle`]'s routine, the division
+    /// made only when some lane hits).
+    #[inline(always)]
+    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
+        let h = self.undivided(rc, t_min, far(TIES, t_max))?;
+        let t = h.t / h.a;
+        let i = nearest_lane(h.mask, t)?;
         let ti = t.to_array()[i];
-        // The numerator test above can pass by a rounding error (or, with `TIES`, by its slack)
-        // for a hit that, divided, is no nearer than `t_max`; the divided distance decides.
+        // The numerator test can pass by a rounding error (or, with `TIES`, by its slack) for a
+        // hit that, divided, is no nearer than `t_max`; the divided distance decides.
         if !beats(ti, TAG_TRI | self.ids[i], t_max, key_max) {
             return None;
         }
-        let a = a.to_array()[i];
+        let a = h.a.to_array()[i];
         Some(WideHit {
             t: ti,
-            u: u.to_array()[i] / a,
-            v: v.to_array()[i] / a,
+            u: h.u.to_array()[i] / a,
+            v: h.v.to_array()[i] / a,
             prim: PrimRef::Triangle(self.ids[i]),
         })
     }
-}
 
-impl TriPacket {
     /// True when [`Self::closest`] without ties would find a hit: some lane's triangle meets
     /// the ray with `t_min < t < t_max`, without choosing the nearest.
     #[inline(always)]
     fn occludes(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
-        let c = [self.v0[0] - rc.o[0], self.v0[1] - rc.o[1], self.v0[2] - rc.o[2]];
-        let den = dot(&rc.d, &self.n);
-        let s = Vec4::ONE.copysign(den);
-        let a = den.abs();
-        let t = dot(&c, &self.n) * s;
-        let in_range =
-            den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(far(false, t_max)) * a);
-        if !in_range.any() {
-            return false;
-        }
-        let r = cross(&rc.d, &c);
-        let u = dot(&self.e2, &r) * -s;
-        let v = dot(&self.e1, &r) * s;
-        let zero = Vec4::ZERO;
-        let mask = in_range & u.cmpge(zero) & v.cmpge(zero) & (u + v).cmple(a);
         // As in `closest`, the divided distance decides; the nearest lane is below `t_max`
         // exactly when some lane is.
-        mask.any() && (mask & (t / a).cmplt(Vec4::splat(t_max))).any()
+        self.undivided(rc, t_min, far(false, t_max))
+            .is_some_and(|h| (h.mask & (h.t / h.a).cmplt(Vec4::splat(t_max))).any())
     }
 }
 
 impl SpherePacket {
-    /// True when [`Self::closest`] without ties would find a hit: some lane's sphere meets the
-    /// ray with `t_min < t < t_max`, without choosing the nearest.
+    /// The numerically careful sphere test of [`Sphere`] on four spheres at once: the lanes
+    /// whose sphere the ray meets with `t_min < t` and `t` below `t_max` (see [`below`]), with
+    /// each lane's nearer such distance, or `None` when no lane's ray meets its sphere at all.
     #[inline(always)]
-    fn occludes(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
-        let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
-        let b = -dot(&f, &rc.d);
-        let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
-        let disc = self.r2 - dot(&l, &l);
-        let ok = disc.cmpge(Vec4::ZERO);
-        if !ok.any() {
-            return false;
-        }
-        let c = dot(&f, &f) - self.r2;
-        let sq = Vec4::from_array(disc.max(Vec4::ZERO).to_array().map(f32::sqrt));
-        let q = b + sq.copysign(b);
-        let t0 = c / q;
-        let (lo, hi) = (t0.min(q), t0.max(q));
-        let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
-        let lo_ok = lo.cmpgt(tmin) & below::<false>(lo, tmax);
-        let hi_ok = hi.cmpgt(tmin) & below::<false>(hi, tmax);
-        (ok & q.cmpne(Vec4::ZERO) & (lo_ok | hi_ok)).any()
-    }
-
-    /// The numerically careful sphere test of [`Sphere`] on four spheres at once.
-    #[inline(always)]
-    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
+    fn hits<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<(BVec4A, Vec4)> {
         let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
         let b = -dot(&f, &rc.d);
         let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
@@ -941,8 +919,21 @@ impl SpherePacket {
         let ok = ok & q.cmpne(Vec4::ZERO);
         let lo_ok = lo.cmpgt(tmin) & below::<TIES>(lo, tmax);
         let hi_ok = hi.cmpgt(tmin) & below::<TIES>(hi, tmax);
-        let t = Vec4::select(lo_ok, lo, hi);
-        let i = nearest_lane(ok & (lo_ok | hi_ok), t)?;
+        Some((ok & (lo_ok | hi_ok), Vec4::select(lo_ok, lo, hi)))
+    }
+
+    /// True when [`Self::closest`] without ties would find a hit: some lane's sphere meets the
+    /// ray with `t_min < t < t_max`, without choosing the nearest.
+    #[inline(always)]
+    fn occludes(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> bool {
+        self.hits::<false>(rc, t_min, t_max).is_some_and(|(mask, _)| mask.any())
+    }
+
+    /// The nearest hit among the packet's spheres.
+    #[inline(always)]
+    fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
+        let (mask, t) = self.hits::<TIES>(rc, t_min, t_max)?;
+        let i = nearest_lane(mask, t)?;
         if TIES && !beats(t.to_array()[i], TAG_SPHERE | self.ids[i], t_max, key_max) {
             return None;
         }

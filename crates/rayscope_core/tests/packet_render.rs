@@ -36,6 +36,11 @@ fn both(scene: &Scene, s: &RenderSettings) -> (RenderOutput, RenderOutput) {
     (packets, single)
 }
 
+/// How many pixels of `a` and `b` differ at all.
+fn differing(a: &RenderOutput, b: &RenderOutput) -> usize {
+    a.film.pixels.iter().zip(&b.film.pixels).filter(|(x, y)| x != y).count()
+}
+
 #[test]
 fn packet_renders_equal_single_ray_renders() {
     let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
@@ -63,13 +68,7 @@ fn packet_renders_equal_single_ray_renders() {
             let (p, one) = both(&scene, &s);
             let name = path.file_name().unwrap().to_string_lossy();
             assert_eq!(p.counters, one.counters, "{name} {stage:?} -x {aa}: ray counts");
-            let diff = p
-                .film
-                .pixels
-                .iter()
-                .zip(&one.film.pixels)
-                .filter(|(a, b)| a != b)
-                .count();
+            let diff = differing(&p, &one);
             assert_eq!(diff, 0, "{name} {stage:?} -x {aa}: {diff} pixels differ");
             assert!(
                 p.film.pixels.iter().any(|c| c.max_element() > 0.05),
@@ -102,13 +101,7 @@ fn path_traced_renders_are_the_same_with_camera_packets_and_paired_queries() {
             let (paired, one) = both(&scene, &s);
             assert_eq!(paired.counters, one.counters, "{name} -l {ambient}: ray counts");
             assert!(paired.counters.secondary > 1000, "{name} -l {ambient}: paths go on");
-            let diff = paired
-                .film
-                .pixels
-                .iter()
-                .zip(&one.film.pixels)
-                .filter(|(a, b)| a != b)
-                .count();
+            let diff = differing(&paired, &one);
             assert_eq!(diff, 0, "{name} -l {ambient}: {diff} pixels differ");
         }
     }
