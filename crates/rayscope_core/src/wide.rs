@@ -653,15 +653,19 @@ impl Bvh4 {
 
     /// [`Self::closest`] for `ray` (`0 < t`) together with whether [`Self::any`] finds
     /// something on `shadow` with `0 < t < shadow_t_max`: the same two answers as the two
-    /// queries. In small rooms (the single-ray list) both rays go through the list in one loop,
-    /// so the two independent tests overlap in the core instead of one query waiting for the
-    /// other; otherwise the two queries run one after the other.
+    /// queries. In small scenes (a flat list, or a room's single-ray list) both rays go through
+    /// the list in one loop, so the two independent tests overlap in the core instead of one
+    /// query waiting for the other; in trees the two walks run one after the other.
     #[inline(always)]
     pub fn closest_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<WideHit>, bool) {
-        if self.single.is_empty() {
+        let list = if !self.single.is_empty() {
+            &self.single
+        } else if self.root == EMPTY {
+            &self.flat
+        } else {
             let blocked = self.any(shadow, 0.0, shadow_t_max).is_some();
             return (self.closest::<false>(ray, 0.0, f32::INFINITY, &mut 0), blocked);
-        }
+        };
         let (rc, sc) = (RayConsts::new(ray), RayConsts::new(shadow));
         let mut walk = Walk {
             best: None,
@@ -676,7 +680,7 @@ impl Bvh4 {
             }
             blocked |= p.closest::<false>(&sc, 0.0, shadow_t_max, 0).is_some();
         }
-        for &r in &self.single {
+        for &r in list {
             blocked = blocked || self.packet_occludes(r, &sc, 0.0, shadow_t_max);
             if let Some(h) = self.packet_closest::<true>(r, &rc, 0.0, walk.t_best, walk.key) {
                 walk.take(h);

@@ -191,9 +191,10 @@ fn prim_hit(scene: &Scene, p: PrimRef, ray: &Ray, t_max: f32) -> bool {
 #[test]
 fn paired_queries_return_what_the_two_queries_return() {
     // The path tracer asks for a bounce ray's closest hit and a shadow ray's any hit together.
-    // In a small room both go through the single-ray list in one loop; elsewhere one after the
-    // other. Either way the answers are the separate queries' answers, with the shadow ray's
-    // end placed just before, at and just after what it meets.
+    // In a small room (the single-ray list) and in a tiny scene (the flat list) both go through
+    // the list in one loop; in a tree one after the other. Either way the answers are the
+    // separate queries' answers, with the shadow ray's end placed just before, at and just after
+    // what it meets.
     let room = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/emissive.txt");
     let room = Scene::from_file(&rayscope_scene::load(&room).expect("our scene loads"));
     assert!(!room.wide.single.is_empty(), "the room is a list for single rays");
@@ -201,6 +202,12 @@ fn paired_queries_return_what_the_two_queries_return() {
     for (seed, spheres, tris, planes) in [(61, 3, 10, 2), (62, 40, 300, 0), (63, 30, 120, 5)] {
         scenes.push(("random", random_scene_with_planes(seed, spheres, tris, planes)));
     }
+    let w = |k: usize| &scenes[k].1.wide;
+    assert!(
+        w(1).root == u32::MAX && !w(1).flat.is_empty(),
+        "a tiny scene, one flat list"
+    );
+    assert!(w(2).root != u32::MAX && w(2).single.is_empty(), "a tree");
     for (k, (name, scene)) in scenes.iter().enumerate() {
         // Rays from inside the scene's bounds, as from a path's vertices; a shadow ray starts
         // where its bounce ray does.
