@@ -472,7 +472,25 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         obs: &mut O,
         c: &mut Counters,
     ) -> Li {
-        let Some(hit) = self.isect.intersect(ray, 0.0, f32::INFINITY) else {
+        let hit = self.isect.intersect(ray, 0.0, f32::INFINITY);
+        self.trace_found(ray, hit, path, want_reflected, id, rng, obs, c)
+    }
+
+    /// [`Self::trace`] once the ray's closest hit has been found: `hit`, or none.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn trace_found<O: RayObserver>(
+        &self,
+        ray: &Ray,
+        hit: Option<Hit>,
+        path: PathState,
+        want_reflected: bool,
+        id: u32,
+        rng: &mut Rng,
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Li {
+        let Some(hit) = hit else {
             return Li::default();
         };
         let s = self.scene.surface(ray, &hit);
@@ -792,11 +810,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             }
             None => self.isect.intersect(&r, 0.0, f32::INFINITY),
         };
-        // Self::trace from the hit found above.
-        let li = hit.map_or_else(Li::default, |hit| {
-            let hs = self.scene.surface(&r, &hit);
-            self.trace_hit(&r, &hit, &hs, child, want, cid, rng, obs, c)
-        });
+        let li = self.trace_found(&r, hit, child, want, cid, rng, obs, c);
         let mis = if li.light_pdf > 0.0 {
             power_heuristic(bs.pdf, li.light_pdf)
         } else {

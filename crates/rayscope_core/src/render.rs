@@ -162,7 +162,7 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
     }
     if let Some(bvh) = integ.camera_packet_bvh() {
         render_tile_packets(&mut r, y1, spp, |jobs, vals, c| {
-            integ.sample_camera_packet(bvh, jobs, vals, c);
+            integ.sample_camera_packet(bvh, jobs, vals, c)
         });
         return r;
     }

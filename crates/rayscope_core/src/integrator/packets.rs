@@ -76,12 +76,10 @@ impl<I: Intersect> Integrator<'_, I> {
         let hits = bvh.closest_rays(&mut packet, 0.0);
         for (i, (ray, rng)) in lanes.iter_mut().enumerate() {
             // Self::radiance from the hit found above.
-            out[i] = hits.get(i).map_or(Vec3A::ZERO, |(t, u, v, prim)| {
-                let hit = Hit { t, u, v, prim };
-                let s = self.scene.surface(ray, &hit);
-                self.trace_hit(ray, &hit, &s, PathState::CAMERA, true, 0, rng, &mut NoObserver, c)
-                    .total()
-            });
+            let hit = hits.get(i).map(|(t, u, v, prim)| Hit { t, u, v, prim });
+            out[i] = self
+                .trace_found(ray, hit, PathState::CAMERA, true, 0, rng, &mut NoObserver, c)
+                .total();
         }
     }
 
