@@ -48,6 +48,7 @@ use crate::settings::{Channel, RenderSettings, Stage};
 use rayscope_scene::MaterialKind;
 
 mod packets;
+mod wave;
 pub(crate) use packets::Job;
 
 /// Ray counts gathered while rendering.

@@ -10,9 +10,10 @@ use glam::Vec3A;
 use rayscope_scene::MaterialKind;
 
 use crate::geometry::{Sphere, Triangle};
-use crate::math::basis;
+use crate::math::{basis, not_at_most};
 use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
 use crate::scene::{PrimRef, Scene};
+use crate::wide::LANES;
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;
@@ -199,6 +200,134 @@ impl Emitters {
     }
 }
 
+/// [`Emitters::sample`]'s answers for sixteen lanes, in structure-of-arrays form.
+#[derive(Debug, Clone)]
+#[repr(align(64))]
+pub(crate) struct LightLanes {
+    /// The lane drew a sample ([`Emitters::sample`] returned `Some`).
+    pub ok: [bool; LANES],
+    /// Unit direction to the sampled point, per axis.
+    pub dir: [[f32; LANES]; 3],
+    /// Distance to the sampled point.
+    pub dist: [f32; LANES],
+    /// The emitter's radiance, per axis.
+    pub radiance: [[f32; LANES]; 3],
+    /// Solid-angle density, selection included.
+    pub pdf: [f32; LANES],
+}
+
+impl Emitters {
+    /// [`Emitters::sample`] from point `p` of every lane in `on`, with that lane's three
+    /// numbers: the same arithmetic per lane. Triangle emitters are sampled in one pass over
+    /// the lanes without branches; lanes that chose a sphere call [`sample_sphere`].
+    // Structure-of-arrays code indexes several arrays by the same lane or axis.
+    #[allow(clippy::needless_range_loop)]
+    pub(crate) fn sample_lanes(
+        &self,
+        scene: &Scene,
+        p: &[[f32; LANES]; 3],
+        on: &[bool; LANES],
+        u: [&[f32; LANES]; 3],
+    ) -> LightLanes {
+        let [u0, u1, u2] = u;
+        let mut out = LightLanes {
+            ok: [false; LANES],
+            dir: [[0.0; LANES]; 3],
+            dist: [0.0; LANES],
+            radiance: [[0.0; LANES]; 3],
+            pdf: [0.0; LANES],
+        };
+        if self.list.is_empty() {
+            return out;
+        }
+        let mut below = [0u32; LANES];
+        if self.cdf.len() <= SHORT_CDF {
+            for &c in &self.cdf {
+                for i in 0..LANES {
+                    below[i] += u32::from(c <= u0[i]);
+                }
+            }
+        } else {
+            for i in 0..LANES {
+                below[i] = self.cdf.partition_point(|&c| c <= u0[i]) as u32;
+            }
+        }
+        let last = self.list.len() as u32 - 1;
+        // Each lane's triangle (corner, edges, e1 × e2, twice its area); zeros in other lanes.
+        let (mut v0, mut e1, mut e2, mut cross) = (
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+        );
+        let (mut area2, mut pmf, mut tri) = ([1.0; LANES], [0.0; LANES], [false; LANES]);
+        for i in 0..LANES {
+            if !on[i] {
+                continue;
+            }
+            let k = below[i].min(last) as usize;
+            let e = &self.list[k];
+            pmf[i] = self.pmf[k];
+            for a in 0..3 {
+                out.radiance[a][i] = e.radiance[a];
+            }
+            match e.prim {
+                PrimRef::Triangle(t) => {
+                    let t = &scene.triangles[t as usize];
+                    let (a0, a1, a2) = (t.v0(), t.e1(), t.e2());
+                    for a in 0..3 {
+                        (v0[a][i], e1[a][i], e2[a][i], cross[a][i]) = (a0[a], a1[a], a2[a], e.cross[a]);
+                    }
+                    area2[i] = 2.0 * e.area;
+                    tri[i] = true;
+                }
+                PrimRef::Sphere(s) => {
+                    if let Some((dir, dist, pdf)) = sample_sphere(&scene.spheres[s as usize], lane(p, i), u1[i], u2[i])
+                    {
+                        for a in 0..3 {
+                            out.dir[a][i] = dir[a];
+                        }
+                        out.dist[i] = dist;
+                        out.pdf[i] = pdf;
+                        out.ok[i] = true;
+                    }
+                }
+                PrimRef::Plane(_) => {}
+            }
+        }
+        // sample_triangle_with, lane by lane.
+        for i in 0..LANES {
+            let s = u1[i].sqrt();
+            let (b1, b2) = (s * (1.0 - u2[i]), s * u2[i]);
+            let w: [f32; 3] = std::array::from_fn(|a| v0[a][i] + e1[a][i] * b1 + e2[a][i] * b2 - p[a][i]);
+            let dist2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+            let dist = dist2.sqrt();
+            let dir: [f32; 3] = std::array::from_fn(|a| w[a] / dist);
+            let cos = (cross[0][i] * dir[0] + cross[1][i] * dir[1] + cross[2][i] * dir[2]).abs() / area2[i];
+            let pdf = dist2 / (cos * (0.5 * area2[i]));
+            let ok = tri[i] & not_at_most(dist, 0.0) & (cos > 1e-7);
+            for a in 0..3 {
+                out.dir[a][i] = if tri[i] { dir[a] } else { out.dir[a][i] };
+            }
+            out.dist[i] = if tri[i] { dist } else { out.dist[i] };
+            out.pdf[i] = if tri[i] { pdf } else { out.pdf[i] };
+            out.ok[i] = if tri[i] { ok } else { out.ok[i] };
+        }
+        for i in 0..LANES {
+            let pdf = out.pdf[i] * pmf[i];
+            out.pdf[i] = pdf;
+            out.ok[i] = on[i] & out.ok[i] & (pdf > 0.0) & pdf.is_finite();
+        }
+        out
+    }
+}
+
+/// Lane `i` of a vector stored per axis.
+#[inline(always)]
+fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
+    Vec3A::new(v[0][i], v[1][i], v[2][i])
+}
+
 /// Emitter lists up to this long are searched by counting (see [`Emitters::sample`]): counting
 /// 32 entries takes a few vector instructions, less than one mispredicted branch.
 const SHORT_CDF: usize = 32;
@@ -328,6 +457,55 @@ mod tests {
             .unwrap();
         }
         Scene::from_file(&rayscope_scene::parse_str(&text, Path::new("panels.txt")).unwrap())
+    }
+
+    #[test]
+    fn sixteen_lanes_draw_what_one_sample_draws() {
+        // Short and long lists (counted and searched), and a scene with sphere emitters too;
+        // points near and far, lanes switched off, numbers at the ends of [0, 1).
+        let mut with_spheres =
+            String::from("Material \"E\" Emissive (4, 3, 2) 1\nMaterial \"F\" Emissive (1, 1, 1) 1\n");
+        with_spheres += "Sphere \"S\" (0, 1, 4) 0.5 \"E\"\nSphere \"Tiny\" (2, 0, 3) 0.01 \"F\"\n";
+        with_spheres += "Triangle \"T\" (-1, 0, 5) (1, 0, 5) (0, 2, 5) \"F\"\n";
+        let spheres = Scene::from_file(&rayscope_scene::parse_str(&with_spheres, Path::new("s.txt")).unwrap());
+        let mut rng = crate::rng::Rng::for_sample(3, 1, 4);
+        for scene in [panels(3), panels(SHORT_CDF + 9), spheres] {
+            let e = Emitters::from_scene(&scene);
+            for round in 0..64 {
+                let mut p = [[0.0; LANES]; 3];
+                let mut u = [[0.0; LANES]; 3];
+                let on: [bool; LANES] = std::array::from_fn(|i| (i + round) % 5 != 0);
+                for i in 0..LANES {
+                    for a in 0..3 {
+                        p[a][i] = (rng.next_f32() - 0.5) * 8.0;
+                        u[a][i] = rng.next_f32();
+                    }
+                }
+                // The sphere's inside and the ends of the unit interval.
+                (p[0][1], p[1][1], p[2][1]) = (0.1, 1.1, 4.0);
+                (u[0][2], u[1][2], u[2][2]) = (0.0, 0.0, 0.0);
+                u[1][3] = 1.0f32.next_down();
+                let got = e.sample_lanes(&scene, &p, &on, [&u[0], &u[1], &u[2]]);
+                for i in 0..LANES {
+                    let want = if on[i] {
+                        e.sample(&scene, lane(&p, i), u[0][i], u[1][i], u[2][i])
+                    } else {
+                        None
+                    };
+                    assert_eq!(got.ok[i], want.is_some(), "round {round}, lane {i}");
+                    let Some(w) = want else { continue };
+                    let bits = |v: [f32; 3]| v.map(f32::to_bits);
+                    assert_eq!(
+                        bits(lane(&got.dir, i).to_array()),
+                        bits(w.dir.to_array()),
+                        "round {round}, lane {i}"
+                    );
+                    assert_eq!(got.dist[i].to_bits(), w.dist.to_bits(), "round {round}, lane {i}");
+                    assert_eq!(got.pdf[i].to_bits(), w.pdf.to_bits(), "round {round}, lane {i}");
+                    assert_eq!(lane(&got.radiance, i), w.radiance, "round {round}, lane {i}");
+                }
+            }
+        }
     }
 
     #[test]

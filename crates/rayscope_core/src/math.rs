@@ -105,6 +105,15 @@ pub fn offset_eps(p: Vec3A, from: Vec3A) -> f32 {
     (1e-5 * m).max(1e-30)
 }
 
+/// `!(x <= y)`: true where `x > y` and where either is NaN, so lane code passes exactly the
+/// values the single-ray code's `if x <= y { reject }` lets through.
+#[must_use]
+#[inline(always)]
+#[allow(clippy::neg_cmp_op_on_partial_ord)]
+pub(crate) fn not_at_most(x: f32, y: f32) -> bool {
+    !(x <= y)
+}
+
 /// Mirror reflection of `d` about the unit normal `n`.
 #[must_use]
 #[inline]

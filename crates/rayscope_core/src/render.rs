@@ -4,7 +4,6 @@
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::time::{Duration, Instant};
 
-use arrayvec::ArrayVec;
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
@@ -70,6 +69,7 @@ pub fn render_with<I: Intersect>(
     let tiles_y = h.div_ceil(TILE);
     let total = w as u64 * h as u64;
     let done = AtomicU64::new(0);
+    let waves = WaveStats::default();
     let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
@@ -79,6 +79,7 @@ pub fn render_with<I: Intersect>(
             let (tx, ty) = (t % tiles_x, t / tiles_x);
             let r = render_tile(
                 &integ,
+                &waves,
                 tx * TILE,
                 ty * TILE,
                 (tx * TILE + TILE).min(w),
@@ -146,7 +147,45 @@ impl TileResult {
     }
 }
 
-fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u32, y1: u32, spp: u32) -> TileResult {
+/// What the tiles traced as waves of paths found: the wave pays for its bookkeeping only when
+/// it has many vertices to shade together, so once a few tiles show that this render's samples
+/// average less than one Lambertian vertex each (a sky that most camera rays see, surfaces that
+/// pass paths on to the one-ray code), the other tiles trace their paths one at a time. Both
+/// loops compute the same values, so which one a tile used never shows in the image.
+#[derive(Default)]
+struct WaveStats {
+    /// Samples traced in waves.
+    samples: AtomicU64,
+    /// Lambertian vertices those waves shaded.
+    shaded: AtomicU64,
+}
+
+/// Samples traced in waves before [`WaveStats`] decides (a 16×16 tile at 16 samples a pixel).
+const WAVE_PILOT: u64 = 4096;
+
+impl WaveStats {
+    /// Whether the next tile should trace its paths in waves.
+    fn worthwhile(&self) -> bool {
+        let samples = self.samples.load(Ordering::Relaxed);
+        samples < WAVE_PILOT || self.shaded.load(Ordering::Relaxed) >= samples
+    }
+
+    /// Records a tile's waves.
+    fn add(&self, samples: u64, shaded: u64) {
+        self.samples.fetch_add(samples, Ordering::Relaxed);
+        self.shaded.fetch_add(shaded, Ordering::Relaxed);
+    }
+}
+
+fn render_tile<I: Intersect>(
+    integ: &Integrator<'_, I>,
+    waves: &WaveStats,
+    x0: u32,
+    y0: u32,
+    x1: u32,
+    y1: u32,
+    spp: u32,
+) -> TileResult {
     let mut r = TileResult {
         x0,
         y0,
@@ -157,11 +196,23 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
         first_nonfinite: None,
     };
     if let Some(bvh) = integ.packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, |jobs, vals, c| integ.sample_packet(bvh, jobs, vals, c));
+        render_tile_packets(&mut r, y1, spp, LANES, |jobs, vals, c| {
+            integ.sample_packet(bvh, jobs, vals, c)
+        });
+        return r;
+    }
+    if let Some(bvh) = integ.wave_bvh().filter(|_| waves.worthwhile()) {
+        // The whole tile at once: a wave's lanes drain only at the end of its jobs.
+        let jobs = ((x1 - x0) * (y1 - y0) * spp) as usize;
+        let mut shaded = 0;
+        render_tile_packets(&mut r, y1, spp, jobs, |jobs, vals, c| {
+            shaded += integ.sample_wave(bvh, jobs, vals, c);
+        });
+        waves.add(jobs as u64, shaded);
         return r;
     }
     if let Some(bvh) = integ.camera_packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, |jobs, vals, c| {
+        render_tile_packets(&mut r, y1, spp, LANES, |jobs, vals, c| {
             integ.sample_camera_packet(bvh, jobs, vals, c)
         });
         return r;
@@ -180,25 +231,26 @@ fn render_tile<I: Intersect>(integ: &Integrator<'_, I>, x0: u32, y0: u32, x1: u3
     r
 }
 
-/// [`render_tile`] with the samples handed to `trace` [`LANES`] at a time: a pixel's samples in
+/// [`render_tile`] with the samples handed to `trace` `batch` at a time: a pixel's samples in
 /// order, and when a pixel has fewer than [`LANES`], the pixels of a 4×4 block one after
 /// another, so a packet's rays stay close together.
 fn render_tile_packets(
     r: &mut TileResult,
     y1: u32,
     spp: u32,
+    batch: usize,
     mut trace: impl FnMut(&[Job], &mut [Vec3A], &mut Counters),
 ) {
     let inv = 1.0 / spp as f32;
     let (x0, y0, x1) = (r.x0, r.y0, r.x1);
     let tw = x1 - x0;
     r.pixels = vec![glam::Vec3::ZERO; (tw * (y1 - y0)) as usize];
-    let mut jobs: ArrayVec<Job, LANES> = ArrayVec::new();
-    let mut vals = [Vec3A::ZERO; LANES];
+    let mut jobs: Vec<Job> = Vec::with_capacity(batch);
+    let mut vals = vec![Vec3A::ZERO; batch];
     // The pixel being summed: its samples arrive in order, so a running sum reproduces the
     // one-sample-at-a-time loop's additions exactly.
     let mut sum = Vec3A::ZERO;
-    let mut flush = |jobs: &mut ArrayVec<Job, LANES>, r: &mut TileResult, sum: &mut Vec3A| {
+    let mut flush = |jobs: &mut Vec<Job>, r: &mut TileResult, sum: &mut Vec3A| {
         trace(jobs, &mut vals, &mut r.counters);
         for (&(x, y, s), &v) in jobs.iter().zip(&vals) {
             r.add_sample(sum, (x, y, s), v);
@@ -216,7 +268,7 @@ fn render_tile_packets(
                 for x in bx..(bx + block as u32).min(x1) {
                     for s in 0..spp {
                         jobs.push((x, y, s));
-                        if jobs.is_full() {
+                        if jobs.len() == batch {
                             flush(&mut jobs, r, &mut sum);
                         }
                     }
@@ -255,5 +307,23 @@ pub fn trace_pixel_with<I: Intersect>(
         sample,
         nodes: rec.nodes,
         color: v.to_array(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn waves_stop_once_samples_average_less_than_one_vertex() {
+        let w = WaveStats::default();
+        assert!(w.worthwhile(), "the first tiles go in waves");
+        w.add(WAVE_PILOT / 2, 0);
+        assert!(w.worthwhile(), "one small tile decides nothing");
+        w.add(WAVE_PILOT / 2, WAVE_PILOT - 1);
+        assert!(!w.worthwhile(), "fewer vertices than samples: one path at a time");
+        let long = WaveStats::default();
+        long.add(WAVE_PILOT, 3 * WAVE_PILOT);
+        assert!(long.worthwhile(), "long paths stay in waves");
     }
 }

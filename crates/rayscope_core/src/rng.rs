@@ -1,6 +1,8 @@
 //! Deterministic random streams keyed by (seed, pixel, sample), so images do not depend on the
 //! thread count or scheduling and any sample can be replayed.
 
+use crate::wide::LANES;
+
 /// A PCG32 generator (O'Neill 2014): small state, good statistics, cheap to seed per sample.
 #[derive(Debug, Clone)]
 pub struct Rng {
@@ -32,7 +34,7 @@ impl Rng {
     #[inline]
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
-        self.state = old.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(self.inc);
+        self.state = old.wrapping_mul(PCG_MUL).wrapping_add(self.inc);
         let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
         let rot = (old >> 59) as u32;
         xorshifted.rotate_right(rot)
@@ -42,6 +44,54 @@ impl Rng {
     #[inline]
     pub fn next_f32(&mut self) -> f32 {
         (self.next_u32() >> 8) as f32 * (1.0 / 16_777_216.0)
+    }
+}
+
+/// The PCG32 multiplier.
+const PCG_MUL: u64 = 6_364_136_223_846_793_005;
+
+/// Sixteen [`Rng`] streams in structure-of-arrays form, stepped together, so a wave of paths
+/// draws its lanes' numbers in one vectorised pass.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct RngLanes {
+    state: [u64; LANES],
+    inc: [u64; LANES],
+}
+
+impl RngLanes {
+    /// Puts stream `r` in lane `i`.
+    #[inline]
+    pub(crate) fn set(&mut self, i: usize, r: &Rng) {
+        (self.state[i], self.inc[i]) = (r.state, r.inc);
+    }
+
+    /// Lane `i`'s stream, where it stands now.
+    #[inline]
+    pub(crate) fn get(&self, i: usize) -> Rng {
+        Rng {
+            state: self.state[i],
+            inc: self.inc[i],
+        }
+    }
+
+    /// [`Rng::next_f32`] in every lane of `on`; the other lanes' streams do not move (and
+    /// get 0).
+    #[inline]
+    pub(crate) fn next_f32(&mut self, on: &[bool; LANES]) -> [f32; LANES] {
+        let mut out = [0.0; LANES];
+        for i in 0..LANES {
+            let old = self.state[i];
+            let next = old.wrapping_mul(PCG_MUL).wrapping_add(self.inc[i]);
+            self.state[i] = if on[i] { next } else { old };
+            let xorshifted = (((old >> 18) ^ old) >> 27) as u32;
+            let bits = xorshifted.rotate_right((old >> 59) as u32);
+            out[i] = if on[i] {
+                (bits >> 8) as f32 * (1.0 / 16_777_216.0)
+            } else {
+                0.0
+            };
+        }
+        out
     }
 }
 
@@ -71,6 +121,28 @@ mod tests {
             .collect();
         assert_eq!(a, b);
         assert_ne!(a, c);
+    }
+
+    #[test]
+    fn lanes_draw_what_each_stream_draws() {
+        // A lane switched off keeps its place in its stream, as a path that draws nothing.
+        let streams: Vec<Rng> = (0..LANES as u64).map(|i| Rng::for_sample(5, i, 3 * i)).collect();
+        let mut lanes = RngLanes::default();
+        for (i, r) in streams.iter().enumerate() {
+            lanes.set(i, r);
+        }
+        let mut want = streams.clone();
+        for round in 0..7 {
+            let on: [bool; LANES] = std::array::from_fn(|i| (i + round) % 3 != 0);
+            let got = lanes.next_f32(&on);
+            for i in 0..LANES {
+                let expect = if on[i] { want[i].next_f32() } else { 0.0 };
+                assert_eq!(got[i].to_bits(), expect.to_bits(), "round {round}, lane {i}");
+            }
+        }
+        for i in 0..LANES {
+            assert_eq!(lanes.get(i).next_u32(), want[i].next_u32(), "lane {i} after the rounds");
+        }
     }
 
     #[test]

@@ -296,7 +296,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// rays made and traced as one packet per light ([`Bvh4::light_rays`], which runs the
     /// single-ray code's arithmetic per lane), so each lane's sum is what `direct_point_lights`
     /// adds up, in the same order.
-    fn point_lights_packet(
+    pub(super) fn point_lights_packet(
         &self,
         bvh: &Bvh4,
         lit: &LitLanes,
@@ -341,7 +341,7 @@ impl<I: Intersect> Integrator<'_, I> {
 
 /// Stores lane `i` of the per-axis vector `dst`.
 #[inline]
-fn put(dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]) {
+pub(super) fn put(dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]) {
     for (ax, x) in v.into_iter().enumerate() {
         dst[ax][i] = x;
     }
@@ -355,7 +355,7 @@ fn broadcast<T: Copy>(v: &mut [T; LANES]) {
 
 /// Lane `i` of a vector stored per axis.
 #[inline]
-fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
+pub(super) fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
     Vec3A::new(v[0][i], v[1][i], v[2][i])
 }
 
@@ -405,17 +405,17 @@ const MAX_PACKET_DEPTH: u32 = 12;
 /// from the packet's [`SurfaceFrames`]).
 #[derive(Default)]
 #[repr(align(64))]
-struct LitLanes {
+pub(super) struct LitLanes {
     /// Which lanes.
-    on: [bool; LANES],
+    pub(super) on: [bool; LANES],
     /// Albedos, per axis.
-    alb: [[f32; LANES]; 3],
+    pub(super) alb: [[f32; LANES]; 3],
 }
 
 /// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
 /// [`Scene::surface`] returns ([`surface_frames`] computes the geometry).
 #[repr(align(64))]
-struct PacketSurfaces {
+pub(super) struct PacketSurfaces {
     /// Every lane hit the same primitive.
     one_prim: bool,
     /// Lanes whose ray hit something.
@@ -423,16 +423,16 @@ struct PacketSurfaces {
     /// Hit distance.
     t: [f32; LANES],
     /// Hit points, normals and offset origins.
-    frames: SurfaceFrames,
+    pub(super) frames: SurfaceFrames,
     /// Entity index.
     entity: [u32; LANES],
     /// Material index.
-    material: [u32; LANES],
+    pub(super) material: [u32; LANES],
 }
 
 impl PacketSurfaces {
     /// The surfaces of `hits`, found by tracing `rays`.
-    fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
+    pub(super) fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
         let mut g = HitPrims::default();
         let (mut entity, mut material) = ([0; LANES], [0; LANES]);
         // One pixel's samples mostly meet one primitive: its data is then looked up for the
@@ -505,7 +505,7 @@ impl PacketSurfaces {
 
     /// Lane `i`'s surface as [`Scene::surface`] returns it.
     #[inline]
-    fn get(&self, i: usize) -> Surface {
+    pub(super) fn get(&self, i: usize) -> Surface {
         let f = &self.frames;
         Surface {
             point: lane(&f.point, i),

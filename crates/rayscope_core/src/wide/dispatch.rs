@@ -77,6 +77,20 @@ dispatched!(
 );
 
 dispatched!(
+    /// Closest hits of a packet of scattered rays.
+    scattered_closest_rays, scattered_closest_rays_avx512, scattered_closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
+    bvh.scattered_closest_rays_impl(rays, t_min, hits)
+);
+
+dispatched!(
+    /// Which rays of a packet of scattered rays are blocked.
+    scattered_occluded_rays, scattered_occluded_rays_avx512, scattered_occluded_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
+    bvh.scattered_occluded_rays_impl(rays, t_min)
+);
+
+dispatched!(
     /// Shadow rays toward a point light, built and traced.
     light_rays, light_rays_avx512, light_rays_avx2,
     (bvh: &Bvh4, org: &[[f32; LANES]; 3], ns: &[[f32; LANES]; 3], lit: &Mask, light: [f32; 3]) -> LightRays,

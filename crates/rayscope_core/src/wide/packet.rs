@@ -106,6 +106,21 @@ impl PacketHits {
         p & TAG_MASK != 0 && self.prim.iter().fold(true, |a, &q| a & (q == p))
     }
 
+    /// Makes `h` lane `i`'s hit, as [`Self::get`] returns it (none: no hit).
+    #[inline]
+    pub fn set(&mut self, i: usize, h: Option<(f32, f32, f32, PrimRef)>) {
+        let Some((t, u, v, prim)) = h else {
+            self.prim[i] = 0;
+            return;
+        };
+        let key = match prim {
+            PrimRef::Plane(k) => TAG_PLANE | k,
+            PrimRef::Sphere(k) => TAG_SPHERE | k,
+            PrimRef::Triangle(k) => TAG_TRI | k,
+        };
+        (self.t[i], self.u[i], self.v[i], self.prim[i]) = (t, u, v, key);
+    }
+
     /// Lane `i`'s hit: (t, u, v, primitive).
     #[must_use]
     #[inline]
@@ -652,6 +667,42 @@ impl Bvh4 {
         }
     }
 
+    /// [`Self::closest_rays_impl`] for rays that part at once (a wave of paths' bounces): in
+    /// a scene with a single-ray list the list's packets are tested one after another, as a
+    /// single ray tests them, instead of walking the tree, whose every node such rays open.
+    #[inline(always)]
+    pub(super) fn scattered_closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+        if self.single.is_empty() {
+            return self.closest_rays_impl(rays, t_min, hits);
+        }
+        for p in &self.planes {
+            p.closest_rays(rays, t_min, hits);
+        }
+        for &r in &self.single {
+            self.leaf_closest_rays::<false>(r, rays, t_min, hits);
+        }
+    }
+
+    /// [`Self::occluded_rays_impl`] for rays that part at once; see
+    /// [`Self::scattered_closest_rays_impl`].
+    #[inline(always)]
+    pub(super) fn scattered_occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+        if self.single.is_empty() {
+            return self.occluded_rays_impl(rays, t_min);
+        }
+        let mut blocked = [false; LANES];
+        for p in &self.planes {
+            p.occlude_rays(rays, t_min, &mut blocked);
+        }
+        for &r in &self.single {
+            if all_closed(rays) {
+                break;
+            }
+            self.leaf_occlude_rays::<false>(r, rays, t_min, &mut blocked);
+        }
+        blocked
+    }
+
     #[inline(always)]
     pub(super) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
         let mut blocked = [false; LANES];
@@ -734,6 +785,19 @@ impl Bvh4 {
         let mut hits = PacketHits::default();
         super::dispatch::closest_rays(self, rays, t_min, &mut hits);
         hits
+    }
+
+    /// [`Self::closest_rays`] for rays that share little of their way through the scene, such
+    /// as a wave of paths' bounce rays: the same hits, found by whichever walk suits such rays.
+    pub fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+        let mut hits = PacketHits::default();
+        super::dispatch::scattered_closest_rays(self, rays, t_min, &mut hits);
+        hits
+    }
+
+    /// [`Self::occluded_rays`] for rays that share little of their way through the scene.
+    pub fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
+        super::dispatch::scattered_occluded_rays(self, rays, t_min)
     }
 
     /// For every ray in the packet, whether anything lies on it with `t_min < t < t_max`.

@@ -1,0 +1,560 @@
+//! Path tracing in waves: sixteen paths in flight, advanced one vertex at a time together.
+//!
+//! One path alone is a chain in which every step waits for the one before (hit, surface,
+//! samples, next ray, next hit), so the core runs it at the speed of its latencies. A wave keeps
+//! [`LANES`] independent paths in structure-of-arrays form and runs each step for all of them
+//! at once: their rays go through the BVH as one packet and their emitter rays as another,
+//! and the arithmetic of a Lambertian vertex (shading frame, emitter sample, BRDF sample,
+//! multiple importance weights, Russian roulette, random numbers) runs as loops over the lanes
+//! without branches, which the compiler vectorises. A lane whose path ends takes the next
+//! sample at once.
+//!
+//! Each lane computes exactly what [`Integrator::sample`] computes, in the same order and
+//! with the same random numbers:
+//! * a vertex's light is summed as the recursive code sums it, from the last vertex back,
+//!   once the path has ended (each vertex's terms are kept until then);
+//! * a hit on anything but a Lambertian or emitting surface (mirror, glass, glossy coat) goes
+//!   on one ray at a time with the recursive code from that hit, and its result enters the
+//!   sum like any other vertex's.
+//!
+//! So the image is the one the one-path-at-a-time loop makes, bit for bit (the test
+//! `packet_render` renders both ways).
+
+// Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
+// clearly as index loops than as zipped iterators.
+#![allow(clippy::needless_range_loop)]
+
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
+
+use glam::Vec3A;
+
+use super::packets::{lane, put, Job, LitLanes, PacketSurfaces};
+use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
+use crate::math::{not_at_most, Ray};
+use crate::observer::NoObserver;
+use crate::rng::RngLanes;
+use crate::sampling::{power_heuristic, sin_cos_eighth};
+use crate::scene::{Hit, Intersect, PrimRef};
+use crate::settings::Stage;
+use crate::wide::{Bvh4, PacketHits, RayPacket, LANES};
+use rayscope_scene::MaterialKind;
+
+type F = [f32; LANES];
+type M = [bool; LANES];
+/// A lane's closest hit as [`PacketHits::get`] gives it: (t, u, v, primitive), or none.
+type LaneHit = Option<(f32, f32, f32, PrimRef)>;
+
+/// A Lambertian vertex of a path in flight, kept until the path ends so that its light is
+/// summed in the recursive code's order.
+#[derive(Debug, Clone, Copy)]
+struct Vertex {
+    /// Point lights and the emitter sample.
+    l: Vec3A,
+    /// BRDF × cos / density of the bounce, which weights emission the bounce finds.
+    w_total: Vec3A,
+    /// What the bounce carries of the light reflected further along the path.
+    carry: Vec3A,
+    /// Density of the bounce's direction, for the weight of emission it finds.
+    pdf: f32,
+}
+
+/// The paths in flight.
+struct Wave {
+    /// Lanes holding a path.
+    on: M,
+    /// Each lane's sample: an index into the jobs.
+    job: [usize; LANES],
+    /// Each lane's next closest-hit query (camera or bounce ray); `t_max = −∞` where none.
+    rays: RayPacket,
+    /// Lanes with a ray in `rays`.
+    ray_on: M,
+    /// The ray's hit is wanted for its reflected light too, not only its emission.
+    want: M,
+    /// The ray's hit where it is already known (a camera ray traced with its batch); the
+    /// ray is then not traced again.
+    found: [Option<LaneHit>; LANES],
+    /// Path state of the ray in `rays`.
+    path: [PathState; LANES],
+    /// Each lane's waiting emitter shadow ray; `t_max = −∞` where none.
+    shadow: RayPacket,
+    /// Lanes with a shadow ray in `shadow`.
+    shadow_on: M,
+    /// Light the shadow ray adds when nothing blocks it, per axis.
+    unblocked: [F; 3],
+    /// Random streams.
+    rng: RngLanes,
+    /// Each path's Lambertian vertices so far, the last one on top.
+    stack: [Vec<Vertex>; LANES],
+    /// Lambertian vertices shaded in the wave so far.
+    shaded: u64,
+}
+
+impl Wave {
+    fn new() -> Self {
+        Wave {
+            on: [false; LANES],
+            job: [0; LANES],
+            rays: RayPacket::default(),
+            ray_on: [false; LANES],
+            want: [false; LANES],
+            found: [None; LANES],
+            path: [PathState::CAMERA; LANES],
+            shadow: RayPacket::default(),
+            shadow_on: [false; LANES],
+            unblocked: [[0.0; LANES]; 3],
+            rng: RngLanes::default(),
+            stack: std::array::from_fn(|_| Vec::new()),
+            shaded: 0,
+        }
+    }
+
+    /// Lane `i`'s ray in `rays`.
+    #[inline]
+    fn ray(&self, i: usize) -> Ray {
+        Ray::new(lane(&self.rays.o, i), lane(&self.rays.d, i))
+    }
+
+    /// Ends lane `i`'s path, whose last ray brought `li`: sums the kept vertices from the last
+    /// back, as the recursive code returns through them, and stores the sample's value.
+    fn finish(&mut self, i: usize, mut li: Li, out: &mut [Vec3A]) {
+        while let Some(v) = self.stack[i].pop() {
+            let mis = if li.light_pdf > 0.0 {
+                power_heuristic(v.pdf, li.light_pdf)
+            } else {
+                1.0
+            };
+            li = Li::reflected(v.l + (v.w_total * li.emitted * mis + v.carry * li.reflected));
+        }
+        out[self.job[i]] = li.total();
+        self.on[i] = false;
+    }
+}
+
+/// Camera rays traced ahead, one packet of consecutive samples, for lanes to take as they
+/// free up.
+#[derive(Default)]
+struct CameraBatch {
+    /// Index of the first sample in the jobs.
+    job0: usize,
+    /// Samples in the batch.
+    len: usize,
+    /// Samples taken by lanes so far.
+    taken: usize,
+    /// The camera rays.
+    rays: RayPacket,
+    /// Their closest hits.
+    hits: PacketHits,
+    /// Each sample's random stream after its camera ray.
+    rng: RngLanes,
+}
+
+impl CameraBatch {
+    /// Sample `k`'s camera ray.
+    #[inline]
+    fn ray(&self, k: usize) -> Ray {
+        Ray::new(lane(&self.rays.o, k), lane(&self.rays.d, k))
+    }
+}
+
+impl<I: Intersect> Integrator<'_, I> {
+    /// The BVH to trace waves of paths through, when this render's samples are full-renderer
+    /// paths (see the module documentation): stochastic colour renders on rayscope's own BVH.
+    #[must_use]
+    pub fn wave_bvh(&self) -> Option<&Bvh4> {
+        if self.settings.stage != Stage::Full {
+            return None;
+        }
+        self.camera_packet_bvh()
+    }
+
+    /// What [`Self::sample`] returns for each of `jobs`, into `out`, with the rays counted in
+    /// `c`: the samples' paths traced as waves of [`LANES`]. Only for renders where
+    /// [`Self::wave_bvh`] is `Some`. Returns how many Lambertian vertices the wave shaded.
+    pub(crate) fn sample_wave(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) -> u64 {
+        debug_assert!(out.len() >= jobs.len());
+        let mut w = Wave::new();
+        let mut cams = CameraBatch::default();
+        let mut next = 0;
+        loop {
+            for i in 0..LANES {
+                if w.on[i] {
+                    continue;
+                }
+                if cams.taken == cams.len {
+                    if next == jobs.len() {
+                        break;
+                    }
+                    let batch = &jobs[next..jobs.len().min(next + LANES)];
+                    cams = self.camera_batch(bvh, next, batch, c);
+                    next += batch.len();
+                }
+                // The lane's first step starts from its camera ray's hit.
+                let k = cams.taken;
+                cams.taken += 1;
+                w.rng.set(i, &cams.rng.get(k));
+                w.rays.set(i, &cams.ray(k), f32::NEG_INFINITY);
+                (w.on[i], w.job[i], w.ray_on[i], w.want[i]) = (true, cams.job0 + k, true, true);
+                w.found[i] = Some(cams.hits.get(k));
+                w.path[i] = PathState::CAMERA;
+            }
+            if !w.on.contains(&true) {
+                break;
+            }
+            self.wave_step(bvh, &mut w, out, c);
+        }
+        w.shaded
+    }
+
+    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`) traced as one
+    /// packet: a pixel's samples stay together until their first hit.
+    fn camera_batch(&self, bvh: &Bvh4, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
+        let mut b = CameraBatch {
+            job0,
+            len: jobs.len(),
+            ..CameraBatch::default()
+        };
+        for (k, &(x, y, s)) in jobs.iter().enumerate() {
+            // Self::sample's start: the sample's stream and camera ray.
+            let mut rng = self.sample_rng(x, y, s);
+            let ray = self.camera_ray(x, y, s, &mut rng);
+            b.rays.set(k, &ray, f32::INFINITY);
+            b.rng.set(k, &rng);
+        }
+        c.camera += jobs.len() as u64;
+        b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
+        b
+    }
+
+    /// Traces the wave's rays and shadow rays and takes every path one vertex on.
+    fn wave_step(&self, bvh: &Bvh4, w: &mut Wave, out: &mut [Vec3A], c: &mut Counters) {
+        let blocked = if w.shadow_on.contains(&true) {
+            bvh.scattered_occluded_rays(&mut w.shadow, 0.0)
+        } else {
+            [false; LANES]
+        };
+        let mut hits = if (0..LANES).any(|i| w.ray_on[i] & w.found[i].is_none()) {
+            bvh.scattered_closest_rays(&mut w.rays, 0.0)
+        } else {
+            PacketHits::default()
+        };
+        for i in 0..LANES {
+            if let Some(h) = w.found[i].take() {
+                hits.set(i, h);
+            }
+        }
+        // Only the lanes given new rays below trace them next.
+        w.shadow.t_max = [f32::NEG_INFINITY; LANES];
+        w.rays.t_max = [f32::NEG_INFINITY; LANES];
+        for i in 0..LANES {
+            if !w.shadow_on[i] {
+                continue;
+            }
+            w.shadow_on[i] = false;
+            let top = w.stack[i].last_mut().expect("a shadow ray belongs to a vertex");
+            if !blocked[i] {
+                top.l += lane(&w.unblocked, i);
+            }
+            if !w.ray_on[i] {
+                // The vertex sent no bounce: its light is what it returns.
+                let v = w.stack[i].pop().expect("checked above");
+                w.finish(i, Li::reflected(v.l), out);
+            }
+        }
+        if !w.ray_on.contains(&true) {
+            return;
+        }
+        let surf = PacketSurfaces::new(self.scene, &w.rays, &hits);
+        // Self::trace_hit for each lane, up to the Lambertian shading done for all below.
+        let mut diffuse = [false; LANES];
+        for i in 0..LANES {
+            if !w.ray_on[i] {
+                continue;
+            }
+            let Some((t, u, v, prim)) = hits.get(i) else {
+                w.ray_on[i] = false;
+                w.finish(i, Li::default(), out);
+                continue;
+            };
+            let m = &self.scene.materials[surf.material[i] as usize];
+            let li = match m.kind {
+                MaterialKind::Emissive => Li {
+                    emitted: m.color.into(),
+                    reflected: Vec3A::ZERO,
+                    light_pdf: if self.emitters.is_empty() {
+                        0.0
+                    } else {
+                        self.emitters
+                            .pdf(self.scene, lane(&w.rays.o, i), prim, surf.get(i).point)
+                    },
+                },
+                _ if !w.want[i] => Li::default(),
+                MaterialKind::Diffuse => {
+                    diffuse[i] = true;
+                    continue;
+                }
+                _ => {
+                    // Mirrors, glass and glossy coats: the rest of the path one ray at a time.
+                    let mut rng = w.rng.get(i);
+                    let hit = Hit { t, u, v, prim };
+                    let (ray, s) = (w.ray(i), surf.get(i));
+                    self.trace_hit(&ray, &hit, &s, w.path[i], true, 0, &mut rng, &mut NoObserver, c)
+                }
+            };
+            w.ray_on[i] = false;
+            w.finish(i, li, out);
+        }
+        if diffuse.contains(&true) {
+            w.shaded += diffuse.iter().map(|&d| u64::from(d)).sum::<u64>();
+            self.shade_wave(bvh, w, &surf, &diffuse, out, c);
+        }
+    }
+
+    /// Self::shade for the Lambertian hits in `d`: point lights, one emitter sample (its
+    /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave).
+    fn shade_wave(&self, bvh: &Bvh4, w: &mut Wave, surf: &PacketSurfaces, d: &M, out: &mut [Vec3A], c: &mut Counters) {
+        let ambient = self.settings.ambient;
+        let f_frames = &surf.frames;
+        let (n, ng, org) = (&f_frames.shading_normal, &f_frames.normal, &f_frames.outside);
+        // The Lambert BRDF (Bsdf::of clamps the albedo; point lights take the colour as is).
+        let mut f = [[0.0; LANES]; 3];
+        let mut lit = LitLanes::default();
+        for i in 0..LANES {
+            if !d[i] {
+                continue;
+            }
+            let m = &self.scene.materials[surf.material[i] as usize];
+            let albedo = Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE);
+            put(&mut f, i, (albedo * FRAC_1_PI).to_array());
+            put(&mut lit.alb, i, m.color.to_array());
+            lit.on[i] = true;
+        }
+        // Self::direct_point_lights with no BRDF (the course's formula), one packet per light.
+        let l = self.point_lights_packet(bvh, &lit, f_frames, c);
+        // crate::math::basis.
+        let (mut tb, mut bb) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        for i in 0..LANES {
+            let (nx, ny, nz) = (n[0][i], n[1][i], n[2][i]);
+            let sign = 1.0_f32.copysign(nz);
+            let a = -1.0 / (sign + nz);
+            let b = nx * ny * a;
+            (tb[0][i], tb[1][i], tb[2][i]) = (1.0 + sign * nx * nx * a, sign * b, -sign * nx);
+            (bb[0][i], bb[1][i], bb[2][i]) = (b, sign + ny * ny * a, -ny);
+        }
+        let dot = |x: &[F; 3], y: &[F; 3], i: usize| x[0][i] * y[0][i] + x[1][i] * y[1][i] + x[2][i] * y[2][i];
+        // A Lambert BRDF's outgoing direction only decides whether it reflects at all, and
+        // shade's correction keeps it above the surface, so it is not computed here.
+
+        // Emitter sampling, weighted against BRDF sampling; the shadow ray waits in the wave.
+        let mut shadow = [false; LANES];
+        if !self.emitters.is_empty() {
+            let (u0, u1, u2) = (w.rng.next_f32(d), w.rng.next_f32(d), w.rng.next_f32(d));
+            let ls = self.emitters.sample_lanes(self.scene, org, d, [&u0, &u1, &u2]);
+            for i in 0..LANES {
+                let wiz = ls.dir[0][i] * n[0][i] + ls.dir[1][i] * n[1][i] + ls.dir[2][i] * n[2][i];
+                let front = dot(&ls.dir, ng, i) > 0.0;
+                let fz = (f[0][i] != 0.0) | (f[1][i] != 0.0) | (f[2][i] != 0.0);
+                let go = ls.ok[i] & (wiz > 0.0) & front & fz;
+                let wgt = power_heuristic(ls.pdf[i], wiz.max(0.0) * FRAC_1_PI);
+                let k = wiz * wgt / ls.pdf[i];
+                for a in 0..3 {
+                    w.unblocked[a][i] = f[a][i] * ls.radiance[a][i] * k;
+                    w.shadow.o[a][i] = org[a][i];
+                    w.shadow.d[a][i] = ls.dir[a][i];
+                }
+                w.shadow.t_max[i] = if go {
+                    ls.dist[i] * (1.0 - 1e-4)
+                } else {
+                    f32::NEG_INFINITY
+                };
+                shadow[i] = go;
+            }
+            c.shadow += shadow.iter().map(|&s| u64::from(s)).sum::<u64>();
+        }
+        w.shadow_on = shadow;
+
+        // BRDF sampling: emitters it finds (MIS) and, where carried, indirect light.
+        let bounce = self.emitters.any_emission || ambient;
+        let (u1, u2) = if bounce {
+            let _u0 = w.rng.next_f32(d);
+            (w.rng.next_f32(d), w.rng.next_f32(d))
+        } else {
+            ([0.0; LANES], [0.0; LANES])
+        };
+        let (mut wi, mut ok) = ([[0.0; LANES]; 3], [false; LANES]);
+        let (mut cz, mut pdf) = ([0.0; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            // cosine_hemisphere(u1, u2) through concentric_disk.
+            let (a, b) = (2.0 * u1[i] - 1.0, 2.0 * u2[i] - 1.0);
+            let wide = a.abs() > b.abs();
+            let (sin, cos) = sin_cos_eighth(FRAC_PI_4 * if wide { b / a } else { a / b });
+            let (x, y) = if wide { (a * cos, a * sin) } else { (b * sin, b * cos) };
+            let (x, y) = if (a == 0.0) & (b == 0.0) { (0.0, 0.0) } else { (x, y) };
+            let z = (1.0 - (x * x + y * y)).max(0.0).sqrt();
+            // Bsdf::sample's checks and density.
+            let p = z.max(0.0) * FRAC_1_PI;
+            let good = bounce & d[i] & not_at_most(z, 0.0) & not_at_most(p, 0.0) & p.is_finite();
+            // to_world(wi, t, b, n).normalize(), then the side check.
+            let v: [f32; 3] = std::array::from_fn(|ax| tb[ax][i] * x + bb[ax][i] * y + n[ax][i] * z);
+            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
+            for ax in 0..3 {
+                wi[ax][i] = v[ax] / len;
+            }
+            ok[i] = good & not_at_most(dot(&wi, ng, i), 0.0);
+            (cz[i], pdf[i]) = (z, p);
+        }
+        // The bounce's weights, Russian roulette, and whether its hit's reflected light counts.
+        let (mut wt, mut carry) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        let (mut beta, mut want, mut rr) = ([0.0; LANES], [false; LANES], [false; LANES]);
+        for i in 0..LANES {
+            let ratio = cz[i] / pdf[i];
+            for a in 0..3 {
+                wt[a][i] = f[a][i] * ratio;
+                // Without -l only a coat's reflection is carried, and Lambert has none.
+                carry[a][i] = if ambient { wt[a][i] } else { 0.0 * ratio };
+            }
+            let most = maxps(maxps(carry[0][i], carry[2][i]), maxps(carry[1][i], carry[2][i]));
+            let path = &w.path[i];
+            beta[i] = path.beta * most;
+            want[i] = if ambient {
+                let on = (most > 0.0) & (path.bounces < MAX_BOUNCES);
+                rr[i] = ok[i] & on & (path.bounces >= RR_START);
+                on
+            } else {
+                (most > 0.0) & (path.depth < self.settings.max_depth)
+            };
+        }
+        if rr.contains(&true) {
+            let u = w.rng.next_f32(&rr);
+            for i in 0..LANES {
+                let p = beta[i].min(0.95);
+                let keep = u[i] < p;
+                let scale = rr[i] & keep;
+                for a in 0..3 {
+                    carry[a][i] = if scale { carry[a][i] / p } else { carry[a][i] };
+                }
+                beta[i] = if scale { beta[i] / p } else { beta[i] };
+                want[i] = if rr[i] { keep } else { want[i] };
+            }
+        }
+        // With nothing to find, a bounce that carries nothing is not traced.
+        let found_nothing = self.emitters.is_empty() && !self.emitters.any_emission;
+        for i in 0..LANES {
+            if !d[i] {
+                continue;
+            }
+            if ok[i] & (want[i] | !found_nothing) {
+                w.stack[i].push(Vertex {
+                    l: lane(&l, i),
+                    w_total: lane(&wt, i),
+                    carry: lane(&carry, i),
+                    pdf: pdf[i],
+                });
+                let path = w.path[i];
+                w.path[i] = PathState {
+                    depth: path.depth + u32::from(!ambient),
+                    bounces: path.bounces + 1,
+                    beta: beta[i],
+                    medium: path.medium,
+                    branch: false,
+                };
+                for a in 0..3 {
+                    w.rays.o[a][i] = org[a][i];
+                    w.rays.d[a][i] = wi[a][i];
+                }
+                w.rays.t_max[i] = f32::INFINITY;
+                w.want[i] = want[i];
+                c.secondary += 1;
+            } else {
+                w.ray_on[i] = false;
+                if w.shadow_on[i] {
+                    // The vertex's light is final once its shadow ray is traced.
+                    w.stack[i].push(Vertex {
+                        l: lane(&l, i),
+                        w_total: Vec3A::ZERO,
+                        carry: Vec3A::ZERO,
+                        pdf: 0.0,
+                    });
+                } else {
+                    w.finish(i, Li::reflected(lane(&l, i)), out);
+                }
+            }
+        }
+    }
+}
+
+/// glam's `max` of one lane (`maxps`: the second operand when either is NaN).
+#[inline(always)]
+fn maxps(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::scene::Scene;
+    use crate::settings::RenderSettings;
+
+    #[test]
+    fn waves_return_what_one_path_at_a_time_returns() {
+        // Our scenes with emitters, point lights, mirrors, glass, glossy coats, depth of field
+        // and OBJ meshes, and the course's bunny scene, with and without indirect light: every
+        // sample's value bit for bit, and the ray counts.
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
+        let mut paths: Vec<_> = [
+            "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj",
+        ]
+        .iter()
+        .map(|n| root.join("scenes").join(format!("{n}.txt")))
+        .collect();
+        paths.push(root.join("../shared/reference/tests/sample_scene_obj.txt"));
+        let mut waves = 0;
+        for path in &paths {
+            let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
+            let scene = Scene::from_file(&file);
+            for ambient in [true, false] {
+                let settings = RenderSettings {
+                    width: 40,
+                    height: 30,
+                    aa: 2,
+                    quality: 1,
+                    ambient,
+                    stage: Stage::Full,
+                    ..RenderSettings::default()
+                };
+                let integ = Integrator::new(&scene, &settings);
+                let Some(bvh) = integ.wave_bvh() else {
+                    assert!(!integ.stochastic, "{}: stochastic renders go in waves", path.display());
+                    continue;
+                };
+                let spp = integ.samples_per_pixel();
+                let jobs: Vec<Job> = (0..30)
+                    .flat_map(|y| (0..40).flat_map(move |x| (0..spp).map(move |s| (x, y, s))))
+                    .collect();
+                let mut got = vec![Vec3A::ZERO; jobs.len()];
+                let mut counted = Counters::default();
+                let shaded = integ.sample_wave(bvh, &jobs, &mut got, &mut counted);
+                let mut want = Counters::default();
+                for (k, &(x, y, s)) in jobs.iter().enumerate() {
+                    let v = integ.sample(x, y, s, &mut NoObserver, &mut want);
+                    assert_eq!(
+                        got[k].to_array().map(f32::to_bits),
+                        v.to_array().map(f32::to_bits),
+                        "{} -l {ambient}: pixel ({x}, {y}) sample {s}: {} against {v}",
+                        path.display(),
+                        got[k]
+                    );
+                }
+                assert_eq!(counted, want, "{} -l {ambient}: ray counts", path.display());
+                assert!(shaded > 0 || !ambient, "{}: the wave shaded nothing", path.display());
+                waves += 1;
+            }
+        }
+        assert!(waves >= 15, "only {waves} of the renders went in waves");
+    }
+}
