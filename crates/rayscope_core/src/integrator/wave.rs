@@ -17,8 +17,10 @@
 //!   on one ray at a time with the recursive code from that hit, and its result enters the
 //!   sum like any other vertex's.
 //!
-//! So the image is the one the one-path-at-a-time loop makes, bit for bit (the test
-//! `packet_render` renders both ways).
+//! So the image is the one the one-path-at-a-time loop makes, bit for bit (the tests
+//! `waves_return_what_one_path_at_a_time_returns` below and `packet_render` check it). The wave
+//! pays where paths have many vertices to shade together; the render loop stops using it in
+//! renders whose samples average less than one (see `render::WaveStats`).
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
