@@ -135,13 +135,13 @@ mod tests {
         for round in 0..7 {
             let on: [bool; LANES] = std::array::from_fn(|i| (i + round) % 3 != 0);
             let got = lanes.next_f32(&on);
-            for i in 0..LANES {
-                let expect = if on[i] { want[i].next_f32() } else { 0.0 };
+            for (i, stream) in want.iter_mut().enumerate() {
+                let expect = if on[i] { stream.next_f32() } else { 0.0 };
                 assert_eq!(got[i].to_bits(), expect.to_bits(), "round {round}, lane {i}");
             }
         }
-        for i in 0..LANES {
-            assert_eq!(lanes.get(i).next_u32(), want[i].next_u32(), "lane {i} after the rounds");
+        for (i, stream) in want.iter_mut().enumerate() {
+            assert_eq!(lanes.get(i).next_u32(), stream.next_u32(), "lane {i} after the rounds");
         }
     }
 
