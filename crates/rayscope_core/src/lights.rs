@@ -13,7 +13,7 @@ use crate::geometry::{Sphere, Triangle};
 use crate::math::{basis, not_at_most};
 use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
 use crate::scene::{PrimRef, Scene};
-use crate::wide::LANES;
+use crate::wide::{lane, LANES};
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;
@@ -320,12 +320,6 @@ impl Emitters {
         }
         out
     }
-}
-
-/// Lane `i` of a vector stored per axis.
-#[inline(always)]
-fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
-    Vec3A::new(v[0][i], v[1][i], v[2][i])
 }
 
 /// Emitter lists up to this long are searched by counting (see [`Emitters::sample`]): counting

@@ -22,9 +22,11 @@ mod dispatch;
 mod packet;
 mod stream;
 mod surface;
+pub(crate) use packet::{lane, put};
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
 use packet::{TAG_PLANE, TAG_SPHERE, TAG_TRI};
 pub use stream::INTERLEAVE_BYTES;
+pub(crate) use surface::max_element;
 pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
 
 /// Directions of the camera rays through pixel positions (`px`, `py`) of a `w` × `h` image:

@@ -27,8 +27,8 @@ use crate::rng::Rng;
 use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::wide::{
-    camera_dirs, specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals, SpecularRays,
-    SurfaceFrames, LANES,
+    camera_dirs, lane, put, specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals,
+    SpecularRays, SurfaceFrames, LANES,
 };
 use rayscope_scene::MaterialKind;
 
@@ -339,24 +339,10 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 }
 
-/// Stores lane `i` of the per-axis vector `dst`.
-#[inline]
-pub(super) fn put(dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]) {
-    for (ax, x) in v.into_iter().enumerate() {
-        dst[ax][i] = x;
-    }
-}
-
 /// Copies lane 0 of `v` to every lane.
 #[inline]
 fn broadcast<T: Copy>(v: &mut [T; LANES]) {
     *v = [v[0]; LANES];
-}
-
-/// Lane `i` of a vector stored per axis.
-#[inline]
-pub(super) fn lane(v: &[[f32; LANES]; 3], i: usize) -> Vec3A {
-    Vec3A::new(v[0][i], v[1][i], v[2][i])
 }
 
 /// A packet of rays to trace with each lane's path state.

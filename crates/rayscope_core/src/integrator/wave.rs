@@ -30,7 +30,7 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 use glam::Vec3A;
 
-use super::packets::{lane, put, Job, LitLanes, PacketSurfaces};
+use super::packets::{Job, LitLanes, PacketSurfaces};
 use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
 use crate::math::{not_at_most, Ray};
 use crate::observer::NoObserver;
@@ -38,7 +38,7 @@ use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect, PrimRef};
 use crate::settings::Stage;
-use crate::wide::{Bvh4, PacketHits, RayPacket, LANES};
+use crate::wide::{lane, max_element, put, Bvh4, PacketHits, RayPacket, LANES};
 use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];
@@ -414,7 +414,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 // Without -l only a coat's reflection is carried, and Lambert has none.
                 carry[a][i] = if ambient { wt[a][i] } else { 0.0 * ratio };
             }
-            let most = maxps(maxps(carry[0][i], carry[2][i]), maxps(carry[1][i], carry[2][i]));
+            let most = max_element([carry[0][i], carry[1][i], carry[2][i]]);
             let path = &w.path[i];
             beta[i] = path.beta * most;
             want[i] = if ambient {
@@ -481,16 +481,6 @@ impl<I: Intersect> Integrator<'_, I> {
                 }
             }
         }
-    }
-}
-
-/// glam's `max` of one lane (`maxps`: the second operand when either is NaN).
-#[inline(always)]
-fn maxps(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
     }
 }
 

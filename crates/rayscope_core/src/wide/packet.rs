@@ -73,6 +73,20 @@ impl RayPacket {
     }
 }
 
+/// Lane `i` of a vector stored per axis.
+#[inline(always)]
+pub(crate) fn lane(v: &[F; 3], i: usize) -> glam::Vec3A {
+    glam::Vec3A::new(v[0][i], v[1][i], v[2][i])
+}
+
+/// Stores `v` as lane `i` of the per-axis vector `dst`.
+#[inline(always)]
+pub(crate) fn put(dst: &mut [F; 3], i: usize, v: [f32; 3]) {
+    for (ax, x) in v.into_iter().enumerate() {
+        dst[ax][i] = x;
+    }
+}
+
 /// What [`Bvh4::light_rays`] finds for each lane.
 #[derive(Debug, Clone)]
 #[repr(align(64))]

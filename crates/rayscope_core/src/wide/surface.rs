@@ -104,12 +104,17 @@ fn maxps(a: f32, b: f32) -> f32 {
     }
 }
 
+/// glam's `max_element` of one lane's (x, y, z), in glam's order.
+#[inline(always)]
+pub(crate) fn max_element(c: [f32; 3]) -> f32 {
+    maxps(maxps(c[0], c[2]), maxps(c[1], c[2]))
+}
+
 /// `crate::math::offset_eps` of lane `i` of points `p` and ray origins `o`: 1e-5 × the largest
 /// |coordinate| of either (glam's abs, max and max_element, in that order), at least 1e-30.
 #[inline(always)]
 fn offset_eps(p: &[F; 3], o: &[F; 3], i: usize) -> f32 {
-    let c: [f32; 3] = std::array::from_fn(|a| maxps(p[a][i].abs(), o[a][i].abs()));
-    let m = maxps(maxps(c[0], c[2]), maxps(c[1], c[2]));
+    let m = max_element(std::array::from_fn(|a| maxps(p[a][i].abs(), o[a][i].abs())));
     (1e-5 * m).max(1e-30)
 }
 
