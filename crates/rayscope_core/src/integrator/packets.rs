@@ -17,13 +17,12 @@
 // clearly as index loops than as zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-use arrayvec::ArrayVec;
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
 use crate::math::Ray;
 use crate::observer::NoObserver;
-use crate::rng::Rng;
+use crate::rng::{Rng, RngLanes};
 use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::wide::{
@@ -62,25 +61,44 @@ impl<I: Intersect> Integrator<'_, I> {
     /// paths scatter after the first bounce.
     pub(crate) fn sample_camera_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let mut packet = RayPacket::default();
-        let mut lanes: ArrayVec<(Ray, Rng), LANES> = ArrayVec::new();
-        for (i, &(x, y, s)) in jobs.iter().enumerate() {
-            let mut rng = self.sample_rng(x, y, s);
-            let ray = self.camera_ray(x, y, s, &mut rng);
-            put(&mut packet.o, i, ray.origin.to_array());
-            put(&mut packet.d, i, ray.dir.to_array());
-            packet.t_max[i] = f32::INFINITY;
-            lanes.push((ray, rng));
-        }
-        c.camera += jobs.len() as u64;
-        let hits = bvh.closest_rays(&mut packet, 0.0);
-        for (i, (ray, rng)) in lanes.iter_mut().enumerate() {
-            // Self::radiance from the hit found above.
-            let hit = hits.get(i).map(|(t, u, v, prim)| Hit { t, u, v, prim });
-            out[i] = self
-                .trace_found(ray, hit, PathState::CAMERA, true, 0, rng, &mut NoObserver, c)
+        let cams = self.camera_batch(bvh, 0, jobs, c);
+        for k in 0..jobs.len() {
+            // Self::radiance from the hit found with the batch.
+            let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
+            let mut rng = cams.rng.get(k);
+            out[k] = self
+                .trace_found(
+                    &cams.rays.ray(k),
+                    hit,
+                    PathState::CAMERA,
+                    true,
+                    0,
+                    &mut rng,
+                    &mut NoObserver,
+                    c,
+                )
                 .total();
         }
+    }
+
+    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`) traced as one
+    /// packet: a pixel's samples stay together until their first hit.
+    pub(super) fn camera_batch(&self, bvh: &Bvh4, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
+        let mut b = CameraBatch {
+            job0,
+            len: jobs.len(),
+            ..CameraBatch::default()
+        };
+        for (k, &(x, y, s)) in jobs.iter().enumerate() {
+            // Self::sample's start: the sample's stream and camera ray.
+            let mut rng = self.sample_rng(x, y, s);
+            let ray = self.camera_ray(x, y, s, &mut rng);
+            b.rays.set(k, &ray, f32::INFINITY);
+            b.rng.set(k, &rng);
+        }
+        c.camera += jobs.len() as u64;
+        b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
+        b
     }
 
     /// Fills in [`Self::point_lit`].
@@ -378,9 +396,26 @@ impl PathPacket {
     /// Lane `i`'s ray.
     #[inline]
     fn ray(&self, i: usize) -> Ray {
-        let r = &self.rays;
-        Ray::new(lane(&r.o, i), lane(&r.d, i))
+        self.rays.ray(i)
     }
+}
+
+/// Camera rays traced ahead, one packet of consecutive samples, with their hits and the
+/// samples' random streams after them.
+#[derive(Default)]
+pub(super) struct CameraBatch {
+    /// Index of the first sample in the jobs.
+    pub(super) job0: usize,
+    /// Samples in the batch.
+    pub(super) len: usize,
+    /// Samples taken so far (by a wave's lanes).
+    pub(super) taken: usize,
+    /// The camera rays.
+    pub(super) rays: RayPacket,
+    /// Their closest hits.
+    pub(super) hits: PacketHits,
+    /// Each sample's random stream after its camera ray.
+    pub(super) rng: RngLanes,
 }
 
 /// Packet recursion deeper than this continues one ray at a time (each level holds a few

@@ -30,7 +30,7 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 use glam::Vec3A;
 
-use super::packets::{Job, LitLanes, PacketSurfaces};
+use super::packets::{CameraBatch, Job, LitLanes, PacketSurfaces};
 use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
 use crate::math::{not_at_most, Ray};
 use crate::observer::NoObserver;
@@ -113,7 +113,7 @@ impl Wave {
     /// Lane `i`'s ray in `rays`.
     #[inline]
     fn ray(&self, i: usize) -> Ray {
-        Ray::new(lane(&self.rays.o, i), lane(&self.rays.d, i))
+        self.rays.ray(i)
     }
 
     /// Ends lane `i`'s path, whose last ray brought `li`: sums the kept vertices from the last
@@ -129,32 +129,6 @@ impl Wave {
         }
         out[self.job[i]] = li.total();
         self.on[i] = false;
-    }
-}
-
-/// Camera rays traced ahead, one packet of consecutive samples, for lanes to take as they
-/// free up.
-#[derive(Default)]
-struct CameraBatch {
-    /// Index of the first sample in the jobs.
-    job0: usize,
-    /// Samples in the batch.
-    len: usize,
-    /// Samples taken by lanes so far.
-    taken: usize,
-    /// The camera rays.
-    rays: RayPacket,
-    /// Their closest hits.
-    hits: PacketHits,
-    /// Each sample's random stream after its camera ray.
-    rng: RngLanes,
-}
-
-impl CameraBatch {
-    /// Sample `k`'s camera ray.
-    #[inline]
-    fn ray(&self, k: usize) -> Ray {
-        Ray::new(lane(&self.rays.o, k), lane(&self.rays.d, k))
     }
 }
 
@@ -194,7 +168,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 let k = cams.taken;
                 cams.taken += 1;
                 w.rng.set(i, &cams.rng.get(k));
-                w.rays.set(i, &cams.ray(k), f32::NEG_INFINITY);
+                w.rays.set(i, &cams.rays.ray(k), f32::NEG_INFINITY);
                 (w.on[i], w.job[i], w.ray_on[i], w.want[i]) = (true, cams.job0 + k, true, true);
                 w.found[i] = Some(cams.hits.get(k));
                 w.path[i] = PathState::CAMERA;
@@ -205,26 +179,6 @@ impl<I: Intersect> Integrator<'_, I> {
             self.wave_step(bvh, &mut w, out, c);
         }
         w.shaded
-    }
-
-    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`) traced as one
-    /// packet: a pixel's samples stay together until their first hit.
-    fn camera_batch(&self, bvh: &Bvh4, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
-        let mut b = CameraBatch {
-            job0,
-            len: jobs.len(),
-            ..CameraBatch::default()
-        };
-        for (k, &(x, y, s)) in jobs.iter().enumerate() {
-            // Self::sample's start: the sample's stream and camera ray.
-            let mut rng = self.sample_rng(x, y, s);
-            let ray = self.camera_ray(x, y, s, &mut rng);
-            b.rays.set(k, &ray, f32::INFINITY);
-            b.rng.set(k, &rng);
-        }
-        c.camera += jobs.len() as u64;
-        b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
-        b
     }
 
     /// Traces the wave's rays and shadow rays and takes every path one vertex on.
@@ -352,7 +306,7 @@ impl<I: Intersect> Integrator<'_, I> {
             let (u0, u1, u2) = (w.rng.next_f32(d), w.rng.next_f32(d), w.rng.next_f32(d));
             let ls = self.emitters.sample_lanes(self.scene, org, d, [&u0, &u1, &u2]);
             for i in 0..LANES {
-                let wiz = ls.dir[0][i] * n[0][i] + ls.dir[1][i] * n[1][i] + ls.dir[2][i] * n[2][i];
+                let wiz = dot(&ls.dir, n, i);
                 let front = dot(&ls.dir, ng, i) > 0.0;
                 let fz = (f[0][i] != 0.0) | (f[1][i] != 0.0) | (f[2][i] != 0.0);
                 let go = ls.ok[i] & (wiz > 0.0) & front & fz;

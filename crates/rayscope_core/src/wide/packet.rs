@@ -71,6 +71,12 @@ impl RayPacket {
         }
         self.t_max[i] = t_max;
     }
+
+    /// The ray in lane `i`.
+    #[inline]
+    pub fn ray(&self, i: usize) -> Ray {
+        Ray::new(lane(&self.o, i), lane(&self.d, i))
+    }
 }
 
 /// Lane `i` of a vector stored per axis.
