@@ -205,6 +205,7 @@ mod tests {
                             occluded_rays_avx512(bvh, &mut rays.clone(), 0.0)
                         }
                     };
+                    (base.divide(), wide.divide());
                     for i in 0..LANES {
                         assert_eq!(wide.get(i), base.get(i), "{name} lane {i}");
                     }

@@ -106,13 +106,28 @@ pub struct LightRays {
 }
 
 /// The closest hits of a packet's rays (none by default).
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 #[repr(align(64))]
 pub struct PacketHits {
     t: F,
     u: F,
     v: F,
     prim: [u32; LANES],
+    /// What `u` and `v` are still to be divided by (a triangle's |d·n|; 1 once divided): the
+    /// kernels divide once, after the last packet, instead of at every packet that holds a hit.
+    a: F,
+}
+
+impl Default for PacketHits {
+    fn default() -> Self {
+        Self {
+            t: [0.0; LANES],
+            u: [0.0; LANES],
+            v: [0.0; LANES],
+            prim: [0; LANES],
+            a: [1.0; LANES],
+        }
+    }
 }
 
 impl PacketHits {
@@ -138,7 +153,17 @@ impl PacketHits {
             PrimRef::Sphere(k) => TAG_SPHERE | k,
             PrimRef::Triangle(k) => TAG_TRI | k,
         };
-        (self.t[i], self.u[i], self.v[i], self.prim[i]) = (t, u, v, key);
+        (self.t[i], self.u[i], self.v[i], self.prim[i], self.a[i]) = (t, u, v, key, 1.0);
+    }
+
+    /// Divides the barycentrics by what the kernels left them scaled by.
+    #[inline(always)]
+    pub(super) fn divide(&mut self) {
+        for i in 0..LANES {
+            self.u[i] /= self.a[i];
+            self.v[i] /= self.a[i];
+            self.a[i] = 1.0;
+        }
     }
 
     /// Lane `i`'s hit: (t, u, v, primitive).
@@ -167,7 +192,10 @@ impl PacketHits {
 /// Lane `k` of a 4-wide primitive packet's vector stored per axis.
 #[inline(always)]
 fn lane_of(v: &[glam::Vec4; 3], k: usize) -> [f32; 3] {
-    [v[0].to_array()[k], v[1].to_array()[k], v[2].to_array()[k]]
+    // Read through a reference: `to_array` copies the whole vector to the stack first, and the
+    // lane's load then waits on that store.
+    let at = |a: usize| AsRef::<[f32; 4]>::as_ref(&v[a])[k];
+    [at(0), at(1), at(2)]
 }
 
 /// `a` when `c`, else `b`: written so the compiler emits a blend.
@@ -178,6 +206,13 @@ fn sel(c: bool, a: f32, b: f32) -> f32 {
     } else {
         b
     }
+}
+
+/// `a` when `c`, else `b`, as bit operations: a `bool` select on integers compiles to a branch.
+#[inline(always)]
+fn sel_u32(c: bool, a: u32, b: u32) -> u32 {
+    let m = 0u32.wrapping_sub(u32::from(c));
+    (a & m) | (b & !m)
 }
 
 /// The best hit found so far inside one 4-wide primitive packet, per ray. The single-ray test
@@ -191,6 +226,8 @@ struct PacketBest {
     u: F,
     v: F,
     prim: [u32; LANES],
+    /// What `u` and `v` are to be divided by.
+    a: F,
 }
 
 impl PacketBest {
@@ -202,20 +239,22 @@ impl PacketBest {
             u: [0.0; LANES],
             v: [0.0; LANES],
             prim: [0; LANES],
+            a: [1.0; LANES],
         }
     }
 
     /// Offers lane `i` a hit that passed the packet's filter and beats the lane's best hit on
     /// entry; true when it is taken. Offers come in lane order, so on a tie the earlier stays.
     #[inline(always)]
-    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, prim: u32) -> bool {
+    #[allow(clippy::too_many_arguments)]
+    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, a: f32, prim: u32) {
         let take = ok && (!self.found[i] || t < self.t[i]);
         self.t[i] = sel(take, t, self.t[i]);
         self.u[i] = sel(take, u, self.u[i]);
         self.v[i] = sel(take, v, self.v[i]);
+        self.a[i] = sel(take, a, self.a[i]);
         self.prim[i] = if take { prim } else { self.prim[i] };
         self.found[i] |= take;
-        take
     }
 
     /// Writes the packet's hits into the running result.
@@ -224,14 +263,15 @@ impl PacketBest {
         if !any(&self.found) {
             return;
         }
-        for i in 0..LANES {
-            let f = self.found[i];
-            rays.t_max[i] = sel(f, self.t[i], rays.t_max[i]);
-            hits.t[i] = sel(f, self.t[i], hits.t[i]);
-            hits.u[i] = sel(f, self.u[i], hits.u[i]);
-            hits.v[i] = sel(f, self.v[i], hits.v[i]);
-            hits.prim[i] = if f { self.prim[i] } else { hits.prim[i] };
-        }
+        // Whole arrays selected and stored: written as a select per lane into the same array,
+        // the compiler makes each lane a branch and a conditional store.
+        let f = &self.found;
+        rays.t_max = std::array::from_fn(|i| sel(f[i], self.t[i], rays.t_max[i]));
+        hits.t = std::array::from_fn(|i| sel(f[i], self.t[i], hits.t[i]));
+        hits.u = std::array::from_fn(|i| sel(f[i], self.u[i], hits.u[i]));
+        hits.v = std::array::from_fn(|i| sel(f[i], self.v[i], hits.v[i]));
+        hits.prim = std::array::from_fn(|i| sel_u32(f[i], self.prim[i], hits.prim[i]));
+        hits.a = std::array::from_fn(|i| sel(f[i], self.a[i], hits.a[i]));
     }
 }
 
@@ -301,8 +341,6 @@ impl TriPacket {
         let (entry, entry_key) = (rays.t_max, hits.prim);
         // The single-ray test's filter bound (see `far`).
         let bound = entry.map(|t| far(true, t));
-        // |d·n| of each lane's best hit, which its barycentrics are divided by.
-        let mut scale = [1.0; LANES];
         for k in 0..4 {
             let id = self.ids[k];
             if id == NO_PRIM {
@@ -319,15 +357,10 @@ impl TriPacket {
                 let ti = t[i] / a[i];
                 // As in the single-ray test: the divided distance decides.
                 let ok = ok[i] & beats(ti, key, entry[i], entry_key[i]);
-                let take = best.offer(i, ok, ti, u[i], v[i], key);
-                scale[i] = sel(take, a[i], scale[i]);
+                // The barycentrics are divided for the nearest hit only (as the single-ray
+                // test does), once the last packet is tested (`PacketHits::divide`).
+                best.offer(i, ok, ti, u[i], v[i], a[i], key);
             }
-        }
-        // The barycentrics are divided once, for the nearest hit only (as the single-ray test
-        // does), rather than for every candidate.
-        for i in 0..LANES {
-            best.u[i] /= scale[i];
-            best.v[i] /= scale[i];
         }
         best.commit(rays, hits);
     }
@@ -359,7 +392,7 @@ impl SpherePacket {
     #[inline(always)]
     fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
         let c = lane_of(&self.c, k);
-        let r2 = self.r2.to_array()[k];
+        let r2 = AsRef::<[f32; 4]>::as_ref(&self.r2)[k];
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
             let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
@@ -445,7 +478,7 @@ fn lanes_closest_rays(
         let (ok, t) = test(k, rays, &entry);
         let key = tag | id;
         for i in 0..LANES {
-            best.offer(i, ok[i] & beats(t[i], key, entry[i], entry_key[i]), t[i], 0.0, 0.0, key);
+            best.offer(i, ok[i] & beats(t[i], key, entry[i], entry_key[i]), t[i], 0.0, 0.0, 1.0, key);
         }
     }
     best.commit(rays, hits);
@@ -804,6 +837,7 @@ impl Bvh4 {
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         super::dispatch::closest_rays(self, rays, t_min, &mut hits);
+        hits.divide();
         hits
     }
 
@@ -812,6 +846,7 @@ impl Bvh4 {
     pub fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         super::dispatch::scattered_closest_rays(self, rays, t_min, &mut hits);
+        hits.divide();
         hits
     }
 
