@@ -128,8 +128,9 @@ struct PathState {
     depth: u32,
     /// Non-specular (sampled) bounces so far.
     bounces: u32,
-    /// Largest channel of the path throughput, for Russian roulette.
-    beta: f32,
+    /// The path throughput so far (what the camera's sample is multiplied by): Russian roulette
+    /// keeps a path with its largest channel's probability, and glass branches are pruned by it.
+    beta: Vec3A,
     /// Material whose absorbance applies to the ray (Beer's law), if it travels inside one.
     medium: Option<u32>,
     /// Split glass into both rays (Whitted) rather than choosing one by its Fresnel weight.
@@ -161,7 +162,7 @@ impl PathState {
     /// The state of a ray a mirror or glass sends on: one level deeper, travelling in `medium`,
     /// with path weight `beta`.
     #[inline]
-    fn specular(self, medium: Option<u32>, beta: f32) -> PathState {
+    fn specular(self, medium: Option<u32>, beta: Vec3A) -> PathState {
         PathState {
             depth: self.depth + 1,
             medium,
@@ -174,7 +175,7 @@ impl PathState {
     const CAMERA: PathState = PathState {
         depth: 0,
         bounces: 0,
-        beta: 1.0,
+        beta: Vec3A::ONE,
         medium: None,
         branch: true,
     };
@@ -636,7 +637,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Whitted glass's reflected ray (weight `kr`) and its path, unless it is pruned.
     #[inline]
     fn glass_reflected(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
-        (g.kr > 0.0 && path.beta * g.kr >= self.branch_cutoff)
+        (g.kr > 0.0 && path.beta.max_element() * g.kr >= self.branch_cutoff)
             .then(|| (g.reflected, path.specular(g.refl_medium, path.beta * g.kr)))
     }
 
@@ -644,7 +645,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// internal reflection) or it is pruned.
     #[inline]
     fn glass_refracted(&self, g: &Glass, path: PathState) -> Option<(Ray, PathState)> {
-        let r = g.refracted.filter(|_| path.beta * (1.0 - g.kr) >= self.branch_cutoff)?;
+        let r = g
+            .refracted
+            .filter(|_| path.beta.max_element() * (1.0 - g.kr) >= self.branch_cutoff)?;
         Some((r, path.specular(g.refr_medium, path.beta * (1.0 - g.kr))))
     }
 
@@ -776,7 +779,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let mut child = PathState {
             depth: path.depth,
             bounces: path.bounces + 1,
-            beta: path.beta * carry.max_element(),
+            beta: path.beta * carry,
             medium: path.medium,
             branch: false,
         };
@@ -784,7 +787,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         if ambient {
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
-                let p = child.beta.min(0.95);
+                let p = child.beta.max_element().min(0.95);
                 if rng.next_f32() < p {
                     carry /= p;
                     child.beta /= p;

@@ -61,7 +61,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// paths scatter after the first bounce.
     pub(crate) fn sample_camera_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let cams = self.camera_batch(bvh, 0, jobs, c);
+        let cams = self.camera_batch(Some(bvh), 0, jobs, c);
         for k in 0..jobs.len() {
             // Self::radiance from the hit found with the batch.
             let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
@@ -81,9 +81,9 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
-    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`) traced as one
-    /// packet: a pixel's samples stay together until their first hit.
-    pub(super) fn camera_batch(&self, bvh: &Bvh4, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
+    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`), traced as one
+    /// packet when `bvh` is given: a pixel's samples stay together until their first hit.
+    pub(super) fn camera_batch(&self, bvh: Option<&Bvh4>, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
         let mut b = CameraBatch {
             job0,
             len: jobs.len(),
@@ -97,7 +97,9 @@ impl<I: Intersect> Integrator<'_, I> {
             b.rng.set(k, &rng);
         }
         c.camera += jobs.len() as u64;
-        b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
+        if let Some(bvh) = bvh {
+            b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
+        }
         b
     }
 
@@ -412,7 +414,7 @@ pub(super) struct CameraBatch {
     pub(super) taken: usize,
     /// The camera rays.
     pub(super) rays: RayPacket,
-    /// Their closest hits.
+    /// Their closest hits, when traced.
     pub(super) hits: PacketHits,
     /// Each sample's random stream after its camera ray.
     pub(super) rng: RngLanes,

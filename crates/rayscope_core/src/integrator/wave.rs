@@ -151,6 +151,11 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut w = Wave::new();
         let mut cams = CameraBatch::default();
         let mut next = 0;
+        // Where the wave's packets test a room's list (`Bvh4::single`) every ray meets every
+        // primitive wherever it starts, so a camera ray goes in the wave's next packet, in the
+        // lane it would otherwise leave idle. In a tree, camera rays are traced ahead, a pixel's
+        // samples together, whose walks share their nodes.
+        let ahead = bvh.single.is_empty();
         loop {
             for i in 0..LANES {
                 if w.on[i] {
@@ -161,16 +166,17 @@ impl<I: Intersect> Integrator<'_, I> {
                         break;
                     }
                     let batch = &jobs[next..jobs.len().min(next + LANES)];
-                    cams = self.camera_batch(bvh, next, batch, c);
+                    cams = self.camera_batch(ahead.then_some(bvh), next, batch, c);
                     next += batch.len();
                 }
-                // The lane's first step starts from its camera ray's hit.
+                // The lane's first step starts from its camera ray, or from its hit.
                 let k = cams.taken;
                 cams.taken += 1;
                 w.rng.set(i, &cams.rng.get(k));
-                w.rays.set(i, &cams.rays.ray(k), f32::NEG_INFINITY);
+                let t_max = if ahead { f32::NEG_INFINITY } else { f32::INFINITY };
+                w.rays.set(i, &cams.rays.ray(k), t_max);
                 (w.on[i], w.job[i], w.ray_on[i], w.want[i]) = (true, cams.job0 + k, true, true);
-                w.found[i] = Some(cams.hits.get(k));
+                w.found[i] = ahead.then(|| cams.hits.get(k));
                 w.path[i] = PathState::CAMERA;
             }
             if !w.on.contains(&true) {
@@ -360,17 +366,17 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         // The bounce's weights, Russian roulette, and whether its hit's reflected light counts.
         let (mut wt, mut carry) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
-        let (mut beta, mut want, mut rr) = ([0.0; LANES], [false; LANES], [false; LANES]);
+        let (mut beta, mut want, mut rr) = ([[0.0; LANES]; 3], [false; LANES], [false; LANES]);
         for i in 0..LANES {
             let ratio = cz[i] / pdf[i];
+            let path = &w.path[i];
             for a in 0..3 {
                 wt[a][i] = f[a][i] * ratio;
                 // Without -l only a coat's reflection is carried, and Lambert has none.
                 carry[a][i] = if ambient { wt[a][i] } else { 0.0 * ratio };
+                beta[a][i] = path.beta[a] * carry[a][i];
             }
             let most = max_element([carry[0][i], carry[1][i], carry[2][i]]);
-            let path = &w.path[i];
-            beta[i] = path.beta * most;
             want[i] = if ambient {
                 let on = (most > 0.0) & (path.bounces < MAX_BOUNCES);
                 rr[i] = ok[i] & on & (path.bounces >= RR_START);
@@ -382,13 +388,13 @@ impl<I: Intersect> Integrator<'_, I> {
         if rr.contains(&true) {
             let u = w.rng.next_f32(&rr);
             for i in 0..LANES {
-                let p = beta[i].min(0.95);
+                let p = max_element([beta[0][i], beta[1][i], beta[2][i]]).min(0.95);
                 let keep = u[i] < p;
                 let scale = rr[i] & keep;
                 for a in 0..3 {
                     carry[a][i] = if scale { carry[a][i] / p } else { carry[a][i] };
+                    beta[a][i] = if scale { beta[a][i] / p } else { beta[a][i] };
                 }
-                beta[i] = if scale { beta[i] / p } else { beta[i] };
                 want[i] = if rr[i] { keep } else { want[i] };
             }
         }
@@ -409,7 +415,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 w.path[i] = PathState {
                     depth: path.depth + u32::from(!ambient),
                     bounces: path.bounces + 1,
-                    beta: beta[i],
+                    beta: lane(&beta, i),
                     medium: path.medium,
                     branch: false,
                 };
@@ -459,7 +465,7 @@ mod tests {
         .map(|n| root.join("scenes").join(format!("{n}.txt")))
         .collect();
         paths.push(root.join("../shared/reference/tests/sample_scene_obj.txt"));
-        let mut waves = 0;
+        let (mut waves, mut in_list) = (0, 0);
         for path in &paths {
             let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
             let scene = Scene::from_file(&file);
@@ -499,8 +505,14 @@ mod tests {
                 assert_eq!(counted, want, "{} -l {ambient}: ray counts", path.display());
                 assert!(shaded > 0 || !ambient, "{}: the wave shaded nothing", path.display());
                 waves += 1;
+                // Camera rays go in the wave's packets in a room with a list, else ahead.
+                in_list += usize::from(!bvh.single.is_empty());
             }
         }
         assert!(waves >= 15, "only {waves} of the renders went in waves");
+        assert!(
+            in_list > 0 && in_list < waves,
+            "{in_list} of {waves} renders used a list: both ways to trace camera rays must be tested"
+        );
     }
 }

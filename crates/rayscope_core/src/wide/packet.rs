@@ -478,7 +478,15 @@ fn lanes_closest_rays(
         let (ok, t) = test(k, rays, &entry);
         let key = tag | id;
         for i in 0..LANES {
-            best.offer(i, ok[i] & beats(t[i], key, entry[i], entry_key[i]), t[i], 0.0, 0.0, 1.0, key);
+            best.offer(
+                i,
+                ok[i] & beats(t[i], key, entry[i], entry_key[i]),
+                t[i],
+                0.0,
+                0.0,
+                1.0,
+                key,
+            );
         }
     }
     best.commit(rays, hits);
