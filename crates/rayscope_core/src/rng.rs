@@ -76,6 +76,22 @@ impl RngLanes {
 
     /// [`Rng::next_f32`] in every lane of `on`; the other lanes' streams do not move (and
     /// get 0).
+    /// [`Rng::for_sample`] of (`seed`, `pixel[i]`, `sample[i]`) in every lane, computed for all
+    /// lanes at once.
+    #[inline]
+    pub(crate) fn for_samples(seed: u64, pixel: &[u64; LANES], sample: &[u64; LANES]) -> Self {
+        let mut out = Self::default();
+        for i in 0..LANES {
+            let s = mix(seed ^ mix(pixel[i].wrapping_add(0x9e37_79b9_7f4a_7c15)));
+            let inc = (mix(s ^ sample[i].wrapping_mul(0xd1b5_4a32_d192_ed03)) << 1) | 1;
+            // Rng::for_sample's two steps: from state 0, then from its state plus `s`.
+            let state = inc.wrapping_add(s);
+            out.state[i] = state.wrapping_mul(PCG_MUL).wrapping_add(inc);
+            out.inc[i] = inc;
+        }
+        out
+    }
+
     #[inline]
     pub(crate) fn next_f32(&mut self, on: &[bool; LANES]) -> [f32; LANES] {
         let mut out = [0.0; LANES];
@@ -142,6 +158,21 @@ mod tests {
         }
         for (i, stream) in want.iter_mut().enumerate() {
             assert_eq!(lanes.get(i).next_u32(), stream.next_u32(), "lane {i} after the rounds");
+        }
+    }
+
+    #[test]
+    fn lanes_start_where_each_sample_starts() {
+        for seed in [0, 7, u64::MAX] {
+            let pixel: [u64; LANES] = std::array::from_fn(|i| (i as u64 * 7919) ^ (u64::MAX >> (i % 5)));
+            let sample: [u64; LANES] = std::array::from_fn(|i| i as u64 * 31 + seed % 3);
+            let lanes = RngLanes::for_samples(seed, &pixel, &sample);
+            for i in 0..LANES {
+                let (mut got, mut want) = (lanes.get(i), Rng::for_sample(seed, pixel[i], sample[i]));
+                for _ in 0..3 {
+                    assert_eq!(got.next_u32(), want.next_u32(), "seed {seed}, lane {i}");
+                }
+            }
         }
     }
 

@@ -89,12 +89,45 @@ impl<I: Intersect> Integrator<'_, I> {
             len: jobs.len(),
             ..CameraBatch::default()
         };
-        for (k, &(x, y, s)) in jobs.iter().enumerate() {
-            // Self::sample's start: the sample's stream and camera ray.
-            let mut rng = self.sample_rng(x, y, s);
-            let ray = self.camera_ray(x, y, s, &mut rng);
-            b.rays.set(k, &ray, f32::INFINITY);
-            b.rng.set(k, &rng);
+        if self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0 {
+            for (k, &(x, y, s)) in jobs.iter().enumerate() {
+                // Self::sample's start: the sample's stream and camera ray.
+                let mut rng = self.sample_rng(x, y, s);
+                let ray = self.camera_ray(x, y, s, &mut rng);
+                b.rays.set(k, &ray, f32::INFINITY);
+                b.rng.set(k, &rng);
+            }
+        } else {
+            // The same for a pinhole camera, all lanes at once: Self::sample_rng, then
+            // Self::position_in_cell's jitter, then the directions.
+            let (mut pixel, mut sample, mut on) = ([0; LANES], [0; LANES], [false; LANES]);
+            let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
+            let width = u64::from(self.settings.width);
+            for (k, &(x, y, s)) in jobs.iter().enumerate() {
+                (pixel[k], sample[k], on[k]) = (u64::from(y) * width + u64::from(x), u64::from(s), true);
+                [px[k], py[k]] = self.cell_offset(s);
+            }
+            b.rng = RngLanes::for_samples(self.settings.seed, &pixel, &sample);
+            if self.stochastic && self.settings.channel == Channel::Color {
+                let n = self.grid as f32;
+                let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
+                for k in 0..LANES {
+                    px[k] += (jx[k] - 0.5) / n;
+                    py[k] += (jy[k] - 0.5) / n;
+                }
+            }
+            for (k, &(x, y, _)) in jobs.iter().enumerate() {
+                (px[k], py[k]) = (x as f32 + px[k], y as f32 + py[k]);
+            }
+            let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+            b.rays.d = camera_dirs(&self.camera, &px, &py, w, h);
+            let o = self.camera.origin.to_array();
+            for k in 0..jobs.len() {
+                for a in 0..3 {
+                    b.rays.o[a][k] = o[a];
+                }
+                b.rays.t_max[k] = f32::INFINITY;
+            }
         }
         c.camera += jobs.len() as u64;
         if let Some(bvh) = bvh {
