@@ -372,12 +372,10 @@ impl<I: Intersect> Integrator<'_, I> {
             for a in 0..3 {
                 for i in 0..LANES {
                     // albedo × colour × cosine, or zero when the light is hidden (glam's order).
-                    let contrib = if vis.visible[i] {
-                        lit.alb[a][i] * col[a] * vis.cos[i]
-                    } else {
-                        0.0
-                    };
-                    sums[a][i] += contrib;
+                    // Computed for every lane, then selected: with the products inside the
+                    // condition the loop compiled to a branch per lane.
+                    let lit_by = lit.alb[a][i] * col[a] * vis.cos[i];
+                    sums[a][i] += if vis.visible[i] { lit_by } else { 0.0 };
                 }
             }
         }
