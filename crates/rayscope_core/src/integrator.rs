@@ -130,7 +130,9 @@ struct PathState {
     bounces: u32,
     /// The path throughput so far (what the camera's sample is multiplied by): Russian roulette
     /// keeps a path with its largest channel's probability, and glass branches are pruned by it.
-    beta: Vec3A,
+    // A `Vec3`, not a `Vec3A`: its 16-byte alignment would pad the state from 32 to 48 bytes,
+    // which packets and waves copy per lane.
+    beta: glam::Vec3,
     /// Material whose absorbance applies to the ray (Beer's law), if it travels inside one.
     medium: Option<u32>,
     /// Split glass into both rays (Whitted) rather than choosing one by its Fresnel weight.
@@ -162,7 +164,7 @@ impl PathState {
     /// The state of a ray a mirror or glass sends on: one level deeper, travelling in `medium`,
     /// with path weight `beta`.
     #[inline]
-    fn specular(self, medium: Option<u32>, beta: Vec3A) -> PathState {
+    fn specular(self, medium: Option<u32>, beta: glam::Vec3) -> PathState {
         PathState {
             depth: self.depth + 1,
             medium,
@@ -175,7 +177,7 @@ impl PathState {
     const CAMERA: PathState = PathState {
         depth: 0,
         bounces: 0,
-        beta: Vec3A::ONE,
+        beta: glam::Vec3::ONE,
         medium: None,
         branch: true,
     };
@@ -779,7 +781,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let mut child = PathState {
             depth: path.depth,
             bounces: path.bounces + 1,
-            beta: path.beta * carry,
+            beta: path.beta * glam::Vec3::from(carry),
             medium: path.medium,
             branch: false,
         };

@@ -415,7 +415,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 w.path[i] = PathState {
                     depth: path.depth + u32::from(!ambient),
                     bounces: path.bounces + 1,
-                    beta: lane(&beta, i),
+                    beta: lane(&beta, i).into(),
                     medium: path.medium,
                     branch: false,
                 };
