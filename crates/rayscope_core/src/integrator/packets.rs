@@ -119,21 +119,31 @@ impl<I: Intersect> Integrator<'_, I> {
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
                 (px[k], py[k]) = (x as f32 + px[k], y as f32 + py[k]);
             }
-            let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-            b.rays.d = camera_dirs(&self.camera, &px, &py, w, h);
-            let o = self.camera.origin.to_array();
-            for k in 0..jobs.len() {
-                for a in 0..3 {
-                    b.rays.o[a][k] = o[a];
-                }
-                b.rays.t_max[k] = f32::INFINITY;
-            }
+            b.rays = self.pinhole_rays(jobs.len(), &px, &py);
         }
         c.camera += jobs.len() as u64;
         if let Some(bvh) = bvh {
             b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
         }
         b
+    }
+
+    /// The pinhole camera's rays through pixel positions (`px`, `py`) in the first `n` lanes,
+    /// as [`Camera::ray`](crate::camera::Camera::ray) makes them; the other lanes are unused.
+    fn pinhole_rays(&self, n: usize, px: &[f32; LANES], py: &[f32; LANES]) -> RayPacket {
+        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+        let mut rays = RayPacket {
+            d: camera_dirs(&self.camera, px, py, w, h),
+            ..RayPacket::default()
+        };
+        let o = self.camera.origin.to_array();
+        for k in 0..n {
+            for a in 0..3 {
+                rays.o[a][k] = o[a];
+            }
+            rays.t_max[k] = f32::INFINITY;
+        }
+        rays
     }
 
     /// Fills in [`Self::point_lit`].
@@ -168,17 +178,11 @@ impl<I: Intersect> Integrator<'_, I> {
             let [ox, oy] = self.cell_offset(s);
             (u[i], v[i]) = (x as f32 + ox, y as f32 + oy);
         }
-        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        let mut lanes = PathPacket::default();
-        lanes.rays.d = camera_dirs(&self.camera, &u, &v, w, h);
-        let o = self.camera.origin.to_array();
-        for i in 0..jobs.len() {
-            for a in 0..3 {
-                lanes.rays.o[a][i] = o[a];
-            }
-            lanes.rays.t_max[i] = f32::INFINITY;
-            lanes.on[i] = true;
-        }
+        let mut lanes = PathPacket {
+            rays: self.pinhole_rays(jobs.len(), &u, &v),
+            ..PathPacket::default()
+        };
+        lanes.on[..jobs.len()].fill(true);
         c.camera += jobs.len() as u64;
         let vals = self.trace_packet(bvh, &lanes, jobs, c);
         out[..jobs.len()].copy_from_slice(&vals[..jobs.len()]);
