@@ -398,6 +398,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         ((x as f32 + ox) / w, (y as f32 + oy) / h)
     }
 
+    /// True when camera rays start on a lens (depth of field) rather than at a pinhole.
+    #[inline]
+    fn thin_lens(&self) -> bool {
+        self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0
+    }
+
     /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's fresh stream
     /// ([`Self::sample_rng`]).
     // Always inlined: with the jitter it grew past the inliner's limit, and as a call it cost
@@ -406,7 +412,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[inline(always)]
     pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {
         let (u, v) = self.position_in_cell(x, y, s, rng);
-        if self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0 {
+        if self.thin_lens() {
             self.camera
                 .lens_ray(u, v, concentric_disk(rng.next_f32(), rng.next_f32()))
         } else {

@@ -89,7 +89,7 @@ impl<I: Intersect> Integrator<'_, I> {
             len: jobs.len(),
             ..CameraBatch::default()
         };
-        if self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0 {
+        if self.thin_lens() {
             for (k, &(x, y, s)) in jobs.iter().enumerate() {
                 // Self::sample's start: the sample's stream and camera ray.
                 let mut rng = self.sample_rng(x, y, s);
