@@ -246,6 +246,9 @@ impl<I: Intersect> Integrator<'_, I> {
                 ior[i] = value;
             }
         }
+        // Only a tag per lane: the distance, path state and Fresnel weight are read back from
+        // the packet's own arrays. (Tags carrying copies of them were built with narrow stores
+        // and read back with wide loads, and that store-forwarding stall was 5 % of scene 2.)
         let mut next = [Next::Done; LANES];
         // Most packets make no child rays, so the child packets are made when needed.
         let (mut reflected, mut refracted): (Option<PathPacket>, Option<PathPacket>) = (None, None);
@@ -255,7 +258,7 @@ impl<I: Intersect> Integrator<'_, I> {
             if !other[i] {
                 continue;
             }
-            let (path, t) = (lanes.paths[i], surf.t[i]);
+            let path = lanes.paths[i];
             let m = &self.scene.materials[surf.material[i] as usize];
             next[i] = match m.kind {
                 _ if self.settings.stage == Stage::One => {
@@ -272,7 +275,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     reflected
                         .get_or_insert_with(PathPacket::default)
                         .set(i, &r, path.mirrored());
-                    Next::Mirror(t, path)
+                    Next::Mirror
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
                     // Self::glass.
@@ -291,7 +294,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     if let Some((r, p)) = self.glass_refracted(&g, path) {
                         refracted.get_or_insert_with(PathPacket::default).set(i, &r, p);
                     }
-                    Next::Glass(g.kr, t, path)
+                    Next::Glass
                 }
                 _ => {
                     let mut rng = self.lane_rng(jobs[i]);
@@ -320,10 +323,11 @@ impl<I: Intersect> Integrator<'_, I> {
                 vals[i] = self.absorb(lanes.paths[i], surf.t[i], Li::reflected(light)).total();
                 continue;
             }
-            let (li, t, path) = match next[i] {
+            let li = match next[i] {
                 Next::Done => continue,
-                Next::Mirror(t, path) => (Li::reflected(from_reflected[i]), t, path),
-                Next::Glass(kr, t, path) => {
+                Next::Mirror => Li::reflected(from_reflected[i]),
+                Next::Glass => {
+                    let kr = specular.as_ref().map_or(0.0, |sp| sp.kr[i]);
                     let mut out = Vec3A::ZERO;
                     if on(&reflected, i) {
                         out += from_reflected[i] * kr;
@@ -331,10 +335,10 @@ impl<I: Intersect> Integrator<'_, I> {
                     if on(&refracted, i) {
                         out += from_refracted[i] * (1.0 - kr);
                     }
-                    (Li::reflected(out), t, path)
+                    Li::reflected(out)
                 }
             };
-            vals[i] = self.absorb(path, t, li).total();
+            vals[i] = self.absorb(lanes.paths[i], surf.t[i], li).total();
         }
         vals
     }
@@ -582,9 +586,9 @@ enum Next {
     /// Nothing: its value is final.
     Done,
     /// A mirror: its reflected ray's radiance.
-    Mirror(f32, PathState),
-    /// Glass with this Fresnel reflectance: its reflected and refracted rays' radiance.
-    Glass(f32, f32, PathState),
+    Mirror,
+    /// Glass: its reflected and refracted rays' radiance, weighted by the Fresnel reflectance.
+    Glass,
 }
 
 #[cfg(test)]
