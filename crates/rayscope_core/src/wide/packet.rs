@@ -219,15 +219,18 @@ fn sel_u32(c: bool, a: u32, b: u32) -> u32 {
 /// filters all four primitives against the best hit known when the packet is entered and then
 /// takes the nearest (the lowest lane on ties, which holds the lowest index: see [`beats`]);
 /// this replays exactly that.
-#[repr(align(64))]
+// The arrays first, each on a cache line of its own: behind the sixteen `found` flags they sat
+// 16 bytes off, the compiler zeroed them with overlapping stores, and the first load of `t`
+// then spanned two of those stores, which cannot be forwarded (a stall at every packet).
+#[repr(C, align(64))]
 struct PacketBest {
-    found: [bool; LANES],
     t: F,
     u: F,
     v: F,
     prim: [u32; LANES],
     /// What `u` and `v` are to be divided by.
     a: F,
+    found: [bool; LANES],
 }
 
 impl PacketBest {
