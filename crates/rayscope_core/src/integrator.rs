@@ -45,6 +45,7 @@ pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, RenderSettings, Stage};
+use crate::wide::ApexCull;
 use rayscope_scene::MaterialKind;
 
 mod packets;
@@ -102,6 +103,18 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// for grids too large to tabulate. Looked up rather than recomputed because the integer
     /// divisions that find (i, j) cost as much as making the camera ray.
     cells: Vec<[f32; 2]>,
+    /// The flat list seen from the pinhole camera's centre and from each point light, for ray
+    /// packets that leave or reach those points (see [`ApexCull`]).
+    pub(crate) beams: Beams,
+}
+
+/// [`ApexCull`]s of the points many packets' rays share.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Beams {
+    /// From the camera's centre (pinhole cameras only).
+    pub(crate) camera: Option<ApexCull>,
+    /// From each point light, in the scene's order.
+    pub(crate) lights: Vec<Option<ApexCull>>,
 }
 
 /// Largest grid side whose cell offsets are tabulated (16,384 cells, 128 KiB).
@@ -306,9 +319,29 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             point_lit: Vec::new(),
             grid: 1,
             cells: Vec::new(),
+            beams: Beams::default(),
         }
         .with_point_lit()
         .with_grid()
+        .with_beams()
+    }
+
+    /// Fills in [`Self::beams`], for renders that trace ray packets through a flat list.
+    fn with_beams(mut self) -> Self {
+        let Some(bvh) = self.isect.wide() else {
+            return self;
+        };
+        let camera = (!self.thin_lens()).then(|| ApexCull::new(bvh, self.camera.origin.to_array()));
+        self.beams = Beams {
+            camera: camera.flatten(),
+            lights: self
+                .scene
+                .lights
+                .iter()
+                .map(|l| ApexCull::new(bvh, l.position.to_array()))
+                .collect(),
+        };
+        self
     }
 
     /// Fills in [`Self::grid`] and [`Self::cells`].

@@ -18,10 +18,12 @@ use crate::geometry::{Plane, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::scene::PrimRef;
 
+mod beam;
 mod dispatch;
 mod packet;
 mod stream;
 mod surface;
+pub use beam::ApexCull;
 pub(crate) use packet::{lane, put};
 pub use packet::{LightRays, PacketHits, RayPacket, LANES};
 use packet::{TAG_PLANE, TAG_SPHERE, TAG_TRI};

@@ -123,7 +123,10 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         c.camera += jobs.len() as u64;
         if let Some(bvh) = bvh {
-            b.hits = bvh.closest_rays(&mut b.rays.clone(), 0.0);
+            b.hits = match &self.beams.camera {
+                Some(cull) => bvh.closest_rays_from(&mut b.rays.clone(), 0.0, cull),
+                None => bvh.closest_rays(&mut b.rays.clone(), 0.0),
+            };
         }
         b
     }
@@ -206,7 +209,11 @@ impl<I: Intersect> Integrator<'_, I> {
             return vals;
         }
         let mut rays = lanes.rays.clone();
-        let hits = bvh.closest_rays(&mut rays, 0.0);
+        // Camera rays leave the camera's centre; the beam test sees whether these do.
+        let hits = match &self.beams.camera {
+            Some(cull) => bvh.closest_rays_from(&mut rays, 0.0, cull),
+            None => bvh.closest_rays(&mut rays, 0.0),
+        };
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
         // Lanes lit by point lights alone (the common case) are found without a branch per
@@ -368,12 +375,13 @@ impl<I: Intersect> Integrator<'_, I> {
         if !lit.on.iter().any(|&l| l) {
             return sums;
         }
-        for light in &self.scene.lights {
+        for (k, light) in self.scene.lights.iter().enumerate() {
             let vis = bvh.light_rays(
                 &frames.outside,
                 &frames.shading_normal,
                 &lit.on,
                 light.position.to_array(),
+                self.beams.lights.get(k).and_then(Option::as_ref),
             );
             c.shadow += u64::from(vis.rays);
             let col = light.color.to_array();

@@ -10,6 +10,7 @@
 //! `unsafe` to call as well. Measured in BENCHMARKS.md, sessions 3 and 5.
 #![allow(unsafe_code)]
 
+use super::beam::ApexCull;
 use super::packet::{LightRays, Mask, PacketHits, RayPacket};
 use super::surface::{specular_rays_impl, surface_frames_impl, HitPrims, SpecularRays, SurfaceFrames};
 use super::Bvh4;
@@ -65,15 +66,15 @@ macro_rules! dispatched {
 dispatched!(
     /// Closest hits of a ray packet.
     closest_rays, closest_rays_avx512, closest_rays_avx2,
-    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
-    bvh.closest_rays_impl(rays, t_min, hits)
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, cull: Option<&ApexCull>) -> (),
+    bvh.closest_rays_impl(rays, t_min, hits, cull)
 );
 
 dispatched!(
     /// Which rays of a packet are blocked.
     occluded_rays, occluded_rays_avx512, occluded_rays_avx2,
     (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
-    bvh.occluded_rays_impl(rays, t_min)
+    bvh.occluded_rays_impl(rays, t_min, None)
 );
 
 dispatched!(
@@ -93,8 +94,15 @@ dispatched!(
 dispatched!(
     /// Shadow rays toward a point light, built and traced.
     light_rays, light_rays_avx512, light_rays_avx2,
-    (bvh: &Bvh4, org: &[[f32; LANES]; 3], ns: &[[f32; LANES]; 3], lit: &Mask, light: [f32; 3]) -> LightRays,
-    bvh.light_rays_impl(org, ns, lit, light)
+    (
+        bvh: &Bvh4,
+        org: &[[f32; LANES]; 3],
+        ns: &[[f32; LANES]; 3],
+        lit: &Mask,
+        light: [f32; 3],
+        cull: Option<&ApexCull>
+    ) -> LightRays,
+    bvh.light_rays_impl(org, ns, lit, light, cull)
 );
 
 dispatched!(
@@ -189,9 +197,9 @@ mod tests {
                     rays.set(i, &Ray::new(o, d), t_max);
                 }
                 let (mut base_rays, mut base) = (rays.clone(), PacketHits::default());
-                bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base);
+                bvh.closest_rays_impl(&mut base_rays, 0.0, &mut base, None);
                 base.divide();
-                let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0);
+                let blocked = bvh.occluded_rays_impl(&mut rays.clone(), 0.0, None);
                 #[cfg(target_arch = "x86_64")]
                 for name in builds() {
                     let (mut wide_rays, mut wide) = (rays.clone(), PacketHits::default());
@@ -199,10 +207,10 @@ mod tests {
                     // (`builds`).
                     let wide_blocked = unsafe {
                         if name == "avx2" {
-                            closest_rays_avx2(bvh, &mut wide_rays, 0.0, &mut wide);
+                            closest_rays_avx2(bvh, &mut wide_rays, 0.0, &mut wide, None);
                             occluded_rays_avx2(bvh, &mut rays.clone(), 0.0)
                         } else {
-                            closest_rays_avx512(bvh, &mut wide_rays, 0.0, &mut wide);
+                            closest_rays_avx512(bvh, &mut wide_rays, 0.0, &mut wide, None);
                             occluded_rays_avx512(bvh, &mut rays.clone(), 0.0)
                         }
                     };

@@ -13,12 +13,16 @@
 
 use arrayvec::ArrayVec;
 
+use super::beam::{ApexCull, Beam};
 use super::{
     beats, far, Bvh4, Node4, PlanePacket, SpherePacket, TraversalStack, TriPacket, EMPTY, LEAF, NO_PRIM, RUN,
     RUN_SHIFT, SLAB_SLACK, SPHERES, STACK,
 };
 use crate::math::Ray;
 use crate::scene::PrimRef;
+
+/// Every lane of a primitive packet.
+const ALL: u32 = 0xF;
 
 /// Rays in a packet.
 pub const LANES: usize = 16;
@@ -339,14 +343,14 @@ impl TriPacket {
     }
 
     #[inline(always)]
-    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, live: u32) {
         let mut best = PacketBest::new();
         let (entry, entry_key) = (rays.t_max, hits.prim);
         // The single-ray test's filter bound (see `far`).
         let bound = entry.map(|t| far(true, t));
         for k in 0..4 {
             let id = self.ids[k];
-            if id == NO_PRIM {
+            if id == NO_PRIM || live & (1 << k) == 0 {
                 continue;
             }
             let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &bound) else {
@@ -369,9 +373,9 @@ impl TriPacket {
     }
 
     #[inline(always)]
-    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask, live: u32) {
         for k in 0..4 {
-            if self.ids[k] == NO_PRIM {
+            if self.ids[k] == NO_PRIM || live & (1 << k) == 0 {
                 continue;
             }
             if let Some((ok, ..)) = self.lane_vs_rays(k, rays, t_min, &rays.t_max) {
@@ -420,15 +424,15 @@ impl SpherePacket {
     }
 
     #[inline(always)]
-    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, live: u32) {
         let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<true>(k, r, t_min, t_max);
-        lanes_closest_rays(&self.ids, TAG_SPHERE, test, rays, hits);
+        lanes_closest_rays(&self.ids, live, TAG_SPHERE, test, rays, hits);
     }
 
     #[inline(always)]
-    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask, live: u32) {
         let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<false>(k, r, t_min, t_max);
-        lanes_occlude_rays(&self.ids, test, rays, blocked);
+        lanes_occlude_rays(&self.ids, live, test, rays, blocked);
     }
 }
 
@@ -449,15 +453,15 @@ impl PlanePacket {
     }
 
     #[inline(always)]
-    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    fn closest_rays(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, live: u32) {
         let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<true>(k, r, t_min, t_max);
-        lanes_closest_rays(&self.ids, TAG_PLANE, test, rays, hits);
+        lanes_closest_rays(&self.ids, live, TAG_PLANE, test, rays, hits);
     }
 
     #[inline(always)]
-    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    fn occlude_rays(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask, live: u32) {
         let test = |k, r: &RayPacket, t_max: &F| self.lane_vs_rays::<false>(k, r, t_min, t_max);
-        lanes_occlude_rays(&self.ids, test, rays, blocked);
+        lanes_occlude_rays(&self.ids, live, test, rays, blocked);
     }
 }
 
@@ -467,6 +471,7 @@ impl PlanePacket {
 #[inline(always)]
 fn lanes_closest_rays(
     ids: &[u32; 4],
+    live: u32,
     tag: u32,
     test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
     rays: &mut RayPacket,
@@ -475,7 +480,7 @@ fn lanes_closest_rays(
     let mut best = PacketBest::new();
     let (entry, entry_key) = (rays.t_max, hits.prim);
     for (k, &id) in ids.iter().enumerate() {
-        if id == NO_PRIM {
+        if id == NO_PRIM || live & (1 << k) == 0 {
             continue;
         }
         let (ok, t) = test(k, rays, &entry);
@@ -499,12 +504,13 @@ fn lanes_closest_rays(
 #[inline(always)]
 fn lanes_occlude_rays(
     ids: &[u32; 4],
+    live: u32,
     test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
     rays: &mut RayPacket,
     blocked: &mut Mask,
 ) {
     for (k, &id) in ids.iter().enumerate() {
-        if id == NO_PRIM {
+        if id == NO_PRIM || live & (1 << k) == 0 {
             continue;
         }
         let (ok, _) = test(k, rays, &rays.t_max);
@@ -609,31 +615,53 @@ fn all_closed(rays: &RayPacket) -> bool {
 
 impl Bvh4 {
     /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
+    /// `live` (bit per lane) says which primitives of a single packet to test (see [`Beam`]).
     #[inline(always)]
-    fn leaf_closest_rays<const RUNS: bool>(&self, r: u32, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    fn leaf_closest_rays<const RUNS: bool>(
+        &self,
+        r: u32,
+        rays: &mut RayPacket,
+        t_min: f32,
+        hits: &mut PacketHits,
+        live: u32,
+    ) {
+        if live == 0 {
+            return;
+        }
         if r & SPHERES != 0 {
-            self.spheres[(r & !(LEAF | SPHERES)) as usize].closest_rays(rays, t_min, hits);
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].closest_rays(rays, t_min, hits, live);
         } else if !RUNS {
-            self.tris[(r & !LEAF) as usize].closest_rays(rays, t_min, hits);
+            self.tris[(r & !LEAF) as usize].closest_rays(rays, t_min, hits, live);
         } else {
             let i = (r & !(LEAF | RUN)) as usize;
             for p in &self.tris[i..=i + ((r & RUN) >> RUN_SHIFT) as usize] {
-                p.closest_rays(rays, t_min, hits);
+                p.closest_rays(rays, t_min, hits, live);
             }
         }
     }
 
     /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
+    /// `live` (bit per lane) says which primitives of a single packet to test (see [`Beam`]).
     #[inline(always)]
-    fn leaf_occlude_rays<const RUNS: bool>(&self, r: u32, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    fn leaf_occlude_rays<const RUNS: bool>(
+        &self,
+        r: u32,
+        rays: &mut RayPacket,
+        t_min: f32,
+        blocked: &mut Mask,
+        live: u32,
+    ) {
+        if live == 0 {
+            return;
+        }
         if r & SPHERES != 0 {
-            self.spheres[(r & !(LEAF | SPHERES)) as usize].occlude_rays(rays, t_min, blocked);
+            self.spheres[(r & !(LEAF | SPHERES)) as usize].occlude_rays(rays, t_min, blocked, live);
         } else if !RUNS {
-            self.tris[(r & !LEAF) as usize].occlude_rays(rays, t_min, blocked);
+            self.tris[(r & !LEAF) as usize].occlude_rays(rays, t_min, blocked, live);
         } else {
             let i = (r & !(LEAF | RUN)) as usize;
             for p in &self.tris[i..=i + ((r & RUN) >> RUN_SHIFT) as usize] {
-                p.occlude_rays(rays, t_min, blocked);
+                p.occlude_rays(rays, t_min, blocked, live);
             }
         }
     }
@@ -655,7 +683,7 @@ impl Bvh4 {
                 continue;
             }
             if r & LEAF != 0 {
-                self.leaf_closest_rays::<true>(r, rays, t_min, hits);
+                self.leaf_closest_rays::<true>(r, rays, t_min, hits, ALL);
                 far = max_t(rays);
                 continue;
             }
@@ -696,7 +724,7 @@ impl Bvh4 {
         stack.put(self.root);
         while let Some(r) = stack.take() {
             if r & LEAF != 0 {
-                self.leaf_occlude_rays::<true>(r, rays, t_min, blocked);
+                self.leaf_occlude_rays::<true>(r, rays, t_min, blocked, ALL);
                 if all_closed(rays) {
                     return;
                 }
@@ -713,13 +741,25 @@ impl Bvh4 {
         }
     }
 
+    /// With `cull` (the view from the rays' common origin), the list skips the primitives no
+    /// ray can meet.
     #[inline(always)]
-    pub(super) fn closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        for p in &self.planes {
-            p.closest_rays(rays, t_min, hits);
+    pub(super) fn closest_rays_impl(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        hits: &mut PacketHits,
+        cull: Option<&ApexCull>,
+    ) {
+        let beam = cull.and_then(|c| Some((c, Beam::leaving(rays, t_min, c)?)));
+        for (k, p) in self.planes.iter().enumerate() {
+            let live = beam.map_or(ALL, |(c, b)| c.plane_lanes(k, &b));
+            if live != 0 {
+                p.closest_rays(rays, t_min, hits, live);
+            }
         }
-        for &r in &self.flat {
-            self.leaf_closest_rays::<false>(r, rays, t_min, hits);
+        for (k, &r) in self.flat.iter().enumerate() {
+            self.leaf_closest_rays::<false>(r, rays, t_min, hits, beam.map_or(ALL, |(c, b)| c.flat_lanes(k, &b)));
         }
         if self.root == EMPTY {
             return;
@@ -737,13 +777,13 @@ impl Bvh4 {
     #[inline(always)]
     pub(super) fn scattered_closest_rays_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         if self.single.is_empty() {
-            return self.closest_rays_impl(rays, t_min, hits);
+            return self.closest_rays_impl(rays, t_min, hits, None);
         }
         for p in &self.planes {
-            p.closest_rays(rays, t_min, hits);
+            p.closest_rays(rays, t_min, hits, ALL);
         }
         for &r in &self.single {
-            self.leaf_closest_rays::<false>(r, rays, t_min, hits);
+            self.leaf_closest_rays::<false>(r, rays, t_min, hits, ALL);
         }
     }
 
@@ -752,33 +792,43 @@ impl Bvh4 {
     #[inline(always)]
     pub(super) fn scattered_occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
         if self.single.is_empty() {
-            return self.occluded_rays_impl(rays, t_min);
+            return self.occluded_rays_impl(rays, t_min, None);
         }
         let mut blocked = [false; LANES];
         for p in &self.planes {
-            p.occlude_rays(rays, t_min, &mut blocked);
+            p.occlude_rays(rays, t_min, &mut blocked, ALL);
         }
         for &r in &self.single {
             if all_closed(rays) {
                 break;
             }
-            self.leaf_occlude_rays::<false>(r, rays, t_min, &mut blocked);
+            self.leaf_occlude_rays::<false>(r, rays, t_min, &mut blocked, ALL);
         }
         blocked
     }
 
+    /// With `beam` (and the view from its apex), the list skips the primitives no ray can meet.
     #[inline(always)]
-    pub(super) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+    pub(super) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32, beam: Option<(&ApexCull, Beam)>) -> Mask {
         let mut blocked = [false; LANES];
-        for p in &self.planes {
-            p.occlude_rays(rays, t_min, &mut blocked);
+        for (k, p) in self.planes.iter().enumerate() {
+            let live = beam.map_or(ALL, |(c, b)| c.plane_lanes(k, &b));
+            if live != 0 {
+                p.occlude_rays(rays, t_min, &mut blocked, live);
+            }
         }
-        for &r in &self.flat {
+        for (k, &r) in self.flat.iter().enumerate() {
             // Every ray blocked: nothing left to test.
             if all_closed(rays) {
                 return blocked;
             }
-            self.leaf_occlude_rays::<false>(r, rays, t_min, &mut blocked);
+            self.leaf_occlude_rays::<false>(
+                r,
+                rays,
+                t_min,
+                &mut blocked,
+                beam.map_or(ALL, |(c, b)| c.flat_lanes(k, &b)),
+            );
         }
         if self.root == EMPTY || all_closed(rays) {
             return blocked;
@@ -794,7 +844,14 @@ impl Bvh4 {
     /// Shadow rays from points `org` (one per lane in `lit`) toward a point light at `light`,
     /// lane-parallel; see [`LightRays`].
     #[inline(always)]
-    pub(super) fn light_rays_impl(&self, org: &[F; 3], ns: &[F; 3], lit: &Mask, light: [f32; 3]) -> LightRays {
+    pub(super) fn light_rays_impl(
+        &self,
+        org: &[F; 3],
+        ns: &[F; 3],
+        lit: &Mask,
+        light: [f32; 3],
+        cull: Option<&ApexCull>,
+    ) -> LightRays {
         let mut shadow = RayPacket::default();
         let mut cos = [0.0; LANES];
         let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
@@ -821,7 +878,9 @@ impl Bvh4 {
             rays: valid.iter().map(|&v| u32::from(v)).sum(),
         };
         if any(&traced) {
-            let blocked = self.occluded_rays_impl(&mut shadow, 0.0);
+            // Every shadow ray ends at the light, the apex of `cull`.
+            let beam = cull.and_then(|c| Some((c, Beam::reaching(&shadow, &traced, c)?)));
+            let blocked = self.occluded_rays_impl(&mut shadow, 0.0, beam);
             for i in 0..LANES {
                 out.visible[i] = traced[i] & !blocked[i];
             }
@@ -839,15 +898,25 @@ impl Bvh4 {
         ns: &[[f32; LANES]; 3],
         lit: &[bool; LANES],
         light: [f32; 3],
+        cull: Option<&ApexCull>,
     ) -> LightRays {
-        super::dispatch::light_rays(self, org, ns, lit, light)
+        super::dispatch::light_rays(self, org, ns, lit, light, cull)
     }
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
     /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
-        super::dispatch::closest_rays(self, rays, t_min, &mut hits);
+        super::dispatch::closest_rays(self, rays, t_min, &mut hits, None);
+        hits.divide();
+        hits
+    }
+
+    /// [`Self::closest_rays`] for rays that may all leave the apex of `cull` (a pinhole camera's
+    /// centre): the same hits, found without testing what lies outside the rays' cone.
+    pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: &ApexCull) -> PacketHits {
+        let mut hits = PacketHits::default();
+        super::dispatch::closest_rays(self, rays, t_min, &mut hits, Some(cull));
         hits.divide();
         hits
     }
