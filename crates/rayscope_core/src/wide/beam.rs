@@ -272,17 +272,25 @@ fn put4(m: &mut [Vec4; 3], k: usize, n: [f32; 3]) {
     }
 }
 
-fn tri_bounds(p: &TriPacket, apex: DVec3, near: f64) -> Bounds4 {
-    let mut b = Bounds4 {
-        m: [[Vec4::ZERO; 3]; 3],
-        keep: 0,
-        valid: 0,
-    };
-    for k in 0..4 {
-        if p.ids[k] == NO_PRIM {
-            continue;
+/// The lanes of a primitive packet that hold a primitive.
+fn used(ids: &[u32; 4]) -> impl Iterator<Item = usize> + '_ {
+    (0..4).filter(|&k| ids[k] != NO_PRIM)
+}
+
+impl Bounds4 {
+    /// No planes yet, for a packet with primitives `ids`.
+    fn new(ids: &[u32; 4]) -> Self {
+        Bounds4 {
+            m: [[Vec4::ZERO; 3]; 3],
+            keep: 0,
+            valid: used(ids).fold(0, |v, k| v | 1 << k),
         }
-        b.valid |= 1 << k;
+    }
+}
+
+fn tri_bounds(p: &TriPacket, apex: DVec3, near: f64) -> Bounds4 {
+    let mut b = Bounds4::new(&p.ids);
+    for k in used(&p.ids) {
         let (e1, e2) = (lane64(&p.e1, k), lane64(&p.e2, k));
         let w0 = lane64(&p.v0, k) - apex;
         let w = [w0, w0 + e1, w0 + e2];
@@ -312,13 +320,9 @@ fn sphere_cones(p: &SpherePacket, apex: DVec3, near: f64) -> Cone4 {
         sin: Vec4::ZERO,
         cos: Vec4::ONE,
         keep: 0,
-        valid: 0,
+        valid: Bounds4::new(&p.ids).valid,
     };
-    for k in 0..4 {
-        if p.ids[k] == NO_PRIM {
-            continue;
-        }
-        c.valid |= 1 << k;
+    for k in used(&p.ids) {
         let v = lane64(&p.c, k) - apex;
         let r = f64::from(p.r2[k]).max(0.0).sqrt();
         let dist = v.length();
@@ -335,16 +339,8 @@ fn sphere_cones(p: &SpherePacket, apex: DVec3, near: f64) -> Cone4 {
 }
 
 fn plane_bounds(p: &PlanePacket, apex: DVec3, near: f64) -> Bounds4 {
-    let mut b = Bounds4 {
-        m: [[Vec4::ZERO; 3]; 3],
-        keep: 0,
-        valid: 0,
-    };
-    for k in 0..4 {
-        if p.ids[k] == NO_PRIM {
-            continue;
-        }
-        b.valid |= 1 << k;
+    let mut b = Bounds4::new(&p.ids);
+    for k in used(&p.ids) {
         let n = lane64(&p.n, k);
         let h = (lane64(&p.p, k) - apex).dot(n);
         if !above(h.abs(), near * n.length()) {
