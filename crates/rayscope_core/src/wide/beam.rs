@@ -277,13 +277,18 @@ fn used(ids: &[u32; 4]) -> impl Iterator<Item = usize> + '_ {
     (0..4).filter(|&k| ids[k] != NO_PRIM)
 }
 
+/// [`used`] as a bit per lane.
+fn used_mask(ids: &[u32; 4]) -> u32 {
+    used(ids).fold(0, |v, k| v | 1 << k)
+}
+
 impl Bounds4 {
     /// No planes yet, for a packet with primitives `ids`.
     fn new(ids: &[u32; 4]) -> Self {
         Bounds4 {
             m: [[Vec4::ZERO; 3]; 3],
             keep: 0,
-            valid: used(ids).fold(0, |v, k| v | 1 << k),
+            valid: used_mask(ids),
         }
     }
 }
@@ -320,7 +325,7 @@ fn sphere_cones(p: &SpherePacket, apex: DVec3, near: f64) -> Cone4 {
         sin: Vec4::ZERO,
         cos: Vec4::ONE,
         keep: 0,
-        valid: Bounds4::new(&p.ids).valid,
+        valid: used_mask(&p.ids),
     };
     for k in used(&p.ids) {
         let v = lane64(&p.c, k) - apex;
