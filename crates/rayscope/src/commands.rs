@@ -520,8 +520,10 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         let interleaved = rays.chunks(BATCH).filter(|b| scene.wide.interleaves(b)).count();
         println!("mode: one ray at a time; walks interleaved in {interleaved} of {batches} batches of {BATCH}");
     }
+    // Nanoseconds: a handful of rays traces in well under a microsecond, which six decimals
+    // printed as zero seconds.
     println!(
-        "rays={} hits={hits} seconds={secs:.6} mrays_per_s={:.2} threads={}",
+        "rays={} hits={hits} seconds={secs:.9} mrays_per_s={:.2} threads={}",
         rays.len(),
         rays.len() as f64 / 1e6 / secs,
         rayon::current_num_threads()

@@ -119,26 +119,22 @@ impl<I: Intersect> Integrator<'_, I> {
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
                 (px[k], py[k]) = (x as f32 + px[k], y as f32 + py[k]);
             }
-            b.rays = self.pinhole_rays(jobs.len(), &px, &py);
+            self.pinhole_rays(&mut b.rays, jobs.len(), &px, &py);
         }
         c.camera += jobs.len() as u64;
         if let Some(bvh) = bvh {
-            b.hits = match &self.beams.camera {
-                Some(cull) => bvh.closest_rays_from(&mut b.rays.clone(), 0.0, cull),
-                None => bvh.closest_rays(&mut b.rays.clone(), 0.0),
-            };
+            // Traced in place (users of the batch read only origins and directions).
+            bvh.closest_rays_from(&mut b.rays, 0.0, self.beams.camera.as_ref(), &mut b.hits);
         }
         b
     }
 
-    /// The pinhole camera's rays through pixel positions (`px`, `py`) in the first `n` lanes,
-    /// as [`Camera::ray`](crate::camera::Camera::ray) makes them; the other lanes are unused.
-    fn pinhole_rays(&self, n: usize, px: &[f32; LANES], py: &[f32; LANES]) -> RayPacket {
+    /// Sets `rays` (unused in every lane) to the pinhole camera's rays through pixel positions
+    /// (`px`, `py`) in the first `n` lanes, as [`Camera::ray`](crate::camera::Camera::ray)
+    /// makes them. Written in place: a packet returned by value was copied with `memcpy`.
+    fn pinhole_rays(&self, rays: &mut RayPacket, n: usize, px: &[f32; LANES], py: &[f32; LANES]) {
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        let mut rays = RayPacket {
-            d: camera_dirs(&self.camera, px, py, w, h),
-            ..RayPacket::default()
-        };
+        rays.d = camera_dirs(&self.camera, px, py, w, h);
         let o = self.camera.origin.to_array();
         for k in 0..n {
             for a in 0..3 {
@@ -146,7 +142,6 @@ impl<I: Intersect> Integrator<'_, I> {
             }
             rays.t_max[k] = f32::INFINITY;
         }
-        rays
     }
 
     /// Fills in [`Self::point_lit`].
@@ -181,23 +176,36 @@ impl<I: Intersect> Integrator<'_, I> {
             let [ox, oy] = self.cell_offset(s);
             (u[i], v[i]) = (x as f32 + ox, y as f32 + oy);
         }
-        let mut lanes = PathPacket {
-            rays: self.pinhole_rays(jobs.len(), &u, &v),
-            ..PathPacket::default()
-        };
+        let mut lanes = PathPacket::default();
+        self.pinhole_rays(&mut lanes.rays, jobs.len(), &u, &v);
         lanes.on[..jobs.len()].fill(true);
         c.camera += jobs.len() as u64;
-        let vals = self.trace_packet(bvh, &lanes, jobs, c);
-        out[..jobs.len()].copy_from_slice(&vals[..jobs.len()]);
+        // Straight into `out` when it has room for every lane (the render loop's batches do).
+        match out.first_chunk_mut::<LANES>() {
+            Some(vals) => self.trace_packet(bvh, &mut lanes, jobs, c, vals),
+            None => {
+                let mut vals = [Vec3A::ZERO; LANES];
+                self.trace_packet(bvh, &mut lanes, jobs, c, &mut vals);
+                out[..jobs.len()].copy_from_slice(&vals[..jobs.len()]);
+            }
+        }
     }
 
-    /// [`Self::trace`]'s total for each lane's ray: the rays are traced as a packet, then the
-    /// shadow rays of point-lit hits (one packet per light), then the reflected rays of mirrors
-    /// and glass (one packet) and glass's refracted rays (another), recursively. `jobs[i]` is
-    /// the sample lane `i` belongs to.
-    fn trace_packet(&self, bvh: &Bvh4, lanes: &PathPacket, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
-        let mut vals = [Vec3A::ZERO; LANES];
-        if (0..LANES).any(|i| lanes.on[i] && lanes.paths[i].depth >= MAX_PACKET_DEPTH) {
+    /// [`Self::trace`]'s total for each lane's ray, into `vals` (zero in lanes not in use): the
+    /// rays are traced as a packet, then the shadow rays of point-lit hits (one packet per
+    /// light), then the reflected rays of mirrors and glass (one packet) and glass's refracted
+    /// rays (another), recursively. `jobs[i]` is the sample lane `i` belongs to. The rays'
+    /// `t_max` is left at their hits: traced in place, as a copy of the packet cost a `memcpy`.
+    fn trace_packet(
+        &self,
+        bvh: &Bvh4,
+        lanes: &mut PathPacket,
+        jobs: &[Job],
+        c: &mut Counters,
+        vals: &mut [Vec3A; LANES],
+    ) {
+        *vals = [Vec3A::ZERO; LANES];
+        if lanes.depth >= MAX_PACKET_DEPTH {
             // Deep recursion continues one ray at a time, whose stack frames are smaller.
             for i in (0..LANES).filter(|&i| lanes.on[i]) {
                 let mut rng = self.lane_rng(jobs[i]);
@@ -206,14 +214,11 @@ impl<I: Intersect> Integrator<'_, I> {
                     .trace(&ray, lanes.paths[i], true, 0, &mut rng, &mut NoObserver, c)
                     .total();
             }
-            return vals;
+            return;
         }
-        let mut rays = lanes.rays.clone();
         // Camera rays leave the camera's centre; the beam test sees whether these do.
-        let hits = match &self.beams.camera {
-            Some(cull) => bvh.closest_rays_from(&mut rays, 0.0, cull),
-            None => bvh.closest_rays(&mut rays, 0.0),
-        };
+        let mut hits = PacketHits::default();
+        bvh.closest_rays_from(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
         // Lanes lit by point lights alone (the common case) are found without a branch per
@@ -279,9 +284,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     // Self::mirror.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
-                    reflected
-                        .get_or_insert_with(PathPacket::default)
-                        .set(i, &r, path.mirrored());
+                    child(&mut reflected).set(i, &r, path.mirrored());
                     Next::Mirror
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
@@ -296,10 +299,10 @@ impl<I: Intersect> Integrator<'_, I> {
                         refr_medium,
                     };
                     if let Some((r, p)) = self.glass_reflected(&g, path) {
-                        reflected.get_or_insert_with(PathPacket::default).set(i, &r, p);
+                        child(&mut reflected).set(i, &r, p);
                     }
                     if let Some((r, p)) = self.glass_refracted(&g, path) {
-                        refracted.get_or_insert_with(PathPacket::default).set(i, &r, p);
+                        child(&mut refracted).set(i, &r, p);
                     }
                     Next::Glass
                 }
@@ -321,13 +324,21 @@ impl<I: Intersect> Integrator<'_, I> {
         let lights = self.point_lights_packet(bvh, &lit, &surf.frames, c);
         // Children in the order the one-ray recursion traces them: each lane's reflected ray
         // before its refracted one (lanes are independent, so only the per-lane order matters).
-        let from_reflected = self.children(bvh, reflected.as_ref(), jobs, c);
-        let from_refracted = self.children(bvh, refracted.as_ref(), jobs, c);
+        let (mut from_reflected, mut from_refracted) = ([Vec3A::ZERO; LANES], [Vec3A::ZERO; LANES]);
+        self.children(bvh, reflected.as_mut(), jobs, c, &mut from_reflected);
+        self.children(bvh, refracted.as_mut(), jobs, c, &mut from_refracted);
         let on = |p: &Option<PathPacket>, i: usize| p.as_ref().is_some_and(|p| p.on[i]);
+        // Beer's law, for packets with a path in an absorbing medium.
+        let absorb = |i: usize, li: Li| {
+            if lanes.absorbing {
+                self.absorb(lanes.paths[i], surf.t[i], li)
+            } else {
+                li
+            }
+        };
         for i in 0..LANES {
             if lit.on[i] {
-                let light = lane(&lights, i);
-                vals[i] = self.absorb(lanes.paths[i], surf.t[i], Li::reflected(light)).total();
+                vals[i] = absorb(i, Li::reflected(lane(&lights, i))).total();
                 continue;
             }
             let li = match next[i] {
@@ -345,19 +356,26 @@ impl<I: Intersect> Integrator<'_, I> {
                     Li::reflected(out)
                 }
             };
-            vals[i] = self.absorb(lanes.paths[i], surf.t[i], li).total();
+            vals[i] = absorb(i, li).total();
         }
-        vals
     }
 
-    /// The child rays `lanes` traced as a packet (and counted), or nothing when there are none.
-    fn children(&self, bvh: &Bvh4, lanes: Option<&PathPacket>, jobs: &[Job], c: &mut Counters) -> [Vec3A; LANES] {
+    /// The child rays `lanes` traced as a packet (and counted) into `vals`, which stays zero
+    /// when there are none.
+    fn children(
+        &self,
+        bvh: &Bvh4,
+        lanes: Option<&mut PathPacket>,
+        jobs: &[Job],
+        c: &mut Counters,
+        vals: &mut [Vec3A; LANES],
+    ) {
         let Some(lanes) = lanes else {
-            return [Vec3A::ZERO; LANES];
+            return;
         };
         let n = lanes.on.iter().filter(|&&on| on).count();
         c.secondary += n as u64;
-        self.trace_packet(bvh, lanes, jobs, c)
+        self.trace_packet(bvh, lanes, jobs, c, vals);
     }
 
     /// Point-light shading of the `lit` lanes at surfaces `frames`, per axis, with their shadow
@@ -406,6 +424,17 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 }
 
+/// The child packet in `slot`, made with no lane in use the first time a lane needs it.
+// Written out, so the packet is made where it lives: `get_or_insert_with` was compiled as a
+// call that built it and then copied it.
+#[inline(always)]
+fn child(slot: &mut Option<PathPacket>) -> &mut PathPacket {
+    match slot {
+        Some(p) => p,
+        None => slot.insert(PathPacket::default()),
+    }
+}
+
 /// Copies lane 0 of `v` to every lane.
 #[inline]
 fn broadcast<T: Copy>(v: &mut [T; LANES]) {
@@ -421,14 +450,22 @@ struct PathPacket {
     on: [bool; LANES],
     /// Each lane's path state.
     paths: [PathState; LANES],
+    /// The deepest path in use (a check per packet; a pass over the lanes' states was 2 % of a
+    /// direct-lighting render).
+    depth: u32,
+    /// Some path in use travels inside an absorbing medium.
+    absorbing: bool,
 }
 
 impl Default for PathPacket {
+    #[inline(always)]
     fn default() -> Self {
         Self {
             rays: RayPacket::default(),
             on: [false; LANES],
             paths: [PathState::CAMERA; LANES],
+            depth: 0,
+            absorbing: false,
         }
     }
 }
@@ -440,6 +477,8 @@ impl PathPacket {
         self.rays.set(i, ray, f32::INFINITY);
         self.on[i] = true;
         self.paths[i] = path;
+        self.depth = self.depth.max(path.depth);
+        self.absorbing |= path.medium.is_some();
     }
 
     /// Lane `i`'s ray.
@@ -459,7 +498,7 @@ pub(super) struct CameraBatch {
     pub(super) len: usize,
     /// Samples taken so far (by a wave's lanes).
     pub(super) taken: usize,
-    /// The camera rays.
+    /// The camera rays (`t_max` at their hits once traced).
     pub(super) rays: RayPacket,
     /// Their closest hits, when traced.
     pub(super) hits: PacketHits,
@@ -504,17 +543,16 @@ impl PacketSurfaces {
     /// The surfaces of `hits`, found by tracing `rays`.
     pub(super) fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
         let mut g = HitPrims::default();
+        (g.hit, g.t) = hits.distances();
         let (mut entity, mut material) = ([0; LANES], [0; LANES]);
         // One pixel's samples mostly meet one primitive: its data is then looked up for the
         // first lane and copied to the others (the same values a lookup per lane finds).
         let one_prim = hits.one_prim();
         let lanes = if one_prim { 1 } else { LANES };
         for i in 0..lanes {
-            let Some((t, u, v, prim)) = hits.get(i) else {
+            let Some((_, _, _, prim)) = hits.get(i) else {
                 continue;
             };
-            g.hit[i] = true;
-            g.t[i] = t;
             (entity[i], material[i]) = scene.prim_info(prim);
             match prim {
                 PrimRef::Plane(k) => put(&mut g.a, i, scene.planes[k as usize].normal.to_array()),
@@ -535,23 +573,15 @@ impl PacketSurfaces {
                         for (c, n) in ns.iter().enumerate() {
                             put(&mut sm.vn[c], i, n.to_array());
                         }
-                        (sm.bu[i], sm.bv[i]) = (u, v);
                     }
                 }
             }
         }
+        if let Some(sm) = &mut g.smooth {
+            // Every lane's: those without vertex normals ignore theirs.
+            (sm.bu, sm.bv) = hits.barycentrics();
+        }
         if one_prim {
-            for i in 1..LANES {
-                // Per lane: where on the primitive the ray hit.
-                let Some((t, u, v, _)) = hits.get(i) else {
-                    unreachable!("every lane hit the primitive")
-                };
-                g.t[i] = t;
-                if let Some(sm) = &mut g.smooth {
-                    (sm.bu[i], sm.bv[i]) = (u, v);
-                }
-            }
-            broadcast(&mut g.hit);
             broadcast(&mut g.sphere);
             broadcast(&mut g.triangle);
             g.a.iter_mut().chain(g.b.iter_mut()).for_each(broadcast);

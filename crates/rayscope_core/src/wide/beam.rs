@@ -369,6 +369,7 @@ mod tests {
     use crate::math::Ray;
     use crate::rng::Rng;
     use crate::scene::Scene;
+    use crate::wide::PacketHits;
 
     /// Course scene 2's room (floor, roof, eight wall triangles) with four random triangles and
     /// three spheres inside: a flat list of four packets.
@@ -456,7 +457,8 @@ mod tests {
                     }
                 }
                 let plain = bvh.closest_rays(&mut rays.clone(), 0.0);
-                let culled = bvh.closest_rays_from(&mut rays.clone(), 0.0, &cull);
+                let mut culled = PacketHits::default();
+                bvh.closest_rays_from(&mut rays.clone(), 0.0, Some(&cull), &mut culled);
                 for i in 0..LANES {
                     assert_eq!(culled.get(i), plain.get(i), "seed {seed} round {round} lane {i}");
                 }

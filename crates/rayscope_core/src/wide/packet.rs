@@ -145,6 +145,22 @@ impl PacketHits {
         p & TAG_MASK != 0 && self.prim.iter().fold(true, |a, &q| a & (q == p))
     }
 
+    /// Which lanes hit something, and their hit distances (0 in the others), as whole arrays:
+    /// written lane by lane and then read as vectors, they stalled on store forwarding.
+    #[must_use]
+    #[inline(always)]
+    pub fn distances(&self) -> (Mask, F) {
+        let hit: Mask = std::array::from_fn(|i| self.prim[i] & TAG_MASK != 0);
+        (hit, std::array::from_fn(|i| sel(hit[i], self.t[i], 0.0)))
+    }
+
+    /// Every lane's barycentrics (u, v) (meaningless in lanes without a hit), as whole arrays.
+    #[must_use]
+    #[inline(always)]
+    pub fn barycentrics(&self) -> (F, F) {
+        (self.u, self.v)
+    }
+
     /// Makes `h` lane `i`'s hit, as [`Self::get`] returns it (none: no hit).
     #[inline]
     pub fn set(&mut self, i: usize, h: Option<(f32, f32, f32, PrimRef)>) {
@@ -905,6 +921,8 @@ impl Bvh4 {
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
     /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
+    // Inlined so the hits are built in the caller's frame (returned, they were copied).
+    #[inline(always)]
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         super::dispatch::closest_rays(self, rays, t_min, &mut hits, None);
@@ -912,13 +930,16 @@ impl Bvh4 {
         hits
     }
 
-    /// [`Self::closest_rays`] for rays that may all leave the apex of `cull` (a pinhole camera's
-    /// centre): the same hits, found without testing what lies outside the rays' cone.
-    pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: &ApexCull) -> PacketHits {
-        let mut hits = PacketHits::default();
-        super::dispatch::closest_rays(self, rays, t_min, &mut hits, Some(cull));
+    /// [`Self::closest_rays`] into `hits`, for rays that may all leave the apex of `cull`, when
+    /// given (a pinhole camera's centre): the same hits, found without testing what lies
+    /// outside the rays' cone.
+    // The hits are written in place: returned by value, they were copied on the way (a `memcpy`
+    // per packet in the packet tracer).
+    #[inline(always)]
+    pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
+        *hits = PacketHits::default();
+        super::dispatch::closest_rays(self, rays, t_min, hits, cull);
         hits.divide();
-        hits
     }
 
     /// [`Self::closest_rays`] for rays that share little of their way through the scene, such
