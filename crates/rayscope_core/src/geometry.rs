@@ -168,6 +168,43 @@ impl Triangle {
         [v0, v0 + self.e1(), v0 + self.e2()]
     }
 
+    /// The point of the triangle nearest to `p`.
+    #[must_use]
+    pub fn closest_point(&self, p: Vec3A) -> Vec3A {
+        // By the Voronoi region of `p`: a corner, an edge or the face (Ericson, Real-Time
+        // Collision Detection, 5.1.5).
+        let (a, ab, ac) = (self.v0(), self.e1(), self.e2());
+        let ap = p - a;
+        let (d1, d2) = (ab.dot(ap), ac.dot(ap));
+        if d1 <= 0.0 && d2 <= 0.0 {
+            return a;
+        }
+        let bp = ap - ab;
+        let (d3, d4) = (ab.dot(bp), ac.dot(bp));
+        if d3 >= 0.0 && d4 <= d3 {
+            return a + ab;
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            return a + ab * (d1 / (d1 - d3));
+        }
+        let cp = ap - ac;
+        let (d5, d6) = (ab.dot(cp), ac.dot(cp));
+        if d6 >= 0.0 && d5 <= d6 {
+            return a + ac;
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            return a + ac * (d2 / (d2 - d6));
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+            return a + ab + (ac - ab) * ((d4 - d3) / ((d4 - d3) + (d5 - d6)));
+        }
+        let denom = 1.0 / (va + vb + vc);
+        a + ab * (vb * denom) + ac * (vc * denom)
+    }
+
     /// Bounding box.
     #[must_use]
     pub fn bounds(&self) -> Aabb {

@@ -106,6 +106,10 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// The flat list seen from the pinhole camera's centre and from each point light, for ray
     /// packets that leave or reach those points (see [`ApexCull`]).
     pub(crate) beams: Beams,
+    /// Per sphere: where it sits among the BVH's sphere packets, when it is glass and no other
+    /// primitive comes near it ([`Scene::sphere_alone`]), so packets of rays that refracted
+    /// into it test it alone.
+    pub(crate) lone_spheres: Vec<Option<(u32, u32)>>,
 }
 
 /// [`ApexCull`]s of the points many packets' rays share.
@@ -320,13 +324,15 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             grid: 1,
             cells: Vec::new(),
             beams: Beams::default(),
+            lone_spheres: Vec::new(),
         }
         .with_point_lit()
         .with_grid()
         .with_beams()
     }
 
-    /// Fills in [`Self::beams`], for renders that trace ray packets through a flat list.
+    /// Fills in [`Self::beams`], for renders that trace ray packets through a flat list, and
+    /// [`Self::lone_spheres`].
     fn with_beams(mut self) -> Self {
         let Some(bvh) = self.isect.wide() else {
             return self;
@@ -341,6 +347,19 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 .map(|l| ApexCull::new(bvh, l.position.to_array()))
                 .collect(),
         };
+        // Glass spheres only: rays start inside a sphere where they refract into it, and the
+        // check costs a pass over the scene's triangles per sphere.
+        let glass = |k: usize| {
+            let (_, m) = self.scene.prim_info(crate::scene::PrimRef::Sphere(k as u32));
+            self.scene.materials[m as usize].kind == MaterialKind::Refractive
+        };
+        self.lone_spheres = (0..self.scene.spheres.len())
+            .map(|k| {
+                (glass(k) && self.scene.sphere_alone(k))
+                    .then(|| bvh.sphere_slot(k as u32))
+                    .flatten()
+            })
+            .collect();
         self
     }
 

@@ -202,6 +202,9 @@ fn v3(d: DVec3) -> Vec3A {
     Vec3A::new(d.x as f32, d.y as f32, d.z as f32)
 }
 
+/// Most triangles [`Scene::sphere_alone`] checks a sphere against (more would slow loading).
+pub const MAX_ALONE_TRIANGLES: usize = 4096;
+
 impl Scene {
     /// Converts a parsed scene file and builds its BVH. Degenerate triangles are dropped.
     #[must_use]
@@ -469,6 +472,28 @@ impl Scene {
             entity,
             material,
         }
+    }
+
+    /// True when no other primitive comes within a margin of sphere `k`, so a ray that starts
+    /// inside it meets nothing before it leaves. Scenes of more than [`MAX_ALONE_TRIANGLES`]
+    /// triangles are not searched (false).
+    #[must_use]
+    pub fn sphere_alone(&self, k: usize) -> bool {
+        let Some(s) = self.spheres.get(k) else {
+            return false;
+        };
+        let (c, r) = (s.center, s.radius);
+        if !(r > 0.0 && c.is_finite() && r.is_finite()) || self.triangles.len() > MAX_ALONE_TRIANGLES {
+            return false;
+        }
+        // Far wider than the few ulps by which a ray's origin, offset off the surface, can lie
+        // outside the sphere, or a computed distance be off.
+        let reach = r * (1.0 + 1e-3) + 1e-4 * (1.0 + c.abs().max_element());
+        let spheres =
+            (self.spheres.iter().enumerate()).all(|(j, o)| j == k || (o.center - c).length() > o.radius + reach);
+        let planes = self.planes.iter().all(|p| (c - p.point).dot(p.normal).abs() > reach);
+        let triangles = self.triangles.iter().all(|t| (t.closest_point(c) - c).length() > reach);
+        spheres && planes && triangles
     }
 
     /// Number of primitives (planes, spheres, triangles).

@@ -455,6 +455,15 @@ impl Bvh4 {
         level(self, self.root)
     }
 
+    /// Where sphere `k` sits among the sphere packets: (packet, lane), if it is in the tree.
+    #[must_use]
+    pub fn sphere_slot(&self, k: u32) -> Option<(u32, u32)> {
+        self.spheres.iter().enumerate().find_map(|(p, sp)| {
+            let lane = sp.ids.iter().position(|&id| id == k)?;
+            Some((p as u32, lane as u32))
+        })
+    }
+
     /// Bytes used by nodes and packets.
     #[must_use]
     pub fn memory_bytes(&self) -> usize {

@@ -633,3 +633,104 @@ fn a_small_room_is_a_list_for_single_rays_and_a_tree_for_packets() {
         }
     }
 }
+
+/// A scene from the course's text format.
+fn scene_of(text: &str) -> Scene {
+    let file = rayscope_scene::parse_str(text, std::path::Path::new("alone.txt")).unwrap();
+    Scene::from_file(&file)
+}
+
+/// A sphere is alone only when no other primitive comes near it: a floor it rests on, a sphere
+/// it overlaps, and a triangle whose face, edge or corner reaches into it all count.
+#[test]
+fn a_sphere_is_alone_only_when_nothing_comes_near() {
+    let alone = |extra: &str| {
+        scene_of(&format!(
+            "Material \"M\" Diffuse (1, 1, 1) 1\nSphere \"S\" (0, 0, 2) 1 \"M\"\n{extra}"
+        ))
+        .sphere_alone(0)
+    };
+    assert!(alone(""), "by itself");
+    assert!(alone("Plane \"F\" (0, -1.1, 0) (0, 1, 0) \"M\""));
+    assert!(!alone("Plane \"F\" (0, -1, 0) (0, 1, 0) \"M\""), "resting on a floor");
+    assert!(
+        !alone("Plane \"F\" (0, -1.0005, 0) (0, 1, 0) \"M\""),
+        "within the margin"
+    );
+    assert!(alone("Sphere \"T\" (2.2, 0, 2) 1 \"M\""));
+    assert!(!alone("Sphere \"T\" (1.9, 0, 2) 1 \"M\""), "overlapping");
+    assert!(!alone("Sphere \"T\" (0.2, 0, 2) 0.1 \"M\""), "inside it");
+    // A big triangle in the plane z = 2.5 cuts the sphere though its corners are far away.
+    assert!(
+        !alone("Triangle \"A\" (-5, -5, 2.5) (5, -5, 2.5) (0, 5, 2.5) \"M\""),
+        "face"
+    );
+    // An edge from (-3, 0.9, 2) to (3, 0.9, 2) passes 0.9 from the centre.
+    assert!(
+        !alone("Triangle \"A\" (-3, 0.9, 2) (3, 0.9, 2) (0, 5, 2) \"M\""),
+        "edge"
+    );
+    assert!(alone("Triangle \"A\" (-3, 1.1, 2) (3, 1.1, 2) (0, 5, 2) \"M\""));
+    // A corner at distance 0.95 from the centre, the rest of the triangle farther away.
+    assert!(
+        !alone("Triangle \"A\" (0.95, 0, 2) (3, 1, 2) (3, -1, 2.5) \"M\""),
+        "corner"
+    );
+    assert!(alone("Triangle \"A\" (1.05, 0, 2) (3, 1, 2) (3, -1, 2.5) \"M\""));
+}
+
+/// Packets of rays inside a lone sphere (course scene 2's glass ball) find with the sphere alone
+/// exactly the hits the whole scene gives them, and a packet with a ray that starts outside and
+/// misses the sphere is handed back untouched, so its hits are looked for everywhere.
+#[test]
+fn rays_inside_a_lone_sphere_need_only_that_sphere() {
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/tests/sample_scene_2.txt");
+    let scene = Scene::from_file(&rayscope_scene::load(&path).unwrap());
+    let bvh = &scene.wide;
+    let (k, glass) = (scene.spheres.iter().enumerate())
+        .min_by(|a, b| a.1.radius.total_cmp(&b.1.radius))
+        .unwrap();
+    assert!(scene.sphere_alone(k), "nothing comes near the glass ball");
+    let slot = bvh.sphere_slot(k as u32).unwrap();
+    let mut rng = Rng::for_sample(77, 0, 0);
+    let mut r = move || rng.next_f32() * 2.0 - 1.0;
+    for round in 0..400 {
+        let mut rays = RayPacket::default();
+        for i in 0..LANES {
+            // Points inside the ball (some a hair under its surface), lanes off now and then.
+            let dir = Vec3A::new(r(), r(), r()).normalize_or(Vec3A::X);
+            let depth = if round % 3 == 0 { 1.0 - 1e-5 } else { r().abs() };
+            let o = glass.center + Vec3A::new(r(), r(), r()).normalize_or(Vec3A::Y) * (glass.radius * depth);
+            if (round + i) % 9 != 4 {
+                rays.set(i, &Ray::new(o, dir), f32::INFINITY);
+            }
+        }
+        let (mut whole, mut alone) = (rays.clone(), rays.clone());
+        let want = bvh.closest_rays(&mut whole, 0.0);
+        let mut got = Default::default();
+        assert!(
+            bvh.closest_rays_inside(&mut alone, 0.0, slot, &mut got),
+            "round {round}"
+        );
+        for i in 0..LANES {
+            assert_eq!(got.get(i), want.get(i), "round {round} lane {i}");
+            assert_eq!(
+                alone.t_max[i].to_bits(),
+                whole.t_max[i].to_bits(),
+                "round {round} lane {i}"
+            );
+        }
+    }
+    // One ray starts outside, pointing away: the packet comes back as it was.
+    let mut rays = RayPacket::default();
+    let inside = Ray::new(glass.center, Vec3A::Z);
+    let outside = Ray::new(glass.center + Vec3A::X * (glass.radius * 1.5), Vec3A::X);
+    for i in 0..LANES {
+        rays.set(i, if i == 5 { &outside } else { &inside }, f32::INFINITY);
+    }
+    let before = rays.clone();
+    let mut got = Default::default();
+    assert!(!bvh.closest_rays_inside(&mut rays, 0.0, slot, &mut got));
+    assert_eq!(rays.t_max.map(f32::to_bits), before.t_max.map(f32::to_bits));
+}

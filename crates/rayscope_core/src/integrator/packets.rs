@@ -218,7 +218,14 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         // Camera rays leave the camera's centre; the beam test sees whether these do.
         let mut hits = PacketHits::default();
-        bvh.closest_rays_from(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
+        // Rays inside a sphere nothing else comes near (glass seen from within) test it alone.
+        let alone = match lanes.inside {
+            Inside::Sphere(k) => self.lone_spheres.get(k as usize).copied().flatten(),
+            _ => None,
+        };
+        if !alone.is_some_and(|slot| bvh.closest_rays_inside(&mut lanes.rays, 0.0, slot, &mut hits)) {
+            bvh.closest_rays_from(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
+        }
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
         // Lanes lit by point lights alone (the common case) are found without a branch per
@@ -272,6 +279,14 @@ impl<I: Intersect> Integrator<'_, I> {
             }
             let path = lanes.paths[i];
             let m = &self.scene.materials[surf.material[i] as usize];
+            // The sphere a reflected ray starts inside (it leaves on the ray's side: inside when
+            // the ray hit the sphere from within), and the one a refracted ray does.
+            let sphere = match hits.get(i) {
+                Some((.., PrimRef::Sphere(k))) => Some(k),
+                _ => None,
+            };
+            let front = surf.frames.front_face[i];
+            let (reflected_in, refracted_in) = (sphere.filter(|_| !front), sphere.filter(|_| front));
             next[i] = match m.kind {
                 _ if self.settings.stage == Stage::One => {
                     vals[i] = Vec3A::ZERO + Vec3A::from(m.color);
@@ -284,7 +299,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     // Self::mirror.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
-                    child(&mut reflected).set(i, &r, path.mirrored());
+                    child(&mut reflected).set(i, &r, path.mirrored(), reflected_in);
                     Next::Mirror
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
@@ -299,10 +314,10 @@ impl<I: Intersect> Integrator<'_, I> {
                         refr_medium,
                     };
                     if let Some((r, p)) = self.glass_reflected(&g, path) {
-                        child(&mut reflected).set(i, &r, p);
+                        child(&mut reflected).set(i, &r, p, reflected_in);
                     }
                     if let Some((r, p)) = self.glass_refracted(&g, path) {
-                        child(&mut refracted).set(i, &r, p);
+                        child(&mut refracted).set(i, &r, p, refracted_in);
                     }
                     Next::Glass
                 }
@@ -431,7 +446,10 @@ impl<I: Intersect> Integrator<'_, I> {
 fn child(slot: &mut Option<PathPacket>) -> &mut PathPacket {
     match slot {
         Some(p) => p,
-        None => slot.insert(PathPacket::default()),
+        None => slot.insert(PathPacket {
+            inside: Inside::Unset,
+            ..PathPacket::default()
+        }),
     }
 }
 
@@ -455,6 +473,31 @@ struct PathPacket {
     depth: u32,
     /// Some path in use travels inside an absorbing medium.
     absorbing: bool,
+    /// Whether every ray in use starts inside one sphere.
+    inside: Inside,
+}
+
+/// Whether a packet's rays all start inside one sphere.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Inside {
+    /// No ray yet.
+    Unset,
+    /// Every ray so far starts inside this sphere.
+    Sphere(u32),
+    /// Some ray does not, or the packet was not tracked.
+    No,
+}
+
+impl Inside {
+    /// The state once a ray starting inside sphere `k` (or in none) joins the packet.
+    #[inline]
+    fn with(self, k: Option<u32>) -> Inside {
+        match (self, k) {
+            (Inside::Unset, Some(k)) => Inside::Sphere(k),
+            (Inside::Sphere(j), Some(k)) if j == k => self,
+            _ => Inside::No,
+        }
+    }
 }
 
 impl Default for PathPacket {
@@ -466,14 +509,16 @@ impl Default for PathPacket {
             paths: [PathState::CAMERA; LANES],
             depth: 0,
             absorbing: false,
+            inside: Inside::No,
         }
     }
 }
 
 impl PathPacket {
-    /// Puts `ray` with `path` in lane `i`.
+    /// Puts `ray` with `path` in lane `i`; the ray starts inside sphere `inside`, if given.
     #[inline]
-    fn set(&mut self, i: usize, ray: &Ray, path: PathState) {
+    fn set(&mut self, i: usize, ray: &Ray, path: PathState, inside: Option<u32>) {
+        self.inside = self.inside.with(inside);
         self.rays.set(i, ray, f32::INFINITY);
         self.on[i] = true;
         self.paths[i] = path;

@@ -71,6 +71,13 @@ dispatched!(
 );
 
 dispatched!(
+    /// Closest hits of a ray packet on one sphere.
+    inside_closest_rays, inside_closest_rays_avx512, inside_closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, packet: u32, lane: u32) -> (),
+    bvh.inside_closest_rays_impl(rays, t_min, hits, packet, lane)
+);
+
+dispatched!(
     /// Which rays of a packet are blocked.
     occluded_rays, occluded_rays_avx512, occluded_rays_avx2,
     (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,

@@ -757,6 +757,20 @@ impl Bvh4 {
         }
     }
 
+    /// Lane `lane` of sphere packet `packet` alone against the rays; see
+    /// [`Self::closest_rays_inside`].
+    #[inline(always)]
+    pub(super) fn inside_closest_rays_impl(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        hits: &mut PacketHits,
+        packet: u32,
+        lane: u32,
+    ) {
+        self.spheres[packet as usize].closest_rays(rays, t_min, hits, 1 << lane);
+    }
+
     /// With `cull` (the view from the rays' common origin), the list skips the primitives no
     /// ray can meet.
     #[inline(always)]
@@ -940,6 +954,31 @@ impl Bvh4 {
         *hits = PacketHits::default();
         super::dispatch::closest_rays(self, rays, t_min, hits, cull);
         hits.divide();
+    }
+
+    /// [`Self::closest_rays`] into `hits` for rays that all start inside one sphere that no
+    /// other primitive reaches into, the sphere in lane `lane` of sphere packet `packet` (see
+    /// [`Self::sphere_slot`]): only that sphere is tested, since each ray leaves through it
+    /// before it can meet anything else. Returns false, with `rays` as they were, when a ray in
+    /// use finds no hit on the sphere (one that starts just outside it, grazing), whose hit must
+    /// then be looked for everywhere.
+    #[inline(always)]
+    pub fn closest_rays_inside(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        (packet, lane): (u32, u32),
+        hits: &mut PacketHits,
+    ) -> bool {
+        let entry = rays.t_max;
+        *hits = PacketHits::default();
+        super::dispatch::inside_closest_rays(self, rays, t_min, hits, packet, lane);
+        hits.divide();
+        let missed = (0..LANES).fold(false, |m, i| m | ((entry[i] > t_min) & (hits.prim[i] & TAG_MASK == 0)));
+        if missed {
+            rays.t_max = entry;
+        }
+        !missed
     }
 
     /// [`Self::closest_rays`] for rays that share little of their way through the scene, such
