@@ -935,8 +935,6 @@ impl Bvh4 {
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
     /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
-    // Inlined so the hits are built in the caller's frame (returned, they were copied).
-    #[inline(always)]
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         super::dispatch::closest_rays(self, rays, t_min, &mut hits, None);
