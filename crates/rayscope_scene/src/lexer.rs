@@ -10,7 +10,10 @@ pub(crate) fn lines(src: &str) -> impl Iterator<Item = &str> {
     let mut rest = Some(src);
     std::iter::from_fn(move || {
         let text = rest?;
-        match text.find(['\n', '\r']) {
+        // By bytes: a search for either of two chars decodes the text char by char, which was
+        // a fifth of the time spent reading a large OBJ file. Both are ASCII, so a byte match is
+        // a char boundary.
+        match text.bytes().position(|b| b == b'\n' || b == b'\r') {
             Some(i) => {
                 let skip = if text[i..].starts_with("\r\n") { 2 } else { 1 };
                 rest = Some(&text[i + skip..]);
@@ -184,8 +187,8 @@ pub(crate) fn parse_number(text: &str) -> Result<f64, NumberError> {
         i += 1;
     }
     let body = &text[i..];
-    let lower = body.to_ascii_lowercase();
-    if matches!(lower.as_str(), "nan" | "inf" | "infinity" | "∞") {
+    // Compared in place: a lowercased copy allocated for every number read.
+    if ["nan", "inf", "infinity"].iter().any(|w| body.eq_ignore_ascii_case(w)) || body == "∞" {
         return Err(NumberError::NotFinite);
     }
     let digits = |i: &mut usize| {

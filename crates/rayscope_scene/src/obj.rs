@@ -54,24 +54,36 @@ pub fn load_obj(path: &Path, opts: &ObjOptions) -> Result<Mesh, SceneError> {
     parse_obj(text, path, opts)
 }
 
-/// Whitespace-separated tokens of an OBJ line with their byte offsets, comment removed.
-fn obj_tokens(line: &str) -> Vec<(usize, &str)> {
-    let code = line.find('#').map_or(line, |i| &line[..i]);
-    let mut out = Vec::new();
+/// Whitespace-separated tokens of an OBJ line with their byte offsets, comment removed, into
+/// `out` (cleared first; one buffer serves every line of a file).
+fn obj_tokens<'a>(line: &'a str, out: &mut Vec<(usize, &'a str)>) {
+    out.clear();
+    let code = line.bytes().position(|b| b == b'#').map_or(line, |i| &line[..i]);
     let mut start = None;
-    for (i, c) in code.char_indices() {
-        if c.is_whitespace() {
-            if let Some(s) = start.take() {
-                out.push((s, &code[s..i]));
+    let mut token_end = |i: usize, start: &mut Option<usize>| {
+        if let Some(s) = start.take() {
+            out.push((s, &code[s..i]));
+        }
+    };
+    if code.is_ascii() {
+        // Byte by byte: OBJ files are ASCII, and decoding chars was a large part of reading one.
+        for (i, b) in code.bytes().enumerate() {
+            if char::from(b).is_whitespace() {
+                token_end(i, &mut start);
+            } else if start.is_none() {
+                start = Some(i);
             }
-        } else if start.is_none() {
-            start = Some(i);
+        }
+    } else {
+        for (i, c) in code.char_indices() {
+            if c.is_whitespace() {
+                token_end(i, &mut start);
+            } else if start.is_none() {
+                start = Some(i);
+            }
         }
     }
-    if let Some(s) = start {
-        out.push((s, &code[s..]));
-    }
-    out
+    token_end(code.len(), &mut start);
 }
 
 /// Parsing state for one OBJ file.
@@ -84,6 +96,10 @@ struct ObjParser<'a> {
     texcoords: usize,
     line_no: usize,
     line: &'a str,
+    /// Scratch for a face's corners: position indices.
+    corner_positions: Vec<u32>,
+    /// Scratch for a face's corners: normal indices (`None` where a corner has none).
+    corner_normals: Vec<Option<u32>>,
 }
 
 impl<'a> ObjParser<'a> {
@@ -139,7 +155,8 @@ impl<'a> ObjParser<'a> {
 
     /// Resolves a 1-based or negative OBJ index against `count` elements defined so far.
     fn index(&self, start: usize, text: &str, kind: &str, count: usize) -> Result<usize, Box<Diagnostic>> {
-        let kinds = match kind {
+        // Made only for a message: built for every index, it was an allocation per corner.
+        let kinds = || match kind {
             "vertex" if count != 1 => "vertices".to_string(),
             _ if count != 1 => format!("{kind}s"),
             _ => kind.to_string(),
@@ -171,7 +188,7 @@ impl<'a> ObjParser<'a> {
         };
         resolved.ok_or_else(|| {
             let label = if n > 0 {
-                format!("only {count} {kinds} {defined} defined so far")
+                format!("only {count} {} {defined} defined so far", kinds())
             } else {
                 format!("counts back past the first {kind}")
             };
@@ -179,7 +196,10 @@ impl<'a> ObjParser<'a> {
                 self.error(
                     start,
                     text,
-                    format!("face refers to {kind} {n} but only {count} {kinds} {defined} defined so far"),
+                    format!(
+                        "face refers to {kind} {n} but only {count} {} {defined} defined so far",
+                        kinds()
+                    ),
                 )
                 .with_label(label)
                 .with_note("OBJ indices refer to elements defined on earlier lines, counting from 1"),
@@ -200,8 +220,11 @@ impl<'a> ObjParser<'a> {
                 .with_label("expected another vertex")
                 .into());
         }
-        let mut positions = Vec::with_capacity(corners.len());
-        let mut normals = Vec::with_capacity(corners.len());
+        // The parser's buffers, taken for this face and put back, so faces allocate nothing.
+        let mut positions = std::mem::take(&mut self.corner_positions);
+        let mut normals = std::mem::take(&mut self.corner_normals);
+        positions.clear();
+        normals.clear();
         for &(start, text) in corners {
             let mut parts = text.split('/');
             let v = parts.next().unwrap_or_default();
@@ -232,13 +255,16 @@ impl<'a> ObjParser<'a> {
                 _ => normals.push(None),
             }
         }
-        let normals: Option<Vec<u32>> = normals.into_iter().collect();
+        // Vertex normals only when every corner has one.
+        let normals_used = normals.iter().all(Option::is_some);
         for i in 1..positions.len() - 1 {
             self.mesh.triangles.push(MeshTriangle {
                 positions: [positions[0], positions[i], positions[i + 1]],
-                normals: normals.as_ref().map(|n| [n[0], n[i], n[i + 1]]),
+                normals: normals_used.then(|| [0, i, i + 1].map(|k| normals[k].unwrap_or_default())),
             });
         }
+        self.corner_positions = positions;
+        self.corner_normals = normals;
         Ok(())
     }
 
@@ -301,13 +327,16 @@ pub(crate) fn parse_obj_with_warnings(
         texcoords: 0,
         line_no: 0,
         line: "",
+        corner_positions: Vec::new(),
+        corner_normals: Vec::new(),
     };
     let mut last_line = (0, "");
+    let mut toks = Vec::new();
     for (i, line) in lines(src).enumerate() {
         p.line_no = i + 1;
         p.line = line;
         last_line = (i + 1, line);
-        let toks = obj_tokens(line);
+        obj_tokens(line, &mut toks);
         if !toks.is_empty() {
             p.statement(&toks)?;
         }
@@ -393,6 +422,39 @@ mod tests {
         assert_eq!((e.line, e.column), (4, 3));
         let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1/2/3/4 2 3\n").unwrap_err();
         assert!(e.message.contains("face vertex"), "{e}");
+    }
+
+    #[test]
+    fn fans_take_each_corner_normal() {
+        let m = parse(
+            "v 0 0 0\nv 1 0 0\nv 1 1 0\nv 0 1 0\nvn 0 0 1\nvn 0 1 0\nvn 1 0 0\nvn 1 1 0\n\
+             f 1//1 2//2 3//3 4//4\nf 1//1 2 3//3\n",
+        )
+        .unwrap();
+        assert_eq!(m.triangles[0].normals, Some([0, 1, 2]));
+        assert_eq!(m.triangles[1].positions, [0, 2, 3]);
+        assert_eq!(m.triangles[1].normals, Some([0, 2, 3]));
+        // A corner without a normal drops the face's normals (the face is shaded flat).
+        assert_eq!(m.triangles[2].normals, None);
+    }
+
+    #[test]
+    fn tokens_split_on_any_whitespace_and_stop_at_comments() {
+        // Tabs, a carriage return, Unicode spaces and non-ASCII text in a comment.
+        let m = parse("v 0\t0 0\r\nv 1\u{2003}0 0 # café\nv\u{a0}0 1 0\nf 1 2 3 # é\n").unwrap();
+        assert_eq!(m.positions[1], glam::Vec3::new(1.0, 0.0, 0.0));
+        assert_eq!(m.triangles.len(), 1);
+        // Columns count chars, so a wide char before an error does not shift it.
+        let e = parse("v\u{2003}0 x 0\n").unwrap_err();
+        assert_eq!((e.line, e.column), (1, 5));
+    }
+
+    #[test]
+    fn index_errors_name_how_many_are_defined() {
+        let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1 2 4\n").unwrap_err();
+        assert!(e.message.contains("only 3 vertices are defined so far"), "{e}");
+        let e = parse("v 0 0 0\nvn 0 0 1\nf 1//1 1//1 1//2\n").unwrap_err();
+        assert!(e.message.contains("only 1 normal is defined so far"), "{e}");
     }
 
     #[test]
