@@ -45,11 +45,6 @@ const MAX_LEAF: usize = 4;
 /// Below this many primitives a subtree is built on the current thread.
 const PARALLEL_CUTOFF: usize = 4096;
 
-struct Built {
-    nodes: Vec<BvhNode>,
-    prims: Vec<u32>,
-}
-
 impl Bvh {
     /// Builds a BVH over `prims` (any order); uses all rayon threads for large inputs.
     #[must_use]
@@ -60,10 +55,15 @@ impl Bvh {
         }
         let centroids: Vec<Vec3A> = prims.iter().map(|p| p.bounds.center()).collect();
         let mut items: Vec<(BuildPrim, Vec3A)> = prims.into_iter().zip(centroids).collect();
-        let built = build_rec(&mut items);
+        // A binary tree over n primitives has fewer than 2n nodes.
+        let mut nodes = Vec::with_capacity(2 * items.len());
+        build_rec(&mut items, 0, &mut nodes);
+        nodes.shrink_to_fit();
+        // The build partitions `items` in place into leaf order, so the leaves' runs are
+        // ranges of it.
         Bvh {
-            nodes: built.nodes,
-            prims: built.prims,
+            nodes,
+            prims: items.iter().map(|(p, _)| p.id).collect(),
         }
     }
 
@@ -143,23 +143,25 @@ fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
     near <= far
 }
 
-fn leaf_node(items: &[(BuildPrim, Vec3A)], bounds: Aabb) -> Built {
-    Built {
-        nodes: vec![BvhNode {
-            min: bounds.min,
-            max: bounds.max,
-            offset: 0,
-            count: items.len() as u16,
-            axis: 0,
-        }],
-        prims: items.iter().map(|(p, _)| p.id).collect(),
-    }
+/// Appends a leaf over `items`, which start at index `first` of the whole build's primitives.
+fn leaf_node(items: &[(BuildPrim, Vec3A)], first: u32, bounds: Aabb, nodes: &mut Vec<BvhNode>) {
+    nodes.push(BvhNode {
+        min: bounds.min,
+        max: bounds.max,
+        offset: first,
+        count: items.len() as u16,
+        axis: 0,
+    });
 }
 
-fn build_rec(items: &mut [(BuildPrim, Vec3A)]) -> Built {
+/// Appends the subtree over `items` (index `first` onwards of the whole build's primitives) to
+/// `nodes` depth-first, its interior nodes' offsets counted in `nodes`. Subtrees are written
+/// where they end up instead of built apart and joined: joining copied every node once per level
+/// above it and allocated two vectors per leaf, a third of a large mesh's build time.
+fn build_rec(items: &mut [(BuildPrim, Vec3A)], first: u32, nodes: &mut Vec<BvhNode>) {
     let bounds = items.iter().fold(Aabb::EMPTY, |b, (p, _)| b.union(p.bounds));
     if items.len() <= MAX_LEAF {
-        return leaf_node(items, bounds);
+        return leaf_node(items, first, bounds, nodes);
     }
     let cb = items.iter().fold(Aabb::EMPTY, |b, (_, c)| b.grow(*c));
     let extent = cb.max - cb.min;
@@ -175,10 +177,10 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)]) -> Built {
     if ext.is_nan() || ext <= 0.0 {
         // All centroids coincide: split in the middle of the list, or stop if small enough.
         if items.len() <= MAX_LEAF {
-            return leaf_node(items, bounds);
+            return leaf_node(items, first, bounds, nodes);
         }
         let mid = items.len() / 2;
-        return join(items, mid, bounds, axis);
+        return join(items, first, mid, bounds, axis, nodes);
     }
     // Binned SAH on the axis of largest centroid extent.
     let scale = BINS as f32 / ext;
@@ -218,51 +220,48 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)]) -> Built {
     // Traversal cost ≈ one primitive test, relative to the parent's area.
     let split_cost = bounds.half_area() + best.0;
     if items.len() <= MAX_LEAF * 2 && split_cost >= leaf_cost {
-        return leaf_node(items, bounds);
+        return leaf_node(items, first, bounds, nodes);
     }
     let split_bin = best.1;
     let mut mid = partition(items, |(_, c)| bin_of(*c) <= split_bin);
     if mid == 0 || mid == items.len() {
         mid = items.len() / 2;
     }
-    join(items, mid, bounds, axis)
+    join(items, first, mid, bounds, axis, nodes);
 }
 
-fn join(items: &mut [(BuildPrim, Vec3A)], mid: usize, bounds: Aabb, axis: usize) -> Built {
+/// Appends an interior node splitting `items` at `mid`, then its two subtrees (see
+/// [`build_rec`]).
+fn join(items: &mut [(BuildPrim, Vec3A)], first: u32, mid: usize, bounds: Aabb, axis: usize, nodes: &mut Vec<BvhNode>) {
     let n = items.len();
-    let (l, r) = items.split_at_mut(mid);
-    let (left, right) = if n > PARALLEL_CUTOFF {
-        rayon::join(|| build_rec(l), || build_rec(r))
-    } else {
-        (build_rec(l), build_rec(r))
-    };
-    let mut nodes = Vec::with_capacity(1 + left.nodes.len() + right.nodes.len());
-    let right_index = 1 + left.nodes.len() as u32;
+    let parent = nodes.len();
     nodes.push(BvhNode {
         min: bounds.min,
         max: bounds.max,
-        offset: right_index,
+        offset: 0,
         count: 0,
         axis: axis as u16,
     });
-    let left_prims = left.prims.len() as u32;
-    nodes.extend(left.nodes.into_iter().map(|mut nd| {
-        if nd.count == 0 {
-            nd.offset += 1;
-        }
-        nd
-    }));
-    nodes.extend(right.nodes.into_iter().map(|mut nd| {
-        if nd.count == 0 {
-            nd.offset += right_index;
-        } else {
-            nd.offset += left_prims;
-        }
-        nd
-    }));
-    let mut prims = left.prims;
-    prims.extend(right.prims);
-    Built { nodes, prims }
+    let (l, r) = items.split_at_mut(mid);
+    let right_first = first + mid as u32;
+    if n > PARALLEL_CUTOFF {
+        // The left subtree goes straight into `nodes`; the right one, built meanwhile on
+        // another thread, is copied after it with its interior offsets moved.
+        let mut right = Vec::with_capacity(2 * r.len());
+        rayon::join(|| build_rec(l, first, nodes), || build_rec(r, right_first, &mut right));
+        let base = nodes.len() as u32;
+        nodes.extend(right.into_iter().map(|mut nd| {
+            if nd.count == 0 {
+                nd.offset += base;
+            }
+            nd
+        }));
+        nodes[parent].offset = base;
+    } else {
+        build_rec(l, first, nodes);
+        nodes[parent].offset = nodes.len() as u32;
+        build_rec(r, right_first, nodes);
+    }
 }
 
 fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
@@ -322,5 +321,73 @@ mod tests {
         // Leaf offsets must be consistent with the reference array.
         let total: usize = b.nodes.iter().map(|n| n.count as usize).sum();
         assert_eq!(total, 1000);
+    }
+
+    /// Walks the tree from the root, checking each child lies within its parent, and returns
+    /// the leaves (node, first of `prims`, count) in walk order.
+    fn leaf_ranges(b: &Bvh, i: usize, out: &mut Vec<(usize, usize, usize)>) {
+        let n = &b.nodes[i];
+        if n.count > 0 {
+            out.push((i, n.offset as usize, n.count as usize));
+            return;
+        }
+        let right = n.offset as usize;
+        assert!(right > i + 1 && right < b.nodes.len(), "node {i}: right child {right}");
+        for c in [i + 1, right] {
+            let k = &b.nodes[c];
+            assert!(
+                k.min.cmpge(n.min).all() && k.max.cmple(n.max).all(),
+                "node {c} outside node {i}"
+            );
+            leaf_ranges(b, c, out);
+        }
+    }
+
+    #[test]
+    fn large_builds_are_whole_trees() {
+        // Enough primitives that the top of the tree is built on several threads.
+        let n = 40_000u32;
+        let mut seed = 12345u32;
+        let mut next = move || {
+            seed ^= seed << 13;
+            seed ^= seed >> 17;
+            seed ^= seed << 5;
+            seed as f32 / u32::MAX as f32
+        };
+        let prims: Vec<BuildPrim> = (0..n)
+            .map(|id| {
+                let c = Vec3A::new(next(), next(), next()) * 100.0;
+                BuildPrim {
+                    id,
+                    bounds: Aabb {
+                        min: c,
+                        max: c + Vec3A::new(next(), next(), next()),
+                    },
+                }
+            })
+            .collect();
+        let b = Bvh::build(prims.clone());
+        let mut ranges = vec![];
+        leaf_ranges(&b, 0, &mut ranges);
+        // Depth first: the leaves take consecutive runs of `prims`, covering it once.
+        let mut next_start = 0;
+        for &(node, start, count) in &ranges {
+            assert_eq!(start, next_start);
+            next_start += count;
+            let leaf = &b.nodes[node];
+            for &id in &b.prims[start..start + count] {
+                let p = prims[id as usize].bounds;
+                assert!(
+                    p.min.cmpge(leaf.min).all() && p.max.cmple(leaf.max).all(),
+                    "prim {id} outside its leaf"
+                );
+            }
+        }
+        assert_eq!(next_start, n as usize);
+        let mut ids = b.prims.clone();
+        ids.sort_unstable();
+        assert_eq!(ids, (0..n).collect::<Vec<_>>());
+        // Every node is reached by the walk: none is left over from the parallel parts.
+        assert_eq!(b.nodes.len(), 2 * ranges.len() - 1);
     }
 }
