@@ -11,7 +11,7 @@ pub(crate) fn lines(src: &str) -> impl Iterator<Item = &str> {
     std::iter::from_fn(move || {
         let text = rest?;
         // By bytes: a search for either of two chars decodes the text char by char, which was
-        // a fifth of the time spent reading a large OBJ file. Both are ASCII, so a byte match is
+        // a fifth of the time spent parsing a large OBJ file. Both are ASCII, so a byte match is
         // a char boundary.
         match text.bytes().position(|b| b == b'\n' || b == b'\r') {
             Some(i) => {
