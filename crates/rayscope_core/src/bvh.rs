@@ -53,17 +53,15 @@ impl Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
-        let centroids: Vec<Vec3A> = prims.iter().map(|p| p.bounds.center()).collect();
-        let mut items: Vec<(BuildPrim, Vec3A)> = prims.into_iter().zip(centroids).collect();
         // A binary tree over n primitives has fewer than 2n nodes.
-        let mut nodes = Vec::with_capacity(2 * items.len());
-        build_rec(&mut items, 0, &mut nodes);
+        let mut nodes = Vec::with_capacity(2 * prims.len());
+        build_rec(&mut prims, 0, &mut nodes);
         nodes.shrink_to_fit();
-        // The build partitions `items` in place into leaf order, so the leaves' runs are
+        // The build partitions `prims` in place into leaf order, so the leaves' runs are
         // ranges of it.
         Bvh {
             nodes,
-            prims: items.iter().map(|(p, _)| p.id).collect(),
+            prims: prims.iter().map(|p| p.id).collect(),
         }
     }
 
@@ -144,7 +142,7 @@ fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
 }
 
 /// Appends a leaf over `items`, which start at index `first` of the whole build's primitives.
-fn leaf_node(items: &[(BuildPrim, Vec3A)], first: u32, bounds: Aabb, nodes: &mut Vec<BvhNode>) {
+fn leaf_node(items: &[BuildPrim], first: u32, bounds: Aabb, nodes: &mut Vec<BvhNode>) {
     nodes.push(BvhNode {
         min: bounds.min,
         max: bounds.max,
@@ -158,12 +156,16 @@ fn leaf_node(items: &[(BuildPrim, Vec3A)], first: u32, bounds: Aabb, nodes: &mut
 /// `nodes` depth-first, its interior nodes' offsets counted in `nodes`. Subtrees are written
 /// where they end up instead of built apart and joined: joining copied every node once per level
 /// above it and allocated two vectors per leaf, nearly a quarter of a large mesh's build time.
-fn build_rec(items: &mut [(BuildPrim, Vec3A)], first: u32, nodes: &mut Vec<BvhNode>) {
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, (p, _)| b.union(p.bounds));
+///
+/// Centroids are recomputed where they are needed rather than stored beside the primitives: a
+/// stored copy made the build's working array a third larger, and for a 4 M-triangle mesh that
+/// array and the centroids copied into it were 320 MB of fresh memory.
+fn build_rec(items: &mut [BuildPrim], first: u32, nodes: &mut Vec<BvhNode>) {
+    let bounds = items.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
     if items.len() <= MAX_LEAF {
         return leaf_node(items, first, bounds, nodes);
     }
-    let cb = items.iter().fold(Aabb::EMPTY, |b, (_, c)| b.grow(*c));
+    let cb = items.iter().fold(Aabb::EMPTY, |b, p| b.grow(p.bounds.center()));
     let extent = cb.max - cb.min;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
@@ -187,8 +189,8 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)], first: u32, nodes: &mut Vec<BvhNo
     let bin_of = |c: Vec3A| (((c[axis] - lo) * scale) as usize).min(BINS - 1);
     let mut bin_bounds = [Aabb::EMPTY; BINS];
     let mut bin_count = [0usize; BINS];
-    for (p, c) in items.iter() {
-        let b = bin_of(*c);
+    for p in items.iter() {
+        let b = bin_of(p.bounds.center());
         bin_bounds[b] = bin_bounds[b].union(p.bounds);
         bin_count[b] += 1;
     }
@@ -223,7 +225,7 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)], first: u32, nodes: &mut Vec<BvhNo
         return leaf_node(items, first, bounds, nodes);
     }
     let split_bin = best.1;
-    let mut mid = partition(items, |(_, c)| bin_of(*c) <= split_bin);
+    let mut mid = partition(items, |p| bin_of(p.bounds.center()) <= split_bin);
     if mid == 0 || mid == items.len() {
         mid = items.len() / 2;
     }
@@ -232,7 +234,7 @@ fn build_rec(items: &mut [(BuildPrim, Vec3A)], first: u32, nodes: &mut Vec<BvhNo
 
 /// Appends an interior node splitting `items` at `mid`, then its two subtrees (see
 /// [`build_rec`]).
-fn join(items: &mut [(BuildPrim, Vec3A)], first: u32, mid: usize, bounds: Aabb, axis: usize, nodes: &mut Vec<BvhNode>) {
+fn join(items: &mut [BuildPrim], first: u32, mid: usize, bounds: Aabb, axis: usize, nodes: &mut Vec<BvhNode>) {
     let n = items.len();
     let parent = nodes.len();
     nodes.push(BvhNode {
