@@ -59,31 +59,31 @@ pub fn load_obj(path: &Path, opts: &ObjOptions) -> Result<Mesh, SceneError> {
 fn obj_tokens<'a>(line: &'a str, out: &mut Vec<(usize, &'a str)>) {
     out.clear();
     let code = line.bytes().position(|b| b == b'#').map_or(line, |i| &line[..i]);
-    let mut start = None;
-    let mut token_end = |i: usize, start: &mut Option<usize>| {
-        if let Some(s) = start.take() {
-            out.push((s, &code[s..i]));
-        }
-    };
+    // Byte by byte where the line is ASCII, as OBJ files are: decoding chars was a large part of
+    // reading one.
     if code.is_ascii() {
-        // Byte by byte: OBJ files are ASCII, and decoding chars was a large part of reading one.
-        for (i, b) in code.bytes().enumerate() {
-            if char::from(b).is_whitespace() {
-                token_end(i, &mut start);
-            } else if start.is_none() {
-                start = Some(i);
-            }
-        }
+        split_tokens(code, code.bytes().map(char::from).enumerate(), out);
     } else {
-        for (i, c) in code.char_indices() {
-            if c.is_whitespace() {
-                token_end(i, &mut start);
-            } else if start.is_none() {
-                start = Some(i);
+        split_tokens(code, code.char_indices(), out);
+    }
+}
+
+/// Appends to `out` the whitespace-separated tokens of `code`, whose chars `chars` yields with
+/// their byte offsets.
+fn split_tokens<'a>(code: &'a str, chars: impl Iterator<Item = (usize, char)>, out: &mut Vec<(usize, &'a str)>) {
+    let mut start = None;
+    for (i, c) in chars {
+        if c.is_whitespace() {
+            if let Some(s) = start.take() {
+                out.push((s, &code[s..i]));
             }
+        } else if start.is_none() {
+            start = Some(i);
         }
     }
-    token_end(code.len(), &mut start);
+    if let Some(s) = start {
+        out.push((s, &code[s..]));
+    }
 }
 
 /// Parsing state for one OBJ file.
