@@ -177,10 +177,7 @@ fn build_rec(items: &mut [BuildPrim], first: u32, nodes: &mut Vec<BvhNode>) {
     let lo = cb.min[axis];
     let ext = extent[axis];
     if ext.is_nan() || ext <= 0.0 {
-        // All centroids coincide: split in the middle of the list, or stop if small enough.
-        if items.len() <= MAX_LEAF {
-            return leaf_node(items, first, bounds, nodes);
-        }
+        // All centroids coincide: split in the middle of the list (small lists returned above).
         let mid = items.len() / 2;
         return join(items, first, mid, bounds, axis, nodes);
     }
