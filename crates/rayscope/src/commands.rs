@@ -68,8 +68,14 @@ fn setup_threads(opts: &RenderOpts) {
     }
 }
 
-/// Loads and converts a scene, printing warnings unless quiet. Input errors exit with 2.
-pub fn load_scene(path: &Path, quiet: bool) -> Result<(rayscope_scene::SceneFile, Scene), Failure> {
+/// Loads and converts a scene, printing warnings unless quiet. Input errors exit with 2. The
+/// file's meshes are freed before the BVH build (see [`Scene::from_owned_file`]).
+pub fn load_scene(path: &Path, quiet: bool) -> Result<Scene, Failure> {
+    Ok(Scene::from_owned_file(load_file(path, quiet)?))
+}
+
+/// Loads a scene file, printing warnings unless quiet. Input errors exit with 2.
+pub fn load_file(path: &Path, quiet: bool) -> Result<rayscope_scene::SceneFile, Failure> {
     let file = rayscope_scene::load(path).map_err(|e| match e {
         rayscope_scene::SceneError::Invalid(d) => Failure {
             code: 2,
@@ -83,8 +89,7 @@ pub fn load_scene(path: &Path, quiet: bool) -> Result<(rayscope_scene::SceneFile
             eprintln!("{w}");
         }
     }
-    let scene = Scene::from_file(&file);
-    Ok((file, scene))
+    Ok(file)
 }
 
 fn settings(opts: &RenderOpts) -> Result<RenderSettings, Failure> {
@@ -101,7 +106,7 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     check_writable(output).map_err(|e| Failure::input(e.to_string()))?;
     // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
-    let (_, scene) = load_scene(file, opts.quiet)?;
+    let scene = load_scene(file, opts.quiet)?;
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -223,7 +228,7 @@ fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
             settings.width, settings.height
         )));
     }
-    let (_, scene) = load_scene(&a.file, a.opts.quiet)?;
+    let scene = load_scene(&a.file, a.opts.quiet)?;
     let spp = rayscope_core::integrator::Integrator::new(&scene, &settings).samples_per_pixel();
     if a.sample >= spp {
         return Err(Failure::input(format!(
@@ -357,7 +362,7 @@ fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
     let settings = settings(&a.opts)?;
     setup_threads(&a.opts);
     let t0 = Instant::now();
-    let (_, scene) = load_scene(&a.file, true)?;
+    let scene = load_scene(&a.file, true)?;
     let load = t0.elapsed();
     let cancel = AtomicBool::new(false);
     let noop = |_: u64, _: u64| {};
@@ -397,7 +402,7 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     }
     let file = rayscope_scene::load(&a.file).map_err(|e| Failure::input(e.to_string()))?;
     let t0 = Instant::now();
-    let scene = Scene::from_file(&file);
+    let scene = Scene::from_owned_file(file);
     let build = t0.elapsed().as_secs_f64();
     let rays: Vec<Ray> = match (&a.rays_file, a.primary) {
         (Some(path), _) => {

@@ -6,7 +6,7 @@ use std::sync::atomic::AtomicBool;
 use rayscope_core::output::Format;
 use rayscope_debug::view::{auto_view, render_view, ImageMode, RayMode, RgbImage, ViewCamera, ViewOptions};
 
-use super::{load_scene, settings, setup_threads, Failure};
+use super::{load_file, load_scene, settings, setup_threads, Failure};
 use crate::cli::{DebugArgs, ViewArgs};
 
 /// `rayscope debug`: serve the visual debugger on a local port.
@@ -14,7 +14,9 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
     setup_threads(&a.opts);
     let settings = settings(&a.opts)?;
     rayscope_debug::server::check_settings(&settings).map_err(Failure::input)?;
-    let (file, scene) = load_scene(&a.scene, a.opts.quiet)?;
+    // The debugger keeps the file: it draws the meshes as loaded.
+    let file = load_file(&a.scene, a.opts.quiet)?;
+    let scene = rayscope_core::Scene::from_file(&file);
     let cfg = rayscope_debug::ServeConfig {
         scene_path: a.scene.clone(),
         scene_file: file,
@@ -56,7 +58,7 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
         Ok(_) => return Err(Failure::input("the scene view is written as PNG: use a .png output")),
         Err(e) => return Err(Failure::input(e.to_string())),
     }
-    let (_, scene) = load_scene(&a.file, a.opts.quiet)?;
+    let scene = load_scene(&a.file, a.opts.quiet)?;
     let aspect = a.view_width as f32 / a.view_height as f32;
     let auto = auto_view(&scene, &settings, aspect);
     let camera = ViewCamera {

@@ -95,10 +95,10 @@ fn bvh_build(c: &mut Criterion) {
     let scene = Scene::from_file(&file);
     let tris = scene.triangles.len();
     let bytes =
-        scene.bvh.memory_bytes() + tris * (std::mem::size_of::<Triangle>() + std::mem::size_of::<TriangleInfo>());
+        scene.wide.memory_bytes() + tris * (std::mem::size_of::<Triangle>() + std::mem::size_of::<TriangleInfo>());
     eprintln!(
         "1M-triangle mesh: {tris} triangles, BVH {} bytes, {:.1} bytes/triangle (BVH + triangles + shading data)",
-        scene.bvh.memory_bytes(),
+        scene.wide.memory_bytes(),
         bytes as f64 / tris as f64
     );
     let prims: Vec<BuildPrim> = scene

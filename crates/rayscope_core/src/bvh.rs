@@ -3,17 +3,21 @@
 //! Nodes are stored depth-first in one flat array; a node's left child follows it directly and
 //! the right child's index is stored, so traversal touches memory mostly forwards.
 
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 
 use crate::math::{Aabb, Ray};
 
 /// One BVH node: bounds plus either two children or a run of primitive references.
+///
+/// The corners are unpadded `Vec3`s, so a node is 32 bytes instead of 48: a build makes two
+/// nodes for every few primitives, and for a large mesh this tree sits beside the wide one being
+/// made from it at the peak of the load.
 #[derive(Debug, Clone, Copy)]
 pub struct BvhNode {
     /// Lower corner of the bounds.
-    pub min: Vec3A,
+    pub min: Vec3,
     /// Upper corner of the bounds.
-    pub max: Vec3A,
+    pub max: Vec3,
     /// Interior: index of the right child. Leaf: first index into [`Bvh::prims`].
     pub offset: u32,
     /// Number of primitives; 0 for an interior node.
@@ -133,8 +137,8 @@ impl Bvh {
 
 #[inline]
 fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
-    let t0 = (node.min - o) * inv;
-    let t1 = (node.max - o) * inv;
+    let t0 = (Vec3A::from(node.min) - o) * inv;
+    let t1 = (Vec3A::from(node.max) - o) * inv;
     // min/max of glam ignore NaN from 0 * inf the right way for rays starting on a slab plane.
     let near = t0.min(t1).max_element().max(t_min);
     let far = t0.max(t1).min_element().min(t_max);
@@ -144,8 +148,8 @@ fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
 /// Appends a leaf over `items`, which start at index `first` of the whole build's primitives.
 fn leaf_node(items: &[BuildPrim], first: u32, bounds: Aabb, nodes: &mut Vec<BvhNode>) {
     nodes.push(BvhNode {
-        min: bounds.min,
-        max: bounds.max,
+        min: bounds.min.into(),
+        max: bounds.max.into(),
         offset: first,
         count: items.len() as u16,
         axis: 0,
@@ -235,8 +239,8 @@ fn join(items: &mut [BuildPrim], first: u32, mid: usize, bounds: Aabb, axis: usi
     let n = items.len();
     let parent = nodes.len();
     nodes.push(BvhNode {
-        min: bounds.min,
-        max: bounds.max,
+        min: bounds.min.into(),
+        max: bounds.max.into(),
         offset: 0,
         count: 0,
         axis: axis as u16,
@@ -377,7 +381,7 @@ mod tests {
             for &id in &b.prims[start..start + count] {
                 let p = prims[id as usize].bounds;
                 assert!(
-                    p.min.cmpge(leaf.min).all() && p.max.cmple(leaf.max).all(),
+                    p.min.cmpge(leaf.min.into()).all() && p.max.cmple(leaf.max.into()).all(),
                     "prim {id} outside its leaf"
                 );
             }

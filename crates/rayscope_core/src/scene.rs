@@ -105,15 +105,16 @@ pub struct EntityInfo {
 }
 
 /// Per-triangle data that traversal does not need.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct TriangleInfo {
     /// Entity index.
     pub entity: u32,
     /// Material index.
     pub material: u32,
-    /// Vertex normals for smooth shading, in vertex order.
-    pub normals: Option<[Vec3; 3]>,
 }
+
+/// [`Scene::triangle_normals`] entry of a triangle without vertex normals.
+pub const NO_NORMALS: [u32; 3] = [u32::MAX; 3];
 
 /// A render-ready scene.
 #[derive(Debug, Clone, Default)]
@@ -140,8 +141,12 @@ pub struct Scene {
     pub triangles: Vec<Triangle>,
     /// Shading data of each triangle.
     pub triangle_info: Vec<TriangleInfo>,
-    /// Binary SAH BVH over spheres and triangles (the build; traversal uses `wide`).
-    pub bvh: Bvh,
+    /// Vertex normals of the meshes, shared by the triangles that meet at a vertex.
+    pub normals: Vec<Vec3>,
+    /// Per triangle, its corners' indices into `normals` for smooth shading, or [`NO_NORMALS`];
+    /// empty when no triangle has vertex normals. Kept apart from [`TriangleInfo`] so a mesh
+    /// without normals (most large scans and generated meshes) costs nothing for them.
+    pub triangle_normals: Vec<[u32; 3]>,
     /// The 4-wide BVH traversed by every query.
     pub wide: Bvh4,
     /// Bounds of all finite geometry.
@@ -209,6 +214,23 @@ impl Scene {
     /// Converts a parsed scene file and builds its BVH. Degenerate triangles are dropped.
     #[must_use]
     pub fn from_file(file: &SceneFile) -> Scene {
+        let mut s = Scene::convert(file);
+        s.build_bvh();
+        s
+    }
+
+    /// [`Self::from_file`] for a file the caller no longer needs: its meshes are freed before
+    /// the BVH build, which lowers the peak memory of loading a large mesh by their size.
+    #[must_use]
+    pub fn from_owned_file(file: SceneFile) -> Scene {
+        let mut s = Scene::convert(&file);
+        drop(file);
+        s.build_bvh();
+        s
+    }
+
+    /// The scene's geometry and materials, without the BVH.
+    fn convert(file: &SceneFile) -> Scene {
         let mut s = Scene {
             materials: file
                 .materials
@@ -252,29 +274,23 @@ impl Scene {
                 Shape::Triangle { vertices } => {
                     let t = Triangle::new(v3(vertices[0]), v3(vertices[1]), v3(vertices[2]));
                     if !t.is_degenerate() {
-                        s.triangles.push(t);
-                        s.triangle_info.push(TriangleInfo {
-                            entity: ent,
-                            material: mat,
-                            normals: None,
-                        });
+                        s.push_triangle(t, ent, mat, None);
                     }
                 }
                 Shape::Mesh { mesh, .. } => {
                     s.triangles.reserve(mesh.triangles.len());
+                    s.triangle_info.reserve(mesh.triangles.len());
+                    let base = s.normals.len() as u32;
+                    if mesh.triangles.iter().any(|t| t.normals.is_some()) {
+                        s.normals.extend_from_slice(&mesh.normals);
+                    }
                     for tri in &mesh.triangles {
                         let p = tri.positions.map(|i| Vec3A::from(mesh.positions[i as usize]));
                         let t = Triangle::new(p[0], p[1], p[2]);
                         if t.is_degenerate() {
                             continue;
                         }
-                        s.triangles.push(t);
-                        let normals = tri.normals.map(|n| n.map(|i| mesh.normals[i as usize]));
-                        s.triangle_info.push(TriangleInfo {
-                            entity: ent,
-                            material: mat,
-                            normals,
-                        });
+                        s.push_triangle(t, ent, mat, tri.normals.map(|n| n.map(|i| base + i)));
                     }
                 }
             }
@@ -287,11 +303,37 @@ impl Scene {
                 primitives: after - before,
             });
         }
-        s.build_bvh();
         s
     }
 
-    fn build_bvh(&mut self) {
+    /// Appends a triangle with its entity, material and (indices into [`Self::normals`] of)
+    /// vertex normals.
+    fn push_triangle(&mut self, t: Triangle, entity: u32, material: u32, normals: Option<[u32; 3]>) {
+        self.triangles.push(t);
+        self.triangle_info.push(TriangleInfo { entity, material });
+        match normals {
+            Some(n) => {
+                if self.triangle_normals.is_empty() {
+                    // The first smooth triangle: the flat ones before it get their entries now.
+                    self.triangle_normals.resize(self.triangles.len() - 1, NO_NORMALS);
+                }
+                self.triangle_normals.push(n);
+            }
+            None if !self.triangle_normals.is_empty() => self.triangle_normals.push(NO_NORMALS),
+            None => {}
+        }
+    }
+
+    /// The vertex normals of triangle `i` for smooth shading, in vertex order.
+    #[must_use]
+    #[inline]
+    pub fn vertex_normals(&self, i: u32) -> Option<[Vec3; 3]> {
+        let ids = self.triangle_normals.get(i as usize)?;
+        (*ids != NO_NORMALS).then(|| ids.map(|k| self.normals[k as usize]))
+    }
+
+    /// The build's input: every triangle and sphere with its bounds.
+    fn build_prims(&self) -> Vec<BuildPrim> {
         let mut prims: Vec<BuildPrim> = Vec::with_capacity(self.triangles.len() + self.spheres.len());
         prims.extend(self.triangles.iter().enumerate().map(|(i, t)| BuildPrim {
             id: i as u32,
@@ -301,9 +343,16 @@ impl Scene {
             id: i as u32 | SPHERE_BIT,
             bounds: s.bounds(),
         }));
+        prims
+    }
+
+    fn build_bvh(&mut self) {
+        let prims = self.build_prims();
         self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
-        self.bvh = Bvh::build(prims);
-        self.wide = Bvh4::from_binary(&self.bvh, &self.triangles, &self.spheres, SPHERE_BIT, &self.planes);
+        // The binary tree is only the collapse's input: dropped here, it no longer doubles a
+        // large mesh's resident memory for the whole render.
+        let bvh = Bvh::build(prims);
+        self.wide = Bvh4::from_binary(&bvh, &self.triangles, &self.spheres, SPHERE_BIT, &self.planes);
     }
 
     /// The closest hit with `t_min < t < t_max`, using the BVH and the planes.
@@ -366,40 +415,6 @@ impl Scene {
         best
     }
 
-    /// Closest hit by the binary BVH and scalar routines: slower, kept as a cross-check of the
-    /// wide traversal in tests.
-    #[must_use]
-    pub fn intersect_binary(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        let mut best = self.nearest_plane(ray, t_min, t_max);
-        let t_max = best.map_or(t_max, |h| h.t);
-        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
-            for &id in prims {
-                if id & SPHERE_BIT != 0 {
-                    let i = id & !SPHERE_BIT;
-                    if let Some(h) = self.spheres[i as usize].intersect(ray, t_min, t_max) {
-                        t_max = h.t;
-                        best = Some(Hit {
-                            t: h.t,
-                            u: 0.0,
-                            v: 0.0,
-                            prim: PrimRef::Sphere(i),
-                        });
-                    }
-                } else if let Some(h) = self.triangles[id as usize].intersect(ray, t_min, t_max) {
-                    t_max = h.t;
-                    best = Some(Hit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: PrimRef::Triangle(id),
-                    });
-                }
-            }
-            t_max
-        });
-        best
-    }
-
     /// Node and packet tests (planes count one each) the closest-hit query of `ray` makes: the
     /// "cost" debug channel.
     #[must_use]
@@ -443,7 +458,7 @@ impl Scene {
             }
             PrimRef::Triangle(i) => {
                 let n = self.triangles[i as usize].geometric_normal();
-                let ns = match self.triangle_info[i as usize].normals {
+                let ns = match self.vertex_normals(i) {
                     Some([a, b, c]) => {
                         let w = 1.0 - hit.u - hit.v;
                         let s = Vec3A::from(a) * w + Vec3A::from(b) * hit.u + Vec3A::from(c) * hit.v;
@@ -500,5 +515,58 @@ impl Scene {
     #[must_use]
     pub fn primitive_count(&self) -> usize {
         self.planes.len() + self.spheres.len() + self.triangles.len()
+    }
+}
+
+/// The scene's closest hits by a binary BVH and the scalar primitive routines: slower than
+/// [`Scene::intersect`], kept as a cross-check of the wide traversal in tests.
+#[derive(Debug)]
+pub struct BinaryReference<'a> {
+    scene: &'a Scene,
+    bvh: Bvh,
+}
+
+impl<'a> BinaryReference<'a> {
+    /// Builds the binary BVH over `scene`'s triangles and spheres.
+    #[must_use]
+    pub fn new(scene: &'a Scene) -> Self {
+        BinaryReference {
+            scene,
+            bvh: Bvh::build(scene.build_prims()),
+        }
+    }
+
+    /// Closest hit with `t_min < t < t_max`.
+    #[must_use]
+    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let scene = self.scene;
+        let mut best = scene.nearest_plane(ray, t_min, t_max);
+        let t_max = best.map_or(t_max, |h| h.t);
+        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
+            for &id in prims {
+                if id & SPHERE_BIT != 0 {
+                    let i = id & !SPHERE_BIT;
+                    if let Some(h) = scene.spheres[i as usize].intersect(ray, t_min, t_max) {
+                        t_max = h.t;
+                        best = Some(Hit {
+                            t: h.t,
+                            u: 0.0,
+                            v: 0.0,
+                            prim: PrimRef::Sphere(i),
+                        });
+                    }
+                } else if let Some(h) = scene.triangles[id as usize].intersect(ray, t_min, t_max) {
+                    t_max = h.t;
+                    best = Some(Hit {
+                        t: h.t,
+                        u: h.u,
+                        v: h.v,
+                        prim: PrimRef::Triangle(id),
+                    });
+                }
+            }
+            t_max
+        });
+        best
     }
 }

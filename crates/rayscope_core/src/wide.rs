@@ -1262,6 +1262,6 @@ fn sorted(ids: &[u32]) -> impl Iterator<Item = u32> {
 }
 
 fn area(n: &BvhNode) -> f32 {
-    let d: Vec3A = (n.max - n.min).max(Vec3A::ZERO);
+    let d = (n.max - n.min).max(glam::Vec3::ZERO);
     d.x * d.y + d.y * d.z + d.z * d.x
 }

@@ -20,10 +20,21 @@ fn dir() -> impl Strategy<Value = Vec3A> {
 /// Agreement up to the tolerance of f32 arithmetic, ignoring rays that graze within `margin` of
 /// a silhouette or edge (where either answer is right).
 fn agree(own: Option<PrimHit>, refh: Option<PrimHit>, graze: bool, what: &str) -> Result<(), TestCaseError> {
+    agree_within(own, refh, graze, 1e-3, what)
+}
+
+/// [`agree`] with relative distance tolerance `tol`.
+fn agree_within(
+    own: Option<PrimHit>,
+    refh: Option<PrimHit>,
+    graze: bool,
+    tol: f32,
+    what: &str,
+) -> Result<(), TestCaseError> {
     match (own, refh) {
         (Some(a), Some(b)) => {
             prop_assert!(
-                (a.t - b.t).abs() <= 1e-3 * (1.0 + b.t),
+                (a.t - b.t).abs() <= tol * (1.0 + b.t),
                 "{what}: t {} vs reference {}",
                 a.t,
                 b.t
@@ -82,7 +93,11 @@ proptest! {
         let refh = reference::plane(&pl, &ray, 0.0, f32::INFINITY);
         let parallel = n.dot(d).abs() < 1e-4;
         let on_plane = (o - p).dot(n).abs() < 1e-4;
-        agree(own, refh, parallel || on_plane, "plane")?;
+        // t = (p − o)·n / d·n: the denominator's rounding (~1e-7) is relative to d·n, so a ray
+        // nearly parallel to the plane gets a distance correct only to about 1e-7 / |d·n|
+        // (a case found with |d·n| ≈ 3e-5 and the two distances 0.13 % apart).
+        let tol = 1e-3f32.max(1e-7 / n.dot(d).abs());
+        agree_within(own, refh, parallel || on_plane, tol, "plane")?;
     }
 
     #[test]

@@ -155,3 +155,112 @@ fn generated_meshes_bvh_matches_brute_force() {
     let hits = check(&scene, 6000);
     assert!(hits > 3000, "most rays should hit: {hits}");
 }
+
+/// A one-material scene file of `shapes`, one entity each.
+fn file_of(shapes: Vec<rayscope_scene::Shape>) -> rayscope_scene::SceneFile {
+    use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile};
+    SceneFile {
+        materials: vec![MaterialDef {
+            name: "M".into(),
+            kind: MaterialKind::Diffuse,
+            color: glam::DVec3::ONE,
+            value: 1.0,
+            line: 1,
+        }],
+        entities: shapes
+            .into_iter()
+            .enumerate()
+            .map(|(i, shape)| EntityDef {
+                name: format!("E{i}"),
+                shape,
+                material: 0,
+                line: i + 2,
+            })
+            .collect(),
+        ..SceneFile::default()
+    }
+}
+
+/// A mesh of two triangles, the first with vertex normals `normals` (the second flat).
+fn two_triangle_mesh(x: f32, normals: [glam::Vec3; 3]) -> rayscope_scene::Shape {
+    use glam::Vec3;
+    use rayscope_scene::{Mesh, MeshTriangle, Shape};
+    let p = |a: f32, b: f32| Vec3::new(x + a, b, 3.0);
+    Shape::Mesh {
+        source: "m.obj".into(),
+        offset: glam::DVec3::ZERO,
+        scale: 1.0,
+        mesh: Mesh {
+            positions: vec![p(0.0, 0.0), p(1.0, 0.0), p(0.0, 1.0), p(1.0, 1.0)],
+            // An unused normal first, so the used ones are not at index 0.
+            normals: [vec![Vec3::X], normals.to_vec()].concat(),
+            triangles: vec![
+                MeshTriangle {
+                    positions: [0, 1, 2],
+                    normals: Some([1, 2, 3]),
+                },
+                MeshTriangle {
+                    positions: [1, 3, 2],
+                    normals: None,
+                },
+            ],
+        },
+    }
+}
+
+#[test]
+fn vertex_normals_stay_with_their_triangles() {
+    use glam::{DVec3, Vec3};
+    use rayscope_scene::Shape;
+    let flat = |x: f64| Shape::Triangle {
+        vertices: [
+            DVec3::new(x, 0.0, 3.0),
+            DVec3::new(x + 1.0, 0.0, 3.0),
+            DVec3::new(x, 1.0, 3.0),
+        ],
+    };
+    let a = [Vec3::Z, Vec3::Y, Vec3::new(0.6, 0.0, 0.8)];
+    let b = [Vec3::new(0.0, 0.6, 0.8), Vec3::NEG_Z, Vec3::X];
+    let shapes = vec![
+        flat(-4.0),
+        two_triangle_mesh(-2.0, a),
+        two_triangle_mesh(0.0, b),
+        flat(2.0),
+    ];
+    let file = file_of(shapes.clone());
+    let scene = Scene::from_file(&file);
+    // Triangles in file order: flat, mesh a (smooth, flat), mesh b (smooth, flat), flat.
+    let got: Vec<Option<[Vec3; 3]>> = (0..6).map(|i| scene.vertex_normals(i)).collect();
+    assert_eq!(got, [None, Some(a), None, Some(b), None, None]);
+    assert_eq!(
+        scene.triangle_normals.len(),
+        6,
+        "one entry per triangle once any is smooth"
+    );
+
+    // A scene without vertex normals keeps none, whatever its size.
+    let plain = Scene::from_file(&file_of(vec![flat(0.0), flat(2.0)]));
+    assert!(plain.triangle_normals.is_empty() && plain.normals.is_empty());
+    assert_eq!(plain.vertex_normals(1), None);
+
+    // Converting a file the caller gives away builds the same scene.
+    let owned = Scene::from_owned_file(file_of(shapes));
+    assert_eq!(owned.triangles, scene.triangles);
+    assert_eq!(owned.triangle_info, scene.triangle_info);
+    assert_eq!((0..6).map(|i| owned.vertex_normals(i)).collect::<Vec<_>>(), got);
+    assert_eq!(owned.wide.nodes.len(), scene.wide.nodes.len());
+    assert_eq!(owned.wide.tris.len(), scene.wide.tris.len());
+    let ray = Ray::new(Vec3A::new(0.2, 0.2, 0.0), Vec3A::Z);
+    let hit = owned.intersect(&ray, 0.0, f32::INFINITY).expect("the ray meets mesh b");
+    assert_eq!(hit.prim, PrimRef::Triangle(3));
+    // Smooth shading uses mesh b's normals (interpolated at the hit), not mesh a's.
+    let s = owned.surface(&ray, &hit);
+    let w = 1.0 - hit.u - hit.v;
+    let expect = (Vec3A::from(b[0]) * w + Vec3A::from(b[1]) * hit.u + Vec3A::from(b[2]) * hit.v).normalize();
+    let expect = if expect.dot(s.normal) < 0.0 { -expect } else { expect };
+    assert!(
+        (s.shading_normal - expect).length() < 1e-5,
+        "{:?} vs {expect:?}",
+        s.shading_normal
+    );
+}

@@ -8,7 +8,7 @@ use rayscope_core::geometry::{Primitive, Triangle};
 use rayscope_core::math::Ray;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
-use rayscope_core::scene::{Intersect, PrimRef, Scene};
+use rayscope_core::scene::{BinaryReference, Intersect, PrimRef, Scene};
 use rayscope_core::wide::{Bvh4, RayPacket, WideHit, INTERLEAVE_BYTES, LANES};
 use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
 
@@ -136,11 +136,12 @@ fn wide_equals_binary_and_brute_force() {
             "seed {seed}: flat list only for tiny scenes"
         );
         let reference = ReferenceIntersector { scene: &scene };
+        let binary = BinaryReference::new(&scene);
         let mut disagree = 0;
         let rays = random_rays(seed, 3000);
         for ray in &rays {
             let w = scene.intersect(ray, 0.0, f32::INFINITY);
-            let b = scene.intersect_binary(ray, 0.0, f32::INFINITY);
+            let b = binary.intersect(ray, 0.0, f32::INFINITY);
             // The wide and binary BVH run the same arithmetic on the same primitives.
             match (w, b) {
                 (Some(w), Some(b)) => assert!((w.t - b.t).abs() <= 1e-5 * (1.0 + b.t), "seed {seed}: {w:?} vs {b:?}"),
@@ -262,13 +263,14 @@ fn hits_report_the_right_primitive_kind() {
 fn axis_parallel_rays_through_slab_planes() {
     // Rays exactly along an axis, starting on a bounding-box plane, must still find the geometry.
     let scene = random_scene(11, 0, 200);
+    let binary = BinaryReference::new(&scene);
     for t in 0..scene.triangles.len() {
         let [a, b, c] = scene.triangles[t].vertices();
         let centroid = (a + b + c) / 3.0;
         for d in [Vec3A::X, Vec3A::Y, Vec3A::Z, -Vec3A::X, -Vec3A::Y, -Vec3A::Z] {
             let ray = Ray::new(centroid - d * 20.0, d);
             let w = scene.intersect(&ray, 0.0, f32::INFINITY);
-            let b = scene.intersect_binary(&ray, 0.0, f32::INFINITY);
+            let b = binary.intersect(&ray, 0.0, f32::INFINITY);
             assert_eq!(w.map(|h| h.prim), b.map(|h| h.prim));
             // In a packet, beside an oblique ray (the packet opens nodes for either).
             let oblique = Ray::new(Vec3A::new(-9.0, 3.0, -2.0), Vec3A::new(1.0, -0.3, 0.8).normalize());
@@ -335,8 +337,8 @@ fn deep_trees_never_lose_a_branch() {
             // Interior node at 2i: left child (its triangle) at 2i + 1, the rest at 2i + 2.
             let all = bounds_from(i);
             nodes.push(BvhNode {
-                min: all.min,
-                max: all.max,
+                min: all.min.into(),
+                max: all.max.into(),
                 offset: 2 * i as u32 + 2,
                 count: 0,
                 axis: 0,
@@ -344,8 +346,8 @@ fn deep_trees_never_lose_a_branch() {
         }
         let own = t.bounds();
         nodes.push(BvhNode {
-            min: own.min,
-            max: own.max,
+            min: own.min.into(),
+            max: own.max.into(),
             offset: i as u32,
             count: 1,
             axis: 0,
@@ -567,6 +569,7 @@ fn a_fine_mesh_gets_about_one_node_per_three_packets() {
     // its own (half the nodes of a million-triangle mesh); leaves now hold such runs, so nodes
     // are few, and a query must still test every packet of a run.
     let scene = grid_scene(120);
+    let reference = BinaryReference::new(&scene);
     let wide = &scene.wide;
     assert!(
         wide.nodes.len() * 3 <= wide.tris.len(),
@@ -580,7 +583,7 @@ fn a_fine_mesh_gets_about_one_node_per_three_packets() {
         let d = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, 2.0).normalize();
         let ray = Ray::new(o, d);
         let one = scene.intersect(&ray, 0.0, f32::INFINITY).map(|h| h.prim);
-        let binary = scene.intersect_binary(&ray, 0.0, f32::INFINITY).map(|h| h.prim);
+        let binary = reference.intersect(&ray, 0.0, f32::INFINITY).map(|h| h.prim);
         assert_eq!(one, binary, "ray {k}");
         assert_eq!(
             scene.occluded(&ray, 0.0, f32::INFINITY),
@@ -599,6 +602,7 @@ fn a_small_room_is_a_list_for_single_rays_and_a_tree_for_packets() {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/emissive.txt");
     let scene = Scene::from_file(&rayscope_scene::load(&path).expect("our scene loads"));
     assert!(!scene.wide.single.is_empty(), "the room gets a list for single rays");
+    let reference = BinaryReference::new(&scene);
     assert!(
         scene.wide.root != u32::MAX && scene.wide.flat.is_empty(),
         "and keeps its tree"
@@ -618,7 +622,7 @@ fn a_small_room_is_a_list_for_single_rays_and_a_tree_for_packets() {
                 .map(|h| (h.t, h.u, h.v, h.prim));
             // The binary BVH has no tie rule, so where the block's floor lies on the room's
             // floor it may name the other triangle; the distance must agree.
-            let binary = scene.intersect_binary(ray, 0.0, f32::INFINITY).map(|h| h.t);
+            let binary = reference.intersect(ray, 0.0, f32::INFINITY).map(|h| h.t);
             assert_eq!(hits.get(i), one, "ray {k}.{i}: packet against single");
             let Some((t, ..)) = one else {
                 // Out through the open front.

@@ -612,7 +612,7 @@ impl PacketSurfaces {
                     g.triangle[i] = true;
                     put(&mut g.a, i, tri.e1().to_array());
                     put(&mut g.b, i, tri.e2().to_array());
-                    if let Some(ns) = scene.triangle_info[k as usize].normals {
+                    if let Some(ns) = scene.vertex_normals(k) {
                         let sm = g.smooth.get_or_insert_with(SmoothNormals::default);
                         sm.on[i] = true;
                         for (c, n) in ns.iter().enumerate() {
