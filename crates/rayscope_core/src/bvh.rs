@@ -12,7 +12,8 @@ use crate::math::{Aabb, Ray};
 /// The corners are unpadded `Vec3`s, so a node is 32 bytes instead of 48: a build makes two
 /// nodes for every few primitives, and for a large mesh this tree sits beside the wide one being
 /// made from it at the peak of the load.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
 pub struct BvhNode {
     /// Lower corner of the bounds.
     pub min: Vec3,
@@ -57,9 +58,11 @@ impl Bvh {
         if prims.is_empty() {
             return Bvh::default();
         }
-        // A binary tree over n primitives has fewer than 2n nodes.
-        let mut nodes = Vec::with_capacity(2 * prims.len());
-        build_rec(&mut prims, 0, &mut nodes);
+        // A binary tree over n primitives has at most 2n − 1 nodes. Zeroed, the buffer is
+        // fresh pages that cost memory only where the build writes.
+        let mut nodes: Vec<BvhNode> = bytemuck::zeroed_vec(2 * prims.len() - 1);
+        let count = build_rec(&mut prims, 0, &mut nodes, 0);
+        nodes.truncate(count);
         nodes.shrink_to_fit();
         // The build partitions `prims` in place into leaf order, so the leaves' runs are
         // ranges of it.
@@ -145,29 +148,33 @@ fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
     near <= far
 }
 
-/// Appends a leaf over `items`, which start at index `first` of the whole build's primitives.
-fn leaf_node(items: &[BuildPrim], first: u32, bounds: Aabb, nodes: &mut Vec<BvhNode>) {
-    nodes.push(BvhNode {
+/// Writes a leaf over `items`, which start at index `first` of the whole build's primitives, to
+/// `out[0]`; returns 1, the nodes written.
+fn leaf_node(items: &[BuildPrim], first: u32, bounds: Aabb, out: &mut [BvhNode]) -> usize {
+    out[0] = BvhNode {
         min: bounds.min.into(),
         max: bounds.max.into(),
         offset: first,
         count: items.len() as u16,
         axis: 0,
-    });
+    };
+    1
 }
 
-/// Appends the subtree over `items` (index `first` onwards of the whole build's primitives) to
-/// `nodes` depth-first, its interior nodes' offsets counted in `nodes`. Subtrees are written
-/// where they end up instead of built apart and joined: joining copied every node once per level
-/// above it and allocated two vectors per leaf, nearly a quarter of a large mesh's build time.
+/// Writes the subtree over `items` (index `first` onwards of the whole build's primitives)
+/// depth-first from `out[0]`, which is node `base` of the tree; returns how many nodes it wrote.
+/// `out` holds at least 2 × `items.len()` − 1 nodes, as many as any binary tree over them needs.
+/// Subtrees are written where they end up instead of built apart and joined: joining copied
+/// every node once per level above it and allocated two vectors per leaf, nearly a quarter of a
+/// large mesh's build time.
 ///
 /// Centroids are recomputed where they are needed rather than stored beside the primitives: a
 /// stored copy made the build's working array a third larger, and for a 4 M-triangle mesh that
 /// array and the centroids copied into it were 320 MB of fresh memory.
-fn build_rec(items: &mut [BuildPrim], first: u32, nodes: &mut Vec<BvhNode>) {
+fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32) -> usize {
     let bounds = items.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
     if items.len() <= MAX_LEAF {
-        return leaf_node(items, first, bounds, nodes);
+        return leaf_node(items, first, bounds, out);
     }
     let cb = items.iter().fold(Aabb::EMPTY, |b, p| b.grow(p.bounds.center()));
     let extent = cb.max - cb.min;
@@ -183,7 +190,7 @@ fn build_rec(items: &mut [BuildPrim], first: u32, nodes: &mut Vec<BvhNode>) {
     if ext.is_nan() || ext <= 0.0 {
         // All centroids coincide: split in the middle of the list (small lists returned above).
         let mid = items.len() / 2;
-        return join(items, first, mid, bounds, axis, nodes);
+        return join(items, first, mid, bounds, axis, out, base);
     }
     // Binned SAH on the axis of largest centroid extent.
     let scale = BINS as f32 / ext;
@@ -223,48 +230,67 @@ fn build_rec(items: &mut [BuildPrim], first: u32, nodes: &mut Vec<BvhNode>) {
     // Traversal cost ≈ one primitive test, relative to the parent's area.
     let split_cost = bounds.half_area() + best.0;
     if items.len() <= MAX_LEAF * 2 && split_cost >= leaf_cost {
-        return leaf_node(items, first, bounds, nodes);
+        return leaf_node(items, first, bounds, out);
     }
     let split_bin = best.1;
     let mut mid = partition(items, |p| bin_of(p.bounds.center()) <= split_bin);
     if mid == 0 || mid == items.len() {
         mid = items.len() / 2;
     }
-    join(items, first, mid, bounds, axis, nodes);
+    join(items, first, mid, bounds, axis, out, base)
 }
 
-/// Appends an interior node splitting `items` at `mid`, then its two subtrees (see
-/// [`build_rec`]).
-fn join(items: &mut [BuildPrim], first: u32, mid: usize, bounds: Aabb, axis: usize, nodes: &mut Vec<BvhNode>) {
+/// Writes an interior node splitting `items` at `mid` to `out[0]`, then its two subtrees (see
+/// [`build_rec`]); returns the nodes written.
+///
+/// The left subtree follows its parent. Above [`PARALLEL_CUTOFF`] the right one is built at the
+/// same time, on another thread, from `out[2 × mid]` on (the left one cannot reach that far), and
+/// then moved down to follow the left one with its interior offsets moved with it. Building it
+/// in a vector of its own instead left about 85 MB of a 4 M-triangle build in glibc's per-thread
+/// arenas once those vectors were freed, on top of the peak of the load.
+fn join(
+    items: &mut [BuildPrim],
+    first: u32,
+    mid: usize,
+    bounds: Aabb,
+    axis: usize,
+    out: &mut [BvhNode],
+    base: u32,
+) -> usize {
     let n = items.len();
-    let parent = nodes.len();
-    nodes.push(BvhNode {
-        min: bounds.min.into(),
-        max: bounds.max.into(),
-        offset: 0,
-        count: 0,
-        axis: axis as u16,
-    });
     let (l, r) = items.split_at_mut(mid);
     let right_first = first + mid as u32;
-    if n > PARALLEL_CUTOFF {
-        // The left subtree goes straight into `nodes`; the right one, built meanwhile on
-        // another thread, is copied after it with its interior offsets moved.
-        let mut right = Vec::with_capacity(2 * r.len());
-        rayon::join(|| build_rec(l, first, nodes), || build_rec(r, right_first, &mut right));
-        let base = nodes.len() as u32;
-        nodes.extend(right.into_iter().map(|mut nd| {
-            if nd.count == 0 {
-                nd.offset += base;
+    let (left, right) = if n > PARALLEL_CUTOFF {
+        let (head, tail) = out.split_at_mut(2 * mid);
+        let right_base = base + 2 * mid as u32;
+        let (left, right) = rayon::join(
+            || build_rec(l, first, &mut head[1..], base + 1),
+            || build_rec(r, right_first, tail, right_base),
+        );
+        let (from, to) = (2 * mid, 1 + left);
+        if to < from {
+            out.copy_within(from..from + right, to);
+            let shift = (from - to) as u32;
+            for nd in &mut out[to..to + right] {
+                if nd.count == 0 {
+                    nd.offset -= shift;
+                }
             }
-            nd
-        }));
-        nodes[parent].offset = base;
+        }
+        (left, right)
     } else {
-        build_rec(l, first, nodes);
-        nodes[parent].offset = nodes.len() as u32;
-        build_rec(r, right_first, nodes);
-    }
+        let left = build_rec(l, first, &mut out[1..], base + 1);
+        let right = build_rec(r, right_first, &mut out[1 + left..], base + 1 + left as u32);
+        (left, right)
+    };
+    out[0] = BvhNode {
+        min: bounds.min.into(),
+        max: bounds.max.into(),
+        offset: base + 1 + left as u32,
+        count: 0,
+        axis: axis as u16,
+    };
+    1 + left + right
 }
 
 fn partition<T>(v: &mut [T], pred: impl Fn(&T) -> bool) -> usize {
