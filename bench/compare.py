@@ -133,6 +133,13 @@ class Rayscope:
             "rss": maxrss_kb * 1024,
         }
 
+    def bench_render(self, scene: str, flags: list[str], threads: int, repeat: int) -> dict:
+        """`rayscope bench render`: the render loop's median time and throughput."""
+        cmd = [self.exe, "bench", "render", "-f", scene, *flags, "--threads", str(threads), "--repeat", str(repeat)]
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        fields = dict(kv.split("=", 1) for kv in out.strip().splitlines()[-1].split())
+        return {"seconds": float(fields["median_s"]), "mrays": float(fields["mrays_per_s"])}
+
     def primary_hits(self, scene: str, side: int) -> int:
         cmd = [self.exe, "bench", "rays", "-f", scene, "--primary", f"{side}x{side}", "--repeat", "1"]
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
@@ -603,6 +610,27 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
                 results[(name, set_label)].append(r)
         log(f"  scale: repetition {rep + 1}/{args.reps} done")
 
+    # Rendering: the same scenes lit by the tori's point light, so each render traces camera
+    # rays (as packets) and a shadow ray from every hit, as users' renders of such meshes do.
+    side = args.primary_side
+    render_flags = ["-w", str(side), "-h", str(side), "-x", "1", "--stage", "2"]
+    lit = []
+    for name, path in scenes:
+        with open(path, encoding="utf-8") as f:
+            lines = f.read().splitlines()
+        if not any(l.startswith("PointLight") for l in lines):
+            lines.insert(1, gen_mesh.LIGHT)
+        lit_path = os.path.join(args.out, os.path.basename(path).replace(".txt", "_lit.txt"))
+        with open(lit_path, "w", encoding="utf-8") as f:
+            f.write("\n".join(lines) + "\n")
+        lit.append((name, lit_path))
+    renders: dict[str, list[dict]] = {name: [] for name, _ in lit}
+    for rep in range(args.reps):
+        k = rep % len(lit)
+        for name, path in lit[k:] + lit[:k]:
+            renders[name].append(rs.bench_render(path, render_flags, threads, args.ray_passes))
+        log(f"  scale, rendering: repetition {rep + 1}/{args.reps} done")
+
     def med(name, key, set_label=None):
         runs = [x for (s, r), xs in results.items() if s == name and set_label in (None, r) for x in xs]
         return median([x[key] for x in runs])
@@ -641,6 +669,17 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
             n_rays = results[(name, set_label)][0]["rays"]
             mr = med(name, "mrays", set_label)
             table.row([set_label, name, f"{h:,} ({h / n_rays:.1%})", f"{mr:.2f}", f"{mr / base:.2f}", f"{mr / big:.2f}"])
+    table.section(
+        f"Scale: rendering (rayscope `bench render {' '.join(render_flags)}`, {threads} threads, the render "
+        f"loop only: camera rays as packets and a shadow ray to the point light from every hit), median of "
+        f"--reps runs (each the median of {args.ray_passes})",
+        ["scene", "render loop", "Mrays/s", f"speed / bunny x{BIG_BUNNY_FACTOR:g} (its time / this one's)"],
+    )
+    big_render = median([r["seconds"] for r in renders[scenes[1][0]]])
+    for name, _ in lit:
+        secs = median([r["seconds"] for r in renders[name]])
+        mr = median([r["mrays"] for r in renders[name]])
+        table.row([name, fmt_s(secs), f"{mr:.1f}", f"{big_render / secs:.2f}"])
     notes.append(
         f"Scale: the tori are `bench/gen_mesh.py`'s closed bumpy torus (scenes `bench/out/torus_N.txt`), "
         f"centred at {gen_mesh.CENTRE}; the course bunny (4968 triangles) covers "

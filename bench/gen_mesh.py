@@ -91,11 +91,15 @@ def write_obj(path: str, verts: np.ndarray, faces: np.ndarray) -> None:
     os.replace(tmp, path)
 
 
+# The scenes' one point light, above and to the right of the camera.
+LIGHT = 'PointLight "L" (0.6, 0.9, 0.5) (1, 1, 1)'
+
+
 def write_scene(path: str, obj_path: str) -> None:
     cx, cy, cz = CENTRE
     with open(path, "w", encoding="ascii") as f:
         f.write('Material "M" Diffuse (0.8, 0.8, 0.8) 1\n')
-        f.write('PointLight "L" (0.6, 0.9, 0.5) (1, 1, 1)\n')
+        f.write(LIGHT + "\n")
         f.write(f'ObjModel "Torus" "{os.path.abspath(obj_path)}" ({cx}, {cy}, {cz}) 1 "M"\n')
 
 

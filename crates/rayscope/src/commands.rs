@@ -400,7 +400,7 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     if let Some(n) = a.threads {
         let _ = rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global();
     }
-    let file = rayscope_scene::load(&a.file).map_err(|e| Failure::input(e.to_string()))?;
+    let file = load_file(&a.file, false)?;
     let t0 = Instant::now();
     let scene = Scene::from_owned_file(file);
     let build = t0.elapsed().as_secs_f64();
@@ -408,6 +408,12 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         (Some(path), _) => {
             let bytes =
                 std::fs::read(path).map_err(|e| Failure::input(format!("cannot read '{}': {e}", path.display())))?;
+            if bytes.is_empty() {
+                return Err(Failure::input(format!(
+                    "'{}' holds no rays: expected 24-byte records of 6 little-endian f32 (origin, direction)",
+                    path.display()
+                )));
+            }
             if bytes.len() % 24 != 0 {
                 return Err(Failure::input(format!(
                     "'{}' is {} bytes, not a whole number of 24-byte ray records (6 little-endian f32)",

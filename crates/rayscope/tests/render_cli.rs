@@ -350,6 +350,22 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
     assert_eq!(bench_rays(&["--rays-file", file, "--packets"], &scene), (17, 16));
     assert_eq!(bench_rays(&["--rays-file", file, "--no-interleave"], &scene), (17, 16));
 
+    // A scene with an error is reported as every command reports it: one `error:`, then where.
+    let bad = dir.path().join("bad.txt");
+    fs::write(&bad, "Material \"M\" Diffuse (1, 1) 1\n").unwrap();
+    let out = rayscope()
+        .args(["bench", "rays", "--primary", "4x4", "-f"])
+        .arg(&bad)
+        .assert()
+        .code(2)
+        .get_output()
+        .stderr
+        .clone();
+    let err = String::from_utf8(out).unwrap();
+    assert!(err.starts_with("error: expected 3 numbers"), "{err}");
+    assert!(!err.contains("error: error:"), "{err}");
+    assert!(err.contains(&format!("{}:1:22", bad.display())), "{err}");
+
     // A file that is not whole records is refused.
     fs::write(&path, &bytes[..25]).unwrap();
     rayscope()
@@ -358,4 +374,13 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
         .assert()
         .failure()
         .stderr(predicate::str::contains("not a whole number of 24-byte ray records"));
+
+    // So is an empty one, which would time nothing.
+    fs::write(&path, b"").unwrap();
+    rayscope()
+        .args(["bench", "rays", "--rays-file", file, "-f"])
+        .arg(&scene)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("holds no rays"));
 }

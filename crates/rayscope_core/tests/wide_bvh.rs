@@ -594,6 +594,69 @@ fn a_fine_mesh_gets_about_one_node_per_three_packets() {
 }
 
 #[test]
+fn packets_that_part_in_a_fine_mesh_return_what_single_rays_return() {
+    // Triangles 0.02 wide, camera rays 0.06–0.2 apart where they meet the grid: the sixteen rays
+    // of a packet share the top of the tree and part below it. With `split_packets` the rays
+    // finish alone the subtrees at most two of them enter; without it the packet walks them
+    // all. The same for shadow packets from the hits toward a light (which start on the
+    // surface, where rays part soonest) with `split_shadows`. Both must give what each ray
+    // traced alone gives, bit for bit.
+    let mut scene = grid_scene(200);
+    assert!(
+        scene.wide.split_shadows && !scene.wide.split_packets,
+        "80,000 triangles: shadow packets split, camera packets not (under 64 MiB)"
+    );
+    let mut rng = Rng::for_sample(43, 0, 0);
+    let light = Vec3A::new(0.3, 1.5, 0.5);
+    let mut parted = 0;
+    for split in [false, true] {
+        (scene.wide.split_packets, scene.wide.split_shadows) = (split, split);
+        for k in 0..600 {
+            let centre = Vec3A::new(rng.next_f32() * 1.2 - 0.6, rng.next_f32() * 1.2 - 0.6, 1.0);
+            let step = 0.02 + 0.05 * rng.next_f32();
+            let n = if k % 7 == 0 { 1 + k % LANES } else { LANES };
+            let rays: Vec<Ray> = (0..n)
+                .map(|i| {
+                    let (x, y) = ((i % 4) as f32 - 1.5, (i / 4) as f32 - 1.5);
+                    Ray::new(Vec3A::ZERO, (centre + Vec3A::new(x, y, 0.0) * step).normalize())
+                })
+                .collect();
+            let mut p = packet_of(&rays, &vec![f32::INFINITY; n]);
+            let hits = scene.wide.closest_rays(&mut p, 0.0);
+            let mut prims = std::collections::HashSet::new();
+            let mut shadows = Vec::new();
+            for (i, ray) in rays.iter().enumerate() {
+                let single = scene
+                    .intersect(ray, 0.0, f32::INFINITY)
+                    .map(|h| (h.t, h.u, h.v, h.prim));
+                assert_eq!(hits.get(i), single, "split {split}, packet {k}, lane {i}");
+                if let Some((t, _, _, prim)) = single {
+                    prims.insert(prim);
+                    let at = ray.at(t) + Vec3A::Z * -1e-4;
+                    let to = light - at;
+                    shadows.push((Ray::new(at, to.normalize()), to.length()));
+                }
+            }
+            parted += usize::from(prims.len() > 8);
+            if shadows.is_empty() {
+                continue;
+            }
+            let (srays, ends): (Vec<Ray>, Vec<f32>) = shadows.into_iter().unzip();
+            let mut p = packet_of(&srays, &ends);
+            let blocked = scene.wide.occluded_rays(&mut p, 0.0);
+            for (i, ray) in srays.iter().enumerate() {
+                assert_eq!(
+                    blocked[i],
+                    scene.occluded(ray, 0.0, ends[i]),
+                    "split {split}, packet {k}, shadow lane {i}"
+                );
+            }
+        }
+    }
+    assert!(parted > 500, "most packets must meet many triangles: {parted}");
+}
+
+#[test]
 fn a_small_room_is_a_list_for_single_rays_and_a_tree_for_packets() {
     // Our emitter-lit box (open at the front): ten walls, a block and two spheres. Single rays test a short list of
     // full packets (every wall's box overlaps the others, so the walk would open most of the

@@ -31,7 +31,7 @@ pub(super) fn prefetch<T>(p: *const T) {
 /// Defines `$name`, which runs `$body` (an expression over the arguments) with the best
 /// instruction set the CPU has, and its AVX-512 and AVX2 builds `$name_avx512`, `$name_avx2`.
 macro_rules! dispatched {
-    ($(#[$doc:meta])* $name:ident, $avx512:ident, $avx2:ident, ($($arg:ident: $ty:ty),*) -> $ret:ty, $body:expr) => {
+    ($(#[$doc:meta])* $name:ident, $avx512:ident, $avx2:ident, $(#[$build:meta])* ($($arg:ident: $ty:ty),*) -> $ret:ty, $body:expr) => {
         $(#[$doc])*
         #[inline]
         pub(super) fn $name($($arg: $ty),*) -> $ret {
@@ -51,12 +51,14 @@ macro_rules! dispatched {
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f")]
+        $(#[$build])*
         pub(super) fn $avx512($($arg: $ty),*) -> $ret {
             $body
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
+        $(#[$build])*
         pub(super) fn $avx2($($arg: $ty),*) -> $ret {
             $body
         }
@@ -68,6 +70,23 @@ dispatched!(
     closest_rays, closest_rays_avx512, closest_rays_avx2,
     (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, cull: Option<&ApexCull>) -> (),
     bvh.closest_rays_impl(rays, t_min, hits, cull)
+);
+
+dispatched!(
+    /// Closest hits of a ray packet whose rays may part (see [`Bvh4::split_packets`]). Its builds
+    /// stay out of line: inlined into [`closest_rays`], they changed how that kernel compiled
+    /// for the scenes that never split.
+    closest_rays_split, closest_rays_split_avx512, closest_rays_split_avx2, #[inline(never)]
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
+    bvh.closest_rays_split_impl(rays, t_min, hits)
+);
+
+dispatched!(
+    /// Which rays of a shadow packet are blocked, in trees with [`Bvh4::split_shadows`] (out
+    /// of line, as [`closest_rays_split`]).
+    occluded_rays_split, occluded_rays_split_avx512, occluded_rays_split_avx2, #[inline(never)]
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) -> (),
+    bvh.occluded_rays_split_impl(rays, t_min, blocked)
 );
 
 dispatched!(
@@ -193,6 +212,9 @@ mod tests {
             let scene = scene(tris, spheres, seed);
             assert_eq!(scene.wide.flat.is_empty(), tris > 16, "flat only when small");
             let bvh = &scene.wide;
+            let mut split = bvh.clone();
+            (split.split_packets, split.split_shadows) = (true, true);
+            let mut tree_hits = 0;
             let mut rng = Rng::for_sample(seed, 1, 0);
             let mut r = move || rng.next_f32();
             for _ in 0..200 {
@@ -228,7 +250,40 @@ mod tests {
                     assert_eq!(wide_blocked, blocked, "{name}");
                 }
                 assert!((0..LANES).any(|i| base.get(i).is_some()), "some rays hit");
+                // The tree walks that split packets where their rays part (`tests/wide_bvh.rs`
+                // checks them against single rays); the flat scene has no tree.
+                if !bvh.flat.is_empty() {
+                    continue;
+                }
+                let (mut split_rays, mut split_hits) = (rays.clone(), PacketHits::default());
+                split.closest_rays_split_impl(&mut split_rays, 0.0, &mut split_hits);
+                split_hits.divide();
+                let mut split_blocked = [false; LANES];
+                split.occluded_rays_split_impl(&mut rays.clone(), 0.0, &mut split_blocked);
+                #[cfg(target_arch = "x86_64")]
+                for name in builds() {
+                    let (mut wide_rays, mut wide) = (rays.clone(), PacketHits::default());
+                    let mut wide_blocked = [false; LANES];
+                    // SAFETY: the CPU supports the instruction set the kernels are built for
+                    // (`builds`).
+                    unsafe {
+                        if name == "avx2" {
+                            closest_rays_split_avx2(&split, &mut wide_rays, 0.0, &mut wide);
+                            occluded_rays_split_avx2(&split, &mut rays.clone(), 0.0, &mut wide_blocked);
+                        } else {
+                            closest_rays_split_avx512(&split, &mut wide_rays, 0.0, &mut wide);
+                            occluded_rays_split_avx512(&split, &mut rays.clone(), 0.0, &mut wide_blocked);
+                        }
+                    }
+                    wide.divide();
+                    for i in 0..LANES {
+                        assert_eq!(wide.get(i), split_hits.get(i), "split, {name} lane {i}");
+                    }
+                    assert_eq!(wide_blocked, split_blocked, "split, {name}");
+                }
+                tree_hits += (0..LANES).filter(|&i| split_hits.get(i).is_some()).count();
             }
+            assert_eq!(tree_hits > 1000, bvh.flat.is_empty(), "rays hit the tree: {tree_hits}");
         }
     }
 
