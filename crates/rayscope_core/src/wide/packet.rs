@@ -571,14 +571,15 @@ impl PacketNodeConsts {
 }
 
 /// Which of a node's children some ray of the packet enters (bit per child), the nearest entry
-/// distance of each child over the rays that enter it, and with `LANES_OF` which rays enter
-/// each child (bit per lane; zero without).
+/// distance of each child over the rays that enter it, and with `lanes_of` which rays enter
+/// each child (bit per lane; zero without). Always inlined with a constant `lanes_of`.
 #[inline(always)]
-fn node_test<const LANES_OF: bool>(
+fn node_test(
     node: &Node4,
     rays: &RayPacket,
     nc: &PacketNodeConsts,
     t_min: f32,
+    lanes_of: bool,
 ) -> (u32, [f32; 4], [u32; 4]) {
     let mut mask = 0;
     let mut near = [f32::INFINITY; 4];
@@ -608,9 +609,9 @@ fn node_test<const LANES_OF: bool>(
             hit[i] = t0 <= t1 * SLAB_SLACK;
             entry[i] = sel(hit[i], t0, f32::INFINITY);
         }
-        // Without `LANES_OF` the walk needs only whether any ray enters, which the fold gives
+        // Without `lanes_of` the walk needs only whether any ray enters, which the fold gives
         // without assembling the mask.
-        let entered = if LANES_OF {
+        let entered = if lanes_of {
             lanes[c] = bits(&hit);
             lanes[c] != 0
         } else {
@@ -640,6 +641,90 @@ fn bits(m: &Mask) -> u32 {
 #[inline(always)]
 fn open_lanes(rays: &RayPacket, t_min: f32) -> u32 {
     bits(&std::array::from_fn(|i| rays.t_max[i] > t_min))
+}
+
+/// A packet walk's stack entry: a node or leaf reference with the nearest entry distance of the
+/// packet's rays (closest-hit walks), or the reference alone (shadow walks), and wrapped in
+/// [`Split`] the lanes whose rays entered it.
+trait Entry: Copy {
+    /// Whether entries carry their lanes, and the walk splits packets where the rays part.
+    const SPLIT: bool;
+    fn new(r: u32, near: f32, lanes: u32) -> Self;
+    fn node(self) -> u32;
+    /// The entry distance (0 for entries without one).
+    fn near(self) -> f32;
+    /// The lanes that entered (every lane for entries without them).
+    fn lanes(self) -> u32;
+}
+
+impl Entry for u32 {
+    const SPLIT: bool = false;
+    #[inline(always)]
+    fn new(r: u32, _: f32, _: u32) -> Self {
+        r
+    }
+    #[inline(always)]
+    fn node(self) -> u32 {
+        self
+    }
+    #[inline(always)]
+    fn near(self) -> f32 {
+        0.0
+    }
+    #[inline(always)]
+    fn lanes(self) -> u32 {
+        u32::MAX
+    }
+}
+
+impl Entry for (u32, f32) {
+    const SPLIT: bool = false;
+    #[inline(always)]
+    fn new(r: u32, near: f32, _: u32) -> Self {
+        (r, near)
+    }
+    #[inline(always)]
+    fn node(self) -> u32 {
+        self.0
+    }
+    #[inline(always)]
+    fn near(self) -> f32 {
+        self.1
+    }
+    #[inline(always)]
+    fn lanes(self) -> u32 {
+        u32::MAX
+    }
+}
+
+/// An [`Entry`] `E` with the lanes that entered it.
+#[derive(Clone, Copy)]
+struct Split<E> {
+    entry: E,
+    lanes: u32,
+}
+
+impl<E: Entry> Entry for Split<E> {
+    const SPLIT: bool = true;
+    #[inline(always)]
+    fn new(r: u32, near: f32, lanes: u32) -> Self {
+        Split {
+            entry: E::new(r, near, lanes),
+            lanes,
+        }
+    }
+    #[inline(always)]
+    fn node(self) -> u32 {
+        self.entry.node()
+    }
+    #[inline(always)]
+    fn near(self) -> f32 {
+        self.entry.near()
+    }
+    #[inline(always)]
+    fn lanes(self) -> u32 {
+        self.lanes
+    }
 }
 
 /// The smallest of sixteen values, none NaN (entry distances start at `t_min` and only take
@@ -732,9 +817,11 @@ impl Bvh4 {
         }
     }
 
-    /// The packet tree walk for closest hits, on a stack of type `S` (see [`Bvh4::deep`]).
+    /// The packet tree walk for closest hits, on a stack of type `S` (see [`Bvh4::deep`]). With
+    /// entries that carry their lanes ([`Entry::SPLIT`]), a subtree that at most [`SOLO_LANES`]
+    /// rays entered is walked by each of them alone (see [`Bvh4::split_packets`]).
     #[inline(always)]
-    fn walk_closest_rays<S: TraversalStack<(u32, f32)> + Default>(
+    fn walk_closest_rays<E: Entry, S: TraversalStack<E> + Default>(
         &self,
         rays: &mut RayPacket,
         t_min: f32,
@@ -742,10 +829,16 @@ impl Bvh4 {
     ) {
         let nc = PacketNodeConsts::new(rays);
         let mut stack = S::default();
-        stack.put((self.root, t_min));
+        stack.put(E::new(self.root, t_min, open_lanes(rays, t_min)));
         let mut far = max_t(rays);
-        while let Some((r, t_near)) = stack.take() {
-            if t_near > far * SLAB_SLACK {
+        while let Some(e) = stack.take() {
+            let r = e.node();
+            if e.near() > far * SLAB_SLACK {
+                continue;
+            }
+            if E::SPLIT && e.lanes().count_ones() <= SOLO_LANES {
+                self.solo_closest(r, e.lanes(), rays, t_min, hits);
+                far = max_t(rays);
                 continue;
             }
             if r & LEAF != 0 {
@@ -754,18 +847,18 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[r as usize];
-            let (mask, near, _) = node_test::<false>(node, rays, &nc, t_min);
+            let (mask, near, lanes) = node_test(node, rays, &nc, t_min, E::SPLIT);
             // Far children first, so the nearest is taken first.
-            let mut order: ArrayVec<(u32, f32), 4> = ArrayVec::new();
+            let mut order: ArrayVec<E, 4> = ArrayVec::new();
             let mut m = mask;
             while m != 0 {
                 let i = m.trailing_zeros() as usize;
                 m &= m - 1;
                 self.prefetch_child(node.children[i]);
-                let item = (node.children[i], near[i]);
+                let item = E::new(node.children[i], near[i], lanes[i]);
                 let mut j = order.len();
                 order.push(item);
-                while j > 0 && order[j - 1].1 < item.1 {
+                while j > 0 && order[j - 1].near() < item.near() {
                     order[j] = order[j - 1];
                     j -= 1;
                 }
@@ -777,70 +870,18 @@ impl Bvh4 {
         }
     }
 
-    /// [`Self::walk_closest_rays`] for trees with [`Bvh4::split_packets`]: each stack entry
-    /// also carries the lanes whose rays entered it, and a subtree that at most [`SOLO_LANES`]
-    /// rays entered is walked by each of them alone.
-    #[inline(always)]
-    fn walk_closest_rays_split<S: TraversalStack<(u32, f32, u32)> + Default>(
-        &self,
-        rays: &mut RayPacket,
-        t_min: f32,
-        hits: &mut PacketHits,
-    ) {
-        let nc = PacketNodeConsts::new(rays);
-        let mut stack = S::default();
-        stack.put((self.root, t_min, open_lanes(rays, t_min)));
-        let mut far = max_t(rays);
-        while let Some((r, t_near, lanes)) = stack.take() {
-            if t_near > far * SLAB_SLACK {
-                continue;
-            }
-            if lanes.count_ones() <= SOLO_LANES {
-                self.solo_closest(r, lanes, rays, t_min, hits);
-                far = max_t(rays);
-                continue;
-            }
-            if r & LEAF != 0 {
-                self.leaf_closest_rays::<true>(r, rays, t_min, hits, ALL);
-                far = max_t(rays);
-                continue;
-            }
-            let node = &self.nodes[r as usize];
-            let (mask, near, child_lanes) = node_test::<true>(node, rays, &nc, t_min);
-            // Far children first, so the nearest is taken first.
-            let mut order: ArrayVec<(u32, f32, u32), 4> = ArrayVec::new();
-            let mut m = mask;
-            while m != 0 {
-                let i = m.trailing_zeros() as usize;
-                m &= m - 1;
-                self.prefetch_child(node.children[i]);
-                let item = (node.children[i], near[i], child_lanes[i]);
-                let mut j = order.len();
-                order.push(item);
-                while j > 0 && order[j - 1].1 < item.1 {
-                    order[j] = order[j - 1];
-                    j -= 1;
-                }
-                order[j] = item;
-            }
-            for &e in &order {
-                stack.put(e);
-            }
-        }
-    }
-
-    /// [`Self::walk_closest_rays_split`] on the fixed stack (the caller has checked that there is
-    /// a tree and that it is not [`Bvh4::deep`]).
+    /// The closest-hit walk that splits packets, on the fixed stack (the caller has checked that
+    /// there is a tree and that it is not [`Bvh4::deep`]).
     #[inline(always)]
     pub(super) fn closest_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        self.walk_closest_rays_split::<ArrayVec<(u32, f32, u32), STACK>>(rays, t_min, hits);
+        self.walk_closest_rays::<Split<(u32, f32)>, ArrayVec<_, STACK>>(rays, t_min, hits);
     }
 
-    /// [`Self::walk_occlude_rays_split`] on the fixed stack (the caller has checked that there
-    /// is a tree and that it is not [`Bvh4::deep`]).
+    /// The shadow walk that splits packets, on the fixed stack (the caller has checked that
+    /// there is a tree and that it is not [`Bvh4::deep`]).
     #[inline(always)]
     pub(super) fn occluded_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        self.walk_occlude_rays_split::<ArrayVec<(u32, u32), STACK>>(rays, t_min, blocked);
+        self.walk_occlude_rays::<Split<u32>, ArrayVec<_, STACK>>(rays, t_min, blocked);
     }
 
     /// The closest hits in subtree `r` of the rays in `lanes`, each walked alone, as
@@ -872,9 +913,10 @@ impl Bvh4 {
         }
     }
 
-    /// The packet tree walk for shadow rays, on a stack of type `S`.
+    /// The packet tree walk for shadow rays, on a stack of type `S`; with entries that carry
+    /// their lanes it splits packets as [`Self::walk_closest_rays`] does.
     #[inline(always)]
-    fn walk_occlude_rays<S: TraversalStack<u32> + Default>(
+    fn walk_occlude_rays<E: Entry, S: TraversalStack<E> + Default>(
         &self,
         rays: &mut RayPacket,
         t_min: f32,
@@ -882,50 +924,22 @@ impl Bvh4 {
     ) {
         let nc = PacketNodeConsts::new(rays);
         let mut stack = S::default();
-        stack.put(self.root);
-        while let Some(r) = stack.take() {
-            if r & LEAF != 0 {
-                self.leaf_occlude_rays::<true>(r, rays, t_min, blocked, ALL);
-                if all_closed(rays) {
-                    return;
+        stack.put(E::new(self.root, t_min, open_lanes(rays, t_min)));
+        while let Some(e) = stack.take() {
+            let r = e.node();
+            if E::SPLIT {
+                // Rays blocked since the entry was pushed need nothing more from it.
+                let lanes = e.lanes() & open_lanes(rays, t_min);
+                if lanes == 0 {
+                    continue;
                 }
-                continue;
-            }
-            let node = &self.nodes[r as usize];
-            let (mut mask, _, _) = node_test::<false>(node, rays, &nc, t_min);
-            while mask != 0 {
-                let i = mask.trailing_zeros() as usize;
-                mask &= mask - 1;
-                self.prefetch_child(node.children[i]);
-                stack.put(node.children[i]);
-            }
-        }
-    }
-
-    /// [`Self::walk_occlude_rays`] for trees with [`Bvh4::split_shadows`]: entries carry their
-    /// lanes as in [`Self::walk_closest_rays_split`].
-    #[inline(always)]
-    fn walk_occlude_rays_split<S: TraversalStack<(u32, u32)> + Default>(
-        &self,
-        rays: &mut RayPacket,
-        t_min: f32,
-        blocked: &mut Mask,
-    ) {
-        let nc = PacketNodeConsts::new(rays);
-        let mut stack = S::default();
-        stack.put((self.root, open_lanes(rays, t_min)));
-        while let Some((r, entered)) = stack.take() {
-            // Rays blocked since the entry was pushed need nothing more from it.
-            let lanes = entered & open_lanes(rays, t_min);
-            if lanes == 0 {
-                continue;
-            }
-            if lanes.count_ones() <= SOLO_LANES {
-                self.solo_occlude(r, lanes, rays, t_min, blocked);
-                if all_closed(rays) {
-                    return;
+                if lanes.count_ones() <= SOLO_LANES {
+                    self.solo_occlude(r, lanes, rays, t_min, blocked);
+                    if all_closed(rays) {
+                        return;
+                    }
+                    continue;
                 }
-                continue;
             }
             if r & LEAF != 0 {
                 self.leaf_occlude_rays::<true>(r, rays, t_min, blocked, ALL);
@@ -935,12 +949,12 @@ impl Bvh4 {
                 continue;
             }
             let node = &self.nodes[r as usize];
-            let (mut mask, _, child_lanes) = node_test::<true>(node, rays, &nc, t_min);
+            let (mut mask, near, lanes) = node_test(node, rays, &nc, t_min, E::SPLIT);
             while mask != 0 {
                 let i = mask.trailing_zeros() as usize;
                 mask &= mask - 1;
                 self.prefetch_child(node.children[i]);
-                stack.put((node.children[i], child_lanes[i]));
+                stack.put(E::new(node.children[i], near[i], lanes[i]));
             }
         }
     }
@@ -1005,11 +1019,11 @@ impl Bvh4 {
             return;
         }
         if self.deep {
-            self.walk_closest_rays::<Vec<(u32, f32)>>(rays, t_min, hits);
+            self.walk_closest_rays::<(u32, f32), Vec<_>>(rays, t_min, hits);
         } else if self.split_packets {
             super::dispatch::closest_rays_split(self, rays, t_min, hits);
         } else {
-            self.walk_closest_rays::<ArrayVec<(u32, f32), STACK>>(rays, t_min, hits);
+            self.walk_closest_rays::<(u32, f32), ArrayVec<_, STACK>>(rays, t_min, hits);
         }
     }
 
@@ -1076,11 +1090,11 @@ impl Bvh4 {
             return blocked;
         }
         if self.deep {
-            self.walk_occlude_rays::<Vec<u32>>(rays, t_min, &mut blocked);
+            self.walk_occlude_rays::<u32, Vec<_>>(rays, t_min, &mut blocked);
         } else if self.split_shadows {
             super::dispatch::occluded_rays_split(self, rays, t_min, &mut blocked);
         } else {
-            self.walk_occlude_rays::<ArrayVec<u32, STACK>>(rays, t_min, &mut blocked);
+            self.walk_occlude_rays::<u32, ArrayVec<_, STACK>>(rays, t_min, &mut blocked);
         }
         blocked
     }
