@@ -727,6 +727,19 @@ impl<E: Entry> Entry for Split<E> {
     }
 }
 
+/// Calls `walk(i, rays, ray constants, node constants)` for each lane `i` in `lanes` (bit per
+/// lane), with the constants a single-ray query makes for lane `i`'s ray.
+#[inline(always)]
+fn alone(lanes: u32, rays: &mut RayPacket, mut walk: impl FnMut(usize, &mut RayPacket, &RayConsts, &NodeConsts)) {
+    let mut m = lanes;
+    while m != 0 {
+        let i = m.trailing_zeros() as usize;
+        m &= m - 1;
+        let ray = rays.ray(i);
+        walk(i, rays, &RayConsts::new(&ray), &NodeConsts::new(&ray));
+    }
+}
+
 /// The smallest of sixteen values, none NaN (entry distances start at `t_min` and only take
 /// values that compare greater), by halving: a fold compiles to a chain of dependent minima.
 #[inline(always)]
@@ -888,12 +901,7 @@ impl Bvh4 {
     /// [`Bvh4::closest`] walks it: the same arithmetic and tie rule, so the same hits.
     #[inline(never)]
     fn solo_closest(&self, r: u32, lanes: u32, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
-        let mut m = lanes;
-        while m != 0 {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let ray = rays.ray(i);
-            let (rc, nc) = (RayConsts::new(&ray), NodeConsts::new(&ray));
+        alone(lanes, rays, |i, rays, rc, nc| {
             let mut walk = Walk {
                 best: None,
                 t_best: rays.t_max[i],
@@ -901,16 +909,16 @@ impl Bvh4 {
                 visits: 0,
             };
             if self.deep {
-                self.walk_closest::<false, Vec<(u32, f32)>>(r, &rc, &nc, t_min, &mut walk);
+                self.walk_closest::<false, Vec<(u32, f32)>>(r, rc, nc, t_min, &mut walk);
             } else {
-                self.walk_closest::<false, ArrayVec<(u32, f32), STACK>>(r, &rc, &nc, t_min, &mut walk);
+                self.walk_closest::<false, ArrayVec<(u32, f32), STACK>>(r, rc, nc, t_min, &mut walk);
             }
             if let Some(h) = walk.best {
                 // Divided already (`a` = 1), as `PacketHits::divide` leaves the other lanes.
                 (rays.t_max[i], hits.t[i], hits.u[i], hits.v[i], hits.a[i]) = (h.t, h.t, h.u, h.v, 1.0);
                 hits.prim[i] = h.key();
             }
-        }
+        });
     }
 
     /// The packet tree walk for shadow rays, on a stack of type `S`; with entries that carry
@@ -963,22 +971,17 @@ impl Bvh4 {
     /// [`Bvh4::any`] walks it; blocked rays are closed.
     #[inline(never)]
     fn solo_occlude(&self, r: u32, lanes: u32, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
-        let mut m = lanes;
-        while m != 0 {
-            let i = m.trailing_zeros() as usize;
-            m &= m - 1;
-            let ray = rays.ray(i);
-            let (rc, nc) = (RayConsts::new(&ray), NodeConsts::new(&ray));
+        alone(lanes, rays, |i, rays, rc, nc| {
             let hit = if self.deep {
-                self.walk_any::<Vec<u32>>(r, &rc, &nc, t_min, rays.t_max[i])
+                self.walk_any::<Vec<u32>>(r, rc, nc, t_min, rays.t_max[i])
             } else {
-                self.walk_any::<ArrayVec<u32, STACK>>(r, &rc, &nc, t_min, rays.t_max[i])
+                self.walk_any::<ArrayVec<u32, STACK>>(r, rc, nc, t_min, rays.t_max[i])
             };
             if hit.is_some() {
                 blocked[i] = true;
                 rays.t_max[i] = f32::NEG_INFINITY;
             }
-        }
+        });
     }
 
     /// Lane `lane` of sphere packet `packet` alone against the rays; see
