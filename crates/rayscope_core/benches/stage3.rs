@@ -15,7 +15,10 @@ use rayscope_core::bvh::{BuildPrim, Bvh};
 use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::TriangleInfo;
 use rayscope_core::{render, RenderSettings, Scene, Stage};
-use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, Mesh, MeshTriangle, SceneFile, Shape};
+use rayscope_scene::{Mesh, MeshTriangle, Shape};
+
+#[path = "../tests/common/mod.rs"]
+mod common;
 
 fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -71,27 +74,12 @@ fn height_field(n: u32) -> Mesh {
 
 fn bvh_build(c: &mut Criterion) {
     let mesh = height_field(708); // 1,002,528 triangles
-    let file = SceneFile {
-        materials: vec![MaterialDef {
-            name: "M".into(),
-            kind: MaterialKind::Diffuse,
-            color: glam::DVec3::ONE,
-            value: 1.0,
-            line: 1,
-        }],
-        entities: vec![EntityDef {
-            name: "Field".into(),
-            shape: Shape::Mesh {
-                source: "field.obj".into(),
-                offset: glam::DVec3::ZERO,
-                scale: 1.0,
-                mesh,
-            },
-            material: 0,
-            line: 2,
-        }],
-        ..SceneFile::default()
-    };
+    let file = common::one_material_file(vec![Shape::Mesh {
+        source: "field.obj".into(),
+        offset: glam::DVec3::ZERO,
+        scale: 1.0,
+        mesh,
+    }]);
     let scene = Scene::from_file(&file);
     let tris = scene.triangles.len();
     let bytes =

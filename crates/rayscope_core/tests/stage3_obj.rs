@@ -11,6 +11,9 @@ use rayscope_core::sampling::uniform_sphere;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::Scene;
 
+mod common;
+use common::one_material_file;
+
 /// The closest hit by testing every plane, sphere and triangle.
 fn brute(scene: &Scene, ray: &Ray) -> Option<(f32, PrimRef)> {
     let mut best: Option<(f32, PrimRef)> = None;
@@ -156,31 +159,6 @@ fn generated_meshes_bvh_matches_brute_force() {
     assert!(hits > 3000, "most rays should hit: {hits}");
 }
 
-/// A one-material scene file of `shapes`, one entity each.
-fn file_of(shapes: Vec<rayscope_scene::Shape>) -> rayscope_scene::SceneFile {
-    use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile};
-    SceneFile {
-        materials: vec![MaterialDef {
-            name: "M".into(),
-            kind: MaterialKind::Diffuse,
-            color: glam::DVec3::ONE,
-            value: 1.0,
-            line: 1,
-        }],
-        entities: shapes
-            .into_iter()
-            .enumerate()
-            .map(|(i, shape)| EntityDef {
-                name: format!("E{i}"),
-                shape,
-                material: 0,
-                line: i + 2,
-            })
-            .collect(),
-        ..SceneFile::default()
-    }
-}
-
 /// A mesh of two triangles, the first with vertex normals `normals` (the second flat).
 fn two_triangle_mesh(x: f32, normals: [glam::Vec3; 3]) -> rayscope_scene::Shape {
     use glam::Vec3;
@@ -227,7 +205,7 @@ fn vertex_normals_stay_with_their_triangles() {
         two_triangle_mesh(0.0, b),
         flat(2.0),
     ];
-    let file = file_of(shapes.clone());
+    let file = one_material_file(shapes.clone());
     let scene = Scene::from_file(&file);
     // Triangles in file order: flat, mesh a (smooth, flat), mesh b (smooth, flat), flat.
     let got: Vec<Option<[Vec3; 3]>> = (0..6).map(|i| scene.vertex_normals(i)).collect();
@@ -239,12 +217,12 @@ fn vertex_normals_stay_with_their_triangles() {
     );
 
     // A scene without vertex normals keeps none, whatever its size.
-    let plain = Scene::from_file(&file_of(vec![flat(0.0), flat(2.0)]));
+    let plain = Scene::from_file(&one_material_file(vec![flat(0.0), flat(2.0)]));
     assert!(plain.triangle_normals.is_empty() && plain.normals.is_empty());
     assert_eq!(plain.vertex_normals(1), None);
 
     // Converting a file the caller gives away builds the same scene.
-    let owned = Scene::from_owned_file(file_of(shapes));
+    let owned = Scene::from_owned_file(one_material_file(shapes));
     assert_eq!(owned.triangles, scene.triangles);
     assert_eq!(owned.triangle_info, scene.triangle_info);
     assert_eq!((0..6).map(|i| owned.vertex_normals(i)).collect::<Vec<_>>(), got);

@@ -10,30 +10,20 @@ use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
 use rayscope_core::scene::{BinaryReference, Intersect, PrimRef, Scene};
 use rayscope_core::wide::{Bvh4, RayPacket, WideHit, INTERLEAVE_BYTES, LANES};
-use rayscope_scene::{EntityDef, MaterialDef, MaterialKind, SceneFile, Shape};
+use rayscope_scene::{EntityDef, Shape};
+
+mod common;
+use common::one_material_file;
 
 fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
     random_scene_with_planes(seed, spheres, triangles, 0)
 }
 
 /// A scene file with one diffuse material, "M", and no entities yet.
-fn one_material_file() -> SceneFile {
-    SceneFile {
-        materials: vec![MaterialDef {
-            name: "M".into(),
-            kind: MaterialKind::Diffuse,
-            color: DVec3::ONE,
-            value: 1.0,
-            line: 1,
-        }],
-        ..SceneFile::default()
-    }
-}
-
 fn random_scene_with_planes(seed: u64, spheres: usize, triangles: usize, planes: usize) -> Scene {
     let mut rng = Rng::for_sample(seed, 0, 0);
     let mut r = move || rng.next_f32() as f64;
-    let mut file = one_material_file();
+    let mut file = one_material_file(Vec::new());
     for i in 0..spheres {
         let c = DVec3::new(r() * 8.0 - 4.0, r() * 8.0 - 4.0, r() * 8.0 + 1.0);
         file.entities.push(EntityDef {
@@ -393,6 +383,21 @@ fn packet_of(rays: &[Ray], t_max: &[f32]) -> RayPacket {
     p
 }
 
+/// `rays` (at most sixteen) as one shadow packet with interval ends `ends`: each lane is blocked
+/// exactly when the ray alone is, and unused lanes never are.
+fn assert_shadow_packet(scene: &Scene, rays: &[Ray], ends: &[f32], context: &str) {
+    let mut p = packet_of(rays, ends);
+    let blocked = scene.wide.occluded_rays(&mut p, 0.0);
+    for (i, ray) in rays.iter().enumerate() {
+        assert_eq!(
+            blocked[i],
+            scene.occluded(ray, 0.0, ends[i]),
+            "{context}: shadow lane {i}"
+        );
+    }
+    assert!(blocked[rays.len()..].iter().all(|b| !b), "{context}: unused lanes");
+}
+
 #[test]
 fn ray_packets_return_what_single_rays_return() {
     for (seed, spheres, tris, planes) in [
@@ -442,16 +447,7 @@ fn ray_packets_return_what_single_rays_return() {
                 .enumerate()
                 .map(|(i, _)| hits.get(i).map_or(5.0, |h| h.0 * (0.5 + rng.next_f32())))
                 .collect();
-            let mut p = packet_of(rays, &ends);
-            let blocked = scene.wide.occluded_rays(&mut p, 0.0);
-            for (i, ray) in rays.iter().enumerate() {
-                assert_eq!(
-                    blocked[i],
-                    scene.occluded(ray, 0.0, ends[i]),
-                    "seed {seed}: shadow lane {i}"
-                );
-            }
-            assert!(blocked[rays.len()..].iter().all(|b| !b));
+            assert_shadow_packet(&scene, rays, &ends, &format!("seed {seed}"));
         }
     }
 }
@@ -540,7 +536,7 @@ fn many_rays_at_once_return_what_single_rays_return() {
 
 /// A bumpy grid of `n`×`n` quads (two triangles each), like a finely tessellated mesh.
 fn grid_scene(n: usize) -> Scene {
-    let mut file = one_material_file();
+    let mut file = one_material_file(Vec::new());
     let p = |i: usize, j: usize| {
         let (x, y) = (i as f64 / n as f64 * 4.0 - 2.0, j as f64 / n as f64 * 4.0 - 2.0);
         DVec3::new(x, y, 3.0 + 0.2 * (3.0 * x).sin() * (2.0 * y).cos())
@@ -642,15 +638,7 @@ fn packets_that_part_in_a_fine_mesh_return_what_single_rays_return() {
                 continue;
             }
             let (srays, ends): (Vec<Ray>, Vec<f32>) = shadows.into_iter().unzip();
-            let mut p = packet_of(&srays, &ends);
-            let blocked = scene.wide.occluded_rays(&mut p, 0.0);
-            for (i, ray) in srays.iter().enumerate() {
-                assert_eq!(
-                    blocked[i],
-                    scene.occluded(ray, 0.0, ends[i]),
-                    "split {split}, packet {k}, shadow lane {i}"
-                );
-            }
+            assert_shadow_packet(&scene, &srays, &ends, &format!("split {split}, packet {k}"));
         }
     }
     assert!(parted > 500, "most packets must meet many triangles: {parted}");
