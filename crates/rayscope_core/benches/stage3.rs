@@ -93,10 +93,7 @@ fn bvh_build(c: &mut Criterion) {
         .triangles
         .iter()
         .enumerate()
-        .map(|(i, t)| BuildPrim {
-            id: i as u32,
-            bounds: t.bounds(),
-        })
+        .map(|(i, t)| BuildPrim::new(i as u32, t.bounds()))
         .collect();
     let mut g = c.benchmark_group("bvh");
     g.sample_size(10);

@@ -3,7 +3,7 @@
 //! Nodes are stored depth-first in one flat array; a node's left child follows it directly and
 //! the right child's index is stored, so traversal touches memory mostly forwards.
 
-use glam::{Vec3, Vec3A};
+use glam::{Vec3, Vec3A, Vec4};
 
 use crate::math::{Aabb, Ray};
 
@@ -36,17 +36,58 @@ pub struct Bvh {
     pub prims: Vec<u32>,
 }
 
-/// A primitive to build over: its identifier, bounds and centroid.
+/// A primitive to build over: its identifier and bounds.
+///
+/// The identifier rides in the lower corner's fourth lane, so a primitive is 32 bytes (two
+/// aligned vectors) instead of 48: the build streams its whole array from memory twice a level
+/// near the root, where the array is far larger than the caches.
 #[derive(Debug, Clone, Copy)]
 pub struct BuildPrim {
-    /// Caller's identifier, returned by traversal.
-    pub id: u32,
+    /// Lower corner, and the identifier's bits in `w`.
+    lo: Vec4,
+    /// Upper corner (`w` unused).
+    hi: Vec4,
+}
+
+/// Flipped in an identifier's bits where it is stored in a float lane: the build's vector
+/// arithmetic runs on that lane too, and an identifier below 2^23 read as a float is a denormal,
+/// each operation on which costs a microcode assist (the build took twice as long). Flipped, any
+/// identifier below 2^30 (whatever its top bit) reads as a normal float, an infinity or a NaN,
+/// none of which the arithmetic slows down on.
+const ID_EXPONENT: u32 = 1 << 30;
+
+impl BuildPrim {
+    /// The primitive `id` (the caller's identifier, returned by traversal) with bounds `bounds`.
+    #[must_use]
+    pub fn new(id: u32, bounds: Aabb) -> Self {
+        Self {
+            lo: bounds.min.extend(f32::from_bits(id ^ ID_EXPONENT)),
+            hi: bounds.max.extend(0.0),
+        }
+    }
+
+    /// The caller's identifier.
+    #[must_use]
+    pub fn id(&self) -> u32 {
+        self.lo.w.to_bits() ^ ID_EXPONENT
+    }
+
     /// Bounds of the primitive.
-    pub bounds: Aabb,
+    #[must_use]
+    #[inline(always)]
+    pub fn bounds(&self) -> Aabb {
+        Aabb {
+            min: Vec3A::from_vec4(self.lo),
+            max: Vec3A::from_vec4(self.hi),
+        }
+    }
 }
 
 const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
+/// The most primitives a leaf holds: up to [`MAX_LEAF`] always, and up to twice that where the
+/// SAH finds no split worth a node.
+pub(crate) const MAX_LEAF_PRIMS: usize = 2 * MAX_LEAF;
 /// Below this many primitives a subtree is built on the current thread.
 const PARALLEL_CUTOFF: usize = 4096;
 
@@ -54,21 +95,25 @@ impl Bvh {
     /// Builds a BVH over `prims` (any order); uses all rayon threads for large inputs.
     #[must_use]
     pub fn build(mut prims: Vec<BuildPrim>) -> Bvh {
-        prims.retain(|p| !p.bounds.is_empty() && p.bounds.min.is_finite() && p.bounds.max.is_finite());
+        prims.retain(|p| {
+            let b = p.bounds();
+            !b.is_empty() && b.min.is_finite() && b.max.is_finite()
+        });
         if prims.is_empty() {
             return Bvh::default();
         }
         // A binary tree over n primitives has at most 2n − 1 nodes. Zeroed, the buffer is
         // fresh pages that cost memory only where the build writes.
         let mut nodes: Vec<BvhNode> = bytemuck::zeroed_vec(2 * prims.len() - 1);
-        let count = build_rec(&mut prims, 0, &mut nodes, 0);
+        let ext = Extent::of(&prims);
+        let count = build_rec(&mut prims, ext, 0, &mut nodes, 0);
         nodes.truncate(count);
         nodes.shrink_to_fit();
         // The build partitions `prims` in place into leaf order, so the leaves' runs are
         // ranges of it.
         Bvh {
             nodes,
-            prims: prims.iter().map(|p| p.id).collect(),
+            prims: prims.iter().map(BuildPrim::id).collect(),
         }
     }
 
@@ -161,22 +206,61 @@ fn leaf_node(items: &[BuildPrim], first: u32, bounds: Aabb, out: &mut [BvhNode])
     1
 }
 
-/// Writes the subtree over `items` (index `first` onwards of the whole build's primitives)
-/// depth-first from `out[0]`, which is node `base` of the tree; returns how many nodes it wrote.
-/// `out` holds at least 2 × `items.len()` − 1 nodes, as many as any binary tree over them needs.
-/// Subtrees are written where they end up instead of built apart and joined: joining copied
-/// every node once per level above it and allocated two vectors per leaf, nearly a quarter of a
-/// large mesh's build time.
+/// The bounds of a set of primitives and of their centres, which is what a split needs.
+#[derive(Debug, Clone, Copy)]
+struct Extent {
+    bounds: Aabb,
+    centers: Aabb,
+}
+
+impl Extent {
+    const EMPTY: Extent = Extent {
+        bounds: Aabb::EMPTY,
+        centers: Aabb::EMPTY,
+    };
+
+    #[inline(always)]
+    fn add(self, p: &BuildPrim) -> Extent {
+        Extent {
+            bounds: self.bounds.union(p.bounds()),
+            centers: self.centers.grow(p.bounds().center()),
+        }
+    }
+
+    #[inline(always)]
+    fn union(self, o: Extent) -> Extent {
+        Extent {
+            bounds: self.bounds.union(o.bounds),
+            centers: self.centers.union(o.centers),
+        }
+    }
+
+    /// The extent of `items`, in one pass.
+    fn of(items: &[BuildPrim]) -> Extent {
+        items.iter().fold(Extent::EMPTY, Extent::add)
+    }
+}
+
+/// Writes the subtree over `items` (index `first` onwards of the whole build's primitives, whose
+/// extent is `ext`) depth-first from `out[0]`, which is node `base` of the tree; returns how many
+/// nodes it wrote. `out` holds at least 2 × `items.len()` − 1 nodes, as many as any binary tree
+/// over them needs. Subtrees are written where they end up instead of built apart and joined:
+/// joining copied every node once per level above it and allocated two vectors per leaf, nearly
+/// a quarter of a large mesh's build time.
+///
+/// The binning keeps each bin's centre bounds beside its box, so both sides' extents are known
+/// from the bins once a split is chosen: each node then reads its primitives twice (binning and
+/// partition) instead of four times.
 ///
 /// Centroids are recomputed where they are needed rather than stored beside the primitives: a
 /// stored copy made the build's working array a third larger, and for a 4 M-triangle mesh that
 /// array and the centroids copied into it were 320 MB of fresh memory.
-fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32) -> usize {
-    let bounds = items.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+fn build_rec(items: &mut [BuildPrim], ext: Extent, first: u32, out: &mut [BvhNode], base: u32) -> usize {
+    let bounds = ext.bounds;
     if items.len() <= MAX_LEAF {
         return leaf_node(items, first, bounds, out);
     }
-    let cb = items.iter().fold(Aabb::EMPTY, |b, p| b.grow(p.bounds.center()));
+    let cb = ext.centers;
     let extent = cb.max - cb.min;
     let axis = if extent.x >= extent.y && extent.x >= extent.z {
         0
@@ -186,20 +270,19 @@ fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32
         2
     };
     let lo = cb.min[axis];
-    let ext = extent[axis];
-    if ext.is_nan() || ext <= 0.0 {
+    let width = extent[axis];
+    if width.is_nan() || width <= 0.0 {
         // All centroids coincide: split in the middle of the list (small lists returned above).
-        let mid = items.len() / 2;
-        return join(items, first, mid, bounds, axis, out, base);
+        return join_at_middle(items, first, bounds, axis, out, base);
     }
     // Binned SAH on the axis of largest centroid extent.
-    let scale = BINS as f32 / ext;
+    let scale = BINS as f32 / width;
     let bin_of = |c: Vec3A| (((c[axis] - lo) * scale) as usize).min(BINS - 1);
-    let mut bin_bounds = [Aabb::EMPTY; BINS];
+    let mut bins = [Extent::EMPTY; BINS];
     let mut bin_count = [0usize; BINS];
     for p in items.iter() {
-        let b = bin_of(p.bounds.center());
-        bin_bounds[b] = bin_bounds[b].union(p.bounds);
+        let b = bin_of(p.bounds().center());
+        bins[b] = bins[b].add(p);
         bin_count[b] += 1;
     }
     let mut right_area = [0.0f32; BINS];
@@ -207,7 +290,7 @@ fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32
     let mut cnt = 0;
     let mut right_count = [0usize; BINS];
     for i in (1..BINS).rev() {
-        acc = acc.union(bin_bounds[i]);
+        acc = acc.union(bins[i].bounds);
         cnt += bin_count[i];
         right_area[i] = acc.half_area();
         right_count[i] = cnt;
@@ -216,7 +299,7 @@ fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32
     let mut acc = Aabb::EMPTY;
     let mut cnt = 0;
     for i in 0..BINS - 1 {
-        acc = acc.union(bin_bounds[i]);
+        acc = acc.union(bins[i].bounds);
         cnt += bin_count[i];
         if cnt == 0 || right_count[i + 1] == 0 {
             continue;
@@ -226,32 +309,51 @@ fn build_rec(items: &mut [BuildPrim], first: u32, out: &mut [BvhNode], base: u32
             best = (cost, i);
         }
     }
+    if best.0 == f32::INFINITY {
+        // Every centre fell in one bin (a width that rounds the bins away).
+        return join_at_middle(items, first, bounds, axis, out, base);
+    }
     let leaf_cost = bounds.half_area() * items.len() as f32;
     // Traversal cost ≈ one primitive test, relative to the parent's area.
     let split_cost = bounds.half_area() + best.0;
-    if items.len() <= MAX_LEAF * 2 && split_cost >= leaf_cost {
+    if items.len() <= MAX_LEAF_PRIMS && split_cost >= leaf_cost {
         return leaf_node(items, first, bounds, out);
     }
     let split_bin = best.1;
-    let mut mid = partition(items, |p| bin_of(p.bounds.center()) <= split_bin);
-    if mid == 0 || mid == items.len() {
-        mid = items.len() / 2;
-    }
-    join(items, first, mid, bounds, axis, out, base)
+    let mid = partition(items, |p| bin_of(p.bounds().center()) <= split_bin);
+    let left = bins[..=split_bin].iter().fold(Extent::EMPTY, |a, &b| a.union(b));
+    let right = bins[split_bin + 1..].iter().fold(Extent::EMPTY, |a, &b| a.union(b));
+    join(items, first, mid, [left, right], bounds, axis, out, base)
 }
 
-/// Writes an interior node splitting `items` at `mid` to `out[0]`, then its two subtrees (see
-/// [`build_rec`]); returns the nodes written.
+/// [`join`] at the middle of `items`, with both halves' extents found by a pass over them.
+fn join_at_middle(
+    items: &mut [BuildPrim],
+    first: u32,
+    bounds: Aabb,
+    axis: usize,
+    out: &mut [BvhNode],
+    base: u32,
+) -> usize {
+    let mid = items.len() / 2;
+    let halves = [Extent::of(&items[..mid]), Extent::of(&items[mid..])];
+    join(items, first, mid, halves, bounds, axis, out, base)
+}
+
+/// Writes an interior node splitting `items` at `mid` (the halves' extents `halves`) to
+/// `out[0]`, then its two subtrees (see [`build_rec`]); returns the nodes written.
 ///
 /// The left subtree follows its parent. Above [`PARALLEL_CUTOFF`] the right one is built at the
 /// same time, on another thread, from `out[2 × mid]` on (the left one cannot reach that far), and
 /// then moved down to follow the left one with its interior offsets moved with it. Building it
 /// in a vector of its own instead left about 85 MB of a 4 M-triangle build in glibc's per-thread
 /// arenas once those vectors were freed, on top of the peak of the load.
+#[allow(clippy::too_many_arguments)]
 fn join(
     items: &mut [BuildPrim],
     first: u32,
     mid: usize,
+    halves: [Extent; 2],
     bounds: Aabb,
     axis: usize,
     out: &mut [BvhNode],
@@ -264,8 +366,8 @@ fn join(
         let (head, tail) = out.split_at_mut(2 * mid);
         let right_base = base + 2 * mid as u32;
         let (left, right) = rayon::join(
-            || build_rec(l, first, &mut head[1..], base + 1),
-            || build_rec(r, right_first, tail, right_base),
+            || build_rec(l, halves[0], first, &mut head[1..], base + 1),
+            || build_rec(r, halves[1], right_first, tail, right_base),
         );
         let (from, to) = (2 * mid, 1 + left);
         if to < from {
@@ -279,8 +381,8 @@ fn join(
         }
         (left, right)
     } else {
-        let left = build_rec(l, first, &mut out[1..], base + 1);
-        let right = build_rec(r, right_first, &mut out[1 + left..], base + 1 + left as u32);
+        let left = build_rec(l, halves[0], first, &mut out[1..], base + 1);
+        let right = build_rec(r, halves[1], right_first, &mut out[1 + left..], base + 1 + left as u32);
         (left, right)
     };
     out[0] = BvhNode {
@@ -314,13 +416,13 @@ mod tests {
         assert!(b.nodes.is_empty());
         let r = Ray::new(Vec3A::ZERO, Vec3A::Z);
         assert_eq!(b.traverse(&r, 0.0, 5.0, |_, _| 1.0), 5.0);
-        let one = Bvh::build(vec![BuildPrim {
-            id: 7,
-            bounds: Aabb {
+        let one = Bvh::build(vec![BuildPrim::new(
+            7,
+            Aabb {
                 min: Vec3A::splat(-1.0),
                 max: Vec3A::splat(1.0),
             },
-        }]);
+        )]);
         let mut seen = vec![];
         one.traverse(&r, 0.0, 5.0, |p, t| {
             seen.extend_from_slice(p);
@@ -330,17 +432,50 @@ mod tests {
     }
 
     #[test]
+    fn identifiers_survive_their_float_lane() {
+        // Small ones (denormal bits), ones whose flipped bits read as a NaN (quiet and
+        // signalling) or an infinity, and ones with the top bit the scene marks spheres with.
+        let ids = [
+            0,
+            1,
+            7,
+            0x007F_FFFF,
+            0x3F80_0000,
+            0x3F80_0001,
+            0x3FC0_0000,
+            1 << 31 | 3,
+            u32::MAX,
+        ];
+        let prims: Vec<BuildPrim> = ids
+            .iter()
+            .enumerate()
+            .map(|(k, &id)| {
+                let c = Vec3A::splat(k as f32);
+                let p = BuildPrim::new(id, Aabb { min: c, max: c + 0.5 });
+                assert_eq!(p.id(), id);
+                assert_eq!((p.bounds().min, p.bounds().max), (c, c + 0.5));
+                p
+            })
+            .collect();
+        let mut built = Bvh::build(prims).prims;
+        built.sort_unstable();
+        let mut want = ids.to_vec();
+        want.sort_unstable();
+        assert_eq!(built, want);
+    }
+
+    #[test]
     fn every_primitive_reachable_once() {
         let prims: Vec<BuildPrim> = (0..1000)
             .map(|i| {
                 let c = Vec3A::new((i % 10) as f32, ((i / 10) % 10) as f32, (i / 100) as f32);
-                BuildPrim {
-                    id: i,
-                    bounds: Aabb {
+                BuildPrim::new(
+                    i,
+                    Aabb {
                         min: c,
                         max: c + Vec3A::splat(0.5),
                     },
-                }
+                )
             })
             .collect();
         let b = Bvh::build(prims);
@@ -386,13 +521,13 @@ mod tests {
         let prims: Vec<BuildPrim> = (0..n)
             .map(|id| {
                 let c = Vec3A::new(next(), next(), next()) * 100.0;
-                BuildPrim {
+                BuildPrim::new(
                     id,
-                    bounds: Aabb {
+                    Aabb {
                         min: c,
                         max: c + Vec3A::new(next(), next(), next()),
                     },
-                }
+                )
             })
             .collect();
         let b = Bvh::build(prims.clone());
@@ -405,7 +540,7 @@ mod tests {
             next_start += count;
             let leaf = &b.nodes[node];
             for &id in &b.prims[start..start + count] {
-                let p = prims[id as usize].bounds;
+                let p = prims[id as usize].bounds();
                 assert!(
                     p.min.cmpge(leaf.min.into()).all() && p.max.cmple(leaf.max.into()).all(),
                     "prim {id} outside its leaf"

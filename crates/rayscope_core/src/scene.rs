@@ -335,20 +335,24 @@ impl Scene {
     /// The build's input: every triangle and sphere with its bounds.
     fn build_prims(&self) -> Vec<BuildPrim> {
         let mut prims: Vec<BuildPrim> = Vec::with_capacity(self.triangles.len() + self.spheres.len());
-        prims.extend(self.triangles.iter().enumerate().map(|(i, t)| BuildPrim {
-            id: i as u32,
-            bounds: t.bounds(),
-        }));
-        prims.extend(self.spheres.iter().enumerate().map(|(i, s)| BuildPrim {
-            id: i as u32 | SPHERE_BIT,
-            bounds: s.bounds(),
-        }));
+        prims.extend(
+            self.triangles
+                .iter()
+                .enumerate()
+                .map(|(i, t)| BuildPrim::new(i as u32, t.bounds())),
+        );
+        prims.extend(
+            self.spheres
+                .iter()
+                .enumerate()
+                .map(|(i, s)| BuildPrim::new(i as u32 | SPHERE_BIT, s.bounds())),
+        );
         prims
     }
 
     fn build_bvh(&mut self) {
         let prims = self.build_prims();
-        self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds));
+        self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
         // The binary tree is only the collapse's input: dropped here, it no longer doubles a
         // large mesh's resident memory for the whole render.
         let bvh = Bvh::build(prims);

@@ -12,8 +12,9 @@
 
 use arrayvec::ArrayVec;
 use glam::{BVec4A, Vec3A, Vec4};
+use rayon::prelude::*;
 
-use crate::bvh::{Bvh, BvhNode};
+use crate::bvh::{Bvh, BvhNode, MAX_LEAF_PRIMS};
 use crate::geometry::{Plane, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::scene::PrimRef;
@@ -315,17 +316,20 @@ impl Bvh4 {
             triangles,
             spheres,
             sphere_bit,
+            under: prims_under(bvh, sphere_bit),
             out: &mut out,
         };
         let packets = triangles.len().div_ceil(4) + spheres.len().div_ceil(4);
         if packets <= FLAT_PACKETS {
             out.flat = b.full_packets();
+            fill_tri_packets(&mut out.tris, triangles);
             return out;
         }
         let root = b.node_ref(0);
         if packets <= SINGLE_PACKETS && (packets as f32) < b.out.walk_cost(root, area(&bvh.nodes[0])) {
             out.single = b.full_packets();
         }
+        fill_tri_packets(&mut out.tris, triangles);
         out.root = root;
         out.deep = 3 * out.depth() + 1 > STACK;
         out.prefetch = out.memory_bytes() > PREFETCH_BYTES;
@@ -1027,12 +1031,48 @@ impl PlanePacket {
     }
 }
 
+/// The references under a subtree small enough for one leaf (at most four triangles and four
+/// spheres), or a binary leaf's.
+type Refs = ArrayVec<u32, MAX_LEAF_PRIMS>;
+/// Up to four triangles that make one packet.
+type Group = ArrayVec<u32, 4>;
+/// The packets of a leaf's run.
+type Groups = ArrayVec<Group, MAX_RUN>;
+
+/// A [`Group`] of `ids` (at most four).
+fn group(ids: &[u32]) -> Group {
+    ids.iter().copied().collect()
+}
+
 struct Builder<'a> {
     bvh: &'a Bvh,
     triangles: &'a [Triangle],
     spheres: &'a [Sphere],
     sphere_bit: u32,
+    /// Per binary node: the triangles and spheres under it (see [`prims_under`]).
+    under: Vec<[u8; 2]>,
     out: &'a mut Bvh4,
+}
+
+/// Per node of `bvh`: how many triangles and spheres its subtree holds, saturating at 255 (what
+/// matters is whether they fit one packet of each, see [`Builder::small`]). Counted once for
+/// every node, bottom up: the collapse asks it of the same subtrees again and again while it
+/// gathers a node's children.
+fn prims_under(bvh: &Bvh, sphere_bit: u32) -> Vec<[u8; 2]> {
+    let mut counts = vec![[0u8; 2]; bvh.nodes.len()];
+    // A node's children come after it, so walking backwards meets them first.
+    for i in (0..bvh.nodes.len()).rev() {
+        let n = &bvh.nodes[i];
+        counts[i] = if n.count > 0 {
+            let leaf = &bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
+            let spheres = leaf.iter().filter(|&&r| r & sphere_bit != 0).count();
+            [(leaf.len() - spheres).min(255) as u8, spheres.min(255) as u8]
+        } else {
+            let (l, r) = (counts[i + 1], counts[n.offset as usize]);
+            [l[0].saturating_add(r[0]), l[1].saturating_add(r[1])]
+        };
+    }
+    counts
 }
 
 impl Builder<'_> {
@@ -1056,12 +1096,12 @@ impl Builder<'_> {
         // A subtree of at most four triangles and four spheres becomes one leaf of full packets:
         // a packet tests four primitives for the price of one, so small binary leaves would
         // waste lanes and add node tests.
-        let mut refs = Vec::with_capacity(8);
+        let mut refs = Refs::new();
         if self.collect_small(i, &mut refs) {
             return Some(self.leaf_ref_of(&refs));
         }
         // A few small triangle-only subtrees: a run of packets, so no node is spent on them.
-        let mut groups = Vec::with_capacity(4);
+        let mut groups = Groups::new();
         self.tri_groups(i, &mut groups).then(|| self.tri_run(&groups))
     }
 
@@ -1079,7 +1119,7 @@ impl Builder<'_> {
             let pick = kids
                 .iter()
                 .enumerate()
-                .filter(|(_, &k)| self.bvh.nodes[k].count == 0 && !self.collect_small(k, &mut Vec::with_capacity(8)))
+                .filter(|(_, &k)| self.bvh.nodes[k].count == 0 && !self.small(k))
                 .max_by(|a, b| area(&self.bvh.nodes[*a.1]).total_cmp(&area(&self.bvh.nodes[*b.1])))
                 .map(|(j, _)| j);
             let Some(j) = pick else { break };
@@ -1116,34 +1156,53 @@ impl Builder<'_> {
         node.set_children(children);
     }
 
-    /// Appends the references under node `i` to `out` while they fit in one triangle packet
-    /// and one sphere packet; false when they do not.
-    fn collect_small(&self, i: usize, out: &mut Vec<u32>) -> bool {
+    /// Appends the references under node `i` to `out` when they fit in one triangle packet and
+    /// one sphere packet; false when they do not.
+    fn collect_small(&self, i: usize, out: &mut Refs) -> bool {
+        if !self.small(i) {
+            return false;
+        }
+        self.gather(i, out);
+        true
+    }
+
+    /// True when binary node `i`'s subtree fits one triangle packet and one sphere packet.
+    fn small(&self, i: usize) -> bool {
+        let [tris, spheres] = self.under[i];
+        tris <= 4 && spheres <= 4
+    }
+
+    /// Appends the references under node `i` (a small subtree) to `out`.
+    fn gather(&self, i: usize, out: &mut Refs) {
         let n = &self.bvh.nodes[i];
         if n.count > 0 {
-            out.extend_from_slice(&self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]);
-            let spheres = out.iter().filter(|r| *r & self.sphere_bit != 0).count();
-            return spheres <= 4 && out.len() - spheres <= 4;
+            out.extend(
+                self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]
+                    .iter()
+                    .copied(),
+            );
+        } else {
+            self.gather(i + 1, out);
+            self.gather(n.offset as usize, out);
         }
-        self.collect_small(i + 1, out) && self.collect_small(n.offset as usize, out)
     }
 
     fn leaf_ref(&mut self, n: &BvhNode) -> u32 {
-        let refs = self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize].to_vec();
-        self.leaf_ref_of(&refs)
+        let bvh = self.bvh;
+        self.leaf_ref_of(&bvh.prims[n.offset as usize..n.offset as usize + n.count as usize])
     }
 
     /// A leaf: one packet, a run of triangle packets, or a small node over triangle and sphere
     /// packets when the leaf mixes them.
     fn leaf_ref_of(&mut self, refs: &[u32]) -> u32 {
-        let tris: Vec<u32> = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
-        let sph: Vec<u32> = refs
+        let tris: Refs = refs.iter().copied().filter(|r| r & self.sphere_bit == 0).collect();
+        let sph: Refs = refs
             .iter()
             .filter(|r| *r & self.sphere_bit != 0)
             .map(|r| r & !self.sphere_bit)
             .collect();
         if sph.is_empty() && tris.len() <= 4 * MAX_RUN {
-            let groups: Vec<Vec<u32>> = tris.chunks(4).map(<[u32]>::to_vec).collect();
+            let groups: Groups = tris.chunks(4).map(group).collect();
             return self.tri_run(&groups);
         }
         let mut parts = Vec::new();
@@ -1190,23 +1249,30 @@ impl Builder<'_> {
 
     /// Appends the triangles under node `i` to `groups`, one group per subtree small enough for a
     /// packet; false when the subtree holds spheres or needs more than [`MAX_RUN`] packets.
-    fn tri_groups(&self, i: usize, groups: &mut Vec<Vec<u32>>) -> bool {
+    fn tri_groups(&self, i: usize, groups: &mut Groups) -> bool {
         let n = &self.bvh.nodes[i];
-        let mut refs = Vec::with_capacity(8);
+        let mut refs = Refs::new();
         if n.count > 0 {
-            refs.extend_from_slice(&self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]);
+            let leaf = &self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
+            if refs.try_extend_from_slice(leaf).is_err() {
+                // Too many for a run of packets under one node.
+                return false;
+            }
         } else if !self.collect_small(i, &mut refs) {
             return self.tri_groups(i + 1, groups) && self.tri_groups(n.offset as usize, groups);
         }
         if refs.iter().any(|r| r & self.sphere_bit != 0) {
             return false;
         }
-        groups.extend(refs.chunks(4).map(<[u32]>::to_vec));
-        groups.len() <= MAX_RUN
+        if groups.len() + refs.len().div_ceil(4) > MAX_RUN {
+            return false;
+        }
+        groups.extend(refs.chunks(4).map(group));
+        true
     }
 
     /// A leaf of consecutive triangle packets, one per group (at most [`MAX_RUN`]).
-    fn tri_run(&mut self, groups: &[Vec<u32>]) -> u32 {
+    fn tri_run(&mut self, groups: &[Group]) -> u32 {
         let first = self.tri_packet(&groups[0]);
         for g in &groups[1..] {
             self.tri_packet(g);
@@ -1224,31 +1290,17 @@ impl Builder<'_> {
         list
     }
 
+    /// A triangle packet over `ids`, its geometry left for [`TriPacket::fill`].
     fn tri_packet(&mut self, ids: &[u32]) -> u32 {
-        let mut lanes = [[[0f32; 4]; 3]; 3];
         let mut lane_ids = [NO_PRIM; 4];
         for (l, id) in sorted(ids).enumerate() {
-            let t = &self.triangles[id as usize];
-            for (k, v) in [t.v0(), t.e1(), t.e2()].iter().enumerate() {
-                for a in 0..3 {
-                    lanes[k][a][l] = v[a];
-                }
-            }
             lane_ids[l] = id;
         }
-        let v = |k: usize| {
-            [
-                Vec4::from(lanes[k][0]),
-                Vec4::from(lanes[k][1]),
-                Vec4::from(lanes[k][2]),
-            ]
-        };
-        let (e1, e2) = (v(1), v(2));
         self.out.tris.push(TriPacket {
-            v0: v(0),
-            e1,
-            e2,
-            n: cross(&e1, &e2),
+            v0: [Vec4::ZERO; 3],
+            e1: [Vec4::ZERO; 3],
+            e2: [Vec4::ZERO; 3],
+            n: [Vec4::ZERO; 3],
             ids: lane_ids,
         });
         // 2^28 packets would be a billion triangles, far beyond memory.
@@ -1275,6 +1327,40 @@ impl Builder<'_> {
         });
         LEAF | SPHERES | (self.out.spheres.len() - 1) as u32
     }
+}
+
+impl TriPacket {
+    /// Sets the geometry of the triangles the packet's lanes name (zero in padding lanes).
+    fn fill(&mut self, triangles: &[Triangle]) {
+        let mut lanes = [[[0f32; 4]; 3]; 3];
+        for (l, &id) in self.ids.iter().enumerate().filter(|&(_, &id)| id != NO_PRIM) {
+            let t = &triangles[id as usize];
+            for (k, v) in [t.v0(), t.e1(), t.e2()].iter().enumerate() {
+                for a in 0..3 {
+                    lanes[k][a][l] = v[a];
+                }
+            }
+        }
+        let v = |k: usize| {
+            [
+                Vec4::from(lanes[k][0]),
+                Vec4::from(lanes[k][1]),
+                Vec4::from(lanes[k][2]),
+            ]
+        };
+        (self.v0, self.e1, self.e2) = (v(0), v(1), v(2));
+        self.n = cross(&self.e1, &self.e2);
+    }
+}
+
+/// Fills every packet's geometry (see [`TriPacket::fill`]): the collapse, which decides what goes
+/// in each packet, walks the tree on one thread, and gathering and computing the packets was
+/// half of its time.
+fn fill_tri_packets(packets: &mut [TriPacket], triangles: &[Triangle]) {
+    packets
+        .par_iter_mut()
+        .with_min_len(1 << 12)
+        .for_each(|p| p.fill(triangles));
 }
 
 /// A packet's primitive indices in ascending order, so the lowest lane among equal distances
