@@ -4,6 +4,7 @@
 //! the right child's index is stored, so traversal touches memory mostly forwards.
 
 use glam::{Vec3, Vec3A, Vec4};
+use rayon::prelude::*;
 
 use crate::math::{Aabb, Ray};
 
@@ -90,15 +91,23 @@ const MAX_LEAF: usize = 4;
 pub(crate) const MAX_LEAF_PRIMS: usize = 2 * MAX_LEAF;
 /// Below this many primitives a subtree is built on the current thread.
 const PARALLEL_CUTOFF: usize = 4096;
+/// From this many primitives a node's passes over them are shared among the threads, in chunks
+/// of [`PASS_CHUNK`].
+const PARALLEL_PASS: usize = 1 << 17;
+const PASS_CHUNK: usize = 1 << 14;
 
 impl Bvh {
     /// Builds a BVH over `prims` (any order); uses all rayon threads for large inputs.
     #[must_use]
     pub fn build(mut prims: Vec<BuildPrim>) -> Bvh {
-        prims.retain(|p| {
+        let usable = |p: &BuildPrim| {
             let b = p.bounds();
             !b.is_empty() && b.min.is_finite() && b.max.is_finite()
-        });
+        };
+        // Checked on every thread first: the whole array is rewritten only when some are not.
+        if !prims.par_iter().with_min_len(PASS_CHUNK).all(usable) {
+            prims.retain(usable);
+        }
         if prims.is_empty() {
             return Bvh::default();
         }
@@ -235,8 +244,14 @@ impl Extent {
         }
     }
 
-    /// The extent of `items`, in one pass.
+    /// The extent of `items`, in one pass (shared among the threads for many).
     fn of(items: &[BuildPrim]) -> Extent {
+        if items.len() >= PARALLEL_PASS {
+            return items
+                .par_chunks(PASS_CHUNK)
+                .map(|c| c.iter().fold(Extent::EMPTY, Extent::add))
+                .reduce(|| Extent::EMPTY, Extent::union);
+        }
         items.iter().fold(Extent::EMPTY, Extent::add)
     }
 }
@@ -278,13 +293,32 @@ fn build_rec(items: &mut [BuildPrim], ext: Extent, first: u32, out: &mut [BvhNod
     // Binned SAH on the axis of largest centroid extent.
     let scale = BINS as f32 / width;
     let bin_of = |c: Vec3A| (((c[axis] - lo) * scale) as usize).min(BINS - 1);
-    let mut bins = [Extent::EMPTY; BINS];
-    let mut bin_count = [0usize; BINS];
-    for p in items.iter() {
-        let b = bin_of(p.bounds().center());
-        bins[b] = bins[b].add(p);
-        bin_count[b] += 1;
-    }
+    let bin = |items: &[BuildPrim]| {
+        let mut bins = ([Extent::EMPTY; BINS], [0usize; BINS]);
+        for p in items {
+            let b = bin_of(p.bounds().center());
+            bins.0[b] = bins.0[b].add(p);
+            bins.1[b] += 1;
+        }
+        bins
+    };
+    // Near the root, where a node's primitives are a large part of the mesh and the levels
+    // below have not yet split the work among the threads, the binning is shared out too.
+    let (bins, bin_count) = if items.len() >= PARALLEL_PASS {
+        let merge = |(mut e, mut n): ([Extent; BINS], [usize; BINS]), (e2, n2): ([Extent; BINS], [usize; BINS])| {
+            for b in 0..BINS {
+                e[b] = e[b].union(e2[b]);
+                n[b] += n2[b];
+            }
+            (e, n)
+        };
+        items
+            .par_chunks(PASS_CHUNK)
+            .map(bin)
+            .reduce(|| ([Extent::EMPTY; BINS], [0; BINS]), merge)
+    } else {
+        bin(items)
+    };
     let mut right_area = [0.0f32; BINS];
     let mut acc = Aabb::EMPTY;
     let mut cnt = 0;

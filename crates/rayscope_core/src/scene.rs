@@ -2,6 +2,7 @@
 //! parsed [`rayscope_scene::SceneFile`].
 
 use glam::{DVec3, Vec3, Vec3A};
+use rayon::prelude::*;
 use rayscope_scene::{MaterialKind, SceneFile, Shape};
 use serde::Serialize;
 
@@ -284,14 +285,25 @@ impl Scene {
                     if mesh.triangles.iter().any(|t| t.normals.is_some()) {
                         s.normals.extend_from_slice(&mesh.normals);
                     }
-                    for tri in &mesh.triangles {
-                        let p = tri.positions.map(|i| Vec3A::from(mesh.positions[i as usize]));
-                        let t = Triangle::new(p[0], p[1], p[2]);
-                        if t.is_degenerate() {
-                            continue;
+                    // Made on every thread, in place (a large mesh's triangles are fresh memory,
+                    // whose first writes are most of the cost), then the degenerate ones dropped
+                    // in order on this one.
+                    let first = s.triangles.len();
+                    s.triangles
+                        .par_extend(mesh.triangles.par_iter().with_min_len(1 << 12).map(|tri| {
+                            let p = tri.positions.map(|i| Vec3A::from(mesh.positions[i as usize]));
+                            Triangle::new(p[0], p[1], p[2])
+                        }));
+                    let mut kept = first;
+                    for (k, tri) in mesh.triangles.iter().enumerate() {
+                        let t = s.triangles[first + k];
+                        if !t.is_degenerate() {
+                            s.triangles[kept] = t;
+                            s.push_info(kept, ent, mat, tri.normals.map(|n| n.map(|i| base + i)));
+                            kept += 1;
                         }
-                        s.push_triangle(t, ent, mat, tri.normals.map(|n| n.map(|i| base + i)));
                     }
+                    s.triangles.truncate(kept);
                 }
             }
             let after = s.planes.len() + s.spheres.len() + s.triangles.len();
@@ -310,12 +322,18 @@ impl Scene {
     /// vertex normals.
     fn push_triangle(&mut self, t: Triangle, entity: u32, material: u32, normals: Option<[u32; 3]>) {
         self.triangles.push(t);
+        self.push_info(self.triangles.len() - 1, entity, material, normals);
+    }
+
+    /// Records the entity, material and vertex normals of triangle `index`, the next one
+    /// without them.
+    fn push_info(&mut self, index: usize, entity: u32, material: u32, normals: Option<[u32; 3]>) {
         self.triangle_info.push(TriangleInfo { entity, material });
         match normals {
             Some(n) => {
                 if self.triangle_normals.is_empty() {
                     // The first smooth triangle: the flat ones before it get their entries now.
-                    self.triangle_normals.resize(self.triangles.len() - 1, NO_NORMALS);
+                    self.triangle_normals.resize(index, NO_NORMALS);
                 }
                 self.triangle_normals.push(n);
             }
@@ -335,12 +353,12 @@ impl Scene {
     /// The build's input: every triangle and sphere with its bounds.
     fn build_prims(&self) -> Vec<BuildPrim> {
         let mut prims: Vec<BuildPrim> = Vec::with_capacity(self.triangles.len() + self.spheres.len());
-        prims.extend(
-            self.triangles
-                .iter()
-                .enumerate()
-                .map(|(i, t)| BuildPrim::new(i as u32, t.bounds())),
-        );
+        self.triangles
+            .par_iter()
+            .with_min_len(1 << 12)
+            .enumerate()
+            .map(|(i, t)| BuildPrim::new(i as u32, t.bounds()))
+            .collect_into_vec(&mut prims);
         prims.extend(
             self.spheres
                 .iter()

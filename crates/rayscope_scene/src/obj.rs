@@ -13,7 +13,8 @@
 
 use std::path::Path;
 
-use glam::DVec3;
+use glam::{DVec3, Vec3};
+use rayon::prelude::*;
 
 use crate::diagnostic::{decode_utf8, Diagnostic};
 use crate::lexer::{lines, parse_number, NumberError};
@@ -58,14 +59,41 @@ pub fn load_obj(path: &Path, opts: &ObjOptions) -> Result<Mesh, SceneError> {
 /// `out` (cleared first; one buffer serves every line of a file).
 fn obj_tokens<'a>(line: &'a str, out: &mut Vec<(usize, &'a str)>) {
     out.clear();
-    let code = line.bytes().position(|b| b == b'#').map_or(line, |i| &line[..i]);
-    // Byte by byte where the line is ASCII, as OBJ files are: decoding chars was a large part of
-    // reading one.
-    if code.is_ascii() {
-        split_tokens(code, code.bytes().map(char::from).enumerate(), out);
-    } else {
-        split_tokens(code, code.char_indices(), out);
+    // Byte by byte while the line is ASCII, as OBJ files are, in one pass that also finds the
+    // comment: decoding chars, and separate passes for the comment and for whether the line is
+    // ASCII, were most of the time spent reading a large file.
+    let bytes = line.as_bytes();
+    let mut start = None;
+    for (i, &b) in bytes.iter().enumerate() {
+        if b >= 0x80 {
+            // Not ASCII: the tokens found so far stand (all ASCII before this point), and the
+            // rest of the line is split by chars.
+            out.clear();
+            let code = line.find('#').map_or(line, |i| &line[..i]);
+            split_tokens(code, code.char_indices(), out);
+            return;
+        }
+        let space = ascii_space(b);
+        if space || b == b'#' {
+            if let Some(s) = start.take() {
+                out.push((s, &line[s..i]));
+            }
+            if b == b'#' {
+                return;
+            }
+        } else if start.is_none() {
+            start = Some(i);
+        }
     }
+    if let Some(s) = start {
+        out.push((s, &line[s..]));
+    }
+}
+
+/// `char::is_whitespace` for an ASCII byte: space, and tab to carriage return (which includes
+/// the vertical tab that `u8::is_ascii_whitespace` leaves out).
+fn ascii_space(b: u8) -> bool {
+    b == b' ' || (b'\t'..=b'\r').contains(&b)
 }
 
 /// Appends to `out` the whitespace-separated tokens of `code`, whose chars `chars` yields with
@@ -86,13 +114,146 @@ fn split_tokens<'a>(code: &'a str, chars: impl Iterator<Item = (usize, char)>, o
     }
 }
 
-/// Parsing state for one OBJ file.
-struct ObjParser<'a> {
+/// What one stretch of lines of an OBJ file defines: counted first, so that the stretches can
+/// then be parsed at the same time, each knowing what the lines before it defined and writing
+/// its elements straight to their place in the mesh.
+#[derive(Debug, Clone, Copy, Default)]
+struct Counts {
+    lines: usize,
+    positions: usize,
+    normals: usize,
+    texcoords: usize,
+    triangles: usize,
+}
+
+impl Counts {
+    /// The statements of `text`, as [`ObjParser::statement`] will take them (a face whose
+    /// corners are too few to make a triangle is an error there).
+    fn of(text: &str) -> Counts {
+        let mut c = Counts::default();
+        let mut toks = Vec::new();
+        let bytes = text.as_bytes();
+        let mut i = 0;
+        // Line by line as `lines` splits them, in one pass over the bytes: only each line's
+        // keyword is looked at, and on face lines the corners counted. A line with a non-ASCII
+        // byte is split by `obj_tokens` instead, as the parser splits it.
+        while i < bytes.len() {
+            let start = i;
+            let (mut words, mut keyword, mut in_word, mut comment, mut ascii) = (0, (0, 0), false, false, true);
+            while i < bytes.len() && bytes[i] != b'\n' && bytes[i] != b'\r' {
+                let b = bytes[i];
+                ascii &= b < 0x80;
+                if b == b'#' {
+                    comment = true;
+                }
+                if comment || ascii_space(b) {
+                    in_word = false;
+                } else if !in_word {
+                    in_word = true;
+                    words += 1;
+                    if words == 1 {
+                        keyword.0 = i;
+                    }
+                }
+                if words == 1 && in_word {
+                    keyword.1 = i + 1;
+                }
+                i += 1;
+            }
+            let line = &text[start..i];
+            // The line's end: `\r\n`, `\n` or a lone `\r`.
+            i += if bytes[i..].starts_with(b"\r\n") { 2 } else { 1 };
+            c.lines += 1;
+            if ascii {
+                if words > 0 {
+                    c.add(&bytes[keyword.0..keyword.1], words - 1);
+                }
+            } else {
+                obj_tokens(line, &mut toks);
+                if let Some(&(_, word)) = toks.first() {
+                    c.add(word.as_bytes(), toks.len() - 1);
+                }
+            }
+        }
+        c
+    }
+
+    /// Counts a statement with keyword `word` and `args` arguments.
+    fn add(&mut self, word: &[u8], args: usize) {
+        match word {
+            b"v" => self.positions += 1,
+            b"vn" => self.normals += 1,
+            b"vt" => self.texcoords += 1,
+            // A fan over n corners; fewer than three is an error when the face is parsed.
+            b"f" => self.triangles += args.saturating_sub(2),
+            _ => {}
+        }
+    }
+
+    fn plus(self, o: Counts) -> Counts {
+        Counts {
+            lines: self.lines + o.lines,
+            positions: self.positions + o.positions,
+            normals: self.normals + o.normals,
+            texcoords: self.texcoords + o.texcoords,
+            triangles: self.triangles + o.triangles,
+        }
+    }
+}
+
+/// Where a stretch's elements go: its part of the mesh's array, filled from the front, or (when
+/// the whole file is one stretch, which is not counted first) an array of its own.
+enum Slots<'o, T> {
+    Part(&'o mut [T], usize),
+    Own(Vec<T>),
+}
+
+impl<T> Slots<'_, T> {
+    /// Writes the next element. [`Counts`] sized a part for every element its text defines.
+    fn push(&mut self, v: T) {
+        match self {
+            Slots::Part(buf, len) => {
+                buf[*len] = v;
+                *len += 1;
+            }
+            Slots::Own(buf) => buf.push(v),
+        }
+    }
+
+    /// How many elements have been written.
+    fn len(&self) -> usize {
+        match self {
+            Slots::Part(_, len) => *len,
+            Slots::Own(buf) => buf.len(),
+        }
+    }
+
+    /// The array of its own (empty for a part).
+    fn into_own(self) -> Vec<T> {
+        match self {
+            Slots::Part(..) => Vec::new(),
+            Slots::Own(buf) => buf,
+        }
+    }
+}
+
+/// A stretch's outputs: positions, one normal per `vn` line, triangles.
+type Outputs<'o> = (Slots<'o, Vec3>, Slots<'o, Vec3>, Slots<'o, MeshTriangle>);
+/// A whole file's positions, normals per `vn` line and triangles (see [`mesh_from`]).
+type Parsed = (Vec<Vec3>, Vec<Vec3>, Vec<MeshTriangle>);
+
+/// Parsing state for one stretch of lines of an OBJ file.
+struct ObjParser<'a, 'o> {
     path: &'a Path,
     opts: ObjOptions,
-    mesh: Mesh,
-    /// For each `vn` line, its index in `mesh.normals`, or `None` for a zero-length normal.
-    normal_map: Vec<Option<u32>>,
+    /// What the lines before this stretch defined.
+    before: Counts,
+    positions: Slots<'o, Vec3>,
+    /// One per `vn` line: the unit normal, or zero where the line's normal has no length (it is
+    /// dropped once every stretch is parsed, see [`mesh_from`]).
+    normals: Slots<'o, Vec3>,
+    /// Triangles; their normals are `vn` lines (0-based) until every stretch is parsed.
+    triangles: Slots<'o, MeshTriangle>,
     texcoords: usize,
     line_no: usize,
     line: &'a str,
@@ -102,7 +263,7 @@ struct ObjParser<'a> {
     corner_normals: Vec<Option<u32>>,
 }
 
-impl<'a> ObjParser<'a> {
+impl<'a> ObjParser<'a, '_> {
     fn error(&self, start: usize, text: &str, message: String) -> Diagnostic {
         let column = crate::lexer::column(self.line, start);
         Diagnostic::error(
@@ -240,25 +401,25 @@ impl<'a> ObjParser<'a> {
                     .with_label("too many '/'")
                     .into());
             }
-            let vi = self.index(start, v, "vertex", self.mesh.positions.len())?;
+            let vi = self.index(start, v, "vertex", self.before.positions + self.positions.len())?;
             positions.push(u32::try_from(vi).unwrap_or(u32::MAX));
             let mut offset = start + v.len() + 1;
             if let Some(vt) = vt.filter(|t| !t.is_empty()) {
-                self.index(offset, vt, "texture coordinate", self.texcoords)?;
+                self.index(offset, vt, "texture coordinate", self.before.texcoords + self.texcoords)?;
             }
             offset += vt.map_or(0, |t| t.len() + 1);
             match vn {
                 Some(vn) if !vn.is_empty() => {
-                    let ni = self.index(offset, vn, "normal", self.normal_map.len())?;
-                    normals.push(self.normal_map[ni]);
+                    let ni = self.index(offset, vn, "normal", self.before.normals + self.normals.len())?;
+                    normals.push(u32::try_from(ni).ok());
                 }
                 _ => normals.push(None),
             }
         }
-        // Vertex normals only when every corner has one.
+        // Vertex normals only when every corner has one (and, once known, each has a length).
         let normals_used = normals.iter().all(Option::is_some);
         for i in 1..positions.len() - 1 {
-            self.mesh.triangles.push(MeshTriangle {
+            self.triangles.push(MeshTriangle {
                 positions: [positions[0], positions[i], positions[i + 1]],
                 normals: normals_used.then(|| [0, i, i + 1].map(|k| normals[k].unwrap_or_default())),
             });
@@ -286,24 +447,23 @@ impl<'a> ObjParser<'a> {
                         .with_label("overflows")
                         .into());
                 }
-                if self.mesh.positions.len() >= u32::MAX as usize {
+                if self.before.positions + self.positions.len() >= u32::MAX as usize {
                     return Err(self
                         .error(toks[0].0, "v", "too many vertices (more than 4294967295)".into())
                         .into());
                 }
-                self.mesh.positions.push(q);
+                self.positions.push(q);
             }
             "vn" => {
                 let n = self.coords(toks, "normal")?;
                 let n = DVec3::new(n.x, n.y, -n.z);
                 let m = n.abs().max_element();
                 let unit = if m > 0.0 { (n / m).normalize() } else { DVec3::ZERO };
-                if unit.length_squared() > 0.5 {
-                    self.normal_map.push(u32::try_from(self.mesh.normals.len()).ok());
-                    self.mesh.normals.push(unit.as_vec3());
+                self.normals.push(if unit.length_squared() > 0.5 {
+                    unit.as_vec3()
                 } else {
-                    self.normal_map.push(None);
-                }
+                    Vec3::ZERO
+                });
             }
             "vt" => self.texcoords += 1,
             "f" => self.face(toks)?,
@@ -319,31 +479,100 @@ pub(crate) fn parse_obj_with_warnings(
     path: &Path,
     opts: &ObjOptions,
 ) -> Result<(Mesh, Vec<Diagnostic>), Box<Diagnostic>> {
-    let mut p = ObjParser {
-        path,
-        opts: *opts,
-        mesh: Mesh::default(),
-        normal_map: Vec::new(),
-        texcoords: 0,
-        line_no: 0,
-        line: "",
-        corner_positions: Vec::new(),
-        corner_normals: Vec::new(),
+    // A large file is parsed in stretches on every thread, a few per thread so that they even
+    // out; a small one in one go.
+    let threads = rayon::current_num_threads();
+    let stretches = if src.len() < PARALLEL_BYTES || threads == 1 {
+        1
+    } else {
+        (threads * 4).min(src.len() / (PARALLEL_BYTES / 4))
     };
-    let mut last_line = (0, "");
-    let mut toks = Vec::new();
-    for (i, line) in lines(src).enumerate() {
-        p.line_no = i + 1;
-        p.line = line;
-        last_line = (i + 1, line);
-        obj_tokens(line, &mut toks);
-        if !toks.is_empty() {
-            p.statement(&toks)?;
+    parse_in_stretches(src, path, opts, stretches)
+}
+
+/// Files from this size on are parsed on several threads.
+const PARALLEL_BYTES: usize = 1 << 20;
+
+/// `src` cut into about `n` stretches of whole lines (each but the last ending in `\n`).
+fn stretches(src: &str, n: usize) -> Vec<&str> {
+    let mut out = Vec::with_capacity(n);
+    let mut start = 0;
+    for k in 1..n {
+        let aim = (src.len() * k / n).max(start);
+        let Some(end) = src.as_bytes()[aim..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|i| aim + i + 1)
+        else {
+            break;
+        };
+        if end > start {
+            out.push(&src[start..end]);
+            start = end;
         }
     }
+    out.push(&src[start..]);
+    out
+}
+
+impl<'a, 'o> ObjParser<'a, 'o> {
+    /// A parser for the stretch after the lines `before`, writing to `positions`, `normals` and
+    /// `triangles`.
+    fn new(path: &'a Path, opts: &ObjOptions, before: Counts, (positions, normals, triangles): Outputs<'o>) -> Self {
+        ObjParser {
+            path,
+            opts: *opts,
+            before,
+            positions,
+            normals,
+            triangles,
+            texcoords: 0,
+            line_no: 0,
+            line: "",
+            corner_positions: Vec::new(),
+            corner_normals: Vec::new(),
+        }
+    }
+
+    /// Parses the stretch `text`, stopping at its first error.
+    fn run(&mut self, text: &'a str) -> Result<(), Box<Diagnostic>> {
+        let mut toks = Vec::new();
+        for (i, line) in lines(text).enumerate() {
+            self.line_no = self.before.lines + i + 1;
+            self.line = line;
+            obj_tokens(line, &mut toks);
+            if !toks.is_empty() {
+                self.statement(&toks)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+/// [`parse_obj_with_warnings`] with the text cut into about `n` stretches.
+fn parse_in_stretches(
+    src: &str,
+    path: &Path,
+    opts: &ObjOptions,
+    n: usize,
+) -> Result<(Mesh, Vec<Diagnostic>), Box<Diagnostic>> {
+    let parts = stretches(src, n.max(1));
+    let (positions, normals, triangles) = if let [text] = parts[..] {
+        let own = (Slots::Own(Vec::new()), Slots::Own(Vec::new()), Slots::Own(Vec::new()));
+        let mut parser = ObjParser::new(path, opts, Counts::default(), own);
+        parser.run(text)?;
+        (
+            parser.positions.into_own(),
+            parser.normals.into_own(),
+            parser.triangles.into_own(),
+        )
+    } else {
+        in_parts(&parts, path, opts)?
+    };
+    let mesh = mesh_from(positions, &normals, triangles);
     let mut warnings = Vec::new();
-    if p.mesh.triangles.is_empty() {
-        let (n, text) = last_line;
+    if mesh.triangles.is_empty() {
+        let (n, text) = lines(src).enumerate().last().map_or((0, ""), |(i, l)| (i + 1, l));
         warnings.push(
             Diagnostic::warning(
                 path,
@@ -357,7 +586,82 @@ pub(crate) fn parse_obj_with_warnings(
             .with_note("the model will not be visible"),
         );
     }
-    Ok((p.mesh, warnings))
+    Ok((mesh, warnings))
+}
+
+/// The positions, per-line normals and triangles of the stretches `parts`, parsed at once on
+/// every thread once counted.
+fn in_parts(parts: &[&str], path: &Path, opts: &ObjOptions) -> Result<Parsed, Box<Diagnostic>> {
+    let counts: Vec<Counts> = parts.par_iter().map(|t| Counts::of(t)).collect();
+    let total = counts.iter().fold(Counts::default(), |a, &c| a.plus(c));
+    // Every element's place is known, so each stretch writes its own part of these.
+    let mut positions = filled(total.positions, Vec3::ZERO);
+    let mut normals = filled(total.normals, Vec3::ZERO);
+    let mut triangles = filled(
+        total.triangles,
+        MeshTriangle {
+            positions: [0; 3],
+            normals: None,
+        },
+    );
+    let mut jobs = Vec::with_capacity(parts.len());
+    let (mut p_rest, mut n_rest, mut t_rest) = (&mut positions[..], &mut normals[..], &mut triangles[..]);
+    let mut before = Counts::default();
+    for (&text, &c) in parts.iter().zip(&counts) {
+        let (p, pr) = std::mem::take(&mut p_rest).split_at_mut(c.positions);
+        let (nn, nr) = std::mem::take(&mut n_rest).split_at_mut(c.normals);
+        let (t, tr) = std::mem::take(&mut t_rest).split_at_mut(c.triangles);
+        (p_rest, n_rest, t_rest) = (pr, nr, tr);
+        jobs.push((text, before, (Slots::Part(p, 0), Slots::Part(nn, 0), Slots::Part(t, 0))));
+        before = before.plus(c);
+    }
+    // Each stretch stops at its first error; the file's first error is the earliest stretch's.
+    let results: Vec<Result<(), Box<Diagnostic>>> = jobs
+        .into_par_iter()
+        .map(|(text, before, out)| ObjParser::new(path, opts, before, out).run(text))
+        .collect();
+    results.into_iter().collect::<Result<(), _>>()?;
+    Ok((positions, normals, triangles))
+}
+
+/// `n` copies of `v`, written on every thread (for a large mesh this is fresh memory, whose
+/// first writes cost more than the copies).
+fn filled<T: Copy + Send + Sync>(n: usize, v: T) -> Vec<T> {
+    let mut out = Vec::new();
+    (0..n).into_par_iter().map(|_| v).collect_into_vec(&mut out);
+    out
+}
+
+/// The mesh, once every stretch is parsed: normals without length dropped, and the triangles'
+/// normals turned from `vn` lines into indices of the normals kept (a face with a dropped normal
+/// is shaded flat).
+fn mesh_from(positions: Vec<Vec3>, per_line: &[Vec3], mut triangles: Vec<MeshTriangle>) -> Mesh {
+    let mut normals = Vec::with_capacity(per_line.len());
+    let kept: Vec<Option<u32>> = per_line
+        .iter()
+        .map(|&n| {
+            (n != Vec3::ZERO).then(|| {
+                normals.push(n);
+                u32::try_from(normals.len() - 1).unwrap_or(u32::MAX)
+            })
+        })
+        .collect();
+    if !kept.is_empty() {
+        triangles.par_iter_mut().with_min_len(1 << 12).for_each(|t| {
+            if let Some(lines) = t.normals {
+                let ids = lines.map(|l| kept[l as usize]);
+                t.normals = ids
+                    .iter()
+                    .all(Option::is_some)
+                    .then(|| ids.map(Option::unwrap_or_default));
+            }
+        });
+    }
+    Mesh {
+        positions,
+        normals,
+        triangles,
+    }
 }
 
 #[cfg(test)]
@@ -455,6 +759,85 @@ mod tests {
         assert!(e.message.contains("only 3 vertices are defined so far"), "{e}");
         let e = parse("v 0 0 0\nvn 0 0 1\nf 1//1 1//1 1//2\n").unwrap_err();
         assert!(e.message.contains("only 1 normal is defined so far"), "{e}");
+    }
+
+    /// An OBJ text with every kind of line: vertices with and without w, normals (one of them
+    /// without length), texture coordinates, faces of each form and of up to five corners,
+    /// negative indices reaching back over many lines, comments, blank lines, `o`/`g`/`s`
+    /// statements, non-ASCII spaces and comments, and all three line endings.
+    fn assorted_obj(copies: usize) -> String {
+        let mut t = String::from("# model\r\no thing\n\n");
+        for k in 0..copies {
+            let x = k as f32;
+            t += &format!("v {x} 0 0\nv {x} 1 0 1\r\nv\u{a0}{x} 1 1\nv {x}\t0 1 # corner\n");
+            t += "vn 0 0 1\nvn 0 0 0\rvn 0 1 0\nvt 0 0\n";
+            t += "g part\ns 1\n";
+            t += "f -4 -3 -2\nf -4//-3 -3//-1 -2//-3 -1//-1\n";
+            t += "f -4/1/-1 -2/1/-1 -1/1/-1\r\n";
+            // The zero-length normal: this face is shaded flat.
+            t += "f -4//-2 -3//-1 -2//-1 # café\n";
+            t += "\u{2003}f -1 -2 -3 -4\n\n";
+            if k > 0 {
+                // Back into the previous copy's vertices and normals.
+                t += "f -8 -7 -1 -2 -3\nf -5//-6 -6//-4 -7//-1\n";
+            }
+        }
+        t
+    }
+
+    fn parse_in(src: &str, n: usize) -> Result<(Mesh, Vec<Diagnostic>), Box<Diagnostic>> {
+        parse_in_stretches(src, Path::new("m.obj"), &ObjOptions::default(), n)
+    }
+
+    #[test]
+    fn stretches_parse_as_the_whole_file() {
+        let src = assorted_obj(40);
+        let (whole, _) = parse_in(&src, 1).unwrap();
+        assert_eq!(whole.positions.len(), 160);
+        // 2 normals a copy have length; 4 + 5 + ... triangles a copy.
+        assert_eq!(whole.normals.len(), 80);
+        assert!(whole.triangles.iter().any(|t| t.normals.is_some()));
+        assert!(whole.triangles.iter().any(|t| t.normals.is_none()));
+        for n in [2, 3, 5, 8, 13, 40, 200, 10_000] {
+            let cut = stretches(&src, n);
+            assert!(n <= 2 || cut.len() > 2, "{n} stretches: cut into {}", cut.len());
+            assert_eq!(cut.concat(), src);
+            let (mesh, _) = parse_in(&src, n).unwrap();
+            assert_eq!(mesh, whole, "{n} stretches");
+        }
+        // Lone carriage returns only: no place to cut, one stretch.
+        let cr = src.replace("\r\n", "\n").replace('\n', "\r");
+        assert_eq!(stretches(&cr, 8).len(), 1);
+        assert_eq!(parse_in(&cr, 8).unwrap().0, whole);
+    }
+
+    #[test]
+    fn stretches_report_the_files_first_error() {
+        let mut src = assorted_obj(30);
+        let good = lines(&src).count();
+        // An index error near the end (a vertex not yet defined), and a later malformed number.
+        src += "f 1 2 999\n";
+        src += &assorted_obj(5);
+        src += "v 0 x 0\n";
+        let whole = parse_in(&src, 1).unwrap_err();
+        assert_eq!((whole.line, whole.column), (good + 1, 7));
+        assert!(
+            whole.message.contains("only 120 vertices are defined so far"),
+            "{whole}"
+        );
+        for n in [2, 3, 7, 50] {
+            let e = parse_in(&src, n).unwrap_err();
+            assert_eq!(
+                (e.line, e.column, &e.message),
+                (whole.line, whole.column, &whole.message),
+                "{n} stretches"
+            );
+        }
+        // An error in the first stretch wins over one in the last.
+        let src = format!("v 0 0 0\nf 1 1 2\n{}v 0 0\n", assorted_obj(30));
+        for n in [1, 4] {
+            assert_eq!(parse_in(&src, n).unwrap_err().line, 2, "{n} stretches");
+        }
     }
 
     #[test]
