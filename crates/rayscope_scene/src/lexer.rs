@@ -10,10 +10,10 @@ pub(crate) fn lines(src: &str) -> impl Iterator<Item = &str> {
     let mut rest = Some(src);
     std::iter::from_fn(move || {
         let text = rest?;
-        // By bytes: a search for either of two chars decodes the text char by char, which was
-        // a fifth of the time spent parsing a large OBJ file. Both are ASCII, so a byte match is
-        // a char boundary.
-        match text.bytes().position(|b| b == b'\n' || b == b'\r') {
+        // By bytes, many at a time (`memchr`): a search for either of two chars decodes the text
+        // char by char, which was a fifth of the time spent parsing a large OBJ file. Both are
+        // ASCII, so a byte match is a char boundary.
+        match memchr::memchr2(b'\n', b'\r', text.as_bytes()) {
             Some(i) => {
                 let skip = if text[i..].starts_with("\r\n") { 2 } else { 1 };
                 rest = Some(&text[i + skip..]);

@@ -132,48 +132,36 @@ impl Counts {
     fn of(text: &str) -> Counts {
         let mut c = Counts::default();
         let mut toks = Vec::new();
-        let bytes = text.as_bytes();
-        let mut i = 0;
-        // Line by line as `lines` splits them, in one pass over the bytes: only each line's
-        // keyword is looked at, and on face lines the corners counted. A line with a non-ASCII
-        // byte is split by `obj_tokens` instead, as the parser splits it.
-        while i < bytes.len() {
-            let start = i;
-            let (mut words, mut keyword, mut in_word, mut comment, mut ascii) = (0, (0, 0), false, false, true);
-            while i < bytes.len() && bytes[i] != b'\n' && bytes[i] != b'\r' {
-                let b = bytes[i];
-                ascii &= b < 0x80;
-                if b == b'#' {
-                    comment = true;
-                }
-                if comment || ascii_space(b) {
-                    in_word = false;
-                } else if !in_word {
-                    in_word = true;
-                    words += 1;
-                    if words == 1 {
-                        keyword.0 = i;
-                    }
-                }
-                if words == 1 && in_word {
-                    keyword.1 = i + 1;
-                }
-                i += 1;
-            }
-            let line = &text[start..i];
-            // The line's end: `\r\n`, `\n` or a lone `\r`.
-            i += if bytes[i..].starts_with(b"\r\n") { 2 } else { 1 };
+        for line in lines(text) {
             c.lines += 1;
-            if ascii {
-                if words > 0 {
-                    c.add(&bytes[keyword.0..keyword.1], words - 1);
-                }
-            } else {
+            if !line.is_ascii() {
+                // Split as the parser splits it.
                 obj_tokens(line, &mut toks);
                 if let Some(&(_, word)) = toks.first() {
                     c.add(word.as_bytes(), toks.len() - 1);
                 }
+                continue;
             }
+            // The tokens `obj_tokens` finds in an ASCII line, but only as far as needed: the
+            // keyword, and on a face line the number of corners.
+            let code = line.as_bytes();
+            let code = memchr::memchr(b'#', code).map_or(code, |i| &code[..i]);
+            let from = code.iter().position(|&b| !ascii_space(b)).unwrap_or(code.len());
+            let rest = &code[from..];
+            let end = rest.iter().position(|&b| ascii_space(b)).unwrap_or(rest.len());
+            let word = &rest[..end];
+            let args = if word == b"f" {
+                let mut gap = true;
+                rest[end..].iter().fold(0, |n, &b| {
+                    let space = ascii_space(b);
+                    let starts = gap && !space;
+                    gap = space;
+                    n + usize::from(starts)
+                })
+            } else {
+                0
+            };
+            c.add(word, args);
         }
         c
     }
