@@ -160,8 +160,7 @@ impl Bvh {
             }
             if slab(node, ray.origin, inv, t_min, t_max) {
                 if node.count > 0 {
-                    let start = node.offset as usize;
-                    let r = leaf(&self.prims[start..start + node.count as usize], t_max);
+                    let r = leaf(self.leaf(node), t_max);
                     if r < 0.0 {
                         return r;
                     }
@@ -183,6 +182,14 @@ impl Bvh {
                 None => return t_max,
             }
         }
+    }
+
+    /// The primitive references of leaf `node`.
+    #[must_use]
+    #[inline]
+    pub fn leaf(&self, node: &BvhNode) -> &[u32] {
+        let start = node.offset as usize;
+        &self.prims[start..start + node.count as usize]
     }
 
     /// Bytes used by nodes and references.
@@ -256,6 +263,9 @@ impl Extent {
     }
 }
 
+/// Each bin's extent and how many primitives fell in it.
+type Bins = ([Extent; BINS], [usize; BINS]);
+
 /// Writes the subtree over `items` (index `first` onwards of the whole build's primitives, whose
 /// extent is `ext`) depth-first from `out[0]`, which is node `base` of the tree; returns how many
 /// nodes it wrote. `out` holds at least 2 × `items.len()` − 1 nodes, as many as any binary tree
@@ -294,7 +304,7 @@ fn build_rec(items: &mut [BuildPrim], ext: Extent, first: u32, out: &mut [BvhNod
     let scale = BINS as f32 / width;
     let bin_of = |c: Vec3A| (((c[axis] - lo) * scale) as usize).min(BINS - 1);
     let bin = |items: &[BuildPrim]| {
-        let mut bins = ([Extent::EMPTY; BINS], [0usize; BINS]);
+        let mut bins: Bins = ([Extent::EMPTY; BINS], [0; BINS]);
         for p in items {
             let b = bin_of(p.bounds().center());
             bins.0[b] = bins.0[b].add(p);
@@ -305,7 +315,7 @@ fn build_rec(items: &mut [BuildPrim], ext: Extent, first: u32, out: &mut [BvhNod
     // Near the root, where a node's primitives are a large part of the mesh and the levels
     // below have not yet split the work among the threads, the binning is shared out too.
     let (bins, bin_count) = if items.len() >= PARALLEL_PASS {
-        let merge = |(mut e, mut n): ([Extent; BINS], [usize; BINS]), (e2, n2): ([Extent; BINS], [usize; BINS])| {
+        let merge = |(mut e, mut n): Bins, (e2, n2): Bins| {
             for b in 0..BINS {
                 e[b] = e[b].union(e2[b]);
                 n[b] += n2[b];
@@ -343,15 +353,15 @@ fn build_rec(items: &mut [BuildPrim], ext: Extent, first: u32, out: &mut [BvhNod
             best = (cost, i);
         }
     }
-    if best.0 == f32::INFINITY {
-        // Every centre fell in one bin (a width that rounds the bins away).
-        return join_at_middle(items, first, bounds, axis, out, base);
-    }
     let leaf_cost = bounds.half_area() * items.len() as f32;
     // Traversal cost ≈ one primitive test, relative to the parent's area.
     let split_cost = bounds.half_area() + best.0;
     if items.len() <= MAX_LEAF_PRIMS && split_cost >= leaf_cost {
         return leaf_node(items, first, bounds, out);
+    }
+    if best.0 == f32::INFINITY {
+        // No split leaves primitives on both sides (every centre in one bin).
+        return join_at_middle(items, first, bounds, axis, out, base);
     }
     let split_bin = best.1;
     let mid = partition(items, |p| bin_of(p.bounds().center()) <= split_bin);

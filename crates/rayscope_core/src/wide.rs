@@ -1064,7 +1064,7 @@ fn prims_under(bvh: &Bvh, sphere_bit: u32) -> Vec<[u8; 2]> {
     for i in (0..bvh.nodes.len()).rev() {
         let n = &bvh.nodes[i];
         counts[i] = if n.count > 0 {
-            let leaf = &bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
+            let leaf = bvh.leaf(n);
             let spheres = leaf.iter().filter(|&&r| r & sphere_bit != 0).count();
             [(leaf.len() - spheres).min(255) as u8, spheres.min(255) as u8]
         } else {
@@ -1176,11 +1176,7 @@ impl Builder<'_> {
     fn gather(&self, i: usize, out: &mut Refs) {
         let n = &self.bvh.nodes[i];
         if n.count > 0 {
-            out.extend(
-                self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize]
-                    .iter()
-                    .copied(),
-            );
+            out.extend(self.bvh.leaf(n).iter().copied());
         } else {
             self.gather(i + 1, out);
             self.gather(n.offset as usize, out);
@@ -1189,7 +1185,7 @@ impl Builder<'_> {
 
     fn leaf_ref(&mut self, n: &BvhNode) -> u32 {
         let bvh = self.bvh;
-        self.leaf_ref_of(&bvh.prims[n.offset as usize..n.offset as usize + n.count as usize])
+        self.leaf_ref_of(bvh.leaf(n))
     }
 
     /// A leaf: one packet, a run of triangle packets, or a small node over triangle and sphere
@@ -1253,7 +1249,7 @@ impl Builder<'_> {
         let n = &self.bvh.nodes[i];
         let mut refs = Refs::new();
         if n.count > 0 {
-            let leaf = &self.bvh.prims[n.offset as usize..n.offset as usize + n.count as usize];
+            let leaf = self.bvh.leaf(n);
             if refs.try_extend_from_slice(leaf).is_err() {
                 // Too many for a run of packets under one node.
                 return false;
