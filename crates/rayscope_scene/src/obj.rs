@@ -66,8 +66,7 @@ fn obj_tokens<'a>(line: &'a str, out: &mut Vec<(usize, &'a str)>) {
     let mut start = None;
     for (i, &b) in bytes.iter().enumerate() {
         if b >= 0x80 {
-            // Not ASCII: the tokens found so far stand (all ASCII before this point), and the
-            // rest of the line is split by chars.
+            // Not ASCII: the whole line is split again, by chars.
             out.clear();
             let code = line.find('#').map_or(line, |i| &line[..i]);
             split_tokens(code, code.char_indices(), out);
