@@ -1,5 +1,6 @@
 //! Renderer benchmarks: the course's bunny scene in stage 2, a BVH build over a generated
-//! one-million-triangle mesh, and a path-traced emitter-lit box.
+//! one-million-triangle mesh, a path-traced emitter-lit box, and the course's scene 2 (a mirror
+//! and glass) path traced.
 //!
 //! `cargo bench -p rayscope_core --bench stage3`
 
@@ -127,5 +128,29 @@ fn path_traced_box(c: &mut Criterion) {
     g.finish();
 }
 
-criterion_group!(benches, bunny, bvh_build, path_traced_box);
+fn path_traced_scene_2(c: &mut Criterion) {
+    let path = workspace().join("../shared/reference/tests/sample_scene_2.txt");
+    let Ok(file) = rayscope_scene::load(&path) else {
+        eprintln!("scene 2 benchmark skipped: {} not found", path.display());
+        return;
+    };
+    let scene = Scene::from_file(&file);
+    // `-l -x 4` at 200×200: paths through the mirror and the glass, which is seen directly.
+    let s = RenderSettings {
+        width: 200,
+        height: 200,
+        aa: 4,
+        ambient: true,
+        ..RenderSettings::default()
+    };
+    let mut g = c.benchmark_group("scene_2");
+    g.sample_size(10);
+    g.throughput(Throughput::Elements(200 * 200 * 16));
+    g.bench_function("path_traced_200x200_x4", |b| {
+        b.iter(|| render(&scene, &s, &|_, _| {}, &AtomicBool::new(false)).unwrap())
+    });
+    g.finish();
+}
+
+criterion_group!(benches, bunny, bvh_build, path_traced_box, path_traced_scene_2);
 criterion_main!(benches);

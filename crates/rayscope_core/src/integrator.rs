@@ -51,6 +51,7 @@ use rayscope_scene::MaterialKind;
 mod packets;
 mod wave;
 pub(crate) use packets::Job;
+pub(crate) use wave::WaveWork;
 
 /// Ray counts gathered while rendering.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -110,6 +111,9 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// primitive comes near it ([`Scene::sphere_alone`]), so packets of rays that refracted
     /// into it test it alone.
     pub(crate) lone_spheres: Vec<Option<(u32, u32)>>,
+    /// True when some material is glass that absorbs (Beer's law, [`Self::absorb`]), so a path
+    /// can travel inside a medium.
+    pub(crate) media: bool,
 }
 
 /// [`ApexCull`]s of the points many packets' rays share.
@@ -325,6 +329,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             cells: Vec::new(),
             beams: Beams::default(),
             lone_spheres: Vec::new(),
+            media: full
+                && scene
+                    .materials
+                    .iter()
+                    .any(|m| m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO),
         }
         .with_point_lit()
         .with_grid()

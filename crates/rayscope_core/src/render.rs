@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::Film;
-use crate::integrator::{Counters, Integrator, Job};
+use crate::integrator::{Counters, Integrator, Job, WaveWork};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
 use crate::scene::{Intersect, Scene};
 use crate::settings::RenderSettings;
@@ -70,6 +70,7 @@ pub fn render_with<I: Intersect>(
     let total = w as u64 * h as u64;
     let done = AtomicU64::new(0);
     let waves = WaveStats::default();
+
     let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {
@@ -147,15 +148,19 @@ impl TileResult {
     }
 }
 
-/// What the tiles traced as waves of paths found: the wave pays for its bookkeeping only when
-/// it has many vertices to shade together, so once a few tiles show that this render's samples
-/// average less than one Lambertian vertex each (a sky that most camera rays see, surfaces that
-/// pass paths on to the one-ray code), the other tiles trace their paths one at a time. Both
-/// loops compute the same values, so which one a tile used never shows in the image.
+/// What the tiles traced as waves of paths found. A wave step costs about the same however
+/// many of its sixteen lanes reach a Lambertian surface, which is the work it shares (the other
+/// lanes end, go on to a mirror's or glass's next ray, or finish alone on a glossy coat), so
+/// once a few tiles show that this render's steps shade fewer than [`MIN_SHADED_PER_STEP`]
+/// lanes on average (a sky that most camera rays see, glass that most paths pass through), the
+/// other tiles trace their paths one at a time. Both loops compute the same values, so which one
+/// a tile used never shows in the image.
 #[derive(Default)]
 struct WaveStats {
     /// Samples traced in waves.
     samples: AtomicU64,
+    /// Steps those waves took.
+    steps: AtomicU64,
     /// Lambertian vertices those waves shaded.
     shaded: AtomicU64,
 }
@@ -163,17 +168,25 @@ struct WaveStats {
 /// Samples traced in waves before [`WaveStats`] decides (a 16×16 tile at 16 samples a pixel).
 const WAVE_PILOT: u64 = 4096;
 
+/// Lambertian lanes a wave step must shade on average for waves to pay. Calibrated on our
+/// scenes and the course's with `-l -x 4` on one thread (BENCHMARKS.md, session 20): waves were
+/// slower than one path at a time at 3.4–9.6 shaded lanes a step (the beer glasses 19 %, the
+/// glossy spheres 3 %), even at 10.5 (depth of field), and 23–39 % faster at 12.5–16.
+const MIN_SHADED_PER_STEP: u64 = 10;
+
 impl WaveStats {
     /// Whether the next tile should trace its paths in waves.
     fn worthwhile(&self) -> bool {
         let samples = self.samples.load(Ordering::Relaxed);
-        samples < WAVE_PILOT || self.shaded.load(Ordering::Relaxed) >= samples
+        samples < WAVE_PILOT
+            || self.shaded.load(Ordering::Relaxed) >= MIN_SHADED_PER_STEP * self.steps.load(Ordering::Relaxed)
     }
 
     /// Records a tile's waves.
-    fn add(&self, samples: u64, shaded: u64) {
+    fn add(&self, samples: u64, work: WaveWork) {
         self.samples.fetch_add(samples, Ordering::Relaxed);
-        self.shaded.fetch_add(shaded, Ordering::Relaxed);
+        self.steps.fetch_add(work.steps, Ordering::Relaxed);
+        self.shaded.fetch_add(work.shaded, Ordering::Relaxed);
     }
 }
 
@@ -204,11 +217,11 @@ fn render_tile<I: Intersect>(
     if let Some(bvh) = integ.wave_bvh().filter(|_| waves.worthwhile()) {
         // The whole tile at once: a wave's lanes drain only at the end of its jobs.
         let jobs = ((x1 - x0) * (y1 - y0) * spp) as usize;
-        let mut shaded = 0;
+        let mut work = WaveWork::default();
         render_tile_packets(&mut r, y1, spp, jobs, |jobs, vals, c| {
-            shaded += integ.sample_wave(bvh, jobs, vals, c);
+            work.add(integ.sample_wave(bvh, jobs, vals, c));
         });
-        waves.add(jobs as u64, shaded);
+        waves.add(jobs as u64, work);
         return r;
     }
     if let Some(bvh) = integ.camera_packet_bvh() {
@@ -320,15 +333,19 @@ mod tests {
     use super::*;
 
     #[test]
-    fn waves_stop_once_samples_average_less_than_one_vertex() {
+    fn waves_stop_once_their_steps_shade_few_lanes() {
+        let work = |steps, shaded| WaveWork { steps, shaded };
         let w = WaveStats::default();
         assert!(w.worthwhile(), "the first tiles go in waves");
-        w.add(WAVE_PILOT / 2, 0);
+        w.add(WAVE_PILOT / 2, work(1000, 0));
         assert!(w.worthwhile(), "one small tile decides nothing");
-        w.add(WAVE_PILOT / 2, WAVE_PILOT - 1);
-        assert!(!w.worthwhile(), "fewer vertices than samples: one path at a time");
-        let long = WaveStats::default();
-        long.add(WAVE_PILOT, 3 * WAVE_PILOT);
-        assert!(long.worthwhile(), "long paths stay in waves");
+        w.add(WAVE_PILOT / 2, work(1000, 2 * 1000 * MIN_SHADED_PER_STEP - 1));
+        assert!(
+            !w.worthwhile(),
+            "fewer shaded lanes a step than needed: one path at a time"
+        );
+        let full = WaveStats::default();
+        full.add(WAVE_PILOT, work(1000, 1000 * MIN_SHADED_PER_STEP));
+        assert!(full.worthwhile(), "steps that shade enough lanes stay in waves");
     }
 }

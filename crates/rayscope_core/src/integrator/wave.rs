@@ -13,9 +13,12 @@
 //! with the same random numbers:
 //! * a vertex's light is summed as the recursive code sums it, from the last vertex back,
 //!   once the path has ended (each vertex's terms are kept until then);
-//! * a hit on anything but a Lambertian or emitting surface (mirror, glass, glossy coat) goes
-//!   on one ray at a time with the recursive code from that hit, and its result enters the
-//!   sum like any other vertex's.
+//! * a mirror or glass hit stays in the wave: its ray (or, on a path that has not yet bounced
+//!   off a Lambertian surface, glass's reflected and then its refracted ray, one after the
+//!   other, as the recursion takes them) is the lane's next ray, and the light it brings is
+//!   passed on, weighted and absorbed, when it returns;
+//! * a hit on a glossy coat goes on one ray at a time with the recursive code from that hit,
+//!   and its result enters the sum like any other vertex's.
 //!
 //! So the image is the one the one-path-at-a-time loop makes, bit for bit (the tests
 //! `waves_return_what_one_path_at_a_time_returns` below and `packet_render` check it). The wave
@@ -46,11 +49,29 @@ type M = [bool; LANES];
 /// A lane's closest hit as [`PacketHits::get`] gives it: (t, u, v, primitive), or none.
 type LaneHit = Option<(f32, f32, f32, PrimRef)>;
 
-/// A Lambertian vertex of a path in flight, kept until the path ends so that its light is
-/// summed in the recursive code's order.
+/// What a [`Frame`] is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// A Lambertian vertex.
+    Lambert,
+    /// A mirror, or glass that sent one of its rays on: passes on what that ray brings.
+    Specular,
+    /// Glass on a path that has not yet bounced off a Lambertian surface (Whitted): its
+    /// reflected and its refracted ray, each weighted by its Fresnel weight, traced one after
+    /// the other; the rest of its state is the top of the lane's [`Split`] stack.
+    Split,
+    /// Beer's law on what the vertex above returns: the transmittance (in `l`) of the segment
+    /// that reached that vertex, inside an absorbing medium ([`Integrator::absorb`]).
+    Absorb,
+}
+
+/// A vertex of a path in flight, kept until the path beyond it has ended so that its light is
+/// summed in the recursive code's order. One layout for every [`Kind`] (64 bytes, the kind in
+/// the padding): every vertex is pushed and popped, and the Lambertian ones, by far the most,
+/// are read back with whole-vector loads.
 #[derive(Debug, Clone, Copy)]
-struct Vertex {
-    /// Point lights and the emitter sample.
+struct Frame {
+    /// Point lights and the emitter sample (for [`Kind::Absorb`], the transmittance).
     l: Vec3A,
     /// BRDF × cos / density of the bounce, which weights emission the bounce finds.
     w_total: Vec3A,
@@ -58,6 +79,69 @@ struct Vertex {
     carry: Vec3A,
     /// Density of the bounce's direction, for the weight of emission it finds.
     pdf: f32,
+    kind: Kind,
+}
+
+impl Frame {
+    /// A Lambertian vertex.
+    fn lambert(l: Vec3A, w_total: Vec3A, carry: Vec3A, pdf: f32) -> Self {
+        Frame {
+            l,
+            w_total,
+            carry,
+            pdf,
+            kind: Kind::Lambert,
+        }
+    }
+
+    /// A frame of a kind with no light of its own, or a [`Kind::Absorb`] with transmittance `l`.
+    fn other(kind: Kind, l: Vec3A) -> Self {
+        Frame {
+            l,
+            w_total: Vec3A::ZERO,
+            carry: Vec3A::ZERO,
+            pdf: 0.0,
+            kind,
+        }
+    }
+}
+
+/// The state of a [`Kind::Split`] frame.
+#[derive(Debug, Clone, Copy)]
+struct Split {
+    /// What the rays traced so far brought, weighted.
+    sum: Vec3A,
+    /// The weight of the ray being traced now.
+    weight: f32,
+    /// The ray still to trace, with its path state and weight.
+    next: Option<(Ray, PathState, f32)>,
+}
+
+/// `li` after Beer's law over a segment with transmittance `att` ([`Integrator::absorb`]).
+#[inline]
+fn absorbed(att: Option<Vec3A>, mut li: Li) -> Li {
+    if let Some(a) = att {
+        li.emitted *= a;
+        li.reflected *= a;
+    }
+    li
+}
+
+/// What a run of waves did (see [`Integrator::sample_wave`]).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct WaveWork {
+    /// Wave steps taken.
+    pub(crate) steps: u64,
+    /// Lambertian vertices shaded.
+    pub(crate) shaded: u64,
+}
+
+impl WaveWork {
+    /// Adds another run's work.
+    pub(crate) fn add(&mut self, o: WaveWork) {
+        self.steps += o.steps;
+        self.shaded += o.shaded;
+    }
 }
 
 /// The paths in flight.
@@ -85,8 +169,10 @@ struct Wave {
     unblocked: [F; 3],
     /// Random streams.
     rng: RngLanes,
-    /// Each path's Lambertian vertices so far, the last one on top.
-    stack: [Vec<Vertex>; LANES],
+    /// Each path's vertices whose light is not summed yet, the last one on top.
+    stack: [Vec<Frame>; LANES],
+    /// Each path's glass splits in progress, the last one on top.
+    splits: [Vec<Split>; LANES],
     /// Lambertian vertices shaded in the wave so far.
     shaded: u64,
 }
@@ -106,6 +192,7 @@ impl Wave {
             unblocked: [[0.0; LANES]; 3],
             rng: RngLanes::default(),
             stack: std::array::from_fn(|_| Vec::new()),
+            splits: std::array::from_fn(|_| Vec::new()),
             shaded: 0,
         }
     }
@@ -116,16 +203,54 @@ impl Wave {
         self.rays.ray(i)
     }
 
-    /// Ends lane `i`'s path, whose last ray brought `li`: sums the kept vertices from the last
-    /// back, as the recursive code returns through them, and stores the sample's value.
+    /// Pushes a [`Kind::Absorb`] frame on lane `i`'s stack when `att` is some, under the vertex
+    /// pushed next.
+    #[inline]
+    fn push_absorb(&mut self, i: usize, att: Option<Vec3A>) {
+        if let Some(a) = att {
+            self.stack[i].push(Frame::other(Kind::Absorb, a));
+        }
+    }
+
+    /// Gives lane `i` the ray `ray` (a mirror's or glass's, with state `path`) to trace next.
+    #[inline]
+    fn launch(&mut self, i: usize, ray: &Ray, path: PathState) {
+        self.rays.set(i, ray, f32::INFINITY);
+        (self.path[i], self.want[i], self.ray_on[i], self.found[i]) = (path, true, true, None);
+    }
+
+    /// Ends the ray lane `i` traced last, which brought `li`: sums the kept vertices from the
+    /// last back, as the recursive code returns through them, until one has another ray to
+    /// trace (glass's refracted ray after its reflected one), which the lane then traces; with
+    /// none left, stores the sample's value and frees the lane.
+    #[inline]
     fn finish(&mut self, i: usize, mut li: Li, out: &mut [Vec3A]) {
-        while let Some(v) = self.stack[i].pop() {
-            let mis = if li.light_pdf > 0.0 {
-                power_heuristic(v.pdf, li.light_pdf)
-            } else {
-                1.0
+        while let Some(f) = self.stack[i].pop() {
+            li = match f.kind {
+                Kind::Lambert => {
+                    let mis = if li.light_pdf > 0.0 {
+                        power_heuristic(f.pdf, li.light_pdf)
+                    } else {
+                        1.0
+                    };
+                    Li::reflected(f.l + (f.w_total * li.emitted * mis + f.carry * li.reflected))
+                }
+                Kind::Specular => Li::reflected(li.total()),
+                Kind::Absorb => absorbed(Some(f.l), li),
+                Kind::Split => {
+                    let split = self.splits[i].last_mut().expect("a split frame has its state");
+                    split.sum += li.total() * split.weight;
+                    if let Some((ray, path, weight)) = split.next.take() {
+                        split.weight = weight;
+                        self.stack[i].push(f);
+                        self.launch(i, &ray, path);
+                        return;
+                    }
+                    let sum = split.sum;
+                    self.splits[i].pop();
+                    Li::reflected(sum)
+                }
             };
-            li = Li::reflected(v.l + (v.w_total * li.emitted * mis + v.carry * li.reflected));
         }
         out[self.job[i]] = li.total();
         self.on[i] = false;
@@ -143,10 +268,20 @@ impl<I: Intersect> Integrator<'_, I> {
         self.camera_packet_bvh()
     }
 
+    /// Beer's-law transmittance over distance `t` for a ray with state `path`, when it travels
+    /// inside an absorbing medium ([`Self::absorb`]'s factor).
+    #[inline]
+    fn transmittance(&self, path: PathState, t: f32) -> Option<Vec3A> {
+        path.medium.map(|mi| {
+            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
+            (-sigma * t).exp()
+        })
+    }
+
     /// What [`Self::sample`] returns for each of `jobs`, into `out`, with the rays counted in
     /// `c`: the samples' paths traced as waves of [`LANES`]. Only for renders where
-    /// [`Self::wave_bvh`] is `Some`. Returns how many Lambertian vertices the wave shaded.
-    pub(crate) fn sample_wave(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) -> u64 {
+    /// [`Self::wave_bvh`] is `Some`. Returns the steps the wave took and the vertices it shaded.
+    pub(crate) fn sample_wave(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) -> WaveWork {
         debug_assert!(out.len() >= jobs.len());
         let mut w = Wave::new();
         let mut cams = CameraBatch::default();
@@ -156,6 +291,7 @@ impl<I: Intersect> Integrator<'_, I> {
         // lane it would otherwise leave idle. In a tree, camera rays are traced ahead, a pixel's
         // samples together, whose walks share their nodes.
         let ahead = bvh.single.is_empty();
+        let mut steps = 0;
         loop {
             for i in 0..LANES {
                 if w.on[i] {
@@ -183,8 +319,12 @@ impl<I: Intersect> Integrator<'_, I> {
                 break;
             }
             self.wave_step(bvh, &mut w, out, c);
+            steps += 1;
         }
-        w.shaded
+        WaveWork {
+            steps,
+            shaded: w.shaded,
+        }
     }
 
     /// Traces the wave's rays and shadow rays and takes every path one vertex on.
@@ -204,7 +344,9 @@ impl<I: Intersect> Integrator<'_, I> {
                 hits.set(i, h);
             }
         }
-        // Only the lanes given new rays below trace them next.
+        // Only the lanes given new rays below trace them next; a lane given one here (glass's
+        // second ray, once the vertex below it is summed) has no hit in `hits` yet.
+        let traced = w.ray_on;
         w.shadow.t_max = [f32::NEG_INFINITY; LANES];
         w.rays.t_max = [f32::NEG_INFINITY; LANES];
         for i in 0..LANES {
@@ -213,23 +355,26 @@ impl<I: Intersect> Integrator<'_, I> {
             }
             w.shadow_on[i] = false;
             let top = w.stack[i].last_mut().expect("a shadow ray belongs to a vertex");
+            debug_assert_eq!(top.kind, Kind::Lambert);
             if !blocked[i] {
                 top.l += lane(&w.unblocked, i);
             }
-            if !w.ray_on[i] {
+            if !traced[i] {
                 // The vertex sent no bounce: its light is what it returns.
-                let v = w.stack[i].pop().expect("checked above");
-                w.finish(i, Li::reflected(v.l), out);
+                let l = top.l;
+                w.stack[i].pop();
+                w.finish(i, Li::reflected(l), out);
             }
         }
-        if !w.ray_on.contains(&true) {
+        if !traced.contains(&true) {
             return;
         }
         let surf = PacketSurfaces::new(self.scene, &w.rays, &hits);
         // Self::trace_hit for each lane, up to the Lambertian shading done for all below.
         let mut diffuse = [false; LANES];
+        let mut dist = [0.0; LANES];
         for i in 0..LANES {
-            if !w.ray_on[i] {
+            if !traced[i] {
                 continue;
             }
             let Some((t, u, v, prim)) = hits.get(i) else {
@@ -237,29 +382,42 @@ impl<I: Intersect> Integrator<'_, I> {
                 w.finish(i, Li::default(), out);
                 continue;
             };
+            let path = w.path[i];
+            dist[i] = t;
             let m = &self.scene.materials[surf.material[i] as usize];
             let li = match m.kind {
-                MaterialKind::Emissive => Li {
-                    emitted: m.color.into(),
-                    reflected: Vec3A::ZERO,
-                    light_pdf: if self.emitters.is_empty() {
-                        0.0
-                    } else {
-                        self.emitters
-                            .pdf(self.scene, lane(&w.rays.o, i), prim, surf.get(i).point)
+                MaterialKind::Emissive => absorbed(
+                    self.transmittance(path, t),
+                    Li {
+                        emitted: m.color.into(),
+                        reflected: Vec3A::ZERO,
+                        light_pdf: if self.emitters.is_empty() {
+                            0.0
+                        } else {
+                            self.emitters
+                                .pdf(self.scene, lane(&w.rays.o, i), prim, surf.get(i).point)
+                        },
                     },
-                },
+                ),
                 _ if !w.want[i] => Li::default(),
                 MaterialKind::Diffuse => {
                     diffuse[i] = true;
                     continue;
                 }
-                _ => {
-                    // Mirrors, glass and glossy coats: the rest of the path one ray at a time.
+                MaterialKind::Reflective | MaterialKind::Refractive => match self.specular_hit(w, i, t, &surf, c) {
+                    Some(li) => li,
+                    None => continue,
+                },
+                MaterialKind::Glossy => {
+                    // Glossy coats: the rest of the path one ray at a time.
                     let mut rng = w.rng.get(i);
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (w.ray(i), surf.get(i));
-                    self.trace_hit(&ray, &hit, &s, w.path[i], true, 0, &mut rng, &mut NoObserver, c)
+                    let li = self.trace_hit(&ray, &hit, &s, path, true, 0, &mut rng, &mut NoObserver, c);
+                    // A glass split below may still trace its second ray, from where the stream
+                    // now stands.
+                    w.rng.set(i, &rng);
+                    li
                 }
             };
             w.ray_on[i] = false;
@@ -267,13 +425,90 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         if diffuse.contains(&true) {
             w.shaded += diffuse.iter().map(|&d| u64::from(d)).sum::<u64>();
-            self.shade_wave(bvh, w, &surf, &diffuse, out, c);
+            self.shade_wave(bvh, w, &surf, &diffuse, &dist, out, c);
         }
     }
 
+    /// Beer's law on the light each emitter shadow ray of `shadow` (`dist` long) brings, for
+    /// the vertices inside an absorbing medium. Out of line, and apart from the loop that
+    /// computes that light, which its branch and `exp` would keep from being vectorised.
+    #[inline(never)]
+    fn absorb_unblocked(&self, w: &mut Wave, shadow: &M, dist: &F) {
+        for i in 0..LANES {
+            if let (true, Some(a)) = (shadow[i], self.transmittance(w.path[i], dist[i])) {
+                let u = lane(&w.unblocked, i) * a;
+                put(&mut w.unblocked, i, u.to_array());
+            }
+        }
+    }
+
+    /// Self::trace_hit for lane `i`'s hit, at distance `t`, on a mirror or on glass: gives the
+    /// lane the ray the vertex sends on and returns `None`, or returns what the vertex returns
+    /// where it sends none. Out of line, so the wave's Lambertian steps stay compact.
+    #[inline(never)]
+    fn specular_hit(&self, w: &mut Wave, i: usize, t: f32, surf: &PacketSurfaces, c: &mut Counters) -> Option<Li> {
+        let path = w.path[i];
+        if path.depth >= self.settings.max_depth {
+            return Some(Li::default());
+        }
+        let (ray, s) = (w.ray(i), surf.get(i));
+        let m = &self.scene.materials[s.material as usize];
+        let att = self.transmittance(path, t);
+        let (r, p) = if m.kind == MaterialKind::Reflective {
+            Self::mirror(&ray, &s, path)
+        } else {
+            let g = self.glass(&ray, &s, m, path);
+            if path.branch {
+                // Self::refractive's Whitted split: the reflected ray first, then the refracted.
+                let refl = self.glass_reflected(&g, path).map(|(r, p)| (r, p, g.kr));
+                let refr = self.glass_refracted(&g, path).map(|(r, p)| (r, p, 1.0 - g.kr));
+                let (first, next) = match (refl, refr) {
+                    (Some(a), b) => (a, b),
+                    (None, Some(b)) => (b, None),
+                    (None, None) => return Some(absorbed(att, Li::reflected(Vec3A::ZERO))),
+                };
+                c.secondary += 1 + u64::from(next.is_some());
+                w.push_absorb(i, att);
+                w.stack[i].push(Frame::other(Kind::Split, Vec3A::ZERO));
+                w.splits[i].push(Split {
+                    sum: Vec3A::ZERO,
+                    weight: first.2,
+                    next,
+                });
+                w.launch(i, &first.0, first.1);
+                return None;
+            }
+            // One ray, chosen by its Fresnel weight.
+            let mut rng = w.rng.get(i);
+            let child = |medium| path.specular(medium, path.beta);
+            let chosen = match g.refracted {
+                Some(r) if rng.next_f32() >= g.kr => (r, child(g.refr_medium)),
+                _ => (g.reflected, child(g.refl_medium)),
+            };
+            w.rng.set(i, &rng);
+            chosen
+        };
+        w.push_absorb(i, att);
+        w.stack[i].push(Frame::other(Kind::Specular, Vec3A::ZERO));
+        w.launch(i, &r, p);
+        c.secondary += 1;
+        None
+    }
+
     /// Self::shade for the Lambertian hits in `d`: point lights, one emitter sample (its
-    /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave).
-    fn shade_wave(&self, bvh: &Bvh4, w: &mut Wave, surf: &PacketSurfaces, d: &M, out: &mut [Vec3A], c: &mut Counters) {
+    /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave). `dist` is
+    /// each hit's distance along its ray.
+    #[allow(clippy::too_many_arguments)]
+    fn shade_wave(
+        &self,
+        bvh: &Bvh4,
+        w: &mut Wave,
+        surf: &PacketSurfaces,
+        d: &M,
+        dist: &F,
+        out: &mut [Vec3A],
+        c: &mut Counters,
+    ) {
         let ambient = self.settings.ambient;
         let f_frames = &surf.frames;
         let (n, ng, org) = (&f_frames.shading_normal, &f_frames.normal, &f_frames.outside);
@@ -329,6 +564,9 @@ impl<I: Intersect> Integrator<'_, I> {
                     f32::NEG_INFINITY
                 };
                 shadow[i] = go;
+            }
+            if self.media {
+                self.absorb_unblocked(w, &shadow, &ls.dist);
             }
             c.shadow += shadow.iter().map(|&s| u64::from(s)).sum::<u64>();
         }
@@ -405,13 +643,11 @@ impl<I: Intersect> Integrator<'_, I> {
                 continue;
             }
             if ok[i] & (want[i] | !found_nothing) {
-                w.stack[i].push(Vertex {
-                    l: lane(&l, i),
-                    w_total: lane(&wt, i),
-                    carry: lane(&carry, i),
-                    pdf: pdf[i],
-                });
                 let path = w.path[i];
+                if self.media {
+                    w.push_absorb(i, self.transmittance(path, dist[i]));
+                }
+                w.stack[i].push(Frame::lambert(lane(&l, i), lane(&wt, i), lane(&carry, i), pdf[i]));
                 w.path[i] = PathState {
                     depth: path.depth + u32::from(!ambient),
                     bounces: path.bounces + 1,
@@ -428,14 +664,12 @@ impl<I: Intersect> Integrator<'_, I> {
                 c.secondary += 1;
             } else {
                 w.ray_on[i] = false;
+                if self.media {
+                    w.push_absorb(i, self.transmittance(w.path[i], dist[i]));
+                }
                 if w.shadow_on[i] {
                     // The vertex's light is final once its shadow ray is traced.
-                    w.stack[i].push(Vertex {
-                        l: lane(&l, i),
-                        w_total: Vec3A::ZERO,
-                        carry: Vec3A::ZERO,
-                        pdf: 0.0,
-                    });
+                    w.stack[i].push(Frame::lambert(lane(&l, i), Vec3A::ZERO, Vec3A::ZERO, 0.0));
                 } else {
                     w.finish(i, Li::reflected(lane(&l, i)), out);
                 }
@@ -454,9 +688,9 @@ mod tests {
 
     #[test]
     fn waves_return_what_one_path_at_a_time_returns() {
-        // Our scenes with emitters, point lights, mirrors, glass, glossy coats, depth of field
-        // and OBJ meshes, and the course's bunny scene, with and without indirect light: every
-        // sample's value bit for bit, and the ray counts.
+        // Our scenes with emitters, point lights, mirrors, glass (absorbing too), glossy coats,
+        // depth of field and OBJ meshes, and two of the course's scenes, with and without
+        // indirect light: every sample's value bit for bit, and the ray counts.
         let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         let mut paths: Vec<_> = [
             "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj",
@@ -464,7 +698,11 @@ mod tests {
         .iter()
         .map(|n| root.join("scenes").join(format!("{n}.txt")))
         .collect();
-        paths.push(root.join("../shared/reference/tests/sample_scene_obj.txt"));
+        // The course's bunny scene, and its scene 2: a room small enough for a flat list, a
+        // mirror, and glass seen directly (both of its rays traced, one after the other).
+        for n in ["sample_scene_obj", "sample_scene_2"] {
+            paths.push(root.join(format!("../shared/reference/tests/{n}.txt")));
+        }
         let (mut waves, mut in_list) = (0, 0);
         for path in &paths {
             let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
@@ -490,7 +728,7 @@ mod tests {
                     .collect();
                 let mut got = vec![Vec3A::ZERO; jobs.len()];
                 let mut counted = Counters::default();
-                let shaded = integ.sample_wave(bvh, &jobs, &mut got, &mut counted);
+                let shaded = integ.sample_wave(bvh, &jobs, &mut got, &mut counted).shaded;
                 let mut want = Counters::default();
                 for (k, &(x, y, s)) in jobs.iter().enumerate() {
                     let v = integ.sample(x, y, s, &mut NoObserver, &mut want);
