@@ -247,6 +247,21 @@ impl Li {
             ..Li::default()
         }
     }
+
+    /// This radiance after a segment with transmittance `att` (Beer's law), if any.
+    #[inline]
+    fn absorbed(mut self, att: Option<Vec3A>) -> Li {
+        if let Some(a) = att {
+            self.emitted *= a;
+            self.reflected *= a;
+        }
+        self
+    }
+}
+
+/// True when glass of material `m` absorbs light (Beer's law, from its colour) at `stage`.
+fn absorbs(stage: Stage, m: &Material) -> bool {
+    stage == Stage::Full && m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO
 }
 
 /// Exact unpolarised Fresnel reflectance for a ray meeting an interface with `cos_i` = cos of
@@ -329,11 +344,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             cells: Vec::new(),
             beams: Beams::default(),
             lone_spheres: Vec::new(),
-            media: full
-                && scene
-                    .materials
-                    .iter()
-                    .any(|m| m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO),
+            media: scene.materials.iter().any(|m| absorbs(settings.stage, m)),
         }
         .with_point_lit()
         .with_grid()
@@ -692,7 +703,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// The media a glass hit's reflected and refracted rays travel in.
     #[inline]
     fn glass_media(&self, s: &Surface, m: &Material, path: PathState) -> (Option<u32>, Option<u32>) {
-        let absorbing = self.settings.stage == Stage::Full && m.color != glam::Vec3::ZERO;
+        let absorbing = absorbs(self.settings.stage, m);
         let this = absorbing.then_some(s.material);
         // Reflected rays stay on the incoming side; refracted rays cross into the other medium
         // (the outside of every object is air).
@@ -730,15 +741,20 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// Beer's law over the segment of length `t` a ray travelled inside an absorbing medium.
     #[inline]
-    fn absorb(&self, path: PathState, t: f32, mut out: Li) -> Li {
-        if let Some(mi) = path.medium {
-            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
-            let att = (-sigma * t).exp();
-            out.emitted *= att;
-            out.reflected *= att;
-        }
-        out
+    fn absorb(&self, path: PathState, t: f32, out: Li) -> Li {
+        out.absorbed(self.transmittance(path, t))
     }
+
+    /// Beer's-law transmittance over distance `t` for a ray with state `path`, when it travels
+    /// inside an absorbing medium.
+    #[inline]
+    fn transmittance(&self, path: PathState, t: f32) -> Option<Vec3A> {
+        path.medium.map(|mi| {
+            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
+            (-sigma * t).exp()
+        })
+    }
+
     /// A Diffuse or Glossy hit in the full renderer: point lights, one emitter sample and one
     /// BRDF sample (MIS), and the bounce's indirect light where the rules carry it.
     #[allow(clippy::too_many_arguments)]
@@ -777,10 +793,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             obs,
             c,
         );
-        // Beer's law for rays that stay inside the medium the hit lies in.
-        let sigma = path
-            .medium
-            .map(|mi| Vec3A::from(self.scene.materials[mi as usize].color));
 
         // Emitter sampling, weighted against BRDF sampling. With no observer recording the
         // rays, the shadow ray waits and is traced together with the bounce ray below, whose
@@ -802,7 +814,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                         ray: shadow,
                         t_max,
                         unblocked: f * ls.radiance * (wi.z * w / ls.pdf),
-                        attenuation: sigma.map(|sigma| (-sigma * ls.dist).exp()),
+                        // Beer's law for rays that stay inside the medium the hit lies in.
+                        attenuation: self.transmittance(path, ls.dist),
                     };
                     if O::ENABLED {
                         let blocker = self

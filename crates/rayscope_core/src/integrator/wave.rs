@@ -117,16 +117,6 @@ struct Split {
     next: Option<(Ray, PathState, f32)>,
 }
 
-/// `li` after Beer's law over a segment with transmittance `att` ([`Integrator::absorb`]).
-#[inline]
-fn absorbed(att: Option<Vec3A>, mut li: Li) -> Li {
-    if let Some(a) = att {
-        li.emitted *= a;
-        li.reflected *= a;
-    }
-    li
-}
-
 /// What a run of waves did (see [`Integrator::sample_wave`]).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct WaveWork {
@@ -236,7 +226,7 @@ impl Wave {
                     Li::reflected(f.l + (f.w_total * li.emitted * mis + f.carry * li.reflected))
                 }
                 Kind::Specular => Li::reflected(li.total()),
-                Kind::Absorb => absorbed(Some(f.l), li),
+                Kind::Absorb => li.absorbed(Some(f.l)),
                 Kind::Split => {
                     let split = self.splits[i].last_mut().expect("a split frame has its state");
                     split.sum += li.total() * split.weight;
@@ -266,16 +256,6 @@ impl<I: Intersect> Integrator<'_, I> {
             return None;
         }
         self.camera_packet_bvh()
-    }
-
-    /// Beer's-law transmittance over distance `t` for a ray with state `path`, when it travels
-    /// inside an absorbing medium ([`Self::absorb`]'s factor).
-    #[inline]
-    fn transmittance(&self, path: PathState, t: f32) -> Option<Vec3A> {
-        path.medium.map(|mi| {
-            let sigma = Vec3A::from(self.scene.materials[mi as usize].color);
-            (-sigma * t).exp()
-        })
     }
 
     /// What [`Self::sample`] returns for each of `jobs`, into `out`, with the rays counted in
@@ -386,19 +366,17 @@ impl<I: Intersect> Integrator<'_, I> {
             dist[i] = t;
             let m = &self.scene.materials[surf.material[i] as usize];
             let li = match m.kind {
-                MaterialKind::Emissive => absorbed(
-                    self.transmittance(path, t),
-                    Li {
-                        emitted: m.color.into(),
-                        reflected: Vec3A::ZERO,
-                        light_pdf: if self.emitters.is_empty() {
-                            0.0
-                        } else {
-                            self.emitters
-                                .pdf(self.scene, lane(&w.rays.o, i), prim, surf.get(i).point)
-                        },
+                MaterialKind::Emissive => Li {
+                    emitted: m.color.into(),
+                    reflected: Vec3A::ZERO,
+                    light_pdf: if self.emitters.is_empty() {
+                        0.0
+                    } else {
+                        self.emitters
+                            .pdf(self.scene, lane(&w.rays.o, i), prim, surf.get(i).point)
                     },
-                ),
+                }
+                .absorbed(self.transmittance(path, t)),
                 _ if !w.want[i] => Li::default(),
                 MaterialKind::Diffuse => {
                     diffuse[i] = true;
@@ -465,7 +443,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 let (first, next) = match (refl, refr) {
                     (Some(a), b) => (a, b),
                     (None, Some(b)) => (b, None),
-                    (None, None) => return Some(absorbed(att, Li::reflected(Vec3A::ZERO))),
+                    (None, None) => return Some(Li::reflected(Vec3A::ZERO).absorbed(att)),
                 };
                 c.secondary += 1 + u64::from(next.is_some());
                 w.push_absorb(i, att);
