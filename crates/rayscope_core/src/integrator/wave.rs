@@ -22,8 +22,8 @@
 //!
 //! So the image is the one the one-path-at-a-time loop makes, bit for bit (the tests
 //! `waves_return_what_one_path_at_a_time_returns` below and `packet_render` check it). The wave
-//! pays where paths have many vertices to shade together; the render loop stops using it in
-//! renders whose samples average less than one (see `render::WaveStats`).
+//! pays where its steps have many Lambertian vertices to shade together; the render loop stops
+//! using it in renders whose steps shade few (see `render::WaveStats`).
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
