@@ -70,7 +70,6 @@ pub fn render_with<I: Intersect>(
     let total = w as u64 * h as u64;
     let done = AtomicU64::new(0);
     let waves = WaveStats::default();
-
     let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
         .into_par_iter()
         .map(|t| {

@@ -163,8 +163,8 @@ struct Wave {
     stack: [Vec<Frame>; LANES],
     /// Each path's glass splits in progress, the last one on top.
     splits: [Vec<Split>; LANES],
-    /// Lambertian vertices shaded in the wave so far.
-    shaded: u64,
+    /// Steps taken and Lambertian vertices shaded so far.
+    work: WaveWork,
 }
 
 impl Wave {
@@ -183,7 +183,7 @@ impl Wave {
             rng: RngLanes::default(),
             stack: std::array::from_fn(|_| Vec::new()),
             splits: std::array::from_fn(|_| Vec::new()),
-            shaded: 0,
+            work: WaveWork::default(),
         }
     }
 
@@ -271,7 +271,6 @@ impl<I: Intersect> Integrator<'_, I> {
         // lane it would otherwise leave idle. In a tree, camera rays are traced ahead, a pixel's
         // samples together, whose walks share their nodes.
         let ahead = bvh.single.is_empty();
-        let mut steps = 0;
         loop {
             for i in 0..LANES {
                 if w.on[i] {
@@ -299,12 +298,9 @@ impl<I: Intersect> Integrator<'_, I> {
                 break;
             }
             self.wave_step(bvh, &mut w, out, c);
-            steps += 1;
+            w.work.steps += 1;
         }
-        WaveWork {
-            steps,
-            shaded: w.shaded,
-        }
+        w.work
     }
 
     /// Traces the wave's rays and shadow rays and takes every path one vertex on.
@@ -402,7 +398,7 @@ impl<I: Intersect> Integrator<'_, I> {
             w.finish(i, li, out);
         }
         if diffuse.contains(&true) {
-            w.shaded += diffuse.iter().map(|&d| u64::from(d)).sum::<u64>();
+            w.work.shaded += diffuse.iter().map(|&d| u64::from(d)).sum::<u64>();
             self.shade_wave(bvh, w, &surf, &diffuse, &dist, out, c);
         }
     }
