@@ -133,6 +133,19 @@ class Rayscope:
             "rss": maxrss_kb * 1024,
         }
 
+    def visits(self, scene: str, rays_file: str, threads: int) -> tuple[float, float]:
+        """`bench rays --visits`: the mean nodes and leaves a closest-hit walk tests, per hitting and
+        per missing ray (deterministic, so one run)."""
+        cmd = [
+            self.exe, "bench", "rays", "-f", scene, "--rays-file", rays_file,
+            "--threads", str(threads), "--repeat", "1", "--visits",
+        ]
+        out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+        line = next(l for l in out.splitlines() if l.startswith("visits:"))
+        m = re.match(r"visits: per hitting ray ([0-9.]+), per missing ray ([0-9.]+)", line)
+        assert m, line
+        return float(m.group(1)), float(m.group(2))
+
     def bench_render(self, scene: str, flags: list[str], threads: int, repeat: int) -> dict:
         """`rayscope bench render`: the render loop's median time and throughput."""
         cmd = [self.exe, "bench", "render", "-f", scene, *flags, "--threads", str(threads), "--repeat", str(repeat)]
@@ -609,6 +622,8 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
                 assert r["threads"] == threads, r
                 results[(name, set_label)].append(r)
         log(f"  scale: repetition {rep + 1}/{args.reps} done")
+    # How far each walk goes, which explains most of the throughput ratios: counted once, untimed.
+    visits = {(name, set_label): rs.visits(path, rays_file, threads) for name, path in scenes for set_label, rays_file in sets}
 
     # Rendering: the same scenes lit by the tori's point light, so each render traces camera
     # rays (as packets) and a shadow ray from every hit, as users' renders of such meshes do.
@@ -640,6 +655,12 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
         assert len(hs) == 1, (name, set_label, hs)
         return hs.pop()
 
+    def per_ray(name, set_label):
+        """Mean visits over all rays of the set."""
+        vh, vm = visits[(name, set_label)]
+        f = hits(name, set_label) / results[(name, set_label)][0]["rays"]
+        return f * vh + (1 - f) * vm
+
     bunny_rss = med(scenes[0][0], "rss")
     table.section(
         f"Scale: BVH build and memory (rayscope `bench rays`, {threads} threads; build time as printed by "
@@ -659,7 +680,8 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
     table.section(
         f"Scale: closest-hit throughput, {threads} threads, median Mrays/s of --reps runs (each the median "
         f"of {args.ray_passes} passes). Target: torus >= 0.5 x the course bunny",
-        ["rays", "scene", "hits (fraction)", "Mrays/s", "/ bunny (course)", f"/ bunny x{BIG_BUNNY_FACTOR:g}"],
+        ["rays", "scene", "hits (fraction)", "Mrays/s", "/ bunny (course)", f"/ bunny x{BIG_BUNNY_FACTOR:g}",
+         "visits per hitting / missing ray", f"bunny x{BIG_BUNNY_FACTOR:g}'s visits per ray / these"],
     )
     for set_label, _ in sets:
         base = med(scenes[0][0], "mrays", set_label)
@@ -668,7 +690,9 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
             h = hits(name, set_label)
             n_rays = results[(name, set_label)][0]["rays"]
             mr = med(name, "mrays", set_label)
-            table.row([set_label, name, f"{h:,} ({h / n_rays:.1%})", f"{mr:.2f}", f"{mr / base:.2f}", f"{mr / big:.2f}"])
+            vh, vm = visits[(name, set_label)]
+            table.row([set_label, name, f"{h:,} ({h / n_rays:.1%})", f"{mr:.2f}", f"{mr / base:.2f}", f"{mr / big:.2f}",
+                       f"{vh:.2f} / {vm:.2f}", f"{per_ray(scenes[1][0], set_label) / per_ray(name, set_label):.2f}"])
     table.section(
         f"Scale: rendering (rayscope `bench render {' '.join(render_flags)}`, {threads} threads, the render "
         f"loop only: camera rays as packets and a shadow ray to the point light from every hit), median of "

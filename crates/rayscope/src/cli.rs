@@ -311,6 +311,10 @@ pub struct BenchRaysArgs {
     /// rays would be faster (to measure the plain single-ray walk).
     #[arg(long, conflicts_with = "packets")]
     pub no_interleave: bool,
+    /// Also print how many nodes and leaves a ray's closest-hit walk tests, on average, for the
+    /// rays that hit and for those that miss (counted in a pass of its own, not timed).
+    #[arg(long)]
+    pub visits: bool,
 }
 
 /// `rayscope bench render`.

@@ -531,6 +531,26 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         let interleaved = rays.chunks(BATCH).filter(|b| scene.wide.interleaves(b)).count();
         println!("mode: one ray at a time; walks interleaved in {interleaved} of {batches} batches of {BATCH}");
     }
+    if a.visits {
+        // (hits, visits of hitting rays, visits of missing rays)
+        let (hit, hit_visits, miss_visits) = rays
+            .par_iter()
+            .map(|r| {
+                let v = u64::from(scene.traversal_cost(r));
+                match scene.intersect(r, 0.0, f32::INFINITY) {
+                    Some(_) => (1u64, v, 0u64),
+                    None => (0, 0, v),
+                }
+            })
+            .reduce(|| (0, 0, 0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
+        let mean = |v: u64, n: u64| if n == 0 { 0.0 } else { v as f64 / n as f64 };
+        let miss = rays.len() as u64 - hit;
+        println!(
+            "visits: per hitting ray {:.2}, per missing ray {:.2} (nodes and leaves tested; a plane or a packet outside the tree counts one)",
+            mean(hit_visits, hit),
+            mean(miss_visits, miss)
+        );
+    }
     // Nanoseconds: a handful of rays traces in well under a microsecond, which six decimals
     // printed as zero seconds.
     println!(

@@ -350,6 +350,43 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
     assert_eq!(bench_rays(&["--rays-file", file, "--packets"], &scene), (17, 16));
     assert_eq!(bench_rays(&["--rays-file", file, "--no-interleave"], &scene), (17, 16));
 
+    // `--visits` adds a line on how far the walks went and leaves the last line as it was.
+    // Two rays: one from behind the rear wall away from the room, one from its middle into it.
+    let visits_path = dir.path().join("visits.bin");
+    let visit_bytes: Vec<u8> = [[0.0, 0.0, -0.5, 0.0, 0.0, -1.0f32], [0.0, 0.0, 1.5, 0.0, 0.0, 1.0]]
+        .iter()
+        .flatten()
+        .flat_map(|v| v.to_le_bytes())
+        .collect();
+    fs::write(&visits_path, visit_bytes).unwrap();
+    let visits_file = visits_path.to_str().unwrap();
+    assert_eq!(bench_rays(&["--rays-file", visits_file, "--visits"], &scene), (2, 1));
+    let out = rayscope()
+        .args([
+            "bench",
+            "rays",
+            "--repeat",
+            "1",
+            "--visits",
+            "--rays-file",
+            visits_file,
+            "-f",
+        ])
+        .arg(&scene)
+        .assert()
+        .success()
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).unwrap();
+    let line = text.lines().find(|l| l.starts_with("visits: ")).expect("a visits line");
+    let means: Vec<f64> = line.split([' ', ',']).filter_map(|w| w.parse().ok()).collect();
+    // The ray away from the room tests the floor and the roof (one each) and the root's boxes,
+    // and enters none of them; the ray into the room goes down the tree to a leaf.
+    assert_eq!(means.len(), 2, "{line}");
+    assert_eq!(means[1], 3.0, "{line}");
+    assert!(means[0] >= 5.0, "{line}");
+
     // A scene with an error is reported as every command reports it: one `error:`, then where.
     let bad = dir.path().join("bad.txt");
     fs::write(&bad, "Material \"M\" Diffuse (1, 1) 1\n").unwrap();
