@@ -298,8 +298,8 @@ fn ctrl_c_stops_promptly_writes_nothing_and_exits_130() {
     );
 }
 
-/// The last line of `bench rays`: `rays=N hits=H seconds=S mrays_per_s=M threads=T`.
-fn bench_rays(args: &[&str], scene: &std::path::Path) -> (u64, u64) {
+/// What `bench rays` prints on one pass over the rays, on 2 threads.
+fn bench_rays_text(args: &[&str], scene: &std::path::Path) -> String {
     let out = rayscope()
         .args(["bench", "rays", "--repeat", "1", "--threads", "2", "-f"])
         .arg(scene)
@@ -309,7 +309,16 @@ fn bench_rays(args: &[&str], scene: &std::path::Path) -> (u64, u64) {
         .get_output()
         .stdout
         .clone();
-    let text = String::from_utf8(out).unwrap();
+    String::from_utf8(out).unwrap()
+}
+
+/// (rays, hits) from the last line of `bench rays`: `rays=N hits=H seconds=S mrays_per_s=M threads=T`.
+fn bench_rays(args: &[&str], scene: &std::path::Path) -> (u64, u64) {
+    rays_and_hits(&bench_rays_text(args, scene))
+}
+
+/// (rays, hits) from `bench rays` output, after checking its last line's other fields.
+fn rays_and_hits(text: &str) -> (u64, u64) {
     let last = text.lines().last().unwrap();
     let field = |k: &str| -> String {
         last.split_whitespace()
@@ -360,25 +369,8 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
         .collect();
     fs::write(&visits_path, visit_bytes).unwrap();
     let visits_file = visits_path.to_str().unwrap();
-    assert_eq!(bench_rays(&["--rays-file", visits_file, "--visits"], &scene), (2, 1));
-    let out = rayscope()
-        .args([
-            "bench",
-            "rays",
-            "--repeat",
-            "1",
-            "--visits",
-            "--rays-file",
-            visits_file,
-            "-f",
-        ])
-        .arg(&scene)
-        .assert()
-        .success()
-        .get_output()
-        .stdout
-        .clone();
-    let text = String::from_utf8(out).unwrap();
+    let text = bench_rays_text(&["--rays-file", visits_file, "--visits"], &scene);
+    assert_eq!(rays_and_hits(&text), (2, 1));
     let line = text.lines().find(|l| l.starts_with("visits: ")).expect("a visits line");
     let means: Vec<f64> = line.split([' ', ',']).filter_map(|w| w.parse().ok()).collect();
     // The ray away from the room tests the floor and the roof (one each) and the root's boxes,
