@@ -8,6 +8,7 @@ faster, for throughput above 1 means rayscope is faster.
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import multiprocessing as mp
 import os
@@ -604,6 +605,11 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
         sub = os.path.join(args.out, f"bunny_big_sub{levels}.txt")
         write_big_bunny(sub, obj)
         scenes.append((f"bunny x{BIG_BUNNY_FACTOR:g}, {4 ** levels}x triangles", sub))
+    big_model = dataclasses.replace(model, offset=BIG_BUNNY_OFFSET, scale=model.scale * BIG_BUNNY_FACTOR)
+    # The meshes Embree traces too, as functions so each is made only while it is measured.
+    embree_meshes = [(f"bunny x{BIG_BUNNY_FACTOR:g}", lambda: cs.load_obj_triangles(big_model))]
+    for tris in args.scale_tris:
+        embree_meshes.append((f"torus {tris / 1e6:g}M", lambda tris=tris: torus_triangles(tris)))
     for tris in args.scale_tris:
         t0 = time.perf_counter()
         path, obj = gen_mesh.ensure(args.out, tris)
@@ -693,6 +699,41 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
             vh, vm = visits[(name, set_label)]
             table.row([set_label, name, f"{h:,} ({h / n_rays:.1%})", f"{mr:.2f}", f"{mr / base:.2f}", f"{mr / big:.2f}",
                        f"{vh:.2f} / {vm:.2f}", f"{per_ray(scenes[1][0], set_label) / per_ray(name, set_label):.2f}"])
+    # Embree on the same meshes and ray files: how much of its small-mesh speed it keeps.
+    ray_data = {label: rays for label, _, rays in ray_sets(args)}
+    table.section(
+        f"Scale: Embree 4 (embreex, rtcIntersect1 per ray) on the same meshes and rays, {threads} threads, "
+        f"median Mrays/s of --reps runs (each the median of {args.ray_passes} passes); rayscope's figures are "
+        "those of the throughput table above",
+        ["rays", "scene", "Embree", "rayscope", "rayscope / Embree", f"Embree / its bunny x{BIG_BUNNY_FACTOR:g}",
+         f"rayscope / its bunny x{BIG_BUNNY_FACTOR:g}", "hits Embree", "hits rayscope"],
+    )
+    for set_label, _ in sets:
+        rays = ray_data[set_label]
+        embree_big = None
+        for name, make in embree_meshes:
+            workers = EmbreeWorkers(make(), rays, threads)
+            speeds, peer_hits = [], set()
+            try:
+                for _ in range(args.reps):
+                    settle()
+                    times = []
+                    for _ in range(args.ray_passes):
+                        t, h = workers.one_pass()
+                        times.append(t)
+                        peer_hits.add(h)
+                    speeds.append(len(rays) / 1e6 / median(times))
+            finally:
+                workers.close()
+            assert len(peer_hits) == 1, (name, set_label, peer_hits)
+            hp, ho = peer_hits.pop(), hits(name, set_label)
+            p, o = median(speeds), med(name, "mrays", set_label)
+            embree_big = embree_big or p
+            table.row([set_label, name, f"{p:.2f}", f"{o:.2f}", f"{o / p:.2f}", f"{p / embree_big:.2f}",
+                       f"{o / med(scenes[1][0], 'mrays', set_label):.2f}", hp, ho])
+            if abs(hp - ho) > 1e-4 * max(hp, 1):
+                raise SystemExit(f"hit counts disagree on {name}, {set_label}: Embree {hp}, rayscope {ho}")
+        log(f"  scale, Embree: {set_label} done")
     table.section(
         f"Scale: rendering (rayscope `bench render {' '.join(render_flags)}`, {threads} threads, the render "
         f"loop only: camera rays as packets and a shadow ray to the point light from every hit), median of "
@@ -711,6 +752,14 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
         f"miss cheaply; `bunny x{BIG_BUNNY_FACTOR:g}` (scale {model.scale * BIG_BUNNY_FACTOR:g}, offset "
         f"{BIG_BUNNY_OFFSET}) covers about as much of the image as the tori and compares like with like."
     )
+
+
+def torus_triangles(tris: int) -> np.ndarray:
+    """`gen_mesh`'s torus of `tris` triangles in scene space, shape (n, 3, 3), float32, placed as
+    its scene places it (scale 1 at gen_mesh.CENTRE, the course's z flip)."""
+    verts, faces = gen_mesh.torus(tris)
+    scene = verts * np.array([1.0, 1.0, -1.0]) + np.array(gen_mesh.CENTRE)
+    return scene[faces - 1].astype(np.float32)
 
 
 SECTIONS = ["direct", "path", "rays", "scale"]
