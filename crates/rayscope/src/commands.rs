@@ -535,12 +535,9 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
         // (hits, visits of hitting rays, visits of missing rays)
         let (hit, hit_visits, miss_visits) = rays
             .par_iter()
-            .map(|r| {
-                let v = u64::from(scene.traversal_cost(r));
-                match scene.intersect(r, 0.0, f32::INFINITY) {
-                    Some(_) => (1u64, v, 0u64),
-                    None => (0, 0, v),
-                }
+            .map(|r| match scene.intersect_with_cost(r) {
+                (Some(_), v) => (1u64, u64::from(v), 0u64),
+                (None, v) => (0, 0, u64::from(v)),
             })
             .reduce(|| (0, 0, 0), |x, y| (x.0 + y.0, x.1 + y.1, x.2 + y.2));
         let mean = |v: u64, n: u64| if n == 0 { 0.0 } else { v as f64 / n as f64 };

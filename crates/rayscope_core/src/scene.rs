@@ -441,9 +441,15 @@ impl Scene {
     /// "cost" debug channel.
     #[must_use]
     pub fn traversal_cost(&self, ray: &Ray) -> u32 {
+        self.intersect_with_cost(ray).1
+    }
+
+    /// [`Self::intersect`] of `ray` over `t > 0`, with the [`Self::traversal_cost`] of that walk.
+    #[must_use]
+    pub fn intersect_with_cost(&self, ray: &Ray) -> (Option<Hit>, u32) {
         let mut visits = 0;
-        let _ = self.intersect_counting::<true>(ray, 0.0, f32::INFINITY, &mut visits);
-        visits
+        let hit = self.intersect_counting::<true>(ray, 0.0, f32::INFINITY, &mut visits);
+        (hit, visits)
     }
 
     /// (entity, material) of a primitive.
