@@ -283,6 +283,7 @@ class EmbreeWorkers:
     def __init__(self, triangles: np.ndarray, rays: np.ndarray, threads: int):
         global _EMBREE_TRIS, _EMBREE_RAYS
         _EMBREE_TRIS, _EMBREE_RAYS = triangles, rays
+        self.n_rays = len(rays)
         ctx = mp.get_context("fork")
         barrier = ctx.Barrier(threads)
         bounds = np.linspace(0, len(rays), threads + 1).astype(int)
@@ -304,11 +305,29 @@ class EmbreeWorkers:
         end = max(r[1] for r in results)
         return end - start, sum(r[2] for r in results)
 
+    def mrays(self, passes: int) -> tuple[float, int]:
+        """Median Mrays/s of `passes` passes after a settle, and the hit count (the same every pass)."""
+        settle()
+        times, hits = [], set()
+        for _ in range(passes):
+            t, h = self.one_pass()
+            times.append(t)
+            hits.add(h)
+        assert len(hits) == 1, hits
+        return self.n_rays / 1e6 / median(times), hits.pop()
+
     def close(self):
         for c in self.conns:
             c.send("stop")
         for p in self.procs:
             p.join()
+
+
+def check_hits(what: str, embree: int, ours: int) -> None:
+    """Stops the run when Embree's and rayscope's hit counts differ by more than 0.01 %."""
+    rel = abs(embree - ours) / max(embree, 1)
+    if rel > 1e-4:
+        raise SystemExit(f"hit counts disagree by {rel:.4%} on {what}: Embree {embree}, rayscope {ours}")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -546,13 +565,9 @@ def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
             peer, ours, hits_peer, hits_ours = [], [], set(), set()
             try:
                 for _ in range(args.reps):
-                    times = []
-                    settle()
-                    for _ in range(args.ray_passes):
-                        t, h = workers.one_pass()
-                        times.append(t)
-                        hits_peer.add(h)
-                    peer.append(len(rays) / 1e6 / median(times))
+                    speed, h = workers.mrays(args.ray_passes)
+                    peer.append(speed)
+                    hits_peer.add(h)
                     settle()
                     r = rs.bench_rays(mesh_scene, path, threads, args.ray_passes)
                     assert r["threads"] == threads and r["rays"] == len(rays), r
@@ -562,11 +577,9 @@ def bench_rays(args, rs: Rayscope, table: Table, notes: list[str]):
                 workers.close()
             assert len(hits_peer) == 1 and len(hits_ours) == 1, (hits_peer, hits_ours)
             hp, ho = hits_peer.pop(), hits_ours.pop()
-            rel = abs(hp - ho) / max(hp, 1)
             p, o = median(peer), median(ours)
             table.row([label, threads, f"{p:.2f}", f"{o:.2f}", f"{o / p:.2f}", hp, ho])
-            if rel > 1e-4:
-                raise SystemExit(f"hit counts disagree by {rel:.4%} on {label}: Embree {hp}, rayscope {ho}")
+            check_hits(label, hp, ho)
 
 
 # The enlarged bunny of the scale section: 2.5 x the course's scale (0.35), placed so that it
@@ -713,26 +726,19 @@ def bench_scale(args, rs: Rayscope, table: Table, notes: list[str]):
         embree_big = None
         for name, make in embree_meshes:
             workers = EmbreeWorkers(make(), rays, threads)
-            speeds, peer_hits = [], set()
             try:
-                for _ in range(args.reps):
-                    settle()
-                    times = []
-                    for _ in range(args.ray_passes):
-                        t, h = workers.one_pass()
-                        times.append(t)
-                        peer_hits.add(h)
-                    speeds.append(len(rays) / 1e6 / median(times))
+                runs = [workers.mrays(args.ray_passes) for _ in range(args.reps)]
             finally:
                 workers.close()
+            peer_hits = {h for _, h in runs}
             assert len(peer_hits) == 1, (name, set_label, peer_hits)
+            speeds = [speed for speed, _ in runs]
             hp, ho = peer_hits.pop(), hits(name, set_label)
             p, o = median(speeds), med(name, "mrays", set_label)
             embree_big = embree_big or p
             table.row([set_label, name, f"{p:.2f}", f"{o:.2f}", f"{o / p:.2f}", f"{p / embree_big:.2f}",
                        f"{o / med(scenes[1][0], 'mrays', set_label):.2f}", hp, ho])
-            if abs(hp - ho) > 1e-4 * max(hp, 1):
-                raise SystemExit(f"hit counts disagree on {name}, {set_label}: Embree {hp}, rayscope {ho}")
+            check_hits(f"{name}, {set_label}", hp, ho)
         log(f"  scale, Embree: {set_label} done")
     table.section(
         f"Scale: rendering (rayscope `bench render {' '.join(render_flags)}`, {threads} threads, the render "
