@@ -4,13 +4,12 @@ use std::path::PathBuf;
 
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
+use rayscope_core::settings::Limits;
 use rayscope_core::{CameraSettings, Channel, FovAxis, RenderSettings, Stage};
 
-/// Images larger than this many pixels need `--allow-large` (64 megapixels: 8192 × 8192).
-pub const PIXEL_BUDGET: u64 = 8192 * 8192;
-
-/// No image may exceed this many pixels (2^30: a 12 GiB float film), `--allow-large` or not.
-pub const HARD_PIXEL_LIMIT: u64 = 1 << 30;
+/// Renders with more samples than this (counting `-x` grid positions, 16 a pixel at 64
+/// megapixels) need `--allow-large`.
+const SAMPLE_BUDGET: u64 = 16 * 8192 * 8192;
 
 /// rayscope: a ray tracer and visual ray debugger for the COMP30019 scene format.
 ///
@@ -172,18 +171,6 @@ impl RenderOpts {
     /// Validates the flags together and converts them into render settings.
     pub fn settings(&self) -> Result<RenderSettings, String> {
         let pixels = self.width as u64 * self.height as u64;
-        if pixels > HARD_PIXEL_LIMIT {
-            return Err(format!(
-                "a {}×{} image is {} pixels, more than rayscope can hold in memory (at most {}, even with --allow-large)",
-                self.width, self.height, pixels, HARD_PIXEL_LIMIT
-            ));
-        }
-        if pixels > PIXEL_BUDGET && !self.allow_large {
-            return Err(format!(
-                "a {}×{} image is {} pixels, over the budget of {} (8192×8192); pass --allow-large to render it anyway",
-                self.width, self.height, pixels, PIXEL_BUDGET
-            ));
-        }
         // Normalised in f64: a tiny but non-zero axis is a valid direction even where its squared
         // length would underflow in f32.
         let axis = self.cam_axis.as_dvec3().normalize_or_zero();
@@ -191,13 +178,13 @@ impl RenderOpts {
             return Err("--cam-axis must not be (0, 0, 0) when --cam-angle is not 0: a rotation needs an axis".into());
         }
         let samples = pixels * (self.aa as u64).pow(2);
-        if samples > 16 * PIXEL_BUDGET && !self.allow_large {
+        if samples > SAMPLE_BUDGET && !self.allow_large {
             return Err(format!(
                 "{samples} samples ({}×{} pixels at -x {}) is over the budget; pass --allow-large",
                 self.width, self.height, self.aa
             ));
         }
-        Ok(RenderSettings {
+        let settings = RenderSettings {
             width: self.width,
             height: self.height,
             aa: self.aa,
@@ -234,7 +221,9 @@ impl RenderOpts {
                 ChannelArg::Albedo => Channel::Albedo,
                 ChannelArg::Cost => Channel::Cost,
             },
-        })
+        };
+        settings.check(&Limits::command_line(self.allow_large))?;
+        Ok(settings)
     }
 }
 

@@ -111,8 +111,13 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     let cancel = Arc::new(AtomicBool::new(false));
     {
         let cancel = cancel.clone();
-        // Ctrl-C sets the flag; the render stops at its next tile and nothing is written.
-        let _ = ctrlc::set_handler(move || cancel.store(true, Ordering::SeqCst));
+        // Ctrl-C (or SIGTERM) sets the flag: the render stops within a batch of samples and
+        // nothing is written. A second one ends the process at once.
+        let _ = ctrlc::set_handler(move || {
+            if cancel.swap(true, Ordering::SeqCst) {
+                std::process::exit(130);
+            }
+        });
     }
     let show = !opts.quiet && std::io::stderr().is_terminal();
     let out = render_with_progress(&scene, &settings, show, &cancel)?;

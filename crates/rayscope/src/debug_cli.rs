@@ -95,7 +95,8 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
     }
     let frame = render_view(&scene, &settings, image.as_ref(), &opts);
     let png = rayscope_debug::encode::png_small(&frame.image);
-    write_atomic(&a.output, &png).map_err(|e| Failure::failed(format!("cannot write {}: {e}", a.output.display())))?;
+    rayscope_core::output::write_atomic(&a.output, |w| std::io::Write::write_all(w, &png))
+        .map_err(|e| Failure::failed(format!("cannot write {}: {e}", a.output.display())))?;
     if !a.opts.quiet {
         eprintln!(
             "wrote {} ({}×{}, {:.1} ms, {} rays)",
@@ -107,13 +108,4 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Writes through a temporary file beside `path`, so a failure leaves no partial output.
-fn write_atomic(path: &std::path::Path, bytes: &[u8]) -> std::io::Result<()> {
-    let tmp = rayscope_core::output::temp_path(path);
-    std::fs::write(&tmp, bytes)?;
-    std::fs::rename(&tmp, path).inspect_err(|_| {
-        let _ = std::fs::remove_file(&tmp);
-    })
 }

@@ -1,5 +1,38 @@
 //! The `rayscope` binary: parses flags into validated settings and calls the libraries.
 
+// The binary's printing macros replace std's, so that no command can panic on its output: a
+// closed pipe (`rayscope trace --json | head`) ends the process quietly, a full disk is reported,
+// and messages to a closed standard error are dropped instead of turning exit code 2 into 101.
+// They are defined before the modules so that every module's `println!` and `eprintln!` is these.
+
+/// Prints to standard output; see [`stdout_failed`] for what happens when it cannot be written.
+macro_rules! println {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = writeln!(std::io::stdout(), $($t)*) {
+            $crate::stdout_failed(e);
+        }
+    }};
+}
+
+/// Prints to standard output without a newline, like [`println!`].
+macro_rules! print {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        if let Err(e) = write!(std::io::stdout(), $($t)*) {
+            $crate::stdout_failed(e);
+        }
+    }};
+}
+
+/// Prints a line to standard error, dropping it if standard error cannot be written.
+macro_rules! eprintln {
+    ($($t:tt)*) => {{
+        use std::io::Write as _;
+        let _ = writeln!(std::io::stderr(), $($t)*);
+    }};
+}
+
 mod cli;
 mod commands;
 
@@ -7,12 +40,26 @@ use std::process::ExitCode;
 
 use clap::Parser;
 
+/// Ends the process when standard output fails: quietly with status 0 when the reader went away
+/// (a closed pipe), else with a message and status 1.
+pub(crate) fn stdout_failed(e: std::io::Error) -> ! {
+    if e.kind() == std::io::ErrorKind::BrokenPipe {
+        std::process::exit(0);
+    }
+    eprintln!("error: cannot write to standard output: {e}");
+    std::process::exit(1);
+}
+
 fn main() -> ExitCode {
     let cli = match cli::Cli::try_parse() {
         Ok(c) => c,
         Err(e) => {
             // clap prints help/version to stdout (exit 0) and usage errors to stderr (exit 2).
-            let _ = e.print();
+            if let Err(err) = e.print() {
+                if !e.use_stderr() {
+                    stdout_failed(err);
+                }
+            }
             return ExitCode::from(if e.use_stderr() { 2 } else { 0 });
         }
     };

@@ -75,10 +75,10 @@ impl Format {
     }
 }
 
-/// Checks, before any work is done, that `path` can be written: known format, existing folder,
-/// folder writable. Returns the format.
+/// Checks, before any work is done, that `path` can be written: a file name (not a folder, no
+/// trailing `/`), a known format, an existing folder that is writable. Returns the format.
 pub fn check_writable(path: &Path) -> Result<Format, OutputError> {
-    if path.is_dir() {
+    if path.is_dir() || path.as_os_str().to_string_lossy().ends_with('/') {
         return Err(OutputError::IsFolder(path.to_path_buf()));
     }
     let format = Format::from_path(path)?;
@@ -89,13 +89,10 @@ pub fn check_writable(path: &Path) -> Result<Format, OutputError> {
             dir,
         });
     }
-    // Probe with a real temporary file: permission bits alone do not tell (root, ACLs, read-only mounts).
-    let probe = temp_path(path);
-    match fs::File::create(&probe) {
-        Ok(_) => {
-            let _ = fs::remove_file(&probe);
-            Ok(format)
-        }
+    // Probe with a real temporary file: permission bits alone do not tell (root, ACLs, read-only
+    // mounts). It is created the way the real one will be, and removed when dropped.
+    match create_temp(path) {
+        Ok(_) => Ok(format),
         Err(source) => Err(OutputError::Io {
             path: path.to_path_buf(),
             source,
@@ -110,30 +107,56 @@ fn parent_dir(path: &Path) -> PathBuf {
     }
 }
 
-/// The temporary file `path` is first written to: hidden, beside it, unique to this process.
-#[must_use]
-pub fn temp_path(path: &Path) -> PathBuf {
-    let name = path
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
-    parent_dir(path).join(format!(".{name}.rayscope-{}.tmp", std::process::id()))
+/// A new temporary file beside `path`: hidden, with a random name, created exclusively (an
+/// existing file or a planted symbolic link of that name makes creation fail rather than be
+/// followed), with the permissions a new file at `path` would get, or `path`'s own if it exists.
+/// The name does not contain `path`'s, so any file name the folder accepts can be written.
+fn create_temp(path: &Path) -> io::Result<tempfile::NamedTempFile> {
+    let mut b = tempfile::Builder::new();
+    b.prefix(".rayscope-").suffix(".tmp").rand_bytes(12);
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt;
+        // 0o666 goes through the umask, as `File::create` does.
+        b.permissions(fs::Permissions::from_mode(0o666));
+    }
+    let tmp = b.tempfile_in(parent_dir(path))?;
+    // `metadata` follows a link at `path`: the rename replaces the link, and the new file takes
+    // the permissions of what the user saw there.
+    if let Ok(m) = fs::metadata(path) {
+        if m.is_file() {
+            tmp.as_file().set_permissions(m.permissions())?;
+        }
+    }
+    Ok(tmp)
 }
 
-/// Writes `film` to `path` in the format its extension names, atomically.
+/// Writes a file at `path` atomically: `write` fills a temporary file beside it (see
+/// [`check_writable`] for how it is created), which is flushed to disk and renamed into place
+/// only when everything succeeded; on any error it is removed and `path` is untouched.
+pub fn write_atomic(path: &Path, write: impl FnOnce(&mut BufWriter<&fs::File>) -> io::Result<()>) -> io::Result<()> {
+    if path.as_os_str().to_string_lossy().ends_with('/') {
+        return Err(io::Error::new(io::ErrorKind::IsADirectory, "the path names a folder"));
+    }
+    let tmp = create_temp(path)?;
+    {
+        let mut w = BufWriter::new(tmp.as_file());
+        write(&mut w)?;
+        w.flush()?;
+    }
+    tmp.as_file().sync_all()?;
+    tmp.persist(path).map_err(|e| e.error)?;
+    Ok(())
+}
+
+/// Writes `film` to `path` in the format its extension names, atomically, and byte for byte the
+/// same for the same film.
 pub fn write_film(film: &Film, path: &Path) -> Result<(), OutputError> {
     let format = Format::from_path(path)?;
-    let tmp = temp_path(path);
-    let io_err = |source: io::Error| OutputError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let result = (|| -> io::Result<()> {
-        let file = fs::File::create(&tmp)?;
-        let mut w = BufWriter::new(file);
+    write_atomic(path, |w| {
         match format {
             Format::Png => {
-                let enc = image::codecs::png::PngEncoder::new(&mut w);
+                let enc = image::codecs::png::PngEncoder::new(w);
                 image::ImageEncoder::write_image(
                     enc,
                     &film.to_rgba8(),
@@ -148,25 +171,26 @@ pub fn write_film(film: &Film, path: &Path) -> Result<(), OutputError> {
                 w.write_all(&film.to_rgb8())?;
             }
             Format::Exr => {
+                use exr::prelude::*;
                 let (fw, px) = (film.width as usize, &film.pixels);
-                exr::prelude::write_rgb_file(&tmp, film.width as usize, film.height as usize, |x, y| {
+                let channels = SpecificChannels::rgb(|Vec2(x, y): Vec2<usize>| {
                     let p = px[y * fw + x];
                     (p.x, p.y, p.z)
-                })
-                .map_err(io::Error::other)?;
+                });
+                // Serial compression: the parallel writer stores blocks in the order they finish.
+                Image::from_channels((film.width as usize, film.height as usize), channels)
+                    .write()
+                    .non_parallel()
+                    .to_buffered(&mut *w)
+                    .map_err(io::Error::other)?;
             }
         }
-        let file = w.into_inner().map_err(|e| e.into_error())?;
-        file.sync_all()?;
         Ok(())
-    })();
-    match result.and_then(|()| fs::rename(&tmp, path)) {
-        Ok(()) => Ok(()),
-        Err(e) => {
-            let _ = fs::remove_file(&tmp);
-            Err(io_err(e))
-        }
-    }
+    })
+    .map_err(|source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
 #[cfg(test)]

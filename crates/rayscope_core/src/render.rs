@@ -43,7 +43,8 @@ pub struct Cancelled;
 /// Renders `scene` with `settings` on the current rayon pool.
 ///
 /// `progress(done, total)` is called with pixel counts as tiles finish; setting `cancel` stops the
-/// render at the next tile and returns [`Cancelled`].
+/// render within one batch of samples (at most [`WAVE_BATCH`] paths on each thread) and returns
+/// [`Cancelled`].
 pub fn render(
     scene: &Scene,
     settings: &RenderSettings,
@@ -85,7 +86,8 @@ pub fn render_with<I: Intersect>(
                 (tx * TILE + TILE).min(w),
                 (ty * TILE + TILE).min(h),
                 spp,
-            );
+                cancel,
+            )?;
             let n = done.fetch_add(r.pixels.len() as u64, Ordering::Relaxed) + r.pixels.len() as u64;
             progress(n, total);
             Some(r)
@@ -167,6 +169,14 @@ struct WaveStats {
 /// Samples traced in waves before [`WaveStats`] decides (a 16×16 tile at 16 samples a pixel).
 const WAVE_PILOT: u64 = 4096;
 
+/// Most samples a path-traced tile hands to the wave engine at once: enough that a wave's lanes
+/// rarely drain between batches (a 16×16 tile at 16 samples a pixel is one batch), few enough that
+/// a tile's memory and the time to notice a cancel do not grow with `-x` and `-q`.
+pub const WAVE_BATCH: usize = 4096;
+
+/// Samples the one-at-a-time loop traces between looks at the cancel flag.
+const CANCEL_EVERY: u32 = 256;
+
 /// Lambertian lanes a wave step must shade on average for waves to pay. Calibrated on our
 /// scenes and the course's with `-l -x 4` on one thread (BENCHMARKS.md, session 20): waves were
 /// slower than one path at a time at 3.4–9.6 shaded lanes a step (the beer glasses 19 %, the
@@ -189,6 +199,8 @@ impl WaveStats {
     }
 }
 
+/// Renders one tile, or returns `None` once `cancel` is set.
+#[allow(clippy::too_many_arguments)]
 fn render_tile<I: Intersect>(
     integ: &Integrator<'_, I>,
     waves: &WaveStats,
@@ -197,7 +209,8 @@ fn render_tile<I: Intersect>(
     x1: u32,
     y1: u32,
     spp: u32,
-) -> TileResult {
+    cancel: &AtomicBool,
+) -> Option<TileResult> {
     let mut r = TileResult {
         x0,
         y0,
@@ -208,51 +221,57 @@ fn render_tile<I: Intersect>(
         first_nonfinite: None,
     };
     if let Some(bvh) = integ.packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, LANES, |jobs, vals, c| {
+        render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
             integ.sample_packet(bvh, jobs, vals, c)
-        });
-        return r;
+        })?;
+        return Some(r);
     }
     if let Some(bvh) = integ.wave_bvh().filter(|_| waves.worthwhile()) {
-        // The whole tile at once: a wave's lanes drain only at the end of its jobs.
-        let jobs = ((x1 - x0) * (y1 - y0) * spp) as usize;
+        // As many samples at once as the bound allows: a wave's lanes drain only at the end of its
+        // jobs. Counted in 64 bits: pixels × samples can pass 2^32.
+        let jobs = (x1 - x0) as u64 * (y1 - y0) as u64 * spp as u64;
+        let batch = jobs.min(WAVE_BATCH as u64) as usize;
         let mut work = WaveWork::default();
-        render_tile_packets(&mut r, y1, spp, jobs, |jobs, vals, c| {
+        render_tile_packets(&mut r, y1, spp, batch, cancel, |jobs, vals, c| {
             work.add(integ.sample_wave(bvh, jobs, vals, c));
-        });
-        waves.add(jobs as u64, work);
-        return r;
+        })?;
+        waves.add(jobs, work);
+        return Some(r);
     }
     if let Some(bvh) = integ.camera_packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, LANES, |jobs, vals, c| {
+        render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
             integ.sample_camera_packet(bvh, jobs, vals, c)
-        });
-        return r;
+        })?;
+        return Some(r);
     }
     let inv = 1.0 / spp as f32;
     for y in y0..y1 {
         for x in x0..x1 {
             let mut sum = Vec3A::ZERO;
             for s in 0..spp {
+                if s % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed) {
+                    return None;
+                }
                 let v = integ.sample(x, y, s, &mut NoObserver, &mut r.counters);
                 r.add_sample(&mut sum, (x, y, s), v);
             }
             r.pixels.push((sum * inv).into());
         }
     }
-    r
+    Some(r)
 }
 
 /// [`render_tile`] with the samples handed to `trace` `batch` at a time: a pixel's samples in
 /// order, and when a pixel has fewer than [`LANES`], the pixels of a 4×4 block one after
-/// another, so a packet's rays stay close together.
+/// another, so a packet's rays stay close together. Returns `None` as soon as `cancel` is set.
 fn render_tile_packets(
     r: &mut TileResult,
     y1: u32,
     spp: u32,
     batch: usize,
+    cancel: &AtomicBool,
     mut trace: impl FnMut(&[Job], &mut [Vec3A], &mut Counters),
-) {
+) -> Option<()> {
     let inv = 1.0 / spp as f32;
     let (x0, y0, x1) = (r.x0, r.y0, r.x1);
     let tw = x1 - x0;
@@ -286,6 +305,9 @@ fn render_tile_packets(
                         jobs.extend((s..s + n).map(|k| (x, y, k)));
                         s += n;
                         if jobs.len() == batch {
+                            if cancel.load(Ordering::Relaxed) {
+                                return None;
+                            }
                             flush(&mut jobs, r, &mut sum);
                         }
                     }
@@ -296,6 +318,7 @@ fn render_tile_packets(
     if !jobs.is_empty() {
         flush(&mut jobs, r, &mut sum);
     }
+    Some(())
 }
 
 /// Traces sample `sample` of pixel (`x`, `y`) with a recorder and returns its ray tree.

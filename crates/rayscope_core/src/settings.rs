@@ -77,3 +77,186 @@ impl Default for RenderSettings {
         }
     }
 }
+
+/// Memory a render holds per pixel at its peak: the float film (12 bytes), the tiles' results
+/// before they are copied in (12) and the 8-bit image being encoded (4), rounded up to leave room
+/// for the encoder's buffers. Path-traced tiles stream their samples in bounded batches, so this
+/// does not grow with `-x` or `-q`.
+pub const BYTES_PER_PIXEL: u64 = 32;
+
+/// Most samples a pixel may take (`-x` N² grid positions × 2^q paths): each pixel's sum is kept
+/// in f32, which cannot resolve one more sample past 2^24 of them.
+pub const MAX_SAMPLES_PER_PIXEL: u64 = 1 << 24;
+
+/// What a front end lets one render use; [`RenderSettings::check`] holds settings to it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Limits {
+    /// Most pixels in the image.
+    pub max_pixels: u64,
+    /// Most bytes the image buffers may take ([`BYTES_PER_PIXEL`] a pixel).
+    pub memory_bytes: u64,
+    /// Most samples in the whole image, counting every `-q` path (`None`: no bound).
+    pub max_samples: Option<u64>,
+    /// What to tell a user who goes over `max_pixels` (e.g. the flag that lifts it).
+    pub pixel_hint: &'static str,
+    /// Where `memory_bytes` comes from, for the message.
+    pub memory_hint: &'static str,
+}
+
+impl Limits {
+    /// The command line's limits: 64 megapixels unless `allow_large`, and in either case image
+    /// buffers that fit in three quarters of the memory available now.
+    #[must_use]
+    pub fn command_line(allow_large: bool) -> Limits {
+        const PIXEL_BUDGET: u64 = 8192 * 8192;
+        let available = available_memory().map_or(u64::MAX, |m| m / 4 * 3);
+        if allow_large {
+            Limits {
+                max_pixels: 1 << 30,
+                memory_bytes: available,
+                max_samples: None,
+                pixel_hint: " (2^30), the most rayscope renders even with --allow-large",
+                memory_hint: " (three quarters of the memory available now)",
+            }
+        } else {
+            Limits {
+                max_pixels: PIXEL_BUDGET,
+                memory_bytes: available.min(PIXEL_BUDGET * BYTES_PER_PIXEL),
+                max_samples: None,
+                pixel_hint: " (8192×8192); pass --allow-large to render it anyway",
+                memory_hint: " (2 GiB, or three quarters of the memory available now if less)",
+            }
+        }
+    }
+}
+
+/// Memory the system could give this process now (`MemAvailable` on Linux), if known.
+#[must_use]
+pub fn available_memory() -> Option<u64> {
+    let info = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kib.saturating_mul(1024))
+}
+
+impl RenderSettings {
+    /// Most samples a pixel can take with these settings, in any scene: N² grid positions, times
+    /// 2^q paths when the scene turns out to have a stochastic effect.
+    #[must_use]
+    pub fn max_samples_per_pixel(&self) -> u64 {
+        if self.stage == Stage::One || self.channel != Channel::Color {
+            return 1;
+        }
+        let grid = (self.aa as u64).pow(2);
+        if self.stage == Stage::Full {
+            grid << self.quality.min(16)
+        } else {
+            grid
+        }
+    }
+
+    /// Checks that a render with these settings fits `limits`, before any work starts.
+    ///
+    /// # Errors
+    /// A message that names the settings at fault and the bound they break.
+    pub fn check(&self, limits: &Limits) -> Result<(), String> {
+        let (w, h) = (self.width, self.height);
+        if w == 0 || h == 0 {
+            return Err(format!("a {w}×{h} image has no pixels"));
+        }
+        let pixels = w as u64 * h as u64;
+        if pixels > limits.max_pixels {
+            return Err(format!(
+                "a {w}×{h} image is {pixels} pixels, over the budget of {}{}",
+                limits.max_pixels, limits.pixel_hint
+            ));
+        }
+        let bytes = pixels.saturating_mul(BYTES_PER_PIXEL);
+        if bytes > limits.memory_bytes {
+            return Err(format!(
+                "a {w}×{h} image needs about {} MiB for its buffers ({BYTES_PER_PIXEL} bytes a pixel), more than the {} MiB a render may use{}",
+                bytes >> 20,
+                limits.memory_bytes >> 20,
+                limits.memory_hint
+            ));
+        }
+        let spp = self.max_samples_per_pixel();
+        if spp > MAX_SAMPLES_PER_PIXEL {
+            return Err(format!(
+                "-x {} -q {} asks for up to {spp} samples per pixel; at most {MAX_SAMPLES_PER_PIXEL} (2^24) can be averaged in single precision: lower -x or -q",
+                self.aa, self.quality
+            ));
+        }
+        if let Some(max) = limits.max_samples {
+            let samples = pixels.saturating_mul(spp);
+            if samples > max {
+                return Err(format!(
+                    "{samples} samples ({w}×{h} pixels, up to {spp} a pixel) is more than {max}; lower the size, -x or -q"
+                ));
+            }
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn settings(width: u32, height: u32, aa: u32, quality: u32) -> RenderSettings {
+        RenderSettings {
+            width,
+            height,
+            aa,
+            quality,
+            ..RenderSettings::default()
+        }
+    }
+
+    #[test]
+    fn samples_count_every_path_in_64_bits() {
+        let s = settings(16, 16, 16, 16);
+        assert_eq!(s.max_samples_per_pixel(), 1 << 24);
+        let limits = Limits {
+            max_pixels: u64::MAX,
+            memory_bytes: u64::MAX,
+            max_samples: Some(1 << 28),
+            pixel_hint: "",
+            memory_hint: "",
+        };
+        // 256 pixels × 2^24 is 2^32: it wraps to 0 in u32, and must not pass.
+        let err = s.check(&limits).unwrap_err();
+        assert!(err.contains("4294967296 samples"), "{err}");
+        assert!(settings(64, 64, 64, 16).check(&limits).unwrap_err().contains("2^24"));
+        assert!(settings(16, 16, 4, 2).check(&limits).is_ok());
+    }
+
+    #[test]
+    fn memory_bounds_the_image_not_the_samples() {
+        let limits = Limits {
+            max_pixels: u64::MAX,
+            memory_bytes: 1 << 30,
+            max_samples: None,
+            pixel_hint: "",
+            memory_hint: "",
+        };
+        assert!(
+            settings(4096, 4096, 1, 0).check(&limits).is_ok(),
+            "16 M pixels × 32 B = 512 MiB"
+        );
+        let err = settings(8192, 8192, 1, 0).check(&limits).unwrap_err();
+        assert!(err.contains("2048 MiB"), "{err}");
+        assert!(
+            settings(1024, 1024, 16, 8).check(&limits).is_ok(),
+            "samples cost time, not memory"
+        );
+    }
+
+    #[test]
+    fn command_line_needs_allow_large_past_64_megapixels() {
+        let err = settings(8193, 8192, 1, 0)
+            .check(&Limits::command_line(false))
+            .unwrap_err();
+        assert!(err.contains("--allow-large"), "{err}");
+    }
+}

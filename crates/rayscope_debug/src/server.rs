@@ -38,6 +38,7 @@ use rayon::prelude::*;
 use rayscope_core::integrator::Integrator;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::scene::{Intersect, Scene};
+use rayscope_core::settings::{Limits, BYTES_PER_PIXEL};
 use rayscope_core::{render, trace_pixel_with, Channel, FovAxis, RenderSettings, Stage};
 use rayscope_scene::{SceneFile, Shape};
 use serde::Deserialize;
@@ -133,6 +134,17 @@ impl RunningServer {
     }
 }
 
+/// What one debugger render may use: images up to [`MAX_IMAGE_SIDE`] a side, and at most 2^28
+/// samples counting every `-q` path (about a minute of path tracing on two cores), so no request
+/// can start a render that outlives the user's patience; a new request cancels it in any case.
+const DEBUGGER_LIMITS: Limits = Limits {
+    max_pixels: (MAX_IMAGE_SIDE as u64) * (MAX_IMAGE_SIDE as u64),
+    memory_bytes: (MAX_IMAGE_SIDE as u64) * (MAX_IMAGE_SIDE as u64) * BYTES_PER_PIXEL,
+    max_samples: Some(1 << 28),
+    pixel_hint: "",
+    memory_hint: "",
+};
+
 /// Checks that settings fit the debugger's limits.
 ///
 /// # Errors
@@ -147,12 +159,7 @@ pub fn check_settings(s: &RenderSettings) -> Result<(), String> {
     if !(1..=16).contains(&s.aa) {
         return Err(format!("aa {} is outside 1..=16", s.aa));
     }
-    let samples = s.width as u64 * s.height as u64 * (s.aa as u64).pow(2);
-    if samples > 4 * (MAX_IMAGE_SIDE as u64).pow(2) {
-        return Err(format!(
-            "{samples} samples is too many for the debugger; lower the size or -x"
-        ));
-    }
+    s.check(&DEBUGGER_LIMITS)?;
     if s.max_depth > 64 {
         return Err("depth limit must be at most 64".into());
     }

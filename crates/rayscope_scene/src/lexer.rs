@@ -64,7 +64,16 @@ pub(crate) struct Line<'a> {
     /// The first quoted text that the separators split into several tokens, as a byte range
     /// including the quotes (a name with a space in it, most likely).
     pub split_quote: Option<(usize, usize)>,
+    /// Byte offset of the first quote, `(` or `)` that has no partner on the line.
+    pub unbalanced: Option<(usize, char)>,
+    /// Tokens past [`MAX_TOKENS`], counted but not kept.
+    pub dropped: usize,
 }
+
+/// Most tokens (and parenthesised groups) kept for one line. The longest command has a dozen;
+/// the rest can only be reported as extra, so a line of millions of words costs no more memory
+/// than its text.
+pub(crate) const MAX_TOKENS: usize = 256;
 
 fn is_separator(c: char) -> bool {
     c.is_whitespace() || matches!(c, ',' | '"' | '(' | ')')
@@ -79,8 +88,14 @@ pub(crate) fn lex_line<'a>(line: &'a str) -> Line<'a> {
     let mut content_end = 0;
     let mut quote: Option<(usize, usize)> = None; // (byte of the opening quote, tokens before it)
     let mut split_quote = None;
+    let mut stray_close: Option<usize> = None;
 
-    let push = |tokens: &mut Vec<Token<'a>>, start: usize, end: usize, group: Option<usize>| {
+    let mut dropped = 0;
+    let mut push = |tokens: &mut Vec<Token<'a>>, start: usize, end: usize, group: Option<usize>| {
+        if tokens.len() == MAX_TOKENS {
+            dropped += 1;
+            return;
+        }
         tokens.push(Token {
             text: &line[start..end],
             start,
@@ -98,7 +113,7 @@ pub(crate) fn lex_line<'a>(line: &'a str) -> Line<'a> {
                 }
             }
             match c {
-                '(' => {
+                '(' if groups.len() < MAX_TOKENS => {
                     groups.push(Group {
                         open: i,
                         close: None,
@@ -106,9 +121,12 @@ pub(crate) fn lex_line<'a>(line: &'a str) -> Line<'a> {
                     });
                     open_group = Some(groups.len() - 1);
                 }
+                '(' => open_group = None,
                 ')' => {
                     if let Some(g) = open_group.take() {
                         groups[g].close = Some(i);
+                    } else if stray_close.is_none() {
+                        stray_close = Some(i);
                     }
                 }
                 '"' => match quote.take() {
@@ -147,11 +165,22 @@ pub(crate) fn lex_line<'a>(line: &'a str) -> Line<'a> {
             t.group = None;
         }
     }
+    // The earliest partnerless separator: an open quote, a group never closed, a stray `)`.
+    let unbalanced = [
+        quote.map(|(open, _)| (open, '"')),
+        groups.iter().find(|g| g.close.is_none()).map(|g| (g.open, '(')),
+        stray_close.map(|i| (i, ')')),
+    ]
+    .into_iter()
+    .flatten()
+    .min();
     Line {
         tokens,
         groups,
         content_end,
         split_quote,
+        unbalanced,
+        dropped,
     }
 }
 
@@ -231,6 +260,24 @@ mod tests {
 
     fn texts<'a>(line: &Line<'a>) -> Vec<&'a str> {
         line.tokens.iter().map(|t| t.text).collect()
+    }
+
+    #[test]
+    fn a_line_of_millions_of_words_keeps_a_bounded_number_of_tokens() {
+        let text = format!("Sphere {}", "(7) ".repeat(1 << 20));
+        let line = lex_line(&text);
+        assert_eq!(line.tokens.len(), MAX_TOKENS);
+        assert_eq!(line.groups.len(), MAX_TOKENS);
+        assert_eq!(line.tokens.len() + line.dropped, (1 << 20) + 1);
+        assert_eq!(line.content_end, text.trim_end().len());
+    }
+
+    #[test]
+    fn partnerless_quotes_and_parentheses_are_found() {
+        assert_eq!(lex_line("A \"b (1, 2) \"c\"").unbalanced, Some((14, '"')));
+        assert_eq!(lex_line("A \"b\" (1, 2").unbalanced, Some((6, '(')));
+        assert_eq!(lex_line("A \"b\" (1, 2))").unbalanced, Some((12, ')')));
+        assert_eq!(lex_line("A \"b\" (1, 2) # \" ( in a comment").unbalanced, None);
     }
 
     #[test]

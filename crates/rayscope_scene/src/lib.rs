@@ -9,6 +9,7 @@ use std::path::PathBuf;
 pub use glam::{DVec3, Vec3};
 
 mod diagnostic;
+pub mod input;
 mod lexer;
 mod obj;
 mod parser;

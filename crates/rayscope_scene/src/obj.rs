@@ -47,7 +47,7 @@ pub fn parse_obj(src: &str, path: &Path, opts: &ObjOptions) -> Result<Mesh, Scen
 
 /// Reads and parses an OBJ file, converting it to scene space.
 pub fn load_obj(path: &Path, opts: &ObjOptions) -> Result<Mesh, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+    let bytes = crate::input::read_bounded(path, crate::input::MAX_OBJ_BYTES).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;

@@ -32,7 +32,7 @@ pub fn parse_str(src: &str, path: &Path) -> Result<SceneFile, SceneError> {
 
 /// Reads and parses a scene file; an empty file is a valid, empty scene.
 pub fn load(path: &Path) -> Result<SceneFile, SceneError> {
-    let bytes = std::fs::read(path).map_err(|source| SceneError::Io {
+    let bytes = crate::input::read_bounded(path, crate::input::MAX_SCENE_BYTES).map_err(|source| SceneError::Io {
         path: path.to_path_buf(),
         source,
     })?;
@@ -232,11 +232,36 @@ impl<'a> Cursor<'a> {
     }
 
     /// Warns about tokens left on the line.
+    /// A warning for a quote or parenthesis without its partner. The course's reader treats them
+    /// as plain separators and so accepts the line, and so does rayscope, but such a line is
+    /// usually a typo whose meaning the author should check.
+    fn unbalanced(&self) -> Option<Diagnostic> {
+        let (at, c) = self.lexed.unbalanced?;
+        let (message, label) = match c {
+            '"' => (
+                "unbalanced quote: the line has an odd number of '\"', and this one has no partner",
+                "no partner",
+            ),
+            '(' => (
+                "unbalanced parenthesis: this '(' is never closed on its line",
+                "no closing ')'",
+            ),
+            _ => ("unbalanced parenthesis: this ')' closes nothing", "no opening '('"),
+        };
+        Some(
+            self.diag(Severity::Warning, at, at + 1, message.to_string())
+                .with_label(label)
+                .with_note(
+                    "quotes and parentheses only separate words, so the line is still read (as the course's reader does); check that it says what you meant",
+                ),
+        )
+    }
+
     fn finish(&self) -> Option<Diagnostic> {
         let rest = self.lexed.tokens.get(self.pos..).unwrap_or_default();
         let first = rest.first()?;
         let end = self.lexed.content_end.max(first.end);
-        let n = rest.len();
+        let n = rest.len() + self.lexed.dropped;
         let found = self.text.get(first.start..end).unwrap_or_default();
         let found = if found.chars().count() > 40 {
             format!("{}…", found.chars().take(40).collect::<String>())
@@ -313,6 +338,9 @@ impl<'a> Parser<'a> {
             };
             match result {
                 Ok(()) => {
+                    if let Some(w) = cur.unbalanced() {
+                        self.scene.warnings.push(w);
+                    }
                     if let Some(mut w) = cur.finish() {
                         add_quote_note(&mut w);
                         self.scene.warnings.push(w);
@@ -627,7 +655,7 @@ impl<'a> Parser<'a> {
             cur.line_no,
             column(cur.text, path_tok.start)
         );
-        let bytes = std::fs::read(&source).map_err(|e| {
+        let bytes = crate::input::read_bounded(&source, crate::input::MAX_OBJ_BYTES).map_err(|e| {
             Box::new(
                 cur.token_diag(
                     &path_tok,
@@ -780,7 +808,13 @@ fn resolve_obj_path(raw: &str, scene: &Path) -> Result<PathBuf, Vec<PathBuf>> {
             }
         }
     }
-    tried.iter().find(|p| p.is_file()).cloned().ok_or(tried)
+    // A file wins; failing that, something that exists under that name (a folder, a pipe) is
+    // returned so that reading it says what it is, rather than "not found".
+    let found = tried
+        .iter()
+        .find(|p| p.is_file())
+        .or_else(|| tried.iter().find(|p| p.exists()));
+    found.cloned().ok_or(tried)
 }
 
 #[cfg(test)]
