@@ -239,7 +239,7 @@ pub struct TraceArgs {
     /// Sample index within the pixel (0-based; the N×N grid is row-major).
     #[arg(long, default_value_t = 0)]
     pub sample: u32,
-    /// Print JSON (schema in the README) instead of text.
+    /// Print JSON (schema in docs/debugger.md) instead of text.
     #[arg(long)]
     pub json: bool,
     #[command(flatten)]

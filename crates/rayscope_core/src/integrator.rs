@@ -478,8 +478,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's fresh stream
     /// ([`Self::sample_rng`]).
-    // Always inlined: with the jitter it grew past the inliner's limit, and as a call it cost
-    // the path-traced box 3 % (BENCHMARKS.md, session 8).
+    // Always inlined: with the jitter it is past the inliner's limit, and as a call it costs the
+    // path-traced box 3 % (`rayscope bench render -f scenes/emissive.txt -w 200 -h 200 -x 2 -q 2
+    // -l --threads 1`).
     #[must_use]
     #[inline(always)]
     pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {

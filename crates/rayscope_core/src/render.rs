@@ -178,9 +178,10 @@ pub const WAVE_BATCH: usize = 4096;
 const CANCEL_EVERY: u32 = 256;
 
 /// Lambertian lanes a wave step must shade on average for waves to pay. Calibrated on our
-/// scenes and the course's with `-l -x 4` on one thread (BENCHMARKS.md, session 20): waves were
-/// slower than one path at a time at 3.4–9.6 shaded lanes a step (the beer glasses 19 %, the
-/// glossy spheres 3 %), even at 10.5 (depth of field), and 23–39 % faster at 12.5–16.
+/// scenes and the course's (`rayscope bench render -f SCENE -l -x 4 --threads 1`, with waves
+/// forced on and off): waves are slower than one path at a time at 3.4–9.6 shaded lanes a step
+/// (the beer glasses 19 %, the glossy spheres 3 %), even at 10.5 (depth of field), and 23–39 %
+/// faster at 12.5–16.
 const MIN_SHADED_PER_STEP: u64 = 10;
 
 impl WaveStats {

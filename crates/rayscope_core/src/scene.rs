@@ -371,8 +371,8 @@ impl Scene {
     fn build_bvh(&mut self) {
         let prims = self.build_prims();
         self.bounds = prims.iter().fold(Aabb::EMPTY, |b, p| b.union(p.bounds()));
-        // The binary tree is only the collapse's input: dropped here, it no longer doubles a
-        // large mesh's resident memory for the whole render.
+        // The binary tree is only the collapse's input: dropped here, it does not add to a large
+        // mesh's resident memory for the whole render.
         let bvh = Bvh::build(prims);
         self.wide = Bvh4::from_binary(&bvh, &self.triangles, &self.spheres, SPHERE_BIT, &self.planes);
     }

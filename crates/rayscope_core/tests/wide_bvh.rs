@@ -561,9 +561,9 @@ fn grid_scene(n: usize) -> Scene {
 
 #[test]
 fn a_fine_mesh_gets_about_one_node_per_three_packets() {
-    // The collapse used to leave a node over each pair of packets it could not give a slot of
-    // its own (half the nodes of a million-triangle mesh); leaves now hold such runs, so nodes
-    // are few, and a query must still test every packet of a run.
+    // A collapse that left a node over each pair of packets it could not give a slot of its own
+    // would make half the nodes of a million-triangle mesh; leaves hold such runs instead, so
+    // nodes are few, and a query must still test every packet of a run.
     let scene = grid_scene(120);
     let reference = BinaryReference::new(&scene);
     let wide = &scene.wide;

@@ -7,7 +7,10 @@
 //! the core uses `unsafe`: a function compiled for an instruction set may only be called on a CPU
 //! that has it, which is checked immediately before each call (the check is a cached load). The
 //! cache prefetch hint the tree walks use in large scenes is here too, since its intrinsic is
-//! `unsafe` to call as well. Measured in BENCHMARKS.md, sessions 3 and 5.
+//! `unsafe` to call as well. On an AVX-512 CPU the AVX-512 copies render course scene 2 1.35× and
+//! the bunny scene 1.42× as fast as the baseline copies (`rayscope bench render -f SCENE -x 4
+//! --stage 2`); the prefetch makes scattered rays in a 1 M-triangle tree 25 % faster
+//! (`rayscope bench rays --rays-file FILE`).
 #![allow(unsafe_code)]
 
 use super::beam::ApexCull;

@@ -50,8 +50,9 @@ const TAG_MASK: u32 = 3 << 30;
 #[derive(Debug, Clone)]
 // Aligned to a cache line, like the packet code's other sixteen-lane structs: the kernels load
 // each sixteen-lane array as 512-bit (or 256-bit) vectors, and a vector that straddles two lines
-// costs two loads. Left to the compiler, where such a struct landed on the stack depended on
-// unrelated code, and direct-lighting renders moved by 4-7 % with it (BENCHMARKS.md, session 11).
+// costs two loads. Left to the compiler, where such a struct lands on the stack depends on
+// unrelated code, and direct-lighting renders move by 4-7 % with it (`rayscope bench render -f
+// SCENE -x 4 --stage 2 --threads 1` on course scenes 1 and 2 and `scenes/whitted.txt`).
 #[repr(align(64))]
 pub struct RayPacket {
     /// Origins, per axis.

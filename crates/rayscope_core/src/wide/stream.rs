@@ -8,9 +8,10 @@
 //! [`Bvh4::closest`], in the same order, so the hits are the same bit for bit.
 //!
 //! Interleaving has a cost of its own (each step reloads its ray's state, and the branch
-//! predictor sees the rays' walks mixed), so it is used only where it pays, measured in
-//! BENCHMARKS.md (session 6): for rays in scattered directions in trees beyond
-//! [`INTERLEAVE_BYTES`]. Rays that mostly point the same way as the ray before them (camera rays,
+//! predictor sees the rays' walks mixed), so it is used only where it pays: for rays in
+//! scattered directions in trees beyond [`INTERLEAVE_BYTES`] (the 4 M-triangle torus's
+//! incoherent rays about 1.8× as fast, `rayscope bench rays --rays-file FILE` against
+//! `--no-interleave`). Rays that mostly point the same way as the ray before them (camera rays,
 //! shadow rays toward one light) are walked one after another in any tree: each finds what the
 //! one before it loaded still cached, which interleaving would only disturb.
 
@@ -24,7 +25,7 @@ use crate::math::Ray;
 /// enough that their state stays in the first-level cache (about 18 KB).
 const IN_FLIGHT: usize = 24;
 
-/// Trees whose nodes and packets exceed this (half the development machine's shared L3 cache)
+/// Trees whose nodes and packets exceed this (half of a 32 MiB shared L3 cache)
 /// interleave scattered rays. Below it their misses mostly hit the L3, too short a wait to
 /// repay the interleaving: a 100 k-triangle torus (8.5 MB) was 5 % slower interleaved, a
 /// 200 k one (17 MB) 20 % faster.
