@@ -2,6 +2,7 @@
 
 mod cli;
 mod commands;
+mod probe;
 
 use std::process::ExitCode;
 
