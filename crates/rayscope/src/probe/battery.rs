@@ -115,9 +115,10 @@ pub enum CaseKind {
     Near,
     /// Starting very far away.
     Far,
-    /// The primitive scaled down 10 000 times.
+    /// A hit from the front or outside, primitive and ray scaled by 0.0001 about the world
+    /// origin: rounding is as before, so only an absolute epsilon can fail it.
     Tiny,
-    /// The primitive scaled up 1000 times.
+    /// The same scaled by 1000: only an absolute maximum distance can fail it.
     Huge,
 }
 
@@ -197,8 +198,8 @@ impl CaseKind {
             (PrimKind::Sphere, SurfaceIn) => "ray starting on the surface, going through the sphere",
             (PrimKind::Sphere, Near) => "ray starting just outside (1 % of the radius away)",
             (PrimKind::Sphere, Far) => "ray from far away (200 radii)",
-            (PrimKind::Sphere, Tiny) => "tiny sphere (radius x 0.0001), ray from outside",
-            (PrimKind::Sphere, Huge) => "huge sphere (radius x 1000), ray from outside",
+            (PrimKind::Sphere, Tiny) => "sphere and ray scaled by 0.0001 (about the world origin)",
+            (PrimKind::Sphere, Huge) => "sphere and ray scaled by 1000 (about the world origin)",
             (PrimKind::Plane, FrontHit) => "ray from the front (the normal's side) toward the plane",
             (PrimKind::Plane, BackHit) => "ray from behind the plane toward it",
             (PrimKind::Plane, Away) => "ray moving away from the plane",
@@ -208,8 +209,8 @@ impl CaseKind {
             (PrimKind::Plane, SurfaceOut) => "ray starting on the plane, leaving it",
             (PrimKind::Plane, Near) => "ray starting 0.01 from the plane",
             (PrimKind::Plane, Far) => "ray starting 200 from the plane",
-            (PrimKind::Plane, Tiny) => "ray starting 0.0001 from the plane",
-            (PrimKind::Plane, Huge) => "ray starting 1000 from the plane",
+            (PrimKind::Plane, Tiny) => "plane and ray scaled by 0.0001 (about the world origin)",
+            (PrimKind::Plane, Huge) => "plane and ray scaled by 1000 (about the world origin)",
             (PrimKind::Triangle, FrontHit) => "ray toward the front face (the side (v1 - v0) x (v2 - v0) points to)",
             (PrimKind::Triangle, BackHit) => "ray toward the back face",
             (PrimKind::Triangle, OutsideMiss) => "ray passing beside the triangle, through its plane",
@@ -223,8 +224,8 @@ impl CaseKind {
             (PrimKind::Triangle, SurfaceOut) => "ray starting on the triangle, leaving it",
             (PrimKind::Triangle, Near) => "ray starting just in front (1 % of the triangle's size away)",
             (PrimKind::Triangle, Far) => "ray from far away (200 x the triangle's size)",
-            (PrimKind::Triangle, Tiny) => "tiny triangle (x 0.0001), ray toward the front",
-            (PrimKind::Triangle, Huge) => "huge triangle (x 1000), ray toward the front",
+            (PrimKind::Triangle, Tiny) => "triangle and ray scaled by 0.0001 (about the world origin)",
+            (PrimKind::Triangle, Huge) => "triangle and ray scaled by 1000 (about the world origin)",
             _ => "other rays",
         }
     }
@@ -261,6 +262,9 @@ pub struct Expect {
     pub tol: f64,
     /// |t| below this is the origin itself.
     pub zero: f64,
+    /// Tolerance on a normal's length and on the cosine to the true normal: a normal worked out
+    /// from a hit point is off by the point's error over the primitive's size.
+    pub normal_tol: f64,
 }
 
 impl Expect {
@@ -445,11 +449,38 @@ pub fn battery(src: &Source, index: usize, per_case: usize, seed: u64) -> Vec<Ca
     let mut out = Vec::new();
     for (ci, &case) in cases_for(src.shape.kind()).iter().enumerate() {
         let mut dice = Dice(Rng::for_sample(seed, index as u64, ci as u64));
+        let scale = match case {
+            CaseKind::Tiny => Some(1e-4),
+            CaseKind::Huge => Some(1e3),
+            _ => None,
+        };
+        let base = match (scale, src.shape.kind()) {
+            (None, _) => case,
+            (Some(_), PrimKind::Sphere) => CaseKind::OutsideHit,
+            (Some(_), _) => CaseKind::FrontHit,
+        };
         for _ in 0..per_case {
             let (shape, origin, dir) = match src.shape {
-                Shape::Sphere { center, radius } => sphere_ray(&mut dice, case, center, radius),
-                Shape::Plane { point, normal } => plane_ray(&mut dice, case, point, normal),
-                Shape::Triangle { v } => triangle_ray(&mut dice, case, v),
+                Shape::Sphere { center, radius } => sphere_ray(&mut dice, base, center, radius),
+                Shape::Plane { point, normal } => plane_ray(&mut dice, base, point, normal),
+                Shape::Triangle { v } => triangle_ray(&mut dice, base, v),
+            };
+            let (shape, origin) = match scale {
+                None => (shape, origin),
+                Some(k) => (
+                    match shape {
+                        Shape::Sphere { center, radius } => Shape::Sphere {
+                            center: nice_v(center * k),
+                            radius: nice(radius * k),
+                        },
+                        Shape::Plane { point, normal } => Shape::Plane {
+                            point: nice_v(point * k),
+                            normal,
+                        },
+                        Shape::Triangle { v } => Shape::Triangle { v: v.map(|p| nice_v(p * k)) },
+                    },
+                    origin * k,
+                ),
             };
             let (origin, dir) = (nice_v(origin), nice_dir(dir));
             out.push(Case {
@@ -521,12 +552,6 @@ fn sphere_ray(dice: &mut Dice, case: CaseKind, c: DVec3, r: f64) -> (Shape, DVec
             let (o, d) = aimed(dice, r, 200.0);
             (shape(r), o, d)
         }
-        Tiny | Huge => {
-            let s = nice(r * if case == Tiny { 1e-4 } else { 1e3 });
-            let d = dice.range(2.0, 6.0);
-            let (o, d) = aimed(dice, s, d);
-            (shape(s), o, d)
-        }
         _ => unreachable!("not a sphere case"),
     }
 }
@@ -565,8 +590,6 @@ fn plane_ray(dice: &mut Dice, case: CaseKind, p: DVec3, n: DVec3) -> (Shape, DVe
         SurfaceOut => (on_plane(dice, 1.0), dice.hemisphere(n) * if dice.u() < 0.5 { 1.0 } else { -1.0 }),
         Near => toward(dice, 0.01, 0.02, 1.0, 0.01),
         Far => toward(dice, 200.0, 400.0, 1.0, 100.0),
-        Tiny => toward(dice, 1e-4, 2e-4, 1.0, 1e-4),
-        Huge => toward(dice, 1e3, 2e3, 1.0, 1e3),
         _ => unreachable!("not a plane case"),
     };
     (shape, o, d)
@@ -669,15 +692,6 @@ fn triangle_ray(dice: &mut Dice, case: CaseKind, v: [DVec3; 3]) -> (Shape, DVec3
             let (o, d) = from_side(dice, target, 1.0, 200.0 * size);
             (shape, o, d)
         }
-        Tiny | Huge => {
-            let k = if case == Tiny { 1e-4 } else { 1e3 };
-            let g = (v[0] + v[1] + v[2]) / 3.0;
-            let scaled = v.map(|p| nice_v(g + (p - g) * k));
-            let target = at(&scaled, dice.interior(0.1));
-            let h = dice.range(0.5, 2.0) * size * k;
-            let (o, d) = from_side(dice, target, 1.0, h);
-            (Shape::Triangle { v: scaled }, o, d)
-        }
         _ => unreachable!("not a triangle case"),
     }
 }
@@ -719,7 +733,6 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
     };
     // What rounding to f32 can move a coordinate by, and what that does to t.
     let rounding = 8.0 * EPS32 * (o.length() + feature.length());
-    let zero = 1e-5 * size + rounding;
     let mut e = Expect {
         hit: None,
         miss_ok: false,
@@ -728,7 +741,8 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
         tie: false,
         other_t: None,
         tol: 0.0,
-        zero,
+        zero: 0.0,
+        normal_tol: 0.0,
     };
     let a = d.length_squared();
     // How much the division by the cosine of the angle of incidence magnifies rounding in t.
@@ -800,6 +814,9 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
                 }
             }
         };
+    // A ray leaving a surface at a shallow angle meets it again within rounding over the sine.
+    let zero = 1e-5 * size + rounding * cond.min(1e3);
+    e.zero = zero;
     let near_t = roots.iter().copied().find(|t| *t > zero);
     let at_origin = roots.iter().any(|t| t.abs() <= zero);
     let inside = margin >= 0.0;
@@ -833,6 +850,7 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
         tol += 4.0 * size * (2.0 * width).sqrt();
     }
     e.tol = tol;
+    e.normal_tol = 1e-3 + 2.0 * tol / size;
     e
 }
 

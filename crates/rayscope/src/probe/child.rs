@@ -170,14 +170,14 @@ impl Probed {
         }
     }
 
+    /// The program's process id (on Unix also its process group's).
+    pub fn id(&self) -> u32 {
+        self.child.id()
+    }
+
     /// Stops the program (and its process group) now.
     pub fn kill(&mut self) {
-        #[cfg(unix)]
-        {
-            if let Ok(pid) = i32::try_from(self.child.id()) {
-                let _ = nix::sys::signal::killpg(nix::unistd::Pid::from_raw(pid), nix::sys::signal::Signal::SIGKILL);
-            }
-        }
+        kill_group(self.child.id());
         let _ = self.child.kill();
         let _ = self.child.wait();
     }
@@ -189,6 +189,18 @@ impl Drop for Probed {
             self.kill();
         }
     }
+}
+
+/// Stops the process group `pid` leads (what [`Probed::spawn`] started), where there are groups.
+pub fn kill_group(pid: u32) {
+    #[cfg(unix)]
+    {
+        if let Ok(pid) = i32::try_from(pid) {
+            let _ = nix::sys::signal::killpg(nix::unistd::Pid::from_raw(pid), nix::sys::signal::Signal::SIGKILL);
+        }
+    }
+    #[cfg(not(unix))]
+    let _ = pid;
 }
 
 /// Sends each line of `out` to `tx`, stopping at the end, at an error or at an overlong line.

@@ -5,12 +5,6 @@ use serde_json::Value;
 
 use super::battery::{Case, CaseKind, PrimKind, Shape};
 
-/// Normals within this of unit length are unit (f32 normalisation is far closer).
-const UNIT_TOL: f64 = 1e-3;
-
-/// The cosine below which a normal is not the surface's (about 2.6°).
-const PARALLEL_COS: f64 = 1.0 - 1e-3;
-
 /// What the program answered to one request.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Answer {
@@ -296,7 +290,7 @@ pub fn judge(case: &Case, answer: &Answer) -> Judgement {
         return j;
     }
     if let Some(n) = normal {
-        if (n.length() - 1.0).abs() > UNIT_TOL {
+        if (n.length() - 1.0).abs() > e.normal_tol {
             j.verdicts.push(Verdict::NormalNotUnit);
         }
     }
@@ -316,7 +310,7 @@ pub fn judge(case: &Case, answer: &Answer) -> Judgement {
         if len > 0.0 {
             let n = n / len;
             let c = n.dot(h.normal);
-            if c.abs() < PARALLEL_COS {
+            if c.abs() < 1.0 - e.normal_tol {
                 j.verdicts.push(Verdict::NormalWrong);
             } else {
                 j.orientation = Some(Orientation {
@@ -375,11 +369,17 @@ pub fn phrase(v: Verdict) -> &'static str {
     }
 }
 
+const NOT_UNIT: &str = "Normalise the normal: for a sphere (P - C) / r, for a triangle the \
+     normalised (v1 - v0) x (v2 - v0). Shading's N . L needs unit length.";
+
 /// The likely mistake behind a verdict in a case, where one is typical.
-pub fn hint(kind: PrimKind, case: CaseKind, v: Verdict, outward: bool) -> Option<String> {
+pub fn hint(kind: PrimKind, case: Option<CaseKind>, v: Verdict, outward: bool) -> Option<String> {
     use CaseKind::*;
     use PrimKind::*;
     use Verdict::*;
+    let Some(case) = case else {
+        return (v == NormalNotUnit).then(|| NOT_UNIT.to_string());
+    };
     let s = match (kind, case, v) {
         (Sphere, Inside | Centre | SurfaceIn, BehindOrigin) => {
             "When the ray starts inside the sphere the smaller root of the quadratic is negative: \
@@ -392,7 +392,7 @@ pub fn hint(kind: PrimKind, case: CaseKind, v: Verdict, outward: bool) -> Option
             "The surface is behind the ray. Accept a hit only when t > 0."
         }
         (_, _, BehindOrigin) => "Accept a hit only when t > 0: points with t < 0 lie behind the ray's start.",
-        (Sphere, OutsideHit | Far | Near | Tiny | Huge, WrongRoot) => {
+        (Sphere, OutsideHit | Far | Near | Tiny | Huge | Grazing, WrongRoot) => {
             "You take the larger root. From outside the nearer hit is the smaller one, (-b - sqrt(disc)) / 2a."
         }
         (Sphere, Inside | Centre | SurfaceIn, WrongRoot) => {
@@ -411,7 +411,7 @@ pub fn hint(kind: PrimKind, case: CaseKind, v: Verdict, outward: bool) -> Option
             "Rays exactly through an edge or a corner miss: your inside test is strict (u > 0, \
              v > 0, u + v < 1) where it must include the boundary (u >= 0, v >= 0, u + v <= 1). \
              Otherwise rays slip through the crack between two triangles sharing that edge. \
-             (These rays meet the edge exactly in floating point: the triangle lies in an axis plane.)"
+             (These rays meet the boundary exactly, even in floating point.)"
         }
         (Triangle, NearEdgeIn, Missed) => {
             "Rays just inside an edge miss: your inside test has a margin (such as u > epsilon) \
@@ -449,10 +449,7 @@ pub fn hint(kind: PrimKind, case: CaseKind, v: Verdict, outward: bool) -> Option
         (_, SurfaceOut, Phantom | WrongT) => {
             "The ray starts on the surface and leaves it: there is nothing to hit (a hit at t = 0 is also accepted)."
         }
-        (_, _, NormalNotUnit) => {
-            "Normalise the normal: for a sphere (P - C) / r, for a triangle the normalised \
-             (v1 - v0) x (v2 - v0). Shading's N . L needs unit length."
-        }
+        (_, _, NormalNotUnit) => NOT_UNIT,
         (Sphere, _, NormalWrong) => "A sphere's normal at P is (P - C) / r.",
         (Triangle, _, NormalWrong) => "A triangle's normal is the normalised (v1 - v0) x (v2 - v0).",
         (_, _, NormalFlipped) if outward => {

@@ -44,6 +44,15 @@ pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
             }
         ))
     })?;
+    {
+        // The program runs in a process group of its own, which Ctrl-C in the terminal does not
+        // reach: stop it on the way out.
+        let pid = child.id();
+        let _ = ctrlc::set_handler(move || {
+            child::kill_group(pid);
+            std::process::exit(130);
+        });
+    }
     let startup = Duration::from_secs_f64(a.startup_timeout);
     let timeout = Duration::from_secs_f64(a.timeout);
     let hello = child
@@ -251,14 +260,19 @@ fn describe_expect(e: &Expect, kind: PrimKind) -> String {
     }
 }
 
-fn describe_answer(a: &Answer) -> String {
+fn describe_answer(a: &Answer, c: &Case) -> String {
     match a {
         Answer::Miss => "miss".into(),
         Answer::Error(m) => format!("error: {m}"),
         Answer::Hit { t, point, normal } => {
             let mut parts = Vec::new();
-            if let Some(t) = t {
-                parts.push(format!("t = {}", short(*t)));
+            match (t, point) {
+                (Some(t), _) => parts.push(format!("t = {}", short(*t))),
+                (None, Some(p)) => parts.push(format!(
+                    "t = {} (from the point)",
+                    short((*p - c.origin).dot(c.dir) / c.dir.length_squared())
+                )),
+                (None, None) => {}
             }
             if let Some(p) = point {
                 parts.push(format!("point {}", vec3(*p)));
@@ -271,9 +285,14 @@ fn describe_answer(a: &Answer) -> String {
     }
 }
 
+/// A vector with every digit sent (the numbers have 7 significant digits at most).
+fn exact(v: DVec3) -> String {
+    let n = |x: f64| if x == 0.0 { "0".to_string() } else { format!("{x}") };
+    format!("({}, {}, {})", n(v.x), n(v.y), n(v.z))
+}
+
 fn describe_shape(s: &Shape) -> String {
-    // Full precision: these are the exact numbers sent.
-    let f = |v: DVec3| format!("({}, {}, {})", v.x, v.y, v.z);
+    let f = exact;
     match *s {
         Shape::Sphere { center, radius } => format!("sphere    center = {}, radius = {radius}", f(center)),
         Shape::Plane { point, normal } => format!("plane     point = {}, normal = {}", f(point), f(normal)),
@@ -284,11 +303,12 @@ fn describe_shape(s: &Shape) -> String {
 /// One wrong behaviour: a verdict in a case, with the rays it happened on.
 struct Finding {
     kind: PrimKind,
-    case: CaseKind,
+    /// None for a verdict judged over all of a kind's hits (a normal that is never unit length).
+    case: Option<CaseKind>,
     verdict: Verdict,
     /// Indices of the requests.
     requests: Vec<usize>,
-    /// Rays of this case and kind in all.
+    /// Rays of this case and kind in all (hits with a normal, for a kind-wide finding).
     of: usize,
 }
 
@@ -310,7 +330,8 @@ impl<'a> Report<'a> {
         conventions: &'a BTreeMap<PrimKind, bool>,
     ) -> Self {
         let mut rows: BTreeMap<(PrimKind, CaseKind), (usize, usize)> = BTreeMap::new();
-        let mut groups: BTreeMap<(PrimKind, CaseKind, Verdict), Vec<usize>> = BTreeMap::new();
+        let mut groups: BTreeMap<(PrimKind, Option<CaseKind>, Verdict), Vec<usize>> = BTreeMap::new();
+        let mut with_normal: BTreeMap<PrimKind, usize> = BTreeMap::new();
         for (i, (c, j)) in cases.iter().zip(judgements).enumerate() {
             let key = (c.shape.kind(), c.case);
             let row = rows.entry(key).or_default();
@@ -318,11 +339,16 @@ impl<'a> Report<'a> {
             if !j.verdicts.is_empty() {
                 row.1 += 1;
             }
+            if matches!(answers[i], Answer::Hit { normal: Some(_), .. }) {
+                *with_normal.entry(key.0).or_default() += 1;
+            }
             let mut seen = Vec::new();
             for v in &j.verdicts {
                 if !seen.contains(v) {
                     seen.push(*v);
-                    groups.entry((key.0, key.1, *v)).or_default().push(i);
+                    // A normal of the wrong length is one mistake wherever the ray comes from.
+                    let case = (*v != Verdict::NormalNotUnit).then_some(key.1);
+                    groups.entry((key.0, case, *v)).or_default().push(i);
                 }
             }
         }
@@ -332,8 +358,11 @@ impl<'a> Report<'a> {
                 kind,
                 case,
                 verdict,
+                of: match case {
+                    Some(c) => rows[&(kind, c)].0,
+                    None => with_normal.get(&kind).copied().unwrap_or(requests.len()),
+                },
                 requests,
-                of: rows[&(kind, case)].0,
             })
             .collect();
         Self {
@@ -346,14 +375,23 @@ impl<'a> Report<'a> {
     }
 
     fn headline(&self, f: &Finding) -> String {
-        format!(
-            "{}: {} -- {} in {} of {} rays.",
-            f.kind.name(),
-            f.case.describe(f.kind),
-            judge::phrase(f.verdict),
-            f.requests.len(),
-            f.of
-        )
+        match f.case {
+            Some(case) => format!(
+                "{}: {} -- {} in {} of {} rays.",
+                f.kind.name(),
+                case.describe(f.kind),
+                judge::phrase(f.verdict),
+                f.requests.len(),
+                f.of
+            ),
+            None => format!(
+                "{}: {} in {} of {} hits, whatever the ray.",
+                f.kind.name(),
+                judge::phrase(f.verdict),
+                f.requests.len(),
+                f.of
+            ),
+        }
     }
 
     fn hint(&self, f: &Finding) -> Option<String> {
@@ -418,11 +456,12 @@ impl<'a> Report<'a> {
                 ));
                 out.push_str(&format!("     {}\n", describe_shape(&c.shape)));
                 out.push_str(&format!(
-                    "     ray       origin = ({}, {}, {}), direction = ({}, {}, {})\n",
-                    c.origin.x, c.origin.y, c.origin.z, c.dir.x, c.dir.y, c.dir.z
+                    "     ray       origin = {}, direction = {}\n",
+                    exact(c.origin),
+                    exact(c.dir)
                 ));
                 out.push_str(&format!("     expected  {}\n", describe_expect(&c.expect, f.kind)));
-                out.push_str(&format!("     yours     {}\n", describe_answer(&self.answers[i])));
+                out.push_str(&format!("     yours     {}\n", describe_answer(&self.answers[i], c)));
                 out.push_str(&format!("     request   {}\n", judge::request_json(i, c)));
             }
         }
@@ -460,13 +499,13 @@ impl<'a> Report<'a> {
                             "request": request,
                             "source": c.source,
                             "expected": describe_expect(&c.expect, f.kind),
-                            "answer": describe_answer(&self.answers[i]),
+                            "answer": describe_answer(&self.answers[i], c),
                         })
                     })
                     .collect();
                 json!({
                     "primitive": f.kind.name(),
-                    "case": f.case.id(),
+                    "case": f.case.map_or("all", CaseKind::id),
                     "verdict": f.verdict.code(),
                     "count": f.requests.len(),
                     "of": f.of,
