@@ -12,7 +12,9 @@ use common::{rayscope, reference, scenes};
 use serde_json::Value;
 
 fn examples(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/probe").join(rel)
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../examples/probe")
+        .join(rel)
 }
 
 fn student() -> PathBuf {
@@ -20,7 +22,10 @@ fn student() -> PathBuf {
 }
 
 fn python() -> &'static str {
-    let ok = StdCommand::new("python3").arg("--version").output().is_ok_and(|o| o.status.success());
+    let ok = StdCommand::new("python3")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     assert!(ok, "the probe tests need python3 (standard library only) on PATH");
     "python3"
 }
@@ -102,8 +107,16 @@ fn the_python_example_tracer_passes() {
         .output()
         .unwrap();
     let text = String::from_utf8_lossy(&out.stdout);
-    assert_eq!(out.status.code(), Some(0), "{text}{}", String::from_utf8_lossy(&out.stderr));
-    assert!(text.contains("Every answer is right: your intersector agrees with rayscope on all 1008 rays."), "{text}");
+    assert_eq!(
+        out.status.code(),
+        Some(0),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(
+        text.contains("Every answer is right: your intersector agrees with rayscope on all 1008 rays."),
+        "{text}"
+    );
 }
 
 /// Asserts that `mistakes` is reported as exactly the findings `allowed` (primitive, case,
@@ -114,7 +127,8 @@ fn names(mistakes: &str, scene: &Path, required: &[(&str, &str, &str)], allowed:
     let found = findings(&report);
     for (p, c, v, count, of) in &found {
         assert!(
-            allowed.contains(&(p.as_str(), c.as_str(), v.as_str())) || required.contains(&(p.as_str(), c.as_str(), v.as_str())),
+            allowed.contains(&(p.as_str(), c.as_str(), v.as_str()))
+                || required.contains(&(p.as_str(), c.as_str(), v.as_str())),
             "{mistakes}: unexpected finding {p} {c} {v} ({count} of {of}):\n{report:#}"
         );
     }
@@ -132,7 +146,10 @@ fn names_a_sphere_returning_the_root_behind_the_origin() {
     names(
         "sphere-inside",
         &reference("tests/sample_scene_2.txt"),
-        &[("sphere", "inside", "behind-origin"), ("sphere", "centre", "behind-origin")],
+        &[
+            ("sphere", "inside", "behind-origin"),
+            ("sphere", "centre", "behind-origin"),
+        ],
         // A ray leaving the surface has one root at about 0 and one behind: the mistake returns
         // the one behind whenever rounding puts the other just above its epsilon.
         &[("sphere", "surface-leaving", "behind-origin")],
@@ -163,11 +180,26 @@ fn names_a_one_sided_triangle() {
 #[test]
 fn names_a_plane_that_divides_by_zero_for_parallel_rays() {
     let scene = reference("tests/sample_scene_1.txt");
-    names("plane-parallel", &scene, &[("plane", "parallel", "raised-error"), ("plane", "in-plane", "raised-error")], &[]);
-    names("plane-parallel-inf", &scene, &[], &[("plane", "parallel", "not-finite")]);
+    names(
+        "plane-parallel",
+        &scene,
+        &[
+            ("plane", "parallel", "raised-error"),
+            ("plane", "in-plane", "raised-error"),
+        ],
+        &[],
+    );
+    names(
+        "plane-parallel-inf",
+        &scene,
+        &[],
+        &[("plane", "parallel", "not-finite")],
+    );
     let (_, report) = probe(&scene, "plane-parallel-inf");
     assert!(
-        findings(&report).iter().any(|f| f.1 == "parallel" && f.2 == "not-finite"),
+        findings(&report)
+            .iter()
+            .any(|f| f.1 == "parallel" && f.2 == "not-finite"),
         "{report:#}"
     );
     let hint = report["findings"][0]["hint"].as_str().unwrap();
@@ -193,7 +225,9 @@ fn names_normals_that_are_not_unit_length() {
     assert_eq!(found.len(), 2, "{report:#}");
     for p in ["sphere", "triangle"] {
         assert!(
-            found.iter().any(|f| f.0 == p && f.1 == "all" && f.2 == "normal-not-unit" && f.3 == f.4 && f.3 > 50),
+            found
+                .iter()
+                .any(|f| f.0 == p && f.1 == "all" && f.2 == "normal-not-unit" && f.3 == f.4 && f.3 > 50),
             "{p}:\n{report:#}"
         );
     }
@@ -222,7 +256,10 @@ fn the_text_report_explains_and_reproduces() {
     assert!(text.contains("request   {\"id\":"), "{text}");
     assert!(text.contains("expected  hit at t = "), "{text}");
     assert!(text.contains("yours     hit at t = -"), "{text}");
-    assert!(text.contains("\"GlassSphere\" (line 12)") || text.contains("\"MirrorSphere\""), "{text}");
+    assert!(
+        text.contains("\"GlassSphere\" (line 12)") || text.contains("\"MirrorSphere\""),
+        "{text}"
+    );
 }
 
 /// Runs probe on a throw-away Python program; (exit code, stderr, seconds).
@@ -252,9 +289,15 @@ const READY: &str = "import sys, time\nsys.stdin.readline()\nprint('{\"ready\":t
 
 #[test]
 fn a_hanging_program_is_stopped_after_the_timeout() {
-    let (code, err, secs) = probe_program(&format!("{READY}sys.stdin.readline()\ntime.sleep(60)\n"), &["--timeout", "1"]);
+    let (code, err, secs) = probe_program(
+        &format!("{READY}sys.stdin.readline()\ntime.sleep(60)\n"),
+        &["--timeout", "1"],
+    );
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("did not answer request 0") && err.contains("within 1 s"), "{err}");
+    assert!(
+        err.contains("did not answer request 0") && err.contains("within 1 s"),
+        "{err}"
+    );
     assert!(err.contains("flush"), "{err}");
     assert!(secs < 10.0, "took {secs} s");
     // One that never says it is ready.
@@ -283,14 +326,20 @@ fn a_program_printing_garbage_is_quoted() {
         &["--timeout", "5"],
     );
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("answered request 0 with a line rayscope cannot read: not JSON"), "{err}");
+    assert!(
+        err.contains("answered request 0 with a line rayscope cannot read: not JSON"),
+        "{err}"
+    );
     assert!(err.contains("answer:  Hit sphere at 0.5"), "{err}");
     assert!(err.contains("{\"id\":0,\"hit\":null}"), "{err}");
     assert!(err.contains("stderr"), "{err}");
     // Not speaking the protocol at all.
     let (code, err, _) = probe_program("print('Rendering scene...', flush=True)\n", &[]);
     assert_eq!(code, 2, "{err}");
-    assert!(err.contains("does not speak the probe protocol") && err.contains("Rendering scene..."), "{err}");
+    assert!(
+        err.contains("does not speak the probe protocol") && err.contains("Rendering scene..."),
+        "{err}"
+    );
     // A program that is not there.
     let out = rayscope()
         .args(["probe", "-f"])
@@ -304,14 +353,22 @@ fn a_program_printing_garbage_is_quoted() {
 
 #[test]
 fn the_csharp_adapter_compiles_and_passes() {
-    let have = StdCommand::new("mcs").arg("--version").output().is_ok_and(|o| o.status.success())
-        && StdCommand::new("mono").arg("--version").output().is_ok_and(|o| o.status.success());
+    let have = StdCommand::new("mcs")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success())
+        && StdCommand::new("mono")
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success());
     if !have {
         assert!(
             std::env::var("CI").as_deref() != Ok("true"),
             "CI=true but mono is missing: install mono-mcs (apt-get install -y mono-mcs)"
         );
-        eprintln!("SKIPPED the_csharp_adapter_compiles_and_passes: mcs/mono not installed (apt-get install -y mono-mcs)");
+        eprintln!(
+            "SKIPPED the_csharp_adapter_compiles_and_passes: mcs/mono not installed (apt-get install -y mono-mcs)"
+        );
         return;
     }
     let dir = tempfile::tempdir().unwrap();

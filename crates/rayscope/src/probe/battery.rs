@@ -127,7 +127,18 @@ pub fn cases_for(kind: PrimKind) -> &'static [CaseKind] {
     use CaseKind::*;
     match kind {
         PrimKind::Sphere => &[
-            OutsideHit, OutsideMiss, Behind, Inside, Centre, Grazing, Tangent, SurfaceOut, SurfaceIn, Near, Far, Tiny,
+            OutsideHit,
+            OutsideMiss,
+            Behind,
+            Inside,
+            Centre,
+            Grazing,
+            Tangent,
+            SurfaceOut,
+            SurfaceIn,
+            Near,
+            Far,
+            Tiny,
             Huge,
         ],
         PrimKind::Plane => &[
@@ -477,7 +488,9 @@ pub fn battery(src: &Source, index: usize, per_case: usize, seed: u64) -> Vec<Ca
                             point: nice_v(point * k),
                             normal,
                         },
-                        Shape::Triangle { v } => Shape::Triangle { v: v.map(|p| nice_v(p * k)) },
+                        Shape::Triangle { v } => Shape::Triangle {
+                            v: v.map(|p| nice_v(p * k)),
+                        },
                     },
                     origin * k,
                 ),
@@ -587,7 +600,10 @@ fn plane_ray(dice: &mut Dice, case: CaseKind, p: DVec3, n: DVec3) -> (Shape, DVe
             let o = q + n * dice.range(0.05, 0.2);
             (o, dice.perpendicular(n) - n * 1e-3)
         }
-        SurfaceOut => (on_plane(dice, 1.0), dice.hemisphere(n) * if dice.u() < 0.5 { 1.0 } else { -1.0 }),
+        SurfaceOut => (
+            on_plane(dice, 1.0),
+            dice.hemisphere(n) * if dice.u() < 0.5 { 1.0 } else { -1.0 },
+        ),
         Near => toward(dice, 0.01, 0.02, 1.0, 0.01),
         Far => toward(dice, 200.0, 400.0, 1.0, 100.0),
         _ => unreachable!("not a plane case"),
@@ -599,7 +615,10 @@ fn triangle_ray(dice: &mut Dice, case: CaseKind, v: [DVec3; 3]) -> (Shape, DVec3
     use CaseKind::*;
     let shape = Shape::Triangle { v };
     let n = (v[1] - v[0]).cross(v[2] - v[0]).normalize();
-    let size = (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length());
+    let size = (v[1] - v[0])
+        .length()
+        .max((v[2] - v[1]).length())
+        .max((v[0] - v[2]).length());
     let at = |v: &[DVec3; 3], w: [f64; 3]| v[0] * w[0] + v[1] * w[1] + v[2] * w[2];
     // A ray from `side` (+1 the front, −1 the back) at distance `h`, aimed at `target`.
     let from_side = |dice: &mut Dice, target: DVec3, side: f64, h: f64| {
@@ -718,13 +737,24 @@ fn rayscope_f32(shape: &Shape, o: DVec3, d: DVec3) -> Option<f64> {
     hit.map(|h| f64::from(h.t) / f64::from(len))
 }
 
+/// How the true normal at a hit is found.
+enum NormalRule {
+    /// The same everywhere (planes, triangles).
+    Fixed(DVec3),
+    /// From the sphere's centre to the point.
+    FromCentre(DVec3),
+}
+
 /// The right answers for a ray, worked out in f64 on the numbers as sent.
 pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
     let t32 = rayscope_f32(shape, o, d);
     let size = match *shape {
         Shape::Sphere { radius, .. } => radius,
         Shape::Plane { .. } => 1.0,
-        Shape::Triangle { v } => (v[1] - v[0]).length().max((v[2] - v[1]).length()).max((v[0] - v[2]).length()),
+        Shape::Triangle { v } => (v[1] - v[0])
+            .length()
+            .max((v[2] - v[1]).length())
+            .max((v[0] - v[2]).length()),
     };
     let feature = match *shape {
         Shape::Sphere { center, .. } => center,
@@ -750,70 +780,69 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
     // Roots of the ray against the surface (sorted), whether the ray's line meets the primitive
     // at all, and the margin by which it does, relative to the primitive's size (positive
     // inside), with the width within which that margin is rounding noise.
-    let (roots, margin, width, strict_boundary, normal_at): (Vec<f64>, f64, f64, bool, Box<dyn Fn(DVec3) -> DVec3>) =
-        match *shape {
-            Shape::Sphere { center, radius } => {
-                let f = o - center;
-                let b = -f.dot(d);
-                let l = f + d * (b / a);
-                let disc = radius * radius - l.length_squared();
-                let margin = (radius - l.length()) / radius;
-                let (rel_f, rel_c) = (f.length() / radius, center.length() / radius);
-                // Careful f32 code loses EPS32·(rel_f + rel_c); the textbook b² − 4ac also
-                // loses EPS32·rel_f² to cancellation.
-                let width = 8.0 * EPS32 * (1.0 + rel_f + rel_c) + EPS32 * rel_f * rel_f;
-                let roots = if disc >= 0.0 {
-                    let c = f.length_squared() - radius * radius;
-                    let q = b + (a * disc).sqrt().copysign(b);
-                    let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q / a) };
-                    vec![t0.min(t1), t0.max(t1)]
-                } else {
-                    // The tangent point, for a tie that a student reports as a hit.
-                    vec![b / a]
-                };
-                (roots, margin, width, false, Box::new(move |p: DVec3| (p - center).normalize()))
-            }
-            Shape::Plane { point, normal } => {
-                let den = d.dot(normal);
-                let num = (point - o).dot(normal);
-                let n = normal.normalize();
-                if den == 0.0 {
-                    if num == 0.0 {
-                        e.any_hit_ok = true;
-                    }
-                    (vec![], -1.0, 0.0, false, Box::new(move |_| n))
-                } else if den.abs() < 1e-6 * a.sqrt() {
+    let (roots, margin, width, strict_boundary, normal_rule) = match *shape {
+        Shape::Sphere { center, radius } => {
+            let f = o - center;
+            let b = -f.dot(d);
+            let l = f + d * (b / a);
+            let disc = radius * radius - l.length_squared();
+            let margin = (radius - l.length()) / radius;
+            let (rel_f, rel_c) = (f.length() / radius, center.length() / radius);
+            // Careful f32 code loses EPS32·(rel_f + rel_c); the textbook b² − 4ac also
+            // loses EPS32·rel_f² to cancellation.
+            let width = 8.0 * EPS32 * (1.0 + rel_f + rel_c) + EPS32 * rel_f * rel_f;
+            let roots = if disc >= 0.0 {
+                let c = f.length_squared() - radius * radius;
+                let q = b + (a * disc).sqrt().copysign(b);
+                let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q / a) };
+                vec![t0.min(t1), t0.max(t1)]
+            } else {
+                // The tangent point, for a tie that a student reports as a hit.
+                vec![b / a]
+            };
+            (roots, margin, width, false, NormalRule::FromCentre(center))
+        }
+        Shape::Plane { point, normal } => {
+            let den = d.dot(normal);
+            let num = (point - o).dot(normal);
+            let n = normal.normalize();
+            if den == 0.0 {
+                if num == 0.0 {
                     e.any_hit_ok = true;
-                    (vec![num / den], 0.0, 1.0, false, Box::new(move |_| n))
-                } else {
-                    cond = a.sqrt() / den.abs();
-                    (vec![num / den], 1.0, 0.0, false, Box::new(move |_| n))
                 }
+                (vec![], -1.0, 0.0, false, NormalRule::Fixed(n))
+            } else if den.abs() < 1e-6 * a.sqrt() {
+                e.any_hit_ok = true;
+                (vec![num / den], 0.0, 1.0, false, NormalRule::Fixed(n))
+            } else {
+                cond = a.sqrt() / den.abs();
+                (vec![num / den], 1.0, 0.0, false, NormalRule::Fixed(n))
             }
-            Shape::Triangle { v } => {
-                let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
-                let n = e1.cross(e2).normalize();
-                let p = d.cross(e2);
-                let det = e1.dot(p);
-                let rel_det = det.abs() / (e1.length() * e2.length() * a.sqrt());
-                cond = 1.0 / rel_det;
-                if det == 0.0 || rel_det < 1e-7 {
-                    if det != 0.0 || (o - v[0]).dot(n) == 0.0 {
-                        e.any_hit_ok = true;
-                    }
-                    (vec![], -1.0, 0.0, false, Box::new(move |_| n))
-                } else {
-                    let s = o - v[0];
-                    let u = s.dot(p) / det;
-                    let q = s.cross(e1);
-                    let w = d.dot(q) / det;
-                    let t = e2.dot(q) / det;
-                    let margin = u.min(w).min(1.0 - u - w);
-                    let width = 8.0 * EPS32 * (1.0 + ((o - v[0]).length() + v[0].length()) / size) / rel_det.min(1.0);
-                    (vec![t], margin, width, margin == 0.0, Box::new(move |_| n))
+        }
+        Shape::Triangle { v } => {
+            let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
+            let n = e1.cross(e2).normalize();
+            let p = d.cross(e2);
+            let det = e1.dot(p);
+            let rel_det = det.abs() / (e1.length() * e2.length() * a.sqrt());
+            cond = 1.0 / rel_det;
+            if det == 0.0 || rel_det < 1e-7 {
+                if det != 0.0 || (o - v[0]).dot(n) == 0.0 {
+                    e.any_hit_ok = true;
                 }
+                (vec![], -1.0, 0.0, false, NormalRule::Fixed(n))
+            } else {
+                let s = o - v[0];
+                let u = s.dot(p) / det;
+                let q = s.cross(e1);
+                let w = d.dot(q) / det;
+                let t = e2.dot(q) / det;
+                let margin = u.min(w).min(1.0 - u - w);
+                let width = 8.0 * EPS32 * (1.0 + ((o - v[0]).length() + v[0].length()) / size) / rel_det.min(1.0);
+                (vec![t], margin, width, margin == 0.0, NormalRule::Fixed(n))
             }
-        };
+        }
+    };
     // A ray leaving a surface at a shallow angle meets it again within rounding over the sine.
     let zero = 1e-5 * size + rounding * cond.min(1e3);
     e.zero = zero;
@@ -833,7 +862,10 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
         Truth {
             t,
             point,
-            normal: normal_at(point),
+            normal: match normal_rule {
+                NormalRule::Fixed(n) => n,
+                NormalRule::FromCentre(c) => (point - c).normalize(),
+            },
         }
     });
     e.miss_ok = hit64.is_none() || tie || e.any_hit_ok;

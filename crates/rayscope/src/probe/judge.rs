@@ -109,7 +109,11 @@ pub fn arr(v: DVec3) -> String {
 pub fn primitive_json(shape: &Shape) -> String {
     match *shape {
         Shape::Sphere { center, radius } => {
-            format!(r#"{{"kind":"sphere","center":{},"radius":{}}}"#, arr(center), num(radius))
+            format!(
+                r#"{{"kind":"sphere","center":{},"radius":{}}}"#,
+                arr(center),
+                num(radius)
+            )
         }
         Shape::Plane { point, normal } => {
             format!(r#"{{"kind":"plane","point":{},"normal":{}}}"#, arr(point), arr(normal))
@@ -157,7 +161,8 @@ fn quote_non_finite(line: &str) -> String {
             out.push(c);
             continue;
         }
-        let starts_word = c.is_ascii_alphabetic() || ((c == '-' || c == '+') && matches!(line[i + 1..].chars().next(), Some(n) if n.is_ascii_alphabetic()));
+        let starts_word = c.is_ascii_alphabetic()
+            || ((c == '-' || c == '+') && matches!(line[i + 1..].chars().next(), Some(n) if n.is_ascii_alphabetic()));
         if starts_word {
             let end = line[i + 1..]
                 .find(|ch: char| !ch.is_ascii_alphabetic())
@@ -213,9 +218,7 @@ fn vector(v: &Value, what: &str) -> Result<DVec3, String> {
 pub fn parse_answer(line: &str, id: usize) -> Result<Answer, String> {
     let fixed = quote_non_finite(line);
     let value: Value = serde_json::from_str(fixed.trim()).map_err(|e| format!("not JSON ({e})"))?;
-    let obj = value
-        .as_object()
-        .ok_or_else(|| "not a JSON object".to_string())?;
+    let obj = value.as_object().ok_or_else(|| "not a JSON object".to_string())?;
     match obj.get("id") {
         Some(v) if v.as_u64() == Some(id as u64) => {}
         Some(v) => return Err(format!("its \"id\" is {v}, but rayscope asked request {id}")),
@@ -234,10 +237,14 @@ pub fn parse_answer(line: &str, id: usize) -> Result<Answer, String> {
     if hit.is_null() {
         return Ok(Answer::Miss);
     }
-    let h = hit
-        .as_object()
-        .ok_or_else(|| format!("\"hit\" should be null or an object {{\"t\":…,\"point\":[…],\"normal\":[…]}}, found {hit}"))?;
-    let t = h.get("t").filter(|v| !v.is_null()).map(|v| number(v, "\"t\"")).transpose()?;
+    let h = hit.as_object().ok_or_else(|| {
+        format!("\"hit\" should be null or an object {{\"t\":…,\"point\":[…],\"normal\":[…]}}, found {hit}")
+    })?;
+    let t = h
+        .get("t")
+        .filter(|v| !v.is_null())
+        .map(|v| number(v, "\"t\""))
+        .transpose()?;
     let point = h
         .get("point")
         .filter(|v| !v.is_null())
@@ -271,9 +278,8 @@ pub fn judge(case: &Case, answer: &Answer) -> Judgement {
         }
         Answer::Hit { t, point, normal } => (*t, *point, *normal),
     };
-    let finite = t.is_none_or(f64::is_finite)
-        && point.is_none_or(|p| p.is_finite())
-        && normal.is_none_or(|n| n.is_finite());
+    let finite =
+        t.is_none_or(f64::is_finite) && point.is_none_or(|p| p.is_finite()) && normal.is_none_or(|n| n.is_finite());
     if !finite {
         j.verdicts.push(Verdict::NotFinite);
         return j;
@@ -388,9 +394,7 @@ pub fn hint(kind: PrimKind, case: Option<CaseKind>, v: Verdict, outward: bool) -
         (Sphere, Behind, BehindOrigin | Phantom) => {
             "Both roots are negative: the sphere is behind the ray. Accept a root only when t > 0."
         }
-        (_, Behind | Away, BehindOrigin | Phantom) => {
-            "The surface is behind the ray. Accept a hit only when t > 0."
-        }
+        (_, Behind | Away, BehindOrigin | Phantom) => "The surface is behind the ray. Accept a hit only when t > 0.",
         (_, _, BehindOrigin) => "Accept a hit only when t > 0: points with t < 0 lie behind the ray's start.",
         (Sphere, OutsideHit | Far | Near | Tiny | Huge | Grazing, WrongRoot) => {
             "You take the larger root. From outside the nearer hit is the smaller one, (-b - sqrt(disc)) / 2a."
@@ -457,7 +461,11 @@ pub fn hint(kind: PrimKind, case: Option<CaseKind>, v: Verdict, outward: bool) -
                 "Most of your answers return the outward normal{}, but these point the other \
                  way. Either convention is fine (outward, or flipped to face the ray) as long as \
                  it is the same everywhere.",
-                if kind == Triangle { " ((v1 - v0) x (v2 - v0))" } else { "" }
+                if kind == Triangle {
+                    " ((v1 - v0) x (v2 - v0))"
+                } else {
+                    ""
+                }
             ))
         }
         (_, _, NormalFlipped) => {
@@ -479,7 +487,9 @@ mod tests {
     fn answers_parse_with_non_finite_tokens() {
         assert_eq!(parse_answer(r#"{"id":3,"hit":null}"#, 3), Ok(Answer::Miss));
         let a = parse_answer(r#"{"id":3,"hit":{"t":Infinity,"point":[NaN,-inf,1]}}"#, 3).unwrap();
-        let Answer::Hit { t, point, .. } = a else { panic!("{a:?}") };
+        let Answer::Hit { t, point, .. } = a else {
+            panic!("{a:?}")
+        };
         assert_eq!(t, Some(f64::INFINITY));
         assert!(point.unwrap().x.is_nan() && point.unwrap().y == f64::NEG_INFINITY);
         assert_eq!(
@@ -487,7 +497,9 @@ mod tests {
             Ok(Answer::Error("ZeroDivisionError: Infinity".into())),
             "strings are left alone"
         );
-        assert!(parse_answer(r#"{"id":4,"hit":null}"#, 3).unwrap_err().contains("request 3"));
+        assert!(parse_answer(r#"{"id":4,"hit":null}"#, 3)
+            .unwrap_err()
+            .contains("request 3"));
         assert!(parse_answer("hello", 3).unwrap_err().contains("not JSON"));
         assert!(parse_answer(r#"{"id":3,"hit":{"normal":[0,0,1]}}"#, 3)
             .unwrap_err()

@@ -141,7 +141,8 @@ fn quote(line: &str) -> String {
 }
 
 fn check_ready(line: &str) -> Result<(), String> {
-    let v: serde_json::Value = serde_json::from_str(line.trim()).map_err(|_| "its first line is not JSON".to_string())?;
+    let v: serde_json::Value =
+        serde_json::from_str(line.trim()).map_err(|_| "its first line is not JSON".to_string())?;
     match v.get("ready") {
         Some(serde_json::Value::Bool(true)) => Ok(()),
         _ => Err("its first line is not {\"ready\":true}".into()),
