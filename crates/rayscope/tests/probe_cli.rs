@@ -340,6 +340,22 @@ fn a_program_printing_garbage_is_quoted() {
         err.contains("does not speak the probe protocol") && err.contains("Rendering scene..."),
         "{err}"
     );
+    // A scene with an error is reported like anywhere else, before any program starts.
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.txt");
+    std::fs::write(&bad, "Sphere \"S\" (0, 0, 2) 0.5 \"Nope\"\n").unwrap();
+    let out = rayscope()
+        .args(["probe", "-f"])
+        .arg(&bad)
+        .args(["--", "no-such-program-rayscope"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("bad.txt:1:") && !err.contains("cannot start"), "{err}");
+    // No command after `--`.
+    let out = rayscope().args(["probe", "-f"]).arg(&bad).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
     // A program that is not there.
     let out = rayscope()
         .args(["probe", "-f"])
