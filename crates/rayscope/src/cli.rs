@@ -50,6 +50,8 @@ pub enum Command {
     Debug(DebugArgs),
     /// Write the debugger's 3D scene view to an image, headless.
     View(ViewArgs),
+    /// Test your own intersector: run it as a child process and send it a battery of rays.
+    Probe(ProbeArgs),
 }
 
 /// Which of the course's stages to render.
@@ -372,6 +374,45 @@ pub struct ViewArgs {
     pub view_height: u32,
     #[command(flatten)]
     pub opts: RenderOpts,
+}
+
+/// `rayscope probe`.
+#[derive(Debug, Clone, Args)]
+pub struct ProbeArgs {
+    /// Scene file whose spheres, planes, triangles and mesh triangles are tested.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Seconds to wait for each answer before giving up on the program.
+    #[arg(long, default_value_t = 5.0, value_parser = parse_positive_f64, value_name = "SECS")]
+    pub timeout: f64,
+    /// Seconds to wait for the program's first line (it may compile first, as `dotnet run` does).
+    #[arg(long = "startup-timeout", default_value_t = 60.0, value_parser = parse_positive_f64, value_name = "SECS")]
+    pub startup_timeout: f64,
+    /// Rays per case and primitive.
+    #[arg(long = "rays-per-case", default_value_t = 6, value_parser = clap::value_parser!(u32).range(1..=1000), value_name = "N")]
+    pub rays_per_case: u32,
+    /// Triangles tested from each OBJ mesh (spread evenly over the mesh).
+    #[arg(long = "mesh-triangles", default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=100_000), value_name = "N")]
+    pub mesh_triangles: u32,
+    /// Seed of the random rays.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Print the report as JSON (schema in the README).
+    #[arg(long)]
+    pub json: bool,
+    /// Show every example of each finding, not just the first.
+    #[arg(long = "all-examples")]
+    pub all_examples: bool,
+    /// The program to run and its arguments, after `--`.
+    #[arg(last = true, required = true, value_name = "COMMAND")]
+    pub command: Vec<String>,
+}
+
+fn parse_positive_f64(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
+        _ => Err(format!("expected a number of seconds greater than 0, found '{s}'")),
+    }
 }
 
 fn parse_whole(s: &str, lo: u32, hi: u32, what: &str) -> Result<u32, String> {

@@ -28,14 +28,14 @@ pub struct Failure {
 }
 
 impl Failure {
-    fn input(message: impl Into<String>) -> Self {
+    pub(crate) fn input(message: impl Into<String>) -> Self {
         Self {
             code: 2,
             message: message.into(),
             diagnostic: false,
         }
     }
-    fn failed(message: impl Into<String>) -> Self {
+    pub(crate) fn failed(message: impl Into<String>) -> Self {
         Self {
             code: 1,
             message: message.into(),
@@ -54,6 +54,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::Bench(BenchCommand::Rays(a))) => bench_rays(&a),
         Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
         Some(Command::View(a)) => rayscope_debug_cli::view(&a),
+        Some(Command::Probe(a)) => crate::probe::run(&a),
     }
 }
 

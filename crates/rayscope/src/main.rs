@@ -35,6 +35,7 @@ macro_rules! eprintln {
 
 mod cli;
 mod commands;
+mod probe;
 
 use std::process::ExitCode;
 

@@ -1,0 +1,530 @@
+//! `rayscope probe`: runs a student's own intersector as a child process, sends it a battery of
+//! rays against each of the scene's primitives, and reports the cases it gets wrong with a
+//! reproduction for each. The protocol is in the README ("Bring your own intersector").
+
+mod battery;
+mod child;
+mod judge;
+
+use std::collections::BTreeMap;
+use std::process::ExitCode;
+use std::time::Duration;
+
+use glam::DVec3;
+
+use crate::cli::ProbeArgs;
+use crate::commands::{load_file, Failure};
+use battery::{cases_for, nice, Case, CaseKind, Expect, PrimKind, Shape};
+use child::{ChildError, Probed};
+use judge::{Answer, Verdict};
+
+/// Runs `rayscope probe`.
+pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
+    let file = load_file(&a.file, a.json)?;
+    let sources = battery::sources(&file, a.mesh_triangles as usize);
+    if sources.is_empty() {
+        return Err(Failure::input(format!(
+            "{} has no sphere, plane or triangle to test",
+            a.file.display()
+        )));
+    }
+    let cases: Vec<Case> = sources
+        .iter()
+        .enumerate()
+        .flat_map(|(i, s)| battery::battery(s, i, a.rays_per_case as usize, a.seed))
+        .collect();
+    let shown = command_line(&a.command);
+    let mut child = Probed::spawn(&a.command).map_err(|e| {
+        Failure::input(format!(
+            "cannot start `{shown}`: {e}{}",
+            if e.kind() == std::io::ErrorKind::NotFound {
+                " (is the program on PATH, and the command after `--`?)"
+            } else {
+                ""
+            }
+        ))
+    })?;
+    {
+        // The program runs in a process group of its own, which Ctrl-C in the terminal does not
+        // reach: stop it on the way out.
+        let pid = child.id();
+        let _ = ctrlc::set_handler(move || {
+            child::kill_group(pid);
+            std::process::exit(130);
+        });
+    }
+    let startup = Duration::from_secs_f64(a.startup_timeout);
+    let timeout = Duration::from_secs_f64(a.timeout);
+    let hello = child
+        .ask(judge::HELLO, startup)
+        .map_err(|e| child_failure(&mut child, &shown, e, None))?;
+    check_ready(&hello).map_err(|why| {
+        child.kill();
+        Failure::input(format!(
+            "`{shown}` does not speak the probe protocol: {why}.\n  its first line: {}\n  expected: {{\"ready\":true}}, the answer to rayscope's hello {}\n  (print debugging output to stderr, never stdout; the README's \"Bring your own intersector\" has adapters for Python and C#)",
+            quote(&hello),
+            judge::HELLO
+        ))
+    })?;
+    let mut answers = Vec::with_capacity(cases.len());
+    let mut judgements = Vec::with_capacity(cases.len());
+    for (id, case) in cases.iter().enumerate() {
+        let request = judge::request_json(id, case);
+        let line = child
+            .ask(&request, timeout)
+            .map_err(|e| child_failure(&mut child, &shown, e, Some((case, &request))))?;
+        let answer = judge::parse_answer(&line, id).map_err(|why| {
+            child.kill();
+            Failure::input(format!(
+                "`{shown}` answered request {id} with a line rayscope cannot read: {why}.\n  request: {request}\n  answer:  {}\n  expected: {{\"id\":{id},\"hit\":null}} for a miss, or {{\"id\":{id},\"hit\":{{\"t\":…,\"point\":[x,y,z],\"normal\":[x,y,z]}}}}\n  (print debugging output to stderr, never stdout)",
+                quote(&line)
+            ))
+        })?;
+        judgements.push(judge::judge(case, &answer));
+        answers.push(answer);
+    }
+    child.finish(Duration::from_secs(2));
+
+    // Normals: either convention is right, but one answer's must agree with the others'.
+    let mut conventions = BTreeMap::new();
+    for kind in [PrimKind::Sphere, PrimKind::Plane, PrimKind::Triangle] {
+        let (idx, orient): (Vec<usize>, Vec<_>) = judgements
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| cases[*i].shape.kind() == kind)
+            .filter_map(|(i, j)| j.orientation.map(|o| (i, o)))
+            .unzip();
+        let conv = judge::convention(&orient);
+        for b in &conv.breaking {
+            judgements[idx[*b]].verdicts.push(Verdict::NormalFlipped);
+        }
+        conventions.insert(kind, conv.outward);
+    }
+
+    let report = Report::new(&cases, &answers, &judgements, &conventions);
+    if a.json {
+        println!("{}", report.json(&a.file, &a.command));
+    } else {
+        print!("{}", report.text(&shown, &a.file, &sources, a.all_examples));
+    }
+    Ok(if report.findings.is_empty() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}
+
+fn command_line(cmd: &[String]) -> String {
+    cmd.iter()
+        .map(|s| {
+            if s.is_empty() || s.contains(char::is_whitespace) {
+                format!("'{s}'")
+            } else {
+                s.clone()
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// A line of the program's output, shortened for a message.
+fn quote(line: &str) -> String {
+    let mut s: String = line.chars().take(200).collect();
+    if s.len() < line.len() {
+        s.push_str(" …");
+    }
+    if s.trim().is_empty() {
+        "(an empty line)".into()
+    } else {
+        s
+    }
+}
+
+fn check_ready(line: &str) -> Result<(), String> {
+    let v: serde_json::Value =
+        serde_json::from_str(line.trim()).map_err(|_| "its first line is not JSON".to_string())?;
+    match v.get("ready") {
+        Some(serde_json::Value::Bool(true)) => Ok(()),
+        _ => Err("its first line is not {\"ready\":true}".into()),
+    }
+}
+
+/// The error for a program that did not answer, with its stderr's last lines.
+fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Case, &str)>) -> Failure {
+    let what = match at {
+        Some((c, _)) => format!(
+            "request {} ({}: {})",
+            request_id(at),
+            c.shape.kind().name(),
+            c.case.describe(c.shape.kind())
+        ),
+        None => "rayscope's hello".to_string(),
+    };
+    let mut msg = match e {
+        ChildError::Timeout(d) => {
+            child.kill();
+            format!(
+                "`{shown}` did not answer {what} within {} s, so rayscope stopped it.\n  Does it write a newline and flush its output after each answer (Python: print(..., flush=True); C#: Console.Out.Flush())? Does the intersector loop forever on this ray?{}",
+                d.as_secs_f64(),
+                if at.is_none() {
+                    " A program that compiles first may need a longer --startup-timeout."
+                } else {
+                    ""
+                }
+            )
+        }
+        ChildError::Exited(status) => {
+            let how = match status {
+                Some(s) => describe_status(s),
+                None => "closed its output".to_string(),
+            };
+            format!("`{shown}` {how} before answering {what}.")
+        }
+        ChildError::TooLong => {
+            child.kill();
+            format!("`{shown}` wrote a line of more than 64 KiB instead of answering {what}; that is not an answer.")
+        }
+        ChildError::Io(err) => {
+            child.kill();
+            format!("talking to `{shown}` failed while waiting for {what}: {err}")
+        }
+    };
+    if let Some((_, request)) = at {
+        msg.push_str(&format!("\n  request: {request}"));
+    }
+    let tail = child.stderr_tail();
+    if tail.is_empty() {
+        msg.push_str("\n  (it wrote nothing to stderr)");
+    } else {
+        msg.push_str("\n  the last lines it wrote to stderr:");
+        for l in tail {
+            msg.push_str(&format!("\n    | {l}"));
+        }
+    }
+    Failure::input(msg)
+}
+
+fn request_id(at: Option<(&Case, &str)>) -> String {
+    at.and_then(|(_, r)| serde_json::from_str::<serde_json::Value>(r).ok())
+        .and_then(|v| v.get("id").and_then(serde_json::Value::as_u64))
+        .map_or_else(|| "?".into(), |id| id.to_string())
+}
+
+fn describe_status(s: std::process::ExitStatus) -> String {
+    if let Some(code) = s.code() {
+        return format!("exited with status {code}");
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::process::ExitStatusExt;
+        if let Some(sig) = s.signal() {
+            return format!("was killed by signal {sig}");
+        }
+    }
+    "exited".to_string()
+}
+
+/// Short decimal of a number for reading (7 significant digits).
+fn short(x: f64) -> String {
+    let n = nice(x);
+    if n == 0.0 {
+        "0".into()
+    } else {
+        format!("{n}")
+    }
+}
+
+fn vec3(v: DVec3) -> String {
+    format!("({}, {}, {})", short(v.x), short(v.y), short(v.z))
+}
+
+fn describe_expect(e: &Expect, kind: PrimKind) -> String {
+    let origin_too = if e.at_origin_ok {
+        " (a hit at t = 0, where the ray starts, is right too)"
+    } else {
+        ""
+    };
+    match e.hit {
+        Some(h) if !e.miss_ok => format!(
+            "hit at t = {}, point {}, normal {} or its opposite{origin_too}",
+            short(h.t),
+            vec3(h.point),
+            vec3(h.normal)
+        ),
+        Some(h) => format!(
+            "a miss, or a hit at t = {} (the ray passes within rounding of the {}: either is right){origin_too}",
+            short(h.t),
+            if kind == PrimKind::Sphere { "rim" } else { "boundary" }
+        ),
+        None if e.any_hit_ok => "a miss (a finite hit with t >= 0 is accepted too)".into(),
+        None => format!("miss{origin_too}"),
+    }
+}
+
+fn describe_answer(a: &Answer, c: &Case) -> String {
+    match a {
+        Answer::Miss => "miss".into(),
+        Answer::Error(m) => format!("error: {m}"),
+        Answer::Hit { t, point, normal } => {
+            let mut parts = Vec::new();
+            match (t, point) {
+                (Some(t), _) => parts.push(format!("t = {}", short(*t))),
+                (None, Some(p)) => parts.push(format!(
+                    "t = {} (from the point)",
+                    short((*p - c.origin).dot(c.dir) / c.dir.length_squared())
+                )),
+                (None, None) => {}
+            }
+            if let Some(p) = point {
+                parts.push(format!("point {}", vec3(*p)));
+            }
+            if let Some(n) = normal {
+                parts.push(format!("normal {} (length {})", vec3(*n), short(n.length())));
+            }
+            format!("hit at {}", parts.join(", "))
+        }
+    }
+}
+
+/// A vector with every digit sent (the numbers have 7 significant digits at most).
+fn exact(v: DVec3) -> String {
+    let n = |x: f64| if x == 0.0 { "0".to_string() } else { format!("{x}") };
+    format!("({}, {}, {})", n(v.x), n(v.y), n(v.z))
+}
+
+fn describe_shape(s: &Shape) -> String {
+    let f = exact;
+    match *s {
+        Shape::Sphere { center, radius } => format!("sphere    center = {}, radius = {radius}", f(center)),
+        Shape::Plane { point, normal } => format!("plane     point = {}, normal = {}", f(point), f(normal)),
+        Shape::Triangle { v } => format!("triangle  v0 = {}, v1 = {}, v2 = {}", f(v[0]), f(v[1]), f(v[2])),
+    }
+}
+
+/// One wrong behaviour: a verdict in a case, with the rays it happened on.
+struct Finding {
+    kind: PrimKind,
+    /// None for a verdict judged over all of a kind's hits (a normal that is never unit length).
+    case: Option<CaseKind>,
+    verdict: Verdict,
+    /// Indices of the requests.
+    requests: Vec<usize>,
+    /// Rays of this case and kind in all (hits with a normal, for a kind-wide finding).
+    of: usize,
+}
+
+/// The judged battery.
+struct Report<'a> {
+    cases: &'a [Case],
+    answers: &'a [Answer],
+    /// (kind, case) → (rays, rays with any verdict).
+    rows: BTreeMap<(PrimKind, CaseKind), (usize, usize)>,
+    findings: Vec<Finding>,
+    conventions: &'a BTreeMap<PrimKind, bool>,
+}
+
+impl<'a> Report<'a> {
+    fn new(
+        cases: &'a [Case],
+        answers: &'a [Answer],
+        judgements: &[judge::Judgement],
+        conventions: &'a BTreeMap<PrimKind, bool>,
+    ) -> Self {
+        let mut rows: BTreeMap<(PrimKind, CaseKind), (usize, usize)> = BTreeMap::new();
+        let mut groups: BTreeMap<(PrimKind, Option<CaseKind>, Verdict), Vec<usize>> = BTreeMap::new();
+        let mut with_normal: BTreeMap<PrimKind, usize> = BTreeMap::new();
+        for (i, (c, j)) in cases.iter().zip(judgements).enumerate() {
+            let key = (c.shape.kind(), c.case);
+            let row = rows.entry(key).or_default();
+            row.0 += 1;
+            if !j.verdicts.is_empty() {
+                row.1 += 1;
+            }
+            if matches!(answers[i], Answer::Hit { normal: Some(_), .. }) {
+                *with_normal.entry(key.0).or_default() += 1;
+            }
+            let mut seen = Vec::new();
+            for v in &j.verdicts {
+                if !seen.contains(v) {
+                    seen.push(*v);
+                    // A normal of the wrong length is one mistake wherever the ray comes from.
+                    let case = (*v != Verdict::NormalNotUnit).then_some(key.1);
+                    groups.entry((key.0, case, *v)).or_default().push(i);
+                }
+            }
+        }
+        let findings = groups
+            .into_iter()
+            .map(|((kind, case, verdict), requests)| Finding {
+                kind,
+                case,
+                verdict,
+                of: match case {
+                    Some(c) => rows[&(kind, c)].0,
+                    None => with_normal.get(&kind).copied().unwrap_or(requests.len()),
+                },
+                requests,
+            })
+            .collect();
+        Self {
+            cases,
+            answers,
+            rows,
+            findings,
+            conventions,
+        }
+    }
+
+    fn headline(&self, f: &Finding) -> String {
+        match f.case {
+            Some(case) => format!(
+                "{}: {} -- {} in {} of {} rays.",
+                f.kind.name(),
+                case.describe(f.kind),
+                judge::phrase(f.verdict),
+                f.requests.len(),
+                f.of
+            ),
+            None => format!(
+                "{}: {} in {} of {} hits, whatever the ray.",
+                f.kind.name(),
+                judge::phrase(f.verdict),
+                f.requests.len(),
+                f.of
+            ),
+        }
+    }
+
+    fn hint(&self, f: &Finding) -> Option<String> {
+        judge::hint(
+            f.kind,
+            f.case,
+            f.verdict,
+            self.conventions.get(&f.kind).copied().unwrap_or(true),
+        )
+    }
+
+    fn text(&self, shown: &str, scene: &std::path::Path, sources: &[battery::Source], all: bool) -> String {
+        let count = |k: PrimKind| sources.iter().filter(|s| s.shape.kind() == k).count();
+        let mut out = format!(
+            "probe: {} rays sent to `{shown}`, built from {} ({} spheres, {} planes, {} triangles)\n\n",
+            self.cases.len(),
+            scene.display(),
+            count(PrimKind::Sphere),
+            count(PrimKind::Plane),
+            count(PrimKind::Triangle)
+        );
+        for kind in [PrimKind::Sphere, PrimKind::Plane, PrimKind::Triangle] {
+            for case in cases_for(kind) {
+                if let Some((n, bad)) = self.rows.get(&(kind, *case)) {
+                    out.push_str(&format!(
+                        "  {:<9} {:<72} {:>4}/{:<4} right{}\n",
+                        kind.name(),
+                        case.describe(kind),
+                        n - bad,
+                        n,
+                        if *bad > 0 { "   WRONG" } else { "" }
+                    ));
+                }
+            }
+        }
+        let wrong: usize = self.rows.values().map(|r| r.1).sum();
+        if self.findings.is_empty() {
+            out.push_str(&format!(
+                "\nEvery answer is right: your intersector agrees with rayscope on all {} rays.\n",
+                self.cases.len()
+            ));
+            return out;
+        }
+        out.push_str(&format!(
+            "\n{wrong} of {} rays answered wrongly; {} finding{}:\n",
+            self.cases.len(),
+            self.findings.len(),
+            if self.findings.len() == 1 { "" } else { "s" }
+        ));
+        for (n, f) in self.findings.iter().enumerate() {
+            out.push_str(&format!("\n{}. {}\n", n + 1, self.headline(f)));
+            if let Some(h) = self.hint(f) {
+                out.push_str(&format!("   {h}\n"));
+            }
+            let shown_examples = if all { f.requests.len() } else { 1 };
+            for (k, &i) in f.requests.iter().take(shown_examples).enumerate() {
+                let c = &self.cases[i];
+                out.push_str(&format!(
+                    "   {} (paste into a unit test; values exactly as sent, from {}):\n",
+                    if k == 0 { "Reproduce" } else { "Also" },
+                    c.source
+                ));
+                out.push_str(&format!("     {}\n", describe_shape(&c.shape)));
+                out.push_str(&format!(
+                    "     ray       origin = {}, direction = {}\n",
+                    exact(c.origin),
+                    exact(c.dir)
+                ));
+                out.push_str(&format!("     expected  {}\n", describe_expect(&c.expect, f.kind)));
+                out.push_str(&format!("     yours     {}\n", describe_answer(&self.answers[i], c)));
+                out.push_str(&format!("     request   {}\n", judge::request_json(i, c)));
+            }
+        }
+        out
+    }
+
+    fn json(&self, scene: &std::path::Path, command: &[String]) -> String {
+        use serde_json::json;
+        let cases: Vec<_> = self
+            .rows
+            .iter()
+            .map(|((kind, case), (n, bad))| {
+                json!({
+                    "primitive": kind.name(),
+                    "case": case.id(),
+                    "description": case.describe(*kind),
+                    "rays": n,
+                    "wrong": bad,
+                })
+            })
+            .collect();
+        let findings: Vec<_> = self
+            .findings
+            .iter()
+            .map(|f| {
+                let examples: Vec<_> = f
+                    .requests
+                    .iter()
+                    .take(10)
+                    .map(|&i| {
+                        let c = &self.cases[i];
+                        let request: serde_json::Value =
+                            serde_json::from_str(&judge::request_json(i, c)).unwrap_or(serde_json::Value::Null);
+                        json!({
+                            "request": request,
+                            "source": c.source,
+                            "expected": describe_expect(&c.expect, f.kind),
+                            "answer": describe_answer(&self.answers[i], c),
+                        })
+                    })
+                    .collect();
+                json!({
+                    "primitive": f.kind.name(),
+                    "case": f.case.map_or("all", CaseKind::id),
+                    "verdict": f.verdict.code(),
+                    "count": f.requests.len(),
+                    "of": f.of,
+                    "summary": self.headline(f),
+                    "hint": self.hint(f),
+                    "examples": examples,
+                })
+            })
+            .collect();
+        let v = json!({
+            "version": 1,
+            "scene": scene.display().to_string(),
+            "command": command,
+            "rays": self.cases.len(),
+            "wrong": self.rows.values().map(|r| r.1).sum::<usize>(),
+            "cases": cases,
+            "findings": findings,
+        });
+        serde_json::to_string_pretty(&v).unwrap_or_default()
+    }
+}
