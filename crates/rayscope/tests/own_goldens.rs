@@ -9,7 +9,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 use common::{render, rgb, scenes};
 use rayscope_scene::{DVec3, SceneFile, Shape};
@@ -22,11 +22,16 @@ fn golden(scene: &str, flags: &[&str], golden: &str) -> image::RgbImage {
     let mut args = vec!["-w", "160", "-h", "160"];
     args.extend_from_slice(flags);
     let img = render(&scenes(scene), &out, &args);
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/goldens").join(golden);
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("tests/goldens")
+        .join(golden);
     if std::env::var_os("RAYSCOPE_BLESS").is_some() {
         std::fs::create_dir_all(path.parent().unwrap()).unwrap();
         std::fs::copy(&out, &path).unwrap();
-        panic!("wrote {}: look at it, then run again without RAYSCOPE_BLESS", path.display());
+        panic!(
+            "wrote {}: look at it, then run again without RAYSCOPE_BLESS",
+            path.display()
+        );
     }
     let want = rgb(&path);
     assert_eq!(img.dimensions(), want.dimensions());
@@ -95,7 +100,9 @@ fn hit(shape: &Shape, o: DVec3, d: DVec3, t_min: f64) -> Option<(f64, DVec3)> {
             }
             let t = (a - o).dot(n) / den;
             let p = o + d * t;
-            let inside = [(a, b), (b, c), (c, a)].iter().all(|&(u, v)| (v - u).cross(p - u).dot(n) >= 0.0);
+            let inside = [(a, b), (b, c), (c, a)]
+                .iter()
+                .all(|&(u, v)| (v - u).cross(p - u).dot(n) >= 0.0);
             (t > t_min && inside).then_some((t, n.normalize()))
         }
         Shape::Mesh { .. } => unreachable!("the basic scene has no meshes"),
@@ -146,34 +153,56 @@ fn trace(scene: &SceneFile, o: DVec3, d: DVec3) -> Seen {
 fn camera_ray(x: f64, y: f64, w: u32, h: u32) -> DVec3 {
     let k = 30f64.to_radians().tan();
     let aspect = f64::from(h) / f64::from(w);
-    DVec3::new((2.0 * x / f64::from(w) - 1.0) * k, (1.0 - 2.0 * y / f64::from(h)) * k * aspect, 1.0).normalize()
+    DVec3::new(
+        (2.0 * x / f64::from(w) - 1.0) * k,
+        (1.0 - 2.0 * y / f64::from(h)) * k * aspect,
+        1.0,
+    )
+    .normalize()
 }
 
 #[test]
 fn basic_scene_follows_the_course_s_stage1_and_stage2_rules() {
     let (w, h) = (120, 90);
     let path = scenes("basic.txt");
-    let file = rayscope_scene::load(Path::new(&path)).unwrap();
+    let file = rayscope_scene::load(&path).unwrap();
     assert!(file.lights.len() <= 4);
     let dir = tempfile::tempdir().unwrap();
-    let s1 = render(&path, &dir.path().join("s1.png"), &["-w", "120", "-h", "90", "--stage", "1"]);
-    let s2 = render(&path, &dir.path().join("s2.png"), &["-w", "120", "-h", "90", "--stage", "2"]);
+    let at = |stage: &str| {
+        let out = dir.path().join(format!("s{stage}.png"));
+        render(&path, &out, &["-w", "120", "-h", "90", "--stage", stage])
+    };
+    let (s1, s2) = (at("1"), at("2"));
     let (mut checked, mut kinds) = (0, [0; 5]);
     for y in 0..h {
         for x in 0..w {
-            let centre = trace(&file, DVec3::ZERO, camera_ray(f64::from(x) + 0.5, f64::from(y) + 0.5, w, h));
+            let centre = trace(
+                &file,
+                DVec3::ZERO,
+                camera_ray(f64::from(x) + 0.5, f64::from(y) + 0.5, w, h),
+            );
             // Pixels on an edge, a silhouette or a shadow's border could go either way.
-            let clear = [(-0.05, 0.0), (0.05, 0.0), (0.0, -0.05), (0.0, 0.05)].iter().all(|(dx, dy)| {
-                let near = trace(&file, DVec3::ZERO, camera_ray(f64::from(x) + 0.5 + dx, f64::from(y) + 0.5 + dy, w, h));
-                (near.entity, near.lit) == (centre.entity, centre.lit)
-            });
+            let clear = [(-0.05, 0.0), (0.05, 0.0), (0.0, -0.05), (0.0, 0.05)]
+                .iter()
+                .all(|(dx, dy)| {
+                    let near = trace(
+                        &file,
+                        DVec3::ZERO,
+                        camera_ray(f64::from(x) + 0.5 + dx, f64::from(y) + 0.5 + dy, w, h),
+                    );
+                    (near.entity, near.lit) == (centre.entity, centre.lit)
+                });
             if !clear {
                 continue;
             }
             checked += 1;
             kinds[centre.entity.map_or(3, |e| e)] += 1;
             kinds[4] += usize::from(centre.entity.is_some() && !centre.lit[0]);
-            assert_eq!(s1.get_pixel(x, y).0, centre.stage1, "stage 1 pixel ({x}, {y}): {centre:?}");
+            assert_eq!(
+                s1.get_pixel(x, y).0,
+                centre.stage1,
+                "stage 1 pixel ({x}, {y}): {centre:?}"
+            );
             let got = s2.get_pixel(x, y).0;
             // rayscope shades in f32: a channel may land one level either side of a truncation.
             assert!(

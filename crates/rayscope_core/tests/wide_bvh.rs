@@ -748,7 +748,7 @@ fn rays_inside_a_lone_sphere_need_only_that_sphere() {
 }
 
 fn rays_inside_the_smallest_sphere_need_only_it(path: &std::path::Path) {
-    let scene = Scene::from_file(&rayscope_scene::load(&path).unwrap());
+    let scene = Scene::from_file(&rayscope_scene::load(path).unwrap());
     let bvh = &scene.wide;
     let (k, glass) = (scene.spheres.iter().enumerate())
         .min_by(|a, b| a.1.radius.total_cmp(&b.1.radius))
