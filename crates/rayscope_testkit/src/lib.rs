@@ -25,7 +25,12 @@ pub const DEFAULT_COURSE_DIR: &str = "../shared/reference";
 
 /// The workspace root (the folder holding `Cargo.lock` and `scenes/`).
 pub fn workspace() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+    let crate_dir = Path::new(env!("CARGO_MANIFEST_DIR"));
+    crate_dir
+        .ancestors()
+        .nth(2)
+        .expect("crates/<name> lies two folders below the root")
+        .to_path_buf()
 }
 
 /// One of our own scenes: `scenes/<name>` in the workspace.
@@ -37,7 +42,9 @@ pub fn scene(name: &str) -> PathBuf {
 
 /// Where the course's files are looked for: [`COURSE_DIR_VAR`], else [`DEFAULT_COURSE_DIR`].
 pub fn course_dir() -> PathBuf {
-    course_dir_from(std::env::var_os(COURSE_DIR_VAR).as_deref())
+    let dir = course_dir_from(std::env::var_os(COURSE_DIR_VAR).as_deref());
+    // Without `..` in it where it exists, for readable messages and paths in the debugger.
+    dir.canonicalize().unwrap_or(dir)
 }
 
 /// [`course_dir`] for a given value of [`COURSE_DIR_VAR`] (an empty one counts as unset).
