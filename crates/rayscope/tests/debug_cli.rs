@@ -7,19 +7,18 @@ use std::process::{Command, Stdio};
 use assert_cmd::prelude::*;
 use serde_json::Value;
 
-const REF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference/tests/");
-
+/// One of our own scenes, as an argument.
 fn scene(name: &str) -> String {
-    format!("{REF}{name}")
+    rayscope_testkit::scene(name).to_str().unwrap().to_owned()
 }
 
 fn rayscope() -> Command {
     Command::cargo_bin("rayscope").unwrap()
 }
 
-fn trace_json(scene_name: &str, pixel: &str) -> Value {
+fn trace_json(scene: &str, pixel: &str) -> Value {
     let out = rayscope()
-        .args(["trace", "-f", &scene(scene_name), "--pixel", pixel, "--json"])
+        .args(["trace", "-f", scene, "--pixel", pixel, "--json"])
         .output()
         .unwrap();
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
@@ -28,21 +27,18 @@ fn trace_json(scene_name: &str, pixel: &str) -> Value {
 
 #[test]
 fn mirror_sphere_pixel_reflects_onto_a_named_wall() {
-    // Scene 2 at 400×400: pixel (150, 150) looks at the MirrorSphere (centre (-0.15, 0.2, 2),
+    // Our room at 400×400: pixel (142, 258) looks at the MirrorBall (centre (-0.4, -0.4, 2.4),
+    // radius 0.55) near its middle, so its reflection comes back to the wall behind the camera.
+    let walls = [
+        "LeftA", "LeftB", "RightA", "RightB", "BackA", "BackB", "FrontA", "FrontB", "Floor", "Ceiling",
+    ];
+    let room = scene("room.txt");
+    mirror_reflects_onto_a_wall(&room, "142,258", "MirrorBall", [-0.4, -0.4, 2.4], 0.55, &walls);
+    // The course's scene 2: pixel (150, 150) looks at the MirrorSphere (centre (-0.15, 0.2, 2),
     // radius 0.35): its direction passes 0.09 from the centre.
-    let t = trace_json("sample_scene_2.txt", "150,150");
-    let nodes = t["nodes"].as_array().unwrap();
-    let cam = &nodes[0];
-    assert_eq!(cam["kind"], "camera");
-    assert_eq!(cam["hit"]["entity_name"], "MirrorSphere");
-    assert_eq!(cam["hit"]["material_kind"], "Reflective");
-    let refl = nodes
-        .iter()
-        .find(|n| n["kind"] == "reflection" && n["parent"] == 0)
-        .expect("the mirror hit spawns a reflection ray");
-    let wall = refl["hit"]["entity_name"]
-        .as_str()
-        .expect("the reflection hits something");
+    let Some(course) = rayscope_testkit::course_part() else {
+        return;
+    };
     let walls = [
         "LeftWallA",
         "LeftWallB",
@@ -55,6 +51,27 @@ fn mirror_sphere_pixel_reflects_onto_a_named_wall() {
         "Floor",
         "Roof",
     ];
+    let scene_2 = course.scene("sample_scene_2.txt");
+    let scene_2 = scene_2.to_str().unwrap();
+    mirror_reflects_onto_a_wall(scene_2, "150,150", "MirrorSphere", [-0.15, 0.2, 2.0], 0.35, &walls);
+}
+
+/// `pixel` of `scene` sees the reflective sphere `mirror` (`centre`, `radius`), and its
+/// reflection ray starts at the hit and hits one of `walls`.
+fn mirror_reflects_onto_a_wall(scene: &str, pixel: &str, mirror: &str, centre: [f64; 3], radius: f64, walls: &[&str]) {
+    let t = trace_json(scene, pixel);
+    let nodes = t["nodes"].as_array().unwrap();
+    let cam = &nodes[0];
+    assert_eq!(cam["kind"], "camera");
+    assert_eq!(cam["hit"]["entity_name"], mirror);
+    assert_eq!(cam["hit"]["material_kind"], "Reflective");
+    let refl = nodes
+        .iter()
+        .find(|n| n["kind"] == "reflection" && n["parent"] == 0)
+        .expect("the mirror hit spawns a reflection ray");
+    let wall = refl["hit"]["entity_name"]
+        .as_str()
+        .expect("the reflection hits something");
     assert!(walls.contains(&wall), "reflection hit {wall}");
     // The reflected ray starts on the sphere, at the camera ray's hit point.
     let p: Vec<f64> = cam["hit"]["point"]
@@ -71,21 +88,34 @@ fn mirror_sphere_pixel_reflects_onto_a_named_wall() {
         .collect();
     let d = p.iter().zip(&o).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
     assert!(d < 1e-3, "reflection starts {d} from the hit");
-    let r = ((p[0] + 0.15).powi(2) + (p[1] - 0.2).powi(2) + (p[2] - 2.0).powi(2)).sqrt();
-    assert!((r - 0.35).abs() < 1e-4, "the hit lies on the sphere");
+    let r = p.iter().zip(centre).map(|(a, c)| (a - c).powi(2)).sum::<f64>().sqrt();
+    assert!((r - radius).abs() < 1e-4, "the hit lies on the sphere");
 }
 
 #[test]
 fn shadow_ray_reports_its_blocker() {
-    // Scene 1, pixel (100, 300): the floor in the sphere's shadow (black in the course's image).
-    let t = trace_json("sample_scene_1.txt", "100,300");
+    // Our basic scene at 400×400: pixel (95, 290) is the floor in the sphere's shadow, pixel
+    // (200, 390) lit floor.
+    shadow_rays_name_their_blocker(&scene("basic.txt"), "95,290", "200,390");
+    // The course's scene 1: pixel (100, 300) is black in the course's image, (200, 390) lit.
+    let Some(course) = rayscope_testkit::course_part() else {
+        return;
+    };
+    let scene_1 = course.scene("sample_scene_1.txt");
+    shadow_rays_name_their_blocker(scene_1.to_str().unwrap(), "100,300", "200,390");
+}
+
+/// In `scene` (a Plane, a Sphere and a Light), `shadowed` sees the plane in the sphere's
+/// shadow: its shadow ray names the sphere; `lit` sees the plane lit: its shadow ray is clear.
+fn shadow_rays_name_their_blocker(scene: &str, shadowed: &str, lit: &str) {
+    let t = trace_json(scene, shadowed);
     let nodes = t["nodes"].as_array().unwrap();
     assert_eq!(nodes[0]["hit"]["entity_name"], "Plane");
     let shadow = nodes.iter().find(|n| n["kind"] == "shadow").expect("a shadow ray");
     assert_eq!(shadow["light"], "Light");
     assert_eq!(shadow["blocked_by"], "Sphere");
-    // And a lit floor pixel's shadow ray is clear.
-    let t = trace_json("sample_scene_1.txt", "200,390");
+    let t = trace_json(scene, lit);
+    assert_eq!(t["nodes"][0]["hit"]["entity_name"], "Plane");
     let shadow = t["nodes"]
         .as_array()
         .unwrap()
@@ -98,10 +128,11 @@ fn shadow_ray_reports_its_blocker() {
 
 fn view_png(dir: &std::path::Path, name: &str, extra: &[&str]) -> image::RgbImage {
     let out = dir.join(name);
+    let s = scene("basic.txt");
     let mut args = vec![
         "view",
         "-f",
-        REF,
+        &s,
         "-o",
         out.to_str().unwrap(),
         "-w",
@@ -116,8 +147,6 @@ fn view_png(dir: &std::path::Path, name: &str, extra: &[&str]) -> image::RgbImag
         "320",
         "--quiet",
     ];
-    let s = scene("sample_scene_1.txt");
-    args[2] = &s;
     args.extend_from_slice(extra);
     rayscope().args(&args).assert().success();
     image::open(&out).unwrap().to_rgb8()
@@ -155,7 +184,7 @@ fn view_reproduces_the_workshop_steps() {
 fn view_rejects_bad_flags_without_writing() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("v.png");
-    let s = scene("sample_scene_1.txt");
+    let s = scene("basic.txt");
     for bad in [
         vec!["--rays", "sideways"],
         vec!["--rays", "pixel:9,0"],
@@ -213,7 +242,7 @@ impl Drop for Kill {
 fn debug_serves_the_app_on_a_free_local_port() {
     let mut child = Command::cargo_bin("rayscope")
         .unwrap()
-        .args(["debug", &scene("sample_scene_2.txt"), "-w", "40", "-h", "30", "--quiet"])
+        .args(["debug", &scene("room.txt"), "-w", "40", "-h", "30", "--quiet"])
         .stdout(Stdio::piped())
         .stderr(Stdio::null())
         .spawn()
@@ -243,7 +272,7 @@ fn debug_serves_the_app_on_a_free_local_port() {
         .iter()
         .map(|e| e["name"].as_str().unwrap())
         .collect();
-    assert!(names.contains(&"MirrorSphere") && names.contains(&"FarWallB"));
+    assert!(names.contains(&"MirrorBall") && names.contains(&"BackB"));
     assert_eq!(v["settings"]["width"], 40);
     // Bad requests get a 400 with a message, and the server keeps serving.
     let (code, body) = http_get(port, "/api/trace?x=40&y=0");
@@ -258,7 +287,7 @@ fn debug_serves_the_app_on_a_free_local_port() {
 #[test]
 fn debug_refuses_images_over_its_limit() {
     let o = rayscope()
-        .args(["debug", &scene("sample_scene_1.txt"), "-w", "4096", "-h", "16"])
+        .args(["debug", &scene("basic.txt"), "-w", "4096", "-h", "16"])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));
@@ -291,7 +320,7 @@ fn view_shows_sub_pixel_and_lens_samples() {
         .args([
             "view",
             "-f",
-            &scene("sample_scene_1.txt"),
+            &scene("basic.txt"),
             "-o",
             dir.path().join("x.png").to_str().unwrap(),
             "--samples",

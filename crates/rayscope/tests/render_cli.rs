@@ -4,7 +4,7 @@ mod common;
 
 use std::fs;
 
-use common::{rayscope, reference, render};
+use common::{rayscope, render, scenes};
 use predicates::prelude::*;
 
 #[test]
@@ -14,7 +14,7 @@ fn renders_png_exr_and_ppm() {
         let out = dir.path().join(format!("a.{ext}"));
         rayscope()
             .args(["-w", "32", "-h", "24", "-f"])
-            .arg(reference("tests/sample_scene_1.txt"))
+            .arg(scenes("basic.txt"))
             .arg("-o")
             .arg(&out)
             .assert()
@@ -33,7 +33,7 @@ fn renders_png_exr_and_ppm() {
 #[test]
 fn output_is_identical_for_any_thread_count() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = reference("tests/sample_scene_2.txt");
+    let scene = scenes("room.txt");
     let imgs: Vec<_> = ["1", "2", "3"]
         .iter()
         .map(|t| {
@@ -53,7 +53,7 @@ fn non_square_image_uses_horizontal_fov() {
     // 400×200: the centre pixel column looks along +z; the left edge spans 30° horizontally.
     let out = rayscope()
         .args(["trace", "--json", "-w", "400", "-h", "200", "--pixel", "0,0", "-f"])
-        .arg(reference("tests/sample_scene_1.txt"))
+        .arg(scenes("basic.txt"))
         .assert()
         .success()
         .get_output()
@@ -76,7 +76,7 @@ fn non_square_image_uses_horizontal_fov() {
     // And the render itself has the requested shape.
     let dir = tempfile::tempdir().unwrap();
     let img = render(
-        &reference("tests/sample_scene_1.txt"),
+        &scenes("basic.txt"),
         &dir.path().join("w.png"),
         &["-w", "400", "-h", "200"],
     );
@@ -86,7 +86,7 @@ fn non_square_image_uses_horizontal_fov() {
 #[test]
 fn vertical_fov_axis_widens_a_wide_image() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = reference("tests/sample_scene_1.txt");
+    let scene = scenes("basic.txt");
     let h = render(
         &scene,
         &dir.path().join("h.png"),
@@ -113,7 +113,7 @@ fn assert_usage_error(args: &[&str], message: &str) {
 
 #[test]
 fn invalid_flags_exit_with_2_and_say_why() {
-    let scene = reference("tests/sample_scene_1.txt");
+    let scene = scenes("basic.txt");
     let s = scene.to_str().unwrap();
     assert_usage_error(&["-f", s, "-o", "x.png", "-w", "0"], "--width");
     assert_usage_error(&["-f", s, "-o", "x.png", "-h", "-5"], "--height");
@@ -184,7 +184,7 @@ fn missing_scene_and_missing_output_folder_fail_before_rendering() {
         .stderr(predicate::str::contains("nope.txt"));
     rayscope()
         .arg("-f")
-        .arg(reference("tests/sample_scene_1.txt"))
+        .arg(scenes("basic.txt"))
         .arg("-o")
         .arg(dir.path().join("no/such/folder/a.png"))
         .assert()
@@ -231,16 +231,8 @@ fn diff_exit_codes() {
     let dir = tempfile::tempdir().unwrap();
     let a = dir.path().join("a.png");
     let b = dir.path().join("b.png");
-    render(
-        &reference("tests/sample_scene_1.txt"),
-        &a,
-        &["-w", "40", "-h", "40", "--stage", "1"],
-    );
-    render(
-        &reference("tests/sample_scene_1.txt"),
-        &b,
-        &["-w", "40", "-h", "40", "--stage", "2"],
-    );
+    render(&scenes("basic.txt"), &a, &["-w", "40", "-h", "40", "--stage", "1"]);
+    render(&scenes("basic.txt"), &b, &["-w", "40", "-h", "40", "--stage", "2"]);
     rayscope()
         .arg("diff")
         .arg(&a)
@@ -275,7 +267,7 @@ fn ctrl_c_stops_promptly_writes_nothing_and_exits_130() {
     let bin = assert_cmd::cargo::cargo_bin("rayscope");
     let mut child = std::process::Command::new(bin)
         .args(["-w", "3000", "-h", "3000", "-x", "8", "--quiet", "-f"])
-        .arg(reference("tests/sample_scene_2.txt"))
+        .arg(scenes("room.txt"))
         .arg("-o")
         .arg(&out)
         .spawn()
@@ -333,18 +325,60 @@ fn rays_and_hits(text: &str) -> (u64, u64) {
 
 #[test]
 fn bench_rays_counts_hits_the_same_in_every_mode() {
-    let scene = reference("tests/sample_scene_obj.txt");
-    let single = bench_rays(&["--primary", "67x45"], &scene);
-    let packets = bench_rays(&["--primary", "67x45", "--packets"], &scene);
-    assert_eq!(single.0, 67 * 45);
-    assert_eq!(single, packets, "same rays, same hits");
-    assert_eq!(single, bench_rays(&["--primary", "67x45", "--no-interleave"], &scene));
-    assert!(single.1 > 0);
+    // Our meshes (and the course's bunny, where its files are): the same hits in every mode.
+    let course = rayscope_testkit::course_part();
+    let own = scenes("obj.txt");
+    let bunny = course.as_ref().map(|c| c.scene("sample_scene_obj.txt"));
+    for scene in std::iter::once(&own).chain(&bunny) {
+        let single = bench_rays(&["--primary", "67x45"], scene);
+        let packets = bench_rays(&["--primary", "67x45", "--packets"], scene);
+        assert_eq!(single.0, 67 * 45);
+        assert_eq!(single, packets, "same rays, same hits");
+        assert_eq!(single, bench_rays(&["--primary", "67x45", "--no-interleave"], scene));
+        assert!(single.1 > 0);
+    }
+
+    // A scene with an error is reported as every command reports it: one `error:`, then where.
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.txt");
+    fs::write(&bad, "Material \"M\" Diffuse (1, 1) 1\n").unwrap();
+    let out = rayscope()
+        .args(["bench", "rays", "--primary", "4x4", "-f"])
+        .arg(&bad)
+        .assert()
+        .code(2)
+        .get_output()
+        .stderr
+        .clone();
+    let err = String::from_utf8(out).unwrap();
+    assert!(err.starts_with("error: expected 3 numbers"), "{err}");
+    assert!(!err.contains("error: error:"), "{err}");
+    assert!(err.contains(&format!("{}:1:22", bad.display())), "{err}");
+
+    // A file that is not whole records is refused, and so is an empty one, which would time
+    // nothing.
+    let path = dir.path().join("rays.bin");
+    let file = path.to_str().unwrap();
+    fs::write(&path, [0u8; 25]).unwrap();
+    rayscope()
+        .args(["bench", "rays", "--rays-file", file, "-f"])
+        .arg(&own)
+        .assert()
+        .failure()
+        .stderr(predicate::str::contains("not a whole number of 24-byte ray records"));
+    fs::write(&path, b"").unwrap();
+    rayscope()
+        .args(["bench", "rays", "--rays-file", file, "-f"])
+        .arg(&own)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("holds no rays"));
+
+    // The counts below are of the course's room around the bunny.
+    let Some(scene) = bunny else { return };
 
     // A rays file: one ray into the room (hits), one away from it through the open front
     // (misses), and one more lane than a packet holds.
-    let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("rays.bin");
     let mut bytes = Vec::new();
     let mut records = vec![[0.0, 0.0, 0.0, 0.0, 0.0, 1.0f32], [0.0, 0.0, 0.0, 0.0, 0.0, -1.0]];
     records.extend((0..15).map(|i| [0.0, 0.0, 0.0, 0.01 * i as f32, 0.1, 1.0]));
@@ -354,7 +388,6 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
         }
     }
     fs::write(&path, &bytes).unwrap();
-    let file = path.to_str().unwrap();
     assert_eq!(bench_rays(&["--rays-file", file], &scene), (17, 16));
     assert_eq!(bench_rays(&["--rays-file", file, "--packets"], &scene), (17, 16));
     assert_eq!(bench_rays(&["--rays-file", file, "--no-interleave"], &scene), (17, 16));
@@ -378,38 +411,4 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
     assert_eq!(means.len(), 2, "{line}");
     assert_eq!(means[1], 3.0, "{line}");
     assert!(means[0] >= 5.0, "{line}");
-
-    // A scene with an error is reported as every command reports it: one `error:`, then where.
-    let bad = dir.path().join("bad.txt");
-    fs::write(&bad, "Material \"M\" Diffuse (1, 1) 1\n").unwrap();
-    let out = rayscope()
-        .args(["bench", "rays", "--primary", "4x4", "-f"])
-        .arg(&bad)
-        .assert()
-        .code(2)
-        .get_output()
-        .stderr
-        .clone();
-    let err = String::from_utf8(out).unwrap();
-    assert!(err.starts_with("error: expected 3 numbers"), "{err}");
-    assert!(!err.contains("error: error:"), "{err}");
-    assert!(err.contains(&format!("{}:1:22", bad.display())), "{err}");
-
-    // A file that is not whole records is refused.
-    fs::write(&path, &bytes[..25]).unwrap();
-    rayscope()
-        .args(["bench", "rays", "--rays-file", file, "-f"])
-        .arg(&scene)
-        .assert()
-        .failure()
-        .stderr(predicate::str::contains("not a whole number of 24-byte ray records"));
-
-    // So is an empty one, which would time nothing.
-    fs::write(&path, b"").unwrap();
-    rayscope()
-        .args(["bench", "rays", "--rays-file", file, "-f"])
-        .arg(&scene)
-        .assert()
-        .code(2)
-        .stderr(predicate::str::contains("holds no rays"));
 }

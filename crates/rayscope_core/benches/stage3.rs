@@ -25,12 +25,21 @@ fn workspace() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
+/// Why a benchmark of the course's scenes did not run.
+fn no_course() -> String {
+    format!(
+        "no course folder with tests/ and images/ at {} (set {})",
+        rayscope_testkit::course_dir().display(),
+        rayscope_testkit::COURSE_DIR_VAR
+    )
+}
+
 fn bunny(c: &mut Criterion) {
-    let path = workspace().join("../shared/reference/tests/sample_scene_obj.txt");
-    let Ok(file) = rayscope_scene::load(&path) else {
-        eprintln!("bunny benchmark skipped: {} not found", path.display());
+    let Some(course) = rayscope_testkit::Course::find() else {
+        eprintln!("bunny benchmark skipped: {}", no_course());
         return;
     };
+    let file = rayscope_scene::load(&course.scene("sample_scene_obj.txt")).expect("the course's scene loads");
     let scene = Scene::from_file(&file);
     let s = RenderSettings {
         aa: 4,
@@ -129,11 +138,11 @@ fn path_traced_box(c: &mut Criterion) {
 }
 
 fn path_traced_scene_2(c: &mut Criterion) {
-    let path = workspace().join("../shared/reference/tests/sample_scene_2.txt");
-    let Ok(file) = rayscope_scene::load(&path) else {
-        eprintln!("scene 2 benchmark skipped: {} not found", path.display());
+    let Some(course) = rayscope_testkit::Course::find() else {
+        eprintln!("scene 2 benchmark skipped: {}", no_course());
         return;
     };
+    let file = rayscope_scene::load(&course.scene("sample_scene_2.txt")).expect("the course's scene loads");
     let scene = Scene::from_file(&file);
     // `-l -x 4` at 200×200: paths through the mirror and the glass, which is seen directly.
     let s = RenderSettings {

@@ -43,16 +43,25 @@ fn differing(a: &RenderOutput, b: &RenderOutput) -> usize {
 
 #[test]
 fn packet_renders_equal_single_ray_renders() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
-    let reference = root.join("../shared/reference/tests");
-    let mut paths = vec![
-        reference.join("sample_scene_1.txt"),
-        reference.join("sample_scene_2.txt"),
-        reference.join("sample_scene_2_2021.txt"),
-        reference.join("sample_scene_obj.txt"),
-    ];
-    for name in ["whitted.txt", "camera.txt", "obj.txt", "beer.txt"] {
-        paths.push(root.join("scenes").join(name));
+    let mut paths: Vec<_> = [
+        "basic.txt",
+        "room.txt",
+        "whitted.txt",
+        "camera.txt",
+        "obj.txt",
+        "beer.txt",
+    ]
+    .map(rayscope_testkit::scene)
+    .into();
+    if let Some(course) = rayscope_testkit::course_part() {
+        for name in [
+            "sample_scene_1.txt",
+            "sample_scene_2.txt",
+            "sample_scene_2_2021.txt",
+            "sample_scene_obj.txt",
+        ] {
+            paths.push(course.scene(name));
+        }
     }
     for path in &paths {
         let scene = load(path);

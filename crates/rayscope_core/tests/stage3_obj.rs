@@ -1,8 +1,6 @@
 //! OBJ models (C): the BVH's closest hit and any-hit answers equal a brute-force loop over every
 //! primitive, for the course's bunny and for generated meshes.
 
-use std::path::{Path, PathBuf};
-
 use glam::Vec3A;
 use rayscope_core::geometry::Primitive;
 use rayscope_core::math::Ray;
@@ -89,17 +87,12 @@ fn check(scene: &Scene, n: u32) -> u32 {
     hits
 }
 
-fn reference_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
-}
-
 #[test]
 fn bunny_bvh_matches_brute_force() {
-    let path = reference_dir().join("tests/sample_scene_obj.txt");
-    if !path.exists() {
-        eprintln!("skipped: {} not found", path.display());
+    let Some(course) = rayscope_testkit::course() else {
         return;
-    }
+    };
+    let path = course.scene("sample_scene_obj.txt");
     let file = rayscope_scene::load(&path).expect("bunny scene loads");
     let scene = Scene::from_file(&file);
     assert!(scene.triangles.len() > 4968, "bunny plus walls");

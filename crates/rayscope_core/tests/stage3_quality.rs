@@ -1,7 +1,7 @@
 //! `-q` sample enumeration, determinism, replay, convergence, and the rule that stage-2 scenes
 //! render as stage 2 under the full renderer.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use glam::Vec3A;
@@ -166,10 +166,6 @@ fn raising_quality_converges() {
     }
 }
 
-fn reference_dir() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference")
-}
-
 /// Scenes with only stage-2 content render identically under `Stage::Full` and `Stage::Two`.
 #[test]
 fn stage_two_scenes_are_unchanged_by_the_full_renderer() {
@@ -179,12 +175,9 @@ fn stage_two_scenes_are_unchanged_by_the_full_renderer() {
         Sphere \"Mirror\" (-0.8, 0, 4) 0.7 \"M\"\nSphere \"Glass\" (0.8, -0.2, 3) 0.6 \"G\"\n\
         Triangle \"T\" (-2, -1, 6) (0, 2, 6) (2, -1, 6) \"W\"\n";
     let mut scenes = vec![scene(own)];
-    for name in ["sample_scene_1.txt", "sample_scene_2.txt"] {
-        let path = reference_dir().join("tests").join(name);
-        if path.exists() {
-            scenes.push(Scene::from_file(&rayscope_scene::load(&path).unwrap()));
-        } else {
-            eprintln!("skipped: {} not found", path.display());
+    if let Some(course) = rayscope_testkit::course_part() {
+        for name in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+            scenes.push(Scene::from_file(&rayscope_scene::load(&course.scene(name)).unwrap()));
         }
     }
     for sc in &scenes {

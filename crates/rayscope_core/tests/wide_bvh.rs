@@ -734,14 +734,21 @@ fn a_sphere_is_alone_only_when_nothing_comes_near() {
     assert!(alone("Triangle \"A\" (1.05, 0, 2) (3, 1, 2) (3, -1, 2.5) \"M\""));
 }
 
-/// Packets of rays inside a lone sphere (course scene 2's glass ball) find with the sphere alone
-/// exactly the hits the whole scene gives them, and a packet with a ray that starts outside and
-/// misses the sphere is handed back untouched, so its hits are looked for everywhere.
+/// Packets of rays inside a lone sphere (the glass ball of our room and of course scene 2) find
+/// with the sphere alone exactly the hits the whole scene gives them, and a packet with a ray
+/// that starts outside and misses the sphere is handed back untouched, so its hits are looked
+/// for everywhere.
 #[test]
 fn rays_inside_a_lone_sphere_need_only_that_sphere() {
-    let path =
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../../shared/reference/tests/sample_scene_2.txt");
-    let scene = Scene::from_file(&rayscope_scene::load(&path).unwrap());
+    rays_inside_the_smallest_sphere_need_only_it(&rayscope_testkit::scene("room.txt"));
+    let Some(course) = rayscope_testkit::course_part() else {
+        return;
+    };
+    rays_inside_the_smallest_sphere_need_only_it(&course.scene("sample_scene_2.txt"));
+}
+
+fn rays_inside_the_smallest_sphere_need_only_it(path: &std::path::Path) {
+    let scene = Scene::from_file(&rayscope_scene::load(path).unwrap());
     let bvh = &scene.wide;
     let (k, glass) = (scene.spheres.iter().enumerate())
         .min_by(|a, b| a.1.radius.total_cmp(&b.1.radius))

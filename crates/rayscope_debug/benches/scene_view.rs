@@ -7,20 +7,25 @@
 // criterion_group! generates an undocumented `pub fn`.
 #![allow(missing_docs)]
 
-use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use rayscope_core::{CameraSettings, FovAxis, RenderSettings, Scene};
 use rayscope_debug::view::{auto_view, render_view, ImageMode, RayMode, RgbImage, ViewOptions};
 
-const REF: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference/tests/");
-
 fn bench(c: &mut Criterion) {
+    let Some(course) = rayscope_testkit::Course::find() else {
+        eprintln!(
+            "scene view benchmark skipped: no course folder with tests/ and images/ at {} (set {})",
+            rayscope_testkit::course_dir().display(),
+            rayscope_testkit::COURSE_DIR_VAR
+        );
+        return;
+    };
     let mut g = c.benchmark_group("scene_view_960x640_all_rays_9x9");
     g.sample_size(20);
     for name in ["sample_scene_1.txt", "sample_scene_2.txt", "sample_scene_obj.txt"] {
-        let file = rayscope_scene::load(Path::new(&format!("{REF}{name}"))).expect("scene loads");
+        let file = rayscope_scene::load(&course.scene(name)).expect("scene loads");
         let scene = Scene::from_file(&file);
         let settings = RenderSettings {
             width: 9,

@@ -9,10 +9,10 @@ use common::{request, rss_kib, start_server};
 
 use rayscope_core::rng::Rng;
 
-const SCENE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_2.txt"
-);
+/// Our room: planes, triangles, a mirror ball and a glass ball.
+fn room() -> String {
+    rayscope_testkit::scene("room.txt").to_str().unwrap().to_owned()
+}
 
 fn random_request(rng: &mut Rng) -> (&'static str, String, Vec<u8>) {
     let pick = |rng: &mut Rng, n: usize| (rng.next_u32() as usize) % n;
@@ -100,7 +100,7 @@ fn random_request(rng: &mut Rng) -> (&'static str, String, Vec<u8>) {
 
 #[test]
 fn random_requests_never_break_the_server() {
-    let server = start_server(SCENE, 40, 30);
+    let server = start_server(&room(), 40, 30);
     let addr = server.addr;
     // Warm up (first frames allocate caches), then measure.
     assert_eq!(request(addr, "GET", "/api/scene", b"").0, 200);
@@ -137,7 +137,7 @@ fn random_requests_never_break_the_server() {
     // Still correct afterwards: the scene lists its entities and a trace names what it hits.
     let (code, body) = request(addr, "GET", "/api/scene", b"");
     assert_eq!(code, 200);
-    assert!(String::from_utf8_lossy(&body).contains("MirrorSphere"));
+    assert!(String::from_utf8_lossy(&body).contains("MirrorBall"));
     let (code, _) = request(addr, "POST", "/api/settings", b"{\"width\": 40, \"height\": 30}");
     assert_eq!(code, 200);
     let (code, body) = request(addr, "GET", "/api/trace?x=20&y=15", b"");
@@ -157,7 +157,7 @@ fn random_requests_never_break_the_server() {
 #[test]
 fn a_slow_client_does_not_stall_others() {
     use std::io::Write;
-    let server = start_server(SCENE, 40, 30);
+    let server = start_server(&room(), 40, 30);
     let addr = server.addr;
     // Three clients that send half a request (or half a body) and then go quiet.
     let mut slow = Vec::new();

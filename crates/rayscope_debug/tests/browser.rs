@@ -1,7 +1,8 @@
 //! The debugger in a real browser: headless Chromium driven through chromedriver (WebDriver)
 //! with fantoccini. Needs the Debian packages `chromium` and `chromium-driver`.
 //!
-//! Without them the test fails when `CI=true` and is skipped (with a message) otherwise.
+//! Without them the test fails when `CI=true`; otherwise it says on the terminal that it did
+//! not run (see `rayscope_testkit::not_run`).
 //! Screenshots go to `target/browser-screenshots/`.
 
 use std::net::TcpListener;
@@ -13,11 +14,6 @@ use fantoccini::{Client, ClientBuilder, Locator};
 use rayscope_core::{CameraSettings, FovAxis, RenderSettings, Scene};
 use rayscope_debug::{RunningServer, ServeConfig};
 use serde_json::json;
-
-const SCENE_1: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_1.txt"
-);
 
 fn find_exe(names: &[&str]) -> Option<PathBuf> {
     let path = std::env::var_os("PATH")?;
@@ -96,16 +92,18 @@ fn debugger_in_chromium() {
     let chromium = find_exe(&["chromium", "chromium-browser", "google-chrome"]);
     let driver = find_exe(&["chromedriver"]);
     let (Some(chromium), Some(driver)) = (chromium, driver) else {
-        let msg = "chromium and chromedriver are needed (Debian: apt-get install chromium chromium-driver)";
-        if std::env::var("CI").is_ok_and(|v| v == "true") {
-            panic!("{msg}; CI=true, so this is a failure, not a skip");
-        }
-        eprintln!("SKIPPED debugger_in_chromium: {msg}");
+        rayscope_testkit::not_run(
+            "needs chromium and chromedriver",
+            "No chromium (or chromium-browser, google-chrome) and chromedriver found on PATH.",
+            "To run it, install them (Debian: apt-get install chromium chromium-driver).",
+        );
         return;
     };
 
-    // The debugger, in process, on a free port: scene 1 as in the workshop (9×9, vertical FOV).
-    let file = rayscope_scene::load(Path::new(SCENE_1)).unwrap();
+    // The debugger, in process, on a free port: our basic scene as in the workshop (9×9,
+    // vertical FOV).
+    let scene_path = rayscope_testkit::scene("basic.txt");
+    let file = rayscope_scene::load(&scene_path).unwrap();
     let scene = Scene::from_file(&file);
     let settings = RenderSettings {
         width: 9,
@@ -117,7 +115,7 @@ fn debugger_in_chromium() {
         ..RenderSettings::default()
     };
     let server = rayscope_debug::start(ServeConfig {
-        scene_path: PathBuf::from(SCENE_1),
+        scene_path,
         scene_file: file,
         scene,
         settings,
@@ -278,7 +276,7 @@ async fn drive(c: &Client, url: &str) -> Result<(), String> {
     tokio::time::sleep(Duration::from_millis(600)).await;
     shot(c, "03-ray-tree.png").await;
 
-    // Check the intersector: both agree on scene 1.
+    // Check the intersector: both agree on this scene.
     c.find(Locator::Css("#check-btn"))
         .await
         .map_err(|e| e.to_string())?

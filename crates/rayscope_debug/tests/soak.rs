@@ -16,10 +16,10 @@ use std::time::{Duration, Instant};
 use common::{request, rss_kib, start_server, thread_count};
 use rayscope_core::rng::Rng;
 
-const SCENE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_2.txt"
-);
+/// Our room: planes, triangles, a mirror ball and a glass ball.
+fn room() -> String {
+    rayscope_testkit::scene("room.txt").to_str().unwrap().to_owned()
+}
 
 /// Concurrent clients.
 const CLIENTS: u64 = 3;
@@ -271,7 +271,7 @@ fn several_clients_for_a_while() {
         .ok()
         .and_then(|v| v.parse().ok())
         .unwrap_or(20);
-    let server = start_server(SCENE, 60, 40);
+    let server = start_server(&room(), 60, 40);
     let addr = server.addr;
     assert_eq!(request(addr, "GET", "/api/view?w=480&h=320&rays=all", b"").0, 200);
     let start_rss = rss_kib();

@@ -5,13 +5,9 @@ use glam::{Vec3, Vec3A};
 use rayscope_core::{Camera, CameraSettings, FovAxis, RenderSettings, Scene};
 use rayscope_debug::view::{render_view, ImageMode, Projection, RayMode, RgbImage, ViewCamera, ViewOptions};
 
-const SCENE_1: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_1.txt"
-);
-
+/// Our basic scene: a floor plane (entity 0), a green sphere (entity 1), a blue triangle.
 fn scene1() -> Scene {
-    let file = rayscope_scene::load(std::path::Path::new(SCENE_1)).expect("scene 1 loads");
+    let file = rayscope_scene::load(&rayscope_testkit::scene("basic.txt")).expect("basic scene loads");
     Scene::from_file(&file)
 }
 
@@ -200,9 +196,10 @@ fn an_entity_in_front_hides_the_ray_behind_it() {
     let cam = Camera::new(s.camera, 9, 9);
     // From behind the sphere, looking back at the camera: the sphere hides the camera and the
     // centre pixel's ray, which ends on the sphere's far side (as seen from here).
+    let c = scene.spheres[0].center;
     let view = ViewCamera {
-        eye: Vec3::new(-0.25, 0.0, 4.5),
-        target: Vec3::new(-0.1, 0.0, 0.0),
+        eye: Vec3::new(c.x, c.y, c.z + 2.5),
+        target: Vec3::new(c.x + 0.15, c.y, 0.0),
         fov_deg: 50.0,
     };
     let proj = Projection::new(&view, 960, 640);

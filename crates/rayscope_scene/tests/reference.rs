@@ -1,16 +1,12 @@
 //! The course's reference scenes and the Stanford bunny parse to exactly what the text says.
 
-use std::path::{Path, PathBuf};
-
 use rayscope_scene::{load, load_obj, DVec3, MaterialKind, ObjOptions, Shape, Vec3};
-
-fn reference(name: &str) -> PathBuf {
-    Path::new(concat!(env!("CARGO_MANIFEST_DIR"), "/../../../shared/reference/tests")).join(name)
-}
+use rayscope_testkit::course;
 
 #[test]
 fn sample_scene_1() {
-    let scene = load(&reference("sample_scene_1.txt")).unwrap();
+    let Some(c) = course() else { return };
+    let scene = load(&c.scene("sample_scene_1.txt")).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.materials.len(), 3);
     assert_eq!(scene.lights.len(), 1);
@@ -63,7 +59,8 @@ fn sample_scene_1() {
 
 #[test]
 fn sample_scene_2() {
-    let scene = load(&reference("sample_scene_2.txt")).unwrap();
+    let Some(c) = course() else { return };
+    let scene = load(&c.scene("sample_scene_2.txt")).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.materials.len(), 6);
     assert_eq!(scene.lights.len(), 2);
@@ -96,8 +93,9 @@ fn sample_scene_2() {
 
 #[test]
 fn sample_scene_2_2021_differs_only_in_colours() {
-    let a = load(&reference("sample_scene_2.txt")).unwrap();
-    let b = load(&reference("sample_scene_2_2021.txt")).unwrap();
+    let Some(c) = course() else { return };
+    let a = load(&c.scene("sample_scene_2.txt")).unwrap();
+    let b = load(&c.scene("sample_scene_2_2021.txt")).unwrap();
     assert_eq!(a.entities, b.entities);
     assert_eq!(b.materials[4].color, DVec3::ONE);
     assert_eq!(b.materials[5].color, DVec3::ONE);
@@ -107,7 +105,8 @@ fn sample_scene_2_2021_differs_only_in_colours() {
 /// working directory of tests) it is found through the scene folder's ancestors.
 #[test]
 fn sample_scene_obj_finds_the_bunny() {
-    let scene = load(&reference("sample_scene_obj.txt")).unwrap();
+    let Some(c) = course() else { return };
+    let scene = load(&c.scene("sample_scene_obj.txt")).unwrap();
     assert!(scene.warnings.is_empty(), "{:?}", scene.warnings);
     assert_eq!(scene.materials.len(), 5);
     assert_eq!(scene.lights.len(), 2);
@@ -124,7 +123,7 @@ fn sample_scene_obj_finds_the_bunny() {
     else {
         panic!("not a mesh: {:?}", bunny.shape.command());
     };
-    assert_eq!(source, &std::fs::canonicalize(reference("models/bunny.obj")).unwrap());
+    assert_eq!(source, &std::fs::canonicalize(c.scene("models/bunny.obj")).unwrap());
     assert_eq!(*offset, DVec3::new(0.0, -0.9, 2.0));
     assert_eq!(*scale, 0.35);
     assert_eq!(mesh.triangles.len(), 4968);
@@ -132,11 +131,12 @@ fn sample_scene_obj_finds_the_bunny() {
 
 #[test]
 fn bunny_mesh() {
+    let Some(c) = course() else { return };
     let opts = ObjOptions {
         scale: 0.35,
         offset: DVec3::new(0.0, -0.9, 2.0),
     };
-    let mesh = load_obj(&reference("models/bunny.obj"), &opts).unwrap();
+    let mesh = load_obj(&c.scene("models/bunny.obj"), &opts).unwrap();
     assert_eq!(mesh.triangles.len(), 4968);
     assert_eq!(mesh.positions.len(), 2503);
     assert_eq!(mesh.normals.len(), 2503);

@@ -5,22 +5,9 @@ use std::path::{Path, PathBuf};
 
 use assert_cmd::Command;
 
-/// The course's reference folder, read in place (never copied into the repository).
-pub fn reference(rel: &str) -> PathBuf {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../../../shared/reference")
-        .join(rel);
-    assert!(
-        p.exists(),
-        "missing {} — the tests need ../shared/reference beside the repository",
-        p.display()
-    );
-    p
-}
-
 /// Our own scenes folder.
 pub fn scenes(rel: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes").join(rel)
+    rayscope_testkit::scene(rel)
 }
 
 /// The rayscope binary, quiet by default.
@@ -49,7 +36,9 @@ pub fn psnr(a: &image::RgbImage, b: &image::RgbImage) -> (f64, u64) {
     (c.psnr, c.differing)
 }
 
-/// A reference image as RGB.
-pub fn reference_image(rel: &str) -> image::RgbImage {
-    image::open(reference(rel)).expect("reference image").to_rgb8()
+/// An image file as RGB.
+pub fn rgb(path: &Path) -> image::RgbImage {
+    image::open(path)
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+        .to_rgb8()
 }

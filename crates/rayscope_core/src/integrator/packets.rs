@@ -712,21 +712,26 @@ mod tests {
         assert!(hits > 1000, "only {hits} hits");
     }
 
-    fn load(name: &str) -> Scene {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../..").join(name);
-        Scene::from_file(&rayscope_scene::load(&path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display())))
+    fn load(path: &Path) -> Scene {
+        Scene::from_file(&rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display())))
     }
 
     /// Each lane's surface is what `Scene::surface` returns for its ray and hit, bit for bit,
     /// and its offset origin is the single-ray code's: on planes, spheres (from inside and out),
-    /// flat triangles and the bunny's smooth ones.
+    /// flat triangles and the smooth ones of meshes (our torus, the course's bunny).
     #[test]
     fn packet_surfaces_are_scene_surfaces() {
-        for (name, seed) in [
-            ("shared/reference/tests/sample_scene_2.txt", 1),
-            ("shared/reference/tests/sample_scene_obj.txt", 2),
-        ] {
-            let scene = load(name);
+        let mut scenes = vec![
+            (rayscope_testkit::scene("room.txt"), 1),
+            (rayscope_testkit::scene("obj.txt"), 2),
+        ];
+        if let Some(course) = rayscope_testkit::course_part() {
+            scenes.push((course.scene("sample_scene_2.txt"), 1));
+            scenes.push((course.scene("sample_scene_obj.txt"), 2));
+        }
+        for (path, seed) in scenes {
+            let name = path.display();
+            let scene = load(&path);
             let mut kinds = [0; 3];
             packets(&scene, seed, |rays, surf, i| {
                 let ray = Ray::new(lane(&rays.o, i), lane(&rays.d, i));

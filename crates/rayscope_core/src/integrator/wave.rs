@@ -654,7 +654,6 @@ impl<I: Intersect> Integrator<'_, I> {
 
 #[cfg(test)]
 mod tests {
-    use std::path::Path;
 
     use super::*;
     use crate::scene::Scene;
@@ -665,17 +664,18 @@ mod tests {
         // Our scenes with emitters, point lights, mirrors, glass (absorbing too), glossy coats,
         // depth of field and OBJ meshes, and two of the course's scenes, with and without
         // indirect light: every sample's value bit for bit, and the ray counts.
-        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../..");
         let mut paths: Vec<_> = [
-            "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj",
+            "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj", "room",
         ]
         .iter()
-        .map(|n| root.join("scenes").join(format!("{n}.txt")))
+        .map(|n| rayscope_testkit::scene(&format!("{n}.txt")))
         .collect();
         // The course's bunny scene, and its scene 2: a room small enough for a flat list, a
         // mirror, and glass seen directly (both of its rays traced, one after the other).
-        for n in ["sample_scene_obj", "sample_scene_2"] {
-            paths.push(root.join(format!("../shared/reference/tests/{n}.txt")));
+        if let Some(course) = rayscope_testkit::course_part() {
+            for n in ["sample_scene_obj", "sample_scene_2"] {
+                paths.push(course.scene(&format!("{n}.txt")));
+            }
         }
         let (mut waves, mut in_list) = (0, 0);
         for path in &paths {
