@@ -11,7 +11,7 @@ use std::time::{Duration, Instant};
 
 use fantoccini::{Client, ClientBuilder, Locator};
 use rayscope_core::{CameraSettings, FovAxis, RenderSettings, Scene};
-use rayscope_debug::{RunningServer, ServeConfig};
+use rayscope_debug::{RunningServer, ServeConfig, ServerLimits};
 use serde_json::json;
 
 const SCENE_1: &str = concat!(
@@ -123,6 +123,8 @@ fn debugger_in_chromium() {
         settings,
         host: "127.0.0.1".into(),
         port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
     })
     .expect("debugger starts");
     let url = server.url.clone();
