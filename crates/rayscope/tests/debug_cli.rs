@@ -258,7 +258,11 @@ fn debug_serves_the_app_on_a_free_local_port() {
 /// Sends a GET with this `Host` header to `port` on loopback; the status code.
 fn get_with_host(port: u16, host: &str) -> u16 {
     let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
-    write!(s, "GET /api/scene HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n").unwrap();
+    write!(
+        s,
+        "GET /api/scene HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
     let mut buf = String::new();
     s.read_to_string(&mut buf).unwrap();
     buf.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0)

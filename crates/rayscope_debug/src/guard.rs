@@ -49,7 +49,7 @@ impl HostPolicy {
             Ok(ip) => bound.is_unspecified() || ip == bound || (ip.is_loopback() && bound.is_loopback()),
             Err(_) => {
                 let name = normalise_name(name);
-                self.names.iter().any(|n| *n == name)
+                self.names.contains(&name)
             }
         }
     }
