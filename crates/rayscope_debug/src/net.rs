@@ -25,6 +25,11 @@ pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 pub const MAX_HEADERS: usize = 64;
 /// Longest URL (path and query) the debugger answers; longer ones get a 414.
 pub const MAX_URL_BYTES: usize = 8 * 1024;
+/// How long, and for how many bytes, a closing connection keeps reading what the client still
+/// sends (see [`GuardedStream::poll_shutdown`]).
+const LINGER: Duration = Duration::from_secs(1);
+/// See [`LINGER`].
+const LINGER_BYTES: usize = 1 << 20;
 
 /// Serves `app` on `listener` until `shutdown` resolves.
 ///
@@ -90,6 +95,11 @@ struct GuardedStream {
     stall: Option<Pin<Box<Sleep>>>,
     /// A JSON answer standing in for hyper's, and how much of it is written.
     replacement: Option<(Vec<u8>, usize)>,
+    /// Whether our side is shut down for writing; then the end of the lingering read and the
+    /// bytes it has discarded.
+    write_closed: bool,
+    linger: Option<Pin<Box<Sleep>>>,
+    drained: usize,
 }
 
 impl GuardedStream {
@@ -99,6 +109,9 @@ impl GuardedStream {
             write_timeout,
             stall: None,
             replacement: None,
+            write_closed: false,
+            linger: None,
+            drained: 0,
         }
     }
 
@@ -167,11 +180,32 @@ impl AsyncWrite for GuardedStream {
         this.watch(cx, r)
     }
 
+    /// Shuts the writing side, then reads and discards what the client still sends (the rest
+    /// of a body refused before it was read) until it closes too, for at most [`LINGER`] and
+    /// [`LINGER_BYTES`]: closing a socket with unread data makes the kernel reset the
+    /// connection, and the client may then lose the answer it was sent.
     fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         let this = &mut *self;
         ready!(this.poll_replacement(cx))?;
-        let r = Pin::new(&mut this.inner).poll_shutdown(cx);
-        this.watch(cx, r)
+        if !this.write_closed {
+            let r = Pin::new(&mut this.inner).poll_shutdown(cx);
+            ready!(this.watch(cx, r))?;
+            this.write_closed = true;
+        }
+        let linger = this.linger.get_or_insert_with(|| Box::pin(tokio::time::sleep(LINGER)));
+        let mut scratch = [0u8; 8192];
+        loop {
+            if this.drained >= LINGER_BYTES || linger.as_mut().poll(cx).is_ready() {
+                return Poll::Ready(Ok(()));
+            }
+            let mut buf = ReadBuf::new(&mut scratch);
+            match Pin::new(&mut this.inner).poll_read(cx, &mut buf) {
+                Poll::Ready(Ok(())) if !buf.filled().is_empty() => this.drained += buf.filled().len(),
+                // The client has closed (or reset) its side: nothing more to wait for.
+                Poll::Ready(_) => return Poll::Ready(Ok(())),
+                Poll::Pending => return Poll::Pending,
+            }
+        }
     }
 }
 
