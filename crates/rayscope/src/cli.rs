@@ -332,6 +332,10 @@ pub struct DebugArgs {
     /// Address to bind (default 127.0.0.1: only this machine can connect).
     #[arg(long, default_value = "127.0.0.1")]
     pub host: String,
+    /// A host name the debugger answers to besides localhost and IP addresses (repeatable): the
+    /// name other machines use to reach it with `--host 0.0.0.0`.
+    #[arg(long, value_name = "NAME")]
+    pub allow_host: Vec<String>,
     /// Open the browser.
     #[arg(long)]
     pub open: bool,

@@ -24,6 +24,8 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
         settings,
         host: a.host.clone(),
         port: a.port,
+        allow_hosts: a.allow_host.clone(),
+        limits: rayscope_debug::ServerLimits::default(),
     };
     rayscope_debug::serve(cfg, a.open).map_err(|e| match e {
         rayscope_debug::DebugError::Settings(m) => Failure::input(m),

@@ -284,6 +284,65 @@ fn debug_serves_the_app_on_a_free_local_port() {
     assert_eq!(code, 200);
 }
 
+/// Sends a GET with this `Host` header to `port` on loopback; the status code.
+fn get_with_host(port: u16, host: &str) -> u16 {
+    let mut s = TcpStream::connect(("127.0.0.1", port)).unwrap();
+    write!(
+        s,
+        "GET /api/scene HTTP/1.1\r\nHost: {host}\r\nConnection: close\r\n\r\n"
+    )
+    .unwrap();
+    let mut buf = String::new();
+    s.read_to_string(&mut buf).unwrap();
+    buf.split(' ').nth(1).and_then(|c| c.parse().ok()).unwrap_or(0)
+}
+
+#[test]
+fn debug_on_every_interface_warns_prints_its_address_and_keeps_the_host_check() {
+    let mut child = Command::cargo_bin("rayscope")
+        .unwrap()
+        .args(["debug", &scene("sample_scene_1.txt"), "-w", "8", "-h", "8", "--quiet"])
+        .args(["--host", "0.0.0.0", "--allow-host", "Lab-PC.local"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let stderr = child.stderr.take().unwrap();
+    let _kill = Kill(child);
+    let mut out = BufReader::new(stdout);
+    let mut first = String::new();
+    out.read_line(&mut first).unwrap();
+    // The real bound address, with its port, not 127.0.0.1.
+    let bound = first
+        .split_whitespace()
+        .find(|w| w.starts_with("http://0.0.0.0:"))
+        .unwrap_or_else(|| panic!("prints the bound address: {first}"));
+    let port: u16 = bound
+        .trim_start_matches("http://0.0.0.0:")
+        .trim_end_matches('/')
+        .parse()
+        .unwrap();
+    let mut rest = String::new();
+    for _ in 0..4 {
+        out.read_line(&mut rest).unwrap();
+    }
+    assert!(rest.contains(&format!("http://127.0.0.1:{port}/")), "{rest}");
+    assert!(rest.contains(&format!("http://lab-pc.local:{port}/")), "{rest}");
+    let mut warning = String::new();
+    BufReader::new(stderr).read_line(&mut warning).unwrap();
+    assert!(
+        warning.starts_with("WARNING:") && warning.contains(&format!("0.0.0.0:{port}")),
+        "{warning}"
+    );
+    // Any address of the machine and the listed name are answered; a name that could be
+    // rebound to this machine is not.
+    assert_eq!(get_with_host(port, &format!("127.0.0.1:{port}")), 200);
+    assert_eq!(get_with_host(port, &format!("192.168.1.5:{port}")), 200);
+    assert_eq!(get_with_host(port, &format!("lab-pc.local:{port}")), 200);
+    assert_eq!(get_with_host(port, &format!("evil.example:{port}")), 403);
+}
+
 #[test]
 fn debug_refuses_images_over_its_limit() {
     let o = rayscope()

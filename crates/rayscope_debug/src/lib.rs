@@ -9,10 +9,12 @@
 
 pub mod canvas;
 pub mod encode;
+pub mod guard;
+mod net;
 pub mod server;
 pub mod view;
 
-pub use server::{serve, start, DebugError, RunningServer, ServeConfig};
+pub use server::{serve, start, DebugError, RunningServer, ServeConfig, ServerLimits};
 pub use view::{
     auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame, ViewOptions,
 };

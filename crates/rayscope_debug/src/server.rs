@@ -2,7 +2,15 @@
 //!
 //! Renders run off the request path on blocking threads; a new settings change cancels the
 //! render before it through its cancel flag. Every request parameter is validated and bounded
-//! and answered with a JSON `{"error": …}` and status 400 when it is not acceptable.
+//! and answered with a JSON `{"error": …}` and status 400 when it is not acceptable; every other
+//! refusal (403, 404, 405, 408, 413, 414, 415, 431, 503) is the same JSON error.
+//!
+//! Security: the server answers only `Host` names on its allow-list (see [`HostPolicy`]), and
+//! only the debugger's own page may change state or start work (see [`cross_site_refusal`]):
+//! `POST`s need `Content-Type: application/json` (settings) or `image/png` (compare), types a
+//! page on another origin cannot send without a preflight, which is never granted. Heavy
+//! requests share [`ServerLimits::heavy_slots`]; connections, head reads, bodies and writes are
+//! bounded in number and time (see [`ServerLimits`]).
 //!
 //! Endpoints (all `GET` unless noted):
 //! - `/`, `/app.js`, `/app.css`: the UI.
@@ -15,8 +23,11 @@
 //! - `/api/pick?eye=&target=&w=&h=&x=&y=`: what is under a view pixel.
 //! - `/api/trace?x=&y=&sample=&intersector=ours|reference`: a pixel sample's ray tree.
 //! - `/api/check`: pixels where rayscope's intersector and the parry3d reference disagree.
-//! - `/api/compare` (`POST`, PNG body): PSNR against the current render and a heat map id;
-//!   `/api/compare/heatmap.png?id=`.
+//! - `/api/compare` (`POST`, PNG body, `Content-Type: image/png`): PSNR against the current
+//!   render and a heat map id; `/api/compare/heatmap.png?id=`.
+//!
+//! [`HostPolicy`]: crate::guard::HostPolicy
+//! [`cross_site_refusal`]: crate::guard::cross_site_refusal
 
 use std::collections::{HashMap, VecDeque};
 use std::net::{IpAddr, SocketAddr, TcpListener as StdListener, ToSocketAddrs};
@@ -24,11 +35,11 @@ use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::thread::JoinHandle;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
-use axum::body::Bytes;
-use axum::extract::{DefaultBodyLimit, Query, Request, State};
-use axum::http::{header, HeaderValue, StatusCode};
+use axum::body::{Body, Bytes};
+use axum::extract::{Query, Request, State};
+use axum::http::{header, HeaderMap, HeaderValue, StatusCode};
 use axum::middleware::{self, Next};
 use axum::response::{IntoResponse, Response};
 use axum::routing::{get, post};
@@ -43,8 +54,11 @@ use rayscope_core::{render, trace_pixel_with, Channel, FovAxis, RenderSettings, 
 use rayscope_scene::{SceneFile, Shape};
 use serde::Deserialize;
 use serde_json::{json, Value};
+use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 use crate::encode;
+use crate::guard::{cross_site_refusal, HostPolicy};
+use crate::net::MAX_URL_BYTES;
 use crate::view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewOptions};
 
 /// Largest image the debugger renders, per side.
@@ -57,6 +71,8 @@ pub const MAX_RAYS: u32 = 4096;
 const SETTINGS_BODY_LIMIT: usize = 16 * 1024;
 /// Largest uploaded reference image in bytes.
 const COMPARE_BODY_LIMIT: usize = 32 * 1024 * 1024;
+/// Most a reference PNG's decoder may hold besides its pixels (chunks before the image data).
+const REFERENCE_CHUNK_BYTES: u64 = 4 * 1024 * 1024;
 /// Most primitive tests the intersector check may cost (pixels × primitives).
 const CHECK_BUDGET: u64 = 2_000_000_000;
 /// Most mismatches listed (all are counted).
@@ -97,6 +113,43 @@ pub struct ServeConfig {
     pub host: String,
     /// Port (0: any free port).
     pub port: u16,
+    /// Host names the server answers to besides `localhost`, IP addresses it listens on and
+    /// `host` itself (the `Host` allow-list against DNS rebinding).
+    pub allow_hosts: Vec<String>,
+    /// Bounds on connections, time and concurrent heavy work.
+    pub limits: ServerLimits,
+}
+
+/// Bounds that keep the debugger answering whatever its clients do.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct ServerLimits {
+    /// Most open connections; further clients wait in the kernel's listen backlog.
+    pub max_connections: usize,
+    /// Time a client has to send a request's head; also how long an idle keep-alive
+    /// connection stays open.
+    pub header_timeout: Duration,
+    /// Time a client has to send a request's body.
+    pub body_timeout: Duration,
+    /// Longest a response write may make no progress (a client that stopped reading).
+    pub write_timeout: Duration,
+    /// Most heavy requests (views, traces, channel renders, checks, compares) in flight; one
+    /// more is answered 503 with `Retry-After`.
+    pub heavy_slots: usize,
+}
+
+impl Default for ServerLimits {
+    /// 256 connections (well under the usual 1,024 open files), 10 s for a head or an idle
+    /// connection, 30 s for a body or a stalled write, and 4 heavy requests: each of those
+    /// already uses every core, so more in flight adds memory, not speed.
+    fn default() -> Self {
+        Self {
+            max_connections: 256,
+            header_timeout: Duration::from_secs(10),
+            body_timeout: Duration::from_secs(30),
+            write_timeout: Duration::from_secs(30),
+            heavy_slots: 4,
+        }
+    }
 }
 
 /// A server running on a background thread.
@@ -104,8 +157,10 @@ pub struct ServeConfig {
 pub struct RunningServer {
     /// The address it listens on.
     pub addr: SocketAddr,
-    /// The URL to open.
+    /// The URL to open on this machine.
     pub url: String,
+    /// The host names it answers to besides IP addresses (sorted).
+    pub host_names: Vec<String>,
     shutdown: Option<tokio::sync::oneshot::Sender<()>>,
     thread: Option<JoinHandle<Result<(), String>>>,
 }
@@ -208,13 +263,22 @@ pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
     let listener = StdListener::bind(&addrs[..]).map_err(bind_err)?;
     listener.set_nonblocking(true).map_err(bind_err)?;
     let addr = listener.local_addr().map_err(bind_err)?;
+    // The name the user bound to is one they will type.
+    let mut names = cfg.allow_hosts.clone();
+    if cfg.host.parse::<IpAddr>().is_err() {
+        names.push(cfg.host.clone());
+    }
+    let hosts = HostPolicy::new(addr, &names);
     let host = match addr.ip() {
-        IpAddr::V6(ip) => format!("[{ip}]"),
         IpAddr::V4(ip) if ip.is_unspecified() => "127.0.0.1".to_string(),
+        IpAddr::V6(ip) if ip.is_unspecified() => "[::1]".to_string(),
+        IpAddr::V6(ip) => format!("[{ip}]"),
         IpAddr::V4(ip) => ip.to_string(),
     };
     let url = format!("http://{host}:{}/", addr.port());
-    let state = Arc::new(AppState::new(cfg, addr));
+    let limits = cfg.limits;
+    let host_names = hosts.names().to_vec();
+    let state = Arc::new(AppState::new(cfg, hosts));
     state.start_render();
     let app = router(state);
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
@@ -228,18 +292,18 @@ pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
         .spawn(move || {
             runtime.block_on(async move {
                 let listener = tokio::net::TcpListener::from_std(listener).map_err(|e| e.to_string())?;
-                axum::serve(listener, app)
-                    .with_graceful_shutdown(async move {
-                        let _ = rx.await;
-                    })
-                    .await
-                    .map_err(|e| e.to_string())
+                crate::net::serve(listener, app, limits, async move {
+                    let _ = rx.await;
+                })
+                .await;
+                Ok(())
             })
         })
         .map_err(|e| DebugError::Server(e.to_string()))?;
     Ok(RunningServer {
         addr,
         url,
+        host_names,
         shutdown: Some(tx),
         thread: Some(thread),
     })
@@ -252,7 +316,33 @@ pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
 /// See [`start`].
 pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
     let server = start(cfg)?;
-    println!("rayscope debugger listening on {}", server.url);
+    if server.addr.ip().is_loopback() {
+        println!("rayscope debugger listening on {}", server.url);
+    } else {
+        let ip = server.addr.ip();
+        let port = server.addr.port();
+        let shown = server.addr.to_string();
+        let which = if ip.is_unspecified() {
+            " (every network interface)"
+        } else {
+            ""
+        };
+        println!("rayscope debugger listening on http://{shown}/{which}");
+        println!("  on this machine: {}", server.url);
+        let names: Vec<String> = server
+            .host_names
+            .iter()
+            .filter(|n| *n != "localhost")
+            .map(|n| format!("http://{n}:{port}/"))
+            .collect();
+        if ip.is_unspecified() {
+            println!("  from other machines: http://<this machine's IP address>:{port}/");
+        }
+        if !names.is_empty() {
+            println!("  by name: {}", names.join(", "));
+        }
+        eprintln!("{}", exposure_warning(&shown));
+    }
     println!("press Ctrl-C to stop");
     if open {
         let _ = std::process::Command::new("xdg-open")
@@ -262,6 +352,17 @@ pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
             .spawn();
     }
     server.wait()
+}
+
+/// What `rayscope debug` prints when it listens beyond this machine.
+fn exposure_warning(shown: &str) -> String {
+    format!(
+        "WARNING: the debugger is listening on {shown}, which other machines on the network can reach.\n\
+         WARNING: it has no password and no encryption: anyone who can connect sees the scene (and its file\n\
+         WARNING: names) and can start renders on this machine. Requests are answered only for this\n\
+         WARNING: machine's IP addresses, localhost and names given with --allow-host.\n\
+         WARNING: Leave out --host (the default is 127.0.0.1) unless you need this."
+    )
 }
 
 /// A finished colour render.
@@ -335,17 +436,48 @@ struct Inner {
 struct AppState {
     scene: Arc<Scene>,
     scene_json: Value,
-    addr: SocketAddr,
+    hosts: HostPolicy,
+    limits: ServerLimits,
+    heavy: HeavyPool,
     inner: Mutex<Inner>,
 }
 
+/// The slots heavy requests take, so that a flood of them costs a bounded amount of memory.
+struct HeavyPool(Arc<Semaphore>, usize);
+
+/// A heavy request's slot, shared by the blocking tasks doing its work: the slot is free once
+/// the work has stopped, not when the client gives up.
+type HeavySlot = Arc<OwnedSemaphorePermit>;
+
+impl HeavyPool {
+    fn new(n: usize) -> Self {
+        Self(Arc::new(Semaphore::new(n.max(1))), n.max(1))
+    }
+
+    /// A free slot, or the 503 to answer.
+    fn slot(&self) -> ApiResult<HeavySlot> {
+        match self.0.clone().try_acquire_owned() {
+            Ok(p) => Ok(Arc::new(p)),
+            Err(_) => Err(ApiError(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!(
+                    "the debugger is busy: {} views, traces, renders or compares are already running; try again in a moment",
+                    self.1
+                ),
+            )),
+        }
+    }
+}
+
 impl AppState {
-    fn new(cfg: ServeConfig, addr: SocketAddr) -> Self {
+    fn new(cfg: ServeConfig, hosts: HostPolicy) -> Self {
         let scene_json = scene_json(&cfg);
         Self {
             scene: Arc::new(cfg.scene),
             scene_json,
-            addr,
+            hosts,
+            limits: cfg.limits,
+            heavy: HeavyPool::new(cfg.limits.heavy_slots),
             inner: Mutex::new(Inner {
                 settings: cfg.settings,
                 job: Job {
@@ -611,7 +743,20 @@ impl ApiError {
 
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
-        (self.0, Json(json!({ "error": self.1 }))).into_response()
+        let mut res = (self.0, Json(json!({ "error": self.1 }))).into_response();
+        match self.0 {
+            StatusCode::SERVICE_UNAVAILABLE => {
+                res.headers_mut()
+                    .insert(header::RETRY_AFTER, HeaderValue::from_static("1"));
+            }
+            // The rest of the body may still be on its way: do not read it as the next request.
+            StatusCode::REQUEST_TIMEOUT | StatusCode::PAYLOAD_TOO_LARGE => {
+                res.headers_mut()
+                    .insert(header::CONNECTION, HeaderValue::from_static("close"));
+            }
+            _ => {}
+        }
+        res
     }
 }
 
@@ -619,60 +764,170 @@ type ApiResult<T> = Result<T, ApiError>;
 type Params = Query<HashMap<String, String>>;
 
 fn router(state: Arc<AppState>) -> Router {
-    Router::new()
+    let routes = Router::new()
         .route("/", get(index))
         .route("/index.html", get(index))
         .route("/app.js", get(app_js))
         .route("/app.css", get(app_css))
         .route("/api/scene", get(api_scene))
-        .route(
-            "/api/settings",
-            get(api_get_settings)
-                .post(api_post_settings)
-                .layer(DefaultBodyLimit::max(SETTINGS_BODY_LIMIT)),
-        )
+        .route("/api/settings", get(api_get_settings).post(api_post_settings))
         .route("/api/render/status", get(api_status))
         .route("/api/image.png", get(api_image))
         .route("/api/view", get(api_view))
         .route("/api/pick", get(api_pick))
         .route("/api/trace", get(api_trace))
         .route("/api/check", get(api_check))
-        .route(
-            "/api/compare",
-            post(api_compare).layer(DefaultBodyLimit::max(COMPARE_BODY_LIMIT)),
-        )
+        .route("/api/compare", post(api_compare))
         .route("/api/compare/heatmap.png", get(api_heatmap))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
-        .layer(middleware::from_fn_with_state(state.clone(), guard))
-        .with_state(state)
+        .with_state(state.clone());
+    // The guard wraps the whole router rather than each route, so that it also sees what the
+    // router adds outside its routes (the `Allow` header of a 405).
+    Router::new()
+        .fallback_service(routes)
+        .layer(middleware::from_fn_with_state(state, guard))
 }
 
-/// Rejects requests whose Host header names another site (DNS rebinding) when bound to a
-/// loopback address, and adds no-cache and nosniff headers.
+/// Refuses requests for a `Host` off the allow-list (DNS rebinding), from another page (see
+/// [`cross_site_refusal`]) or with an overlong URL, before any handler runs; then makes every
+/// error the JSON one and adds the headers every answer carries.
 async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Response {
-    if st.addr.ip().is_loopback() {
-        let host = req
-            .headers()
-            .get(header::HOST)
-            .and_then(|h| h.to_str().ok())
-            .unwrap_or("");
-        let port = st.addr.port();
-        let ok = [
-            format!("127.0.0.1:{port}"),
-            format!("localhost:{port}"),
-            format!("[::1]:{port}"),
-        ]
-        .iter()
-        .any(|h| h == host);
-        if !ok {
-            return ApiError(StatusCode::FORBIDDEN, format!("unexpected Host header '{host}'")).into_response();
+    let method = req.method().clone();
+    let path = req.uri().path().to_string();
+    let host = req
+        .headers()
+        .get(header::HOST)
+        .and_then(|h| h.to_str().ok())
+        .unwrap_or("")
+        .to_string();
+    let url_len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    let res = if !st.hosts.allows(&host) {
+        ApiError(
+            StatusCode::FORBIDDEN,
+            format!(
+                "unexpected Host header '{host}': the debugger answers only for its own addresses and names (add one with --allow-host)"
+            ),
+        )
+        .into_response()
+    } else if let Some(why) = cross_site_refusal(&method, &path, req.headers(), &host) {
+        ApiError(StatusCode::FORBIDDEN, why).into_response()
+    } else if url_len > MAX_URL_BYTES {
+        ApiError(
+            StatusCode::URI_TOO_LONG,
+            format!("the URL is too long ({url_len} bytes; at most {MAX_URL_BYTES})"),
+        )
+        .into_response()
+    } else {
+        next.run(req).await
+    };
+    finish_response(res, &method, &path).await
+}
+
+/// Replaces a non-JSON error answer (axum's 405 and extractor rejections) with the JSON one,
+/// and adds no-cache, nosniff and no-framing headers.
+async fn finish_response(res: Response, method: &axum::http::Method, path: &str) -> Response {
+    let status = res.status();
+    let is_json = res
+        .headers()
+        .get(header::CONTENT_TYPE)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|t| t.starts_with("application/json"));
+    let mut res = if (status.is_client_error() || status.is_server_error()) && !is_json {
+        let (mut parts, body) = res.into_parts();
+        let text = axum::body::to_bytes(body, 4096)
+            .await
+            .map(|b| String::from_utf8_lossy(&b).trim().to_string())
+            .unwrap_or_default();
+        let message = if status == StatusCode::METHOD_NOT_ALLOWED {
+            let allowed = parts
+                .headers
+                .get(header::ALLOW)
+                .and_then(|v| v.to_str().ok())
+                .unwrap_or("")
+                .to_string();
+            format!("{method} is not allowed on {path}; it takes {allowed}")
+        } else if text.is_empty() {
+            status.canonical_reason().unwrap_or("error").to_string()
+        } else {
+            text
+        };
+        parts.headers.remove(header::CONTENT_LENGTH);
+        let mut res = ApiError(status, message).into_response();
+        for (k, v) in parts.headers.iter() {
+            if k != header::CONTENT_TYPE {
+                res.headers_mut().insert(k.clone(), v.clone());
+            }
         }
-    }
-    let mut res = next.run(req).await;
+        res
+    } else {
+        res
+    };
     let h = res.headers_mut();
     h.insert(header::CACHE_CONTROL, HeaderValue::from_static("no-store"));
-    h.insert("x-content-type-options", HeaderValue::from_static("nosniff"));
+    h.insert(header::X_CONTENT_TYPE_OPTIONS, HeaderValue::from_static("nosniff"));
+    h.insert(header::X_FRAME_OPTIONS, HeaderValue::from_static("DENY"));
+    h.insert(
+        header::CONTENT_SECURITY_POLICY,
+        HeaderValue::from_static("frame-ancestors 'none'"),
+    );
+    // Other pages may not embed the debugger's images or data (an <img> on another site).
+    h.insert("cross-origin-resource-policy", HeaderValue::from_static("same-origin"));
     res
+}
+
+/// Reads a request body sent as `mime`, at most `limit` bytes, within the body timeout.
+///
+/// The type is required, not guessed: `application/json` and `image/png` are types a page on
+/// another origin cannot send without a preflight, so requiring them keeps forms and no-cors
+/// fetches (which may only send `text/plain`, form and multipart bodies) out.
+async fn read_body(
+    st: &AppState,
+    headers: &HeaderMap,
+    body: Body,
+    mime: &str,
+    what: &str,
+    limit: usize,
+) -> ApiResult<Bytes> {
+    let sent = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let essence = sent.as_deref().and_then(|t| t.split(';').next()).unwrap_or("").trim();
+    if !essence.eq_ignore_ascii_case(mime) {
+        return Err(ApiError(
+            StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            format!(
+                "send {what} with Content-Type: {mime} (got {})",
+                sent.map_or("none".to_string(), |t| format!("'{t}'"))
+            ),
+        ));
+    }
+    let too_large = || {
+        ApiError(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("{what} is too large (at most {limit} bytes)"),
+        )
+    };
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > limit as u64) {
+        return Err(too_large());
+    }
+    use http_body_util::BodyExt;
+    let read = http_body_util::Limited::new(body, limit).collect();
+    match tokio::time::timeout(st.limits.body_timeout, read).await {
+        Err(_) => Err(ApiError(
+            StatusCode::REQUEST_TIMEOUT,
+            format!(
+                "{what} did not arrive within {} s",
+                st.limits.body_timeout.as_secs_f64()
+            ),
+        )),
+        Ok(Err(e)) if e.is::<http_body_util::LengthLimitError>() => Err(too_large()),
+        Ok(Err(e)) => Err(ApiError::bad(format!("could not read {what}: {e}"))),
+        Ok(Ok(c)) => Ok(c.to_bytes()),
+    }
 }
 
 async fn index() -> impl IntoResponse {
@@ -710,7 +965,16 @@ async fn api_get_settings(State(st): State<Arc<AppState>>) -> Json<Value> {
     Json(json!({"settings": settings_json(&g.settings), "job": g.job.id}))
 }
 
-async fn api_post_settings(State(st): State<Arc<AppState>>, body: Bytes) -> ApiResult<Json<Value>> {
+async fn api_post_settings(State(st): State<Arc<AppState>>, headers: HeaderMap, body: Body) -> ApiResult<Json<Value>> {
+    let body = read_body(
+        &st,
+        &headers,
+        body,
+        "application/json",
+        "the settings",
+        SETTINGS_BODY_LIMIT,
+    )
+    .await?;
     let patch: SettingsPatch =
         serde_json::from_slice(&body).map_err(|e| ApiError::bad(format!("invalid settings JSON: {e}")))?;
     let current = st.lock().settings;
@@ -769,8 +1033,13 @@ fn parse_channel(s: &str) -> Result<(Channel, &'static str), ApiError> {
 }
 
 /// The image for `channel` at the current settings; colour comes from the last finished render
-/// (`None` while none matches the current image size).
-async fn channel_image(st: &Arc<AppState>, channel: Channel, name: &'static str) -> ApiResult<Option<Arc<RgbImage>>> {
+/// (`None` while none matches the current image size). A render it needs runs under `slot`.
+async fn channel_image(
+    st: &Arc<AppState>,
+    channel: Channel,
+    name: &'static str,
+    slot: &HeavySlot,
+) -> ApiResult<Option<Arc<RgbImage>>> {
     let settings = st.lock().settings;
     if channel == Channel::Color {
         let g = st.lock();
@@ -786,7 +1055,9 @@ async fn channel_image(st: &Arc<AppState>, channel: Channel, name: &'static str)
         }
     }
     let st2 = st.clone();
+    let slot = slot.clone();
     let img = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
         let s = RenderSettings { channel, ..settings };
         let never = AtomicBool::new(false);
         render(&st2.scene, &s, &|_, _| {}, &never).ok().map(|out| RgbImage {
@@ -809,12 +1080,16 @@ fn png_response(bytes: Vec<u8>) -> Response {
 
 async fn api_image(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Response> {
     let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
-    let img = channel_image(&st, channel, name).await?;
+    let slot = st.heavy.slot()?;
+    let img = channel_image(&st, channel, name, &slot).await?;
     match img {
         Some(img) => {
-            let bytes = tokio::task::spawn_blocking(move || encode::png(&img))
-                .await
-                .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+            let bytes = tokio::task::spawn_blocking(move || {
+                let _slot = slot;
+                encode::png(&img)
+            })
+            .await
+            .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
             Ok(png_response(bytes))
         }
         None => Err(ApiError(StatusCode::CONFLICT, "no finished render yet".into())),
@@ -974,8 +1249,12 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
     opts.antialias = !is_off(&q, "aa");
     opts.hidden_alpha = parse_num(&q, "hidden", 0.12f32, 0.0, 1.0)?;
     let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
+    let want_tree = flag("tree");
+    let jpeg = !matches!(q.get("format").map(String::as_str), Some("png"));
+    let quality = parse_num(&q, "quality", 88u8, 30, 100)?;
+    let slot = st.heavy.slot()?;
     let image = if opts.image == ImageMode::Traced {
-        channel_image(&st, channel, name).await?
+        channel_image(&st, channel, name, &slot).await?
     } else {
         None
     };
@@ -984,11 +1263,9 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
             opts.highlight = c.cells.clone();
         }
     }
-    let want_tree = flag("tree");
-    let jpeg = !matches!(q.get("format").map(String::as_str), Some("png"));
-    let quality = parse_num(&q, "quality", 88u8, 30, 100)?;
     let st2 = st.clone();
     let (bytes, info) = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
         if want_tree {
             if let Some((x, y)) = opts.pixel {
                 opts.tree = Some(trace_pixel_with(&st2.scene, &*st2.scene, &settings, x, y, sample));
@@ -1045,7 +1322,9 @@ async fn api_trace(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResu
         }
     };
     let st2 = st.clone();
+    let slot = st.heavy.slot()?;
     let tree = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
         if reference {
             trace_pixel_with(
                 &st2.scene,
@@ -1154,10 +1433,14 @@ async fn api_check(State(st): State<Arc<AppState>>) -> ApiResult<Json<Value>> {
         )));
     }
     let st2 = st.clone();
+    let slot = st.heavy.slot()?;
     let start = Instant::now();
-    let (all, n) = tokio::task::spawn_blocking(move || run_check(&st2.scene, &settings))
-        .await
-        .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("check failed: {e}")))?;
+    let (all, n) = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
+        run_check(&st2.scene, &settings)
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("check failed: {e}")))?;
     let ties = all.iter().filter(|m| m.kind == "tie").count();
     let cells: Vec<(u32, u32)> = all.iter().map(|m| (m.x, m.y)).collect();
     let json = json!({
@@ -1177,36 +1460,59 @@ async fn api_check(State(st): State<Arc<AppState>>) -> ApiResult<Json<Value>> {
     Ok(Json(json))
 }
 
-async fn api_compare(State(st): State<Arc<AppState>>, body: Bytes) -> ApiResult<Json<Value>> {
+/// Decodes a reference PNG of exactly `width` × `height` pixels.
+///
+/// The size is read from the header first and the decoder is limited to that size, so a small
+/// file that would decode to a huge image (a decompression bomb) costs no more than the header.
+fn decode_reference(png: &[u8], width: u32, height: u32) -> Result<image::RgbImage, String> {
+    let reader = |limits: image::Limits| {
+        let mut r = image::ImageReader::with_format(std::io::Cursor::new(png), image::ImageFormat::Png);
+        r.limits(limits);
+        r
+    };
+    // Chunks before the pixels (text, ICC profiles) are read too: bounded by max_alloc.
+    let mut header = image::Limits::default();
+    header.max_alloc = Some(REFERENCE_CHUNK_BYTES);
+    let (w, h) = reader(header)
+        .into_dimensions()
+        .map_err(|e| format!("not a readable PNG: {e}"))?;
+    if (w, h) != (width, height) {
+        return Err(format!("the reference is {w}×{h} but the render is {width}×{height}"));
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(width);
+    limits.max_image_height = Some(height);
+    // The largest pixel format (16-bit RGBA) plus the decoder's own buffers.
+    limits.max_alloc = Some(u64::from(width) * u64::from(height) * 8 + REFERENCE_CHUNK_BYTES);
+    Ok(reader(limits)
+        .decode()
+        .map_err(|e| format!("not a readable PNG: {e}"))?
+        .into_rgb8())
+}
+
+async fn api_compare(State(st): State<Arc<AppState>>, headers: HeaderMap, body: Body) -> ApiResult<Json<Value>> {
     let rendered = st
         .lock()
         .rendered
         .clone()
         .ok_or_else(|| ApiError(StatusCode::CONFLICT, "no finished render to compare with yet".into()))?;
+    let body = read_body(
+        &st,
+        &headers,
+        body,
+        "image/png",
+        "the reference PNG",
+        COMPARE_BODY_LIMIT,
+    )
+    .await?;
     if body.is_empty() {
         return Err(ApiError::bad("send the reference PNG as the request body"));
     }
+    let slot = st.heavy.slot()?;
     let result = tokio::task::spawn_blocking(move || -> Result<(Value, Vec<u8>), String> {
-        let mut reader = image::ImageReader::with_format(std::io::Cursor::new(&body[..]), image::ImageFormat::Png);
-        let mut limits = image::Limits::default();
-        limits.max_image_width = Some(8192);
-        limits.max_image_height = Some(8192);
-        limits.max_alloc = Some(512 * 1024 * 1024);
-        reader.limits(limits);
-        let img = reader
-            .decode()
-            .map_err(|e| format!("not a readable PNG: {e}"))?
-            .to_rgb8();
+        let _slot = slot;
         let r = &rendered.image;
-        if img.width() != r.width || img.height() != r.height {
-            return Err(format!(
-                "the reference is {}×{} but the render is {}×{}",
-                img.width(),
-                img.height(),
-                r.width,
-                r.height
-            ));
-        }
+        let img = decode_reference(&body, r.width, r.height)?;
         let c = rayscope_core::compare::compare_rgb8(&r.rgb, img.as_raw());
         let heat = rayscope_core::compare::heatmap_rgb8(&r.rgb, img.as_raw(), 32);
         let png = encode::png(&RgbImage {

@@ -12,7 +12,7 @@ use std::time::{Duration, Instant};
 
 use fantoccini::{Client, ClientBuilder, Locator};
 use rayscope_core::{CameraSettings, FovAxis, RenderSettings, Scene};
-use rayscope_debug::{RunningServer, ServeConfig};
+use rayscope_debug::{RunningServer, ServeConfig, ServerLimits};
 use serde_json::json;
 
 fn find_exe(names: &[&str]) -> Option<PathBuf> {
@@ -121,6 +121,8 @@ fn debugger_in_chromium() {
         settings,
         host: "127.0.0.1".into(),
         port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
     })
     .expect("debugger starts");
     let url = server.url.clone();
@@ -290,5 +292,50 @@ async fn drive(c: &Client, url: &str) -> Result<(), String> {
     .await;
     assert!(summary.starts_with("0 of 108 pixels disagree"), "{summary}");
     shot(c, "04-check.png").await;
+
+    // The same page under another origin (localhost and 127.0.0.1 are different origins and
+    // sites) works against its own server, but cannot change the settings at 127.0.0.1 the
+    // ways a page can without a preflight, nor with one.
+    let other = url.replace("127.0.0.1", "localhost");
+    c.goto(&other).await.map_err(|e| e.to_string())?;
+    wait_for("the page under localhost", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+    let outcomes = c
+        .execute_async(
+            r#"const [target, done] = arguments;
+            const body = JSON.stringify({ width: 5 });
+            const form = new URLSearchParams({ width: "5" });
+            Promise.allSettled([
+              fetch(target + "api/settings", { method: "POST", mode: "no-cors", headers: { "content-type": "text/plain" }, body }),
+              fetch(target + "api/settings", { method: "POST", mode: "no-cors", body: form }),
+              fetch(target + "api/settings", { method: "POST", headers: { "content-type": "application/json" }, body }),
+            ]).then((rs) => done(rs.map((r) => r.status === "fulfilled" ? r.value.type : "refused")));"#,
+            vec![json!(url)],
+        )
+        .await
+        .map_err(|e| e.to_string())?;
+    // The page reads none of the answers: the no-cors posts get an opaque answer or none (the
+    // server's Cross-Origin-Resource-Policy), the JSON one needs a preflight, never granted.
+    let outcomes: Vec<&str> = outcomes
+        .as_array()
+        .ok_or("outcomes")?
+        .iter()
+        .map(|v| v.as_str().unwrap_or("?"))
+        .collect();
+    assert!(
+        outcomes[..2].iter().all(|o| *o == "opaque" || *o == "refused") && outcomes[2] == "refused",
+        "cross-origin fetches: {outcomes:?}"
+    );
+    let width = c
+        .execute_async(
+            r#"const [done] = arguments;
+            fetch("/api/settings").then((r) => r.json()).then((v) => done(v.settings.width));"#,
+            vec![],
+        )
+        .await
+        .map_err(|e| e.to_string())?;
+    assert_eq!(width, json!(12), "no forged request changed the settings");
     Ok(())
 }

@@ -35,8 +35,18 @@ function el(tag, attrs = {}, ...kids) {
   for (const k of kids) if (k != null) e.append(k);
   return e;
 }
+// The server answers 503 with Retry-After while its heavy-request slots are all taken: wait and
+// ask again a few times before showing the error.
+async function fetchRetry(path, opts) {
+  for (let attempt = 0; ; attempt++) {
+    const r = await fetch(path, opts);
+    if (r.status !== 503 || attempt >= 4) return r;
+    const secs = Math.min(Number(r.headers.get("retry-after")) || 1, 5);
+    await new Promise((done) => setTimeout(done, secs * 1000));
+  }
+}
 async function api(path, opts) {
-  const r = await fetch(path, opts);
+  const r = await fetchRetry(path, opts);
   const ct = r.headers.get("content-type") || "";
   const body = ct.includes("json") ? await r.json() : await r.text();
   if (!r.ok) throw new Error(body && body.error ? body.error : `${r.status} ${r.statusText}`);
@@ -102,7 +112,7 @@ function requestView(draft = false) {
   const p = viewParams(draft);
   if (viewBusy) { viewPending = draft; return; }
   viewBusy = true;
-  fetch("/api/view?" + p.toString())
+  fetchRetry("/api/view?" + p.toString())
     .then(async (r) => {
       if (!r.ok) { const e = await r.json().catch(() => ({})); throw new Error(e.error || r.statusText); }
       const info = JSON.parse(r.headers.get("x-view-info") || "{}");
@@ -368,7 +378,12 @@ function loadImage() {
     try { st.imageData = g.getImageData(0, 0, c.width, c.height); } catch (_) { st.imageData = null; }
     img.dataset.loaded = `${img.naturalWidth}x${img.naturalHeight}`;
   };
-  img.onerror = () => { st.imageData = null; };
+  // A busy server (503) or a render still on its way: try again a few times.
+  let tries = 0;
+  img.onerror = () => {
+    st.imageData = null;
+    if (++tries <= 4) setTimeout(() => { img.src = imageSrc() + `&try=${tries}`; }, 1000);
+  };
   img.src = imageSrc();
   layoutImage();
 }
