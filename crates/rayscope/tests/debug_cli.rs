@@ -301,7 +301,7 @@ fn get_with_host(port: u16, host: &str) -> u16 {
 fn debug_on_every_interface_warns_prints_its_address_and_keeps_the_host_check() {
     let mut child = Command::cargo_bin("rayscope")
         .unwrap()
-        .args(["debug", &scene("sample_scene_1.txt"), "-w", "8", "-h", "8", "--quiet"])
+        .args(["debug", &scene("basic.txt"), "-w", "8", "-h", "8", "--quiet"])
         .args(["--host", "0.0.0.0", "--allow-host", "Lab-PC.local"])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())

@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command as StdCommand;
 use std::time::{Duration, Instant};
 
-use common::{rayscope, reference, scenes};
+use common::{rayscope, scenes};
 use serde_json::Value;
 
 fn examples(rel: &str) -> PathBuf {
@@ -75,12 +75,13 @@ fn findings(report: &Value) -> Vec<(String, String, String, u64, u64)> {
 
 #[test]
 fn a_correct_intersector_passes_every_course_scene_and_ours_in_double_and_single_precision() {
-    for scene in [
-        reference("tests/sample_scene_1.txt"),
-        reference("tests/sample_scene_2.txt"),
-        reference("tests/sample_scene_obj.txt"),
-        scenes("obj.txt"),
-    ] {
+    let mut all = vec![scenes("obj.txt"), scenes("room.txt")];
+    if let Some(course) = rayscope_testkit::course_part() {
+        for name in ["sample_scene_1.txt", "sample_scene_2.txt", "sample_scene_obj.txt"] {
+            all.push(course.scene(name));
+        }
+    }
+    for scene in all {
         // "float32" rounds every operation to single precision, as a tracer in float does.
         for precision in ["", "float32"] {
             let (code, report) = probe(&scene, precision);
@@ -98,9 +99,10 @@ fn a_correct_intersector_passes_every_course_scene_and_ours_in_double_and_single
 
 #[test]
 fn the_python_example_tracer_passes() {
+    let Some(course) = rayscope_testkit::course() else { return };
     let out = rayscope()
         .args(["probe", "-f"])
-        .arg(reference("tests/sample_scene_2.txt"))
+        .arg(course.scene("sample_scene_2.txt"))
         .arg("--")
         .arg(python())
         .arg(examples("python/probe_adapter.py"))
@@ -143,9 +145,10 @@ fn names(mistakes: &str, scene: &Path, required: &[(&str, &str, &str)], allowed:
 
 #[test]
 fn names_a_sphere_returning_the_root_behind_the_origin() {
+    let Some(course) = rayscope_testkit::course() else { return };
     names(
         "sphere-inside",
-        &reference("tests/sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[
             ("sphere", "inside", "behind-origin"),
             ("sphere", "centre", "behind-origin"),
@@ -158,10 +161,11 @@ fn names_a_sphere_returning_the_root_behind_the_origin() {
 
 #[test]
 fn names_a_sphere_taking_the_far_root() {
+    let Some(course) = rayscope_testkit::course() else { return };
     let all = ["outside-hit", "grazing", "near", "far", "tiny", "huge"].map(|c| ("sphere", c, "wrong-root"));
     names(
         "sphere-far-root",
-        &reference("tests/sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[("sphere", "outside-hit", "wrong-root"), ("sphere", "far", "wrong-root")],
         &all,
     );
@@ -169,9 +173,10 @@ fn names_a_sphere_taking_the_far_root() {
 
 #[test]
 fn names_a_one_sided_triangle() {
+    let Some(course) = rayscope_testkit::course() else { return };
     names(
         "triangle-one-sided",
-        &reference("tests/sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[("triangle", "back-hit", "missed")],
         &[],
     );
@@ -179,7 +184,8 @@ fn names_a_one_sided_triangle() {
 
 #[test]
 fn names_a_plane_that_divides_by_zero_for_parallel_rays() {
-    let scene = reference("tests/sample_scene_1.txt");
+    let Some(course) = rayscope_testkit::course() else { return };
+    let scene = course.scene("sample_scene_1.txt");
     names(
         "plane-parallel",
         &scene,
@@ -208,9 +214,10 @@ fn names_a_plane_that_divides_by_zero_for_parallel_rays() {
 
 #[test]
 fn names_a_strict_edge_test() {
+    let Some(course) = rayscope_testkit::course() else { return };
     names(
         "triangle-strict",
-        &reference("tests/sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[("triangle", "edge", "missed"), ("triangle", "vertex", "missed")],
         &[],
     );
@@ -218,7 +225,8 @@ fn names_a_strict_edge_test() {
 
 #[test]
 fn names_normals_that_are_not_unit_length() {
-    let (code, report) = probe(&reference("tests/sample_scene_2.txt"), "normal-unnormalised");
+    let Some(course) = rayscope_testkit::course() else { return };
+    let (code, report) = probe(&course.scene("sample_scene_2.txt"), "normal-unnormalised");
     assert_eq!(code, 1);
     // One finding per kind of primitive, on every hit, not one per case.
     let found = findings(&report);
@@ -235,9 +243,10 @@ fn names_normals_that_are_not_unit_length() {
 
 #[test]
 fn the_text_report_explains_and_reproduces() {
+    let Some(course) = rayscope_testkit::course() else { return };
     let out = rayscope()
         .args(["probe", "-f"])
-        .arg(reference("tests/sample_scene_2.txt"))
+        .arg(course.scene("sample_scene_2.txt"))
         .env("PROBE_MISTAKES", "sphere-inside")
         .arg("--")
         .arg(python())
@@ -270,7 +279,7 @@ fn probe_program(code: &str, flags: &[&str]) -> (i32, String, f64) {
     let start = Instant::now();
     let out = rayscope()
         .args(["probe", "-f"])
-        .arg(reference("tests/sample_scene_1.txt"))
+        .arg(scenes("basic.txt"))
         .args(flags)
         .arg("--")
         .arg(python())
@@ -321,6 +330,7 @@ fn a_crashing_program_shows_its_exit_status_and_stderr() {
 
 #[test]
 fn a_program_printing_garbage_is_quoted() {
+    let Some(course) = rayscope_testkit::course() else { return };
     let (code, err, _) = probe_program(
         &format!("{READY}sys.stdin.readline()\nprint('Hit sphere at 0.5', flush=True)\ntime.sleep(60)\n"),
         &["--timeout", "5"],
@@ -359,7 +369,7 @@ fn a_program_printing_garbage_is_quoted() {
     // A program that is not there.
     let out = rayscope()
         .args(["probe", "-f"])
-        .arg(reference("tests/sample_scene_1.txt"))
+        .arg(course.scene("sample_scene_1.txt"))
         .args(["--", "no-such-program-rayscope"])
         .output()
         .unwrap();
@@ -369,6 +379,7 @@ fn a_program_printing_garbage_is_quoted() {
 
 #[test]
 fn the_csharp_adapter_compiles_and_passes() {
+    let Some(course) = rayscope_testkit::course() else { return };
     let have = StdCommand::new("mcs")
         .arg("--version")
         .output()
@@ -398,7 +409,7 @@ fn the_csharp_adapter_compiles_and_passes() {
     assert!(built.status.success(), "{}", String::from_utf8_lossy(&built.stdout));
     let out = rayscope()
         .args(["probe", "-f"])
-        .arg(reference("tests/sample_scene_2.txt"))
+        .arg(course.scene("sample_scene_2.txt"))
         .arg("--")
         .arg("mono")
         .arg(&exe)
