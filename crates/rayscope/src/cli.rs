@@ -51,6 +51,8 @@ pub enum Command {
     Debug(DebugArgs),
     /// Write the debugger's 3D scene view to an image, headless.
     View(ViewArgs),
+    /// Judge every ray your own tracer logged against rayscope's trace of the scene.
+    Check(CheckArgs),
 }
 
 /// Which of the course's stages to render.
@@ -381,6 +383,31 @@ pub struct ViewArgs {
     /// View height in pixels.
     #[arg(long = "view-height", default_value_t = 640, value_parser = clap::value_parser!(u32).range(16..=8192))]
     pub view_height: u32,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// `rayscope check`.
+#[derive(Debug, Clone, Args)]
+pub struct CheckArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Your tracer's ray log: JSON Lines (README), or RayTracer.Debug's binary `.rays`.
+    #[arg(long = "rays", value_name = "LOG")]
+    pub rays: PathBuf,
+    /// Print JSON (for scripts and autograders) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Skip malformed lines, counting them, instead of stopping at the first.
+    #[arg(long)]
+    pub lenient: bool,
+    /// What a `.rays` file's ids mean: "x,y" (default), e.g. "x,y,sample,id,parent", or "none".
+    #[arg(long = "ray-ids", default_value = "x,y", value_name = "ROLES")]
+    pub ray_ids: String,
+    /// Examples shown per verdict.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    pub examples: u32,
     #[command(flatten)]
     pub opts: RenderOpts,
 }
