@@ -1641,7 +1641,10 @@ impl<'a> Judge<'a> {
         if matches(want) {
             return want;
         }
-        if !lv.front && matches(Some(unflipped(eta))) {
+        // The normal's sign does not change whether total internal reflection happens (the test
+        // uses cos²θi), so under it a refracted ray means the test itself is missing.
+        let tir = want.is_none();
+        if !tir && !lv.front && matches(Some(unflipped(eta))) {
             f.push(self.finding(
                 r,
                 kind,
@@ -1651,7 +1654,7 @@ impl<'a> Judge<'a> {
             ));
             return want;
         }
-        if !lv.front && matches(Some(unflipped(1.0 / eta))) {
+        if !tir && !lv.front && matches(Some(unflipped(1.0 / eta))) {
             for code in [Code::RefractionNormalNotFlipped, Code::RefractionIndicesNotSwapped] {
                 f.push(self.finding(
                     r,

@@ -194,4 +194,12 @@ mod tests {
             assert!(c.explanation().len() > 60, "{} needs an explanation", c.as_str());
         }
     }
+
+    #[test]
+    fn readme_lists_every_code() {
+        let readme = include_str!("../../../README.md");
+        for &c in Code::ALL {
+            assert!(readme.contains(&format!("`{}`", c.as_str())), "README misses {}", c.as_str());
+        }
+    }
 }
