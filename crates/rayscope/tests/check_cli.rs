@@ -91,7 +91,7 @@ fn names_and_ranges_are_checked_against_the_scene_and_flags() {
     let out = check_cmd(&log).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("rays.jsonl:1:72"), "{err}");
+    assert!(err.contains("rays.jsonl:1:73"), "{err}");
     assert!(err.contains("no entity named 'Shpere'") && err.contains("'Sphere'"), "{err}");
 
     write(&log, &camera_line(8, 0, Vec3A::Z));
