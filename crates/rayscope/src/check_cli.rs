@@ -73,7 +73,10 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
     };
     if a.json {
         let v = report.to_json(&trace);
-        println!("{}", serde_json::to_string_pretty(&v).map_err(|e| Failure::failed(e.to_string()))?);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&v).map_err(|e| Failure::failed(e.to_string()))?
+        );
     } else {
         print!("{}", report.to_text(&trace));
     }

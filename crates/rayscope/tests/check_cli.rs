@@ -55,7 +55,10 @@ fn agreeing_log_exits_0_and_a_malformed_line_exits_2_with_its_place() {
     let out = check_cmd(&log).output().unwrap();
     assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stdout));
     let stdout = String::from_utf8_lossy(&out.stdout);
-    assert!(stdout.contains("checked 48 rays") && stdout.contains("every ray agrees"), "{stdout}");
+    assert!(
+        stdout.contains("checked 48 rays") && stdout.contains("every ray agrees"),
+        "{stdout}"
+    );
 
     // Line 3's direction has a string where a number belongs.
     let lines: Vec<&str> = good.lines().collect();
@@ -69,7 +72,10 @@ fn agreeing_log_exits_0_and_a_malformed_line_exits_2_with_its_place() {
     assert!(out.stdout.is_empty(), "no report on bad input");
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("rays.jsonl:3:"), "{err}");
-    assert!(err.contains("expected a JSON ray record") && err.contains("f64"), "{err}");
+    assert!(
+        err.contains("expected a JSON ray record") && err.contains("f64"),
+        "{err}"
+    );
 
     // --lenient skips it, counts it and judges the rest.
     let out = check_cmd(&log).arg("--lenient").output().unwrap();
@@ -92,15 +98,24 @@ fn names_and_ranges_are_checked_against_the_scene_and_flags() {
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("rays.jsonl:1:73"), "{err}");
-    assert!(err.contains("no entity named 'Shpere'") && err.contains("'Sphere'"), "{err}");
+    assert!(
+        err.contains("no entity named 'Shpere'") && err.contains("'Sphere'"),
+        "{err}"
+    );
 
     write(&log, &camera_line(8, 0, Vec3A::Z));
     let out = check_cmd(&log).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("outside the 8×6 image") && err.contains("-w and -h"), "{err}");
+    assert!(
+        err.contains("outside the 8×6 image") && err.contains("-w and -h"),
+        "{err}"
+    );
 
-    write(&log, "{\"sample\": 3, \"origin\": [0, 0, 0], \"direction\": [0, 0, 1]}\n");
+    write(
+        &log,
+        "{\"sample\": 3, \"origin\": [0, 0, 0], \"direction\": [0, 0, 1]}\n",
+    );
     let out = check_cmd(&log).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("pass the -x your tracer used"));
@@ -131,7 +146,10 @@ fn json_report_has_codes_counts_examples_and_replay_commands() {
     assert_eq!(ex["values"][0]["what"], "direction");
     assert_eq!(ex["values"][0]["yours"], serde_json::json!([0.0, 0.0, 1.0]));
     let cmd = ex["trace_command"].as_str().unwrap();
-    assert!(cmd.starts_with("rayscope trace -f ") && cmd.contains("--pixel 0,0 --sample 0 -w 8 -h 6"), "{cmd}");
+    assert!(
+        cmd.starts_with("rayscope trace -f ") && cmd.contains("--pixel 0,0 --sample 0 -w 8 -h 6"),
+        "{cmd}"
+    );
     assert!(v["tie_verdicts"].as_array().unwrap().is_empty());
     assert!(v["tolerances"]["position"].as_f64().unwrap() > 0.0);
 }
@@ -162,7 +180,10 @@ fn binary_rays_files_are_read_and_judged() {
         let t = scene.intersect(&r, 0.0, f32::INFINITY).map_or(3.0, |h| h.t);
         (vec![x as i32, y as i32], r.origin, r.at(t))
     };
-    let good: Vec<_> = (0..6).flat_map(|y| (0..8).map(move |x| (x, y))).map(|(x, y)| seg(x, y, false)).collect();
+    let good: Vec<_> = (0..6)
+        .flat_map(|y| (0..8).map(move |x| (x, y)))
+        .map(|(x, y)| seg(x, y, false))
+        .collect();
     std::fs::write(&path, rays_file(&good)).unwrap();
     let out = check_cmd(&path).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);
@@ -170,7 +191,10 @@ fn binary_rays_files_are_read_and_judged() {
     assert!(stdout.contains("checked 48 rays (48 camera rays)"), "{stdout}");
 
     // An upside-down image.
-    let flipped: Vec<_> = (0..6).flat_map(|y| (0..8).map(move |x| (x, y))).map(|(x, y)| seg(x, y, true)).collect();
+    let flipped: Vec<_> = (0..6)
+        .flat_map(|y| (0..8).map(move |x| (x, y)))
+        .map(|(x, y)| seg(x, y, true))
+        .collect();
     std::fs::write(&path, rays_file(&flipped)).unwrap();
     let out = check_cmd(&path).output().unwrap();
     let stdout = String::from_utf8_lossy(&out.stdout);

@@ -356,6 +356,9 @@ mod tests {
         let p = closest_on_triangle(DVec3::new(0.2, 0.2, 1.0), a, b, c);
         assert!((p - DVec3::new(0.2, 0.2, 0.0)).length() < 1e-12, "{p}");
         assert_eq!(closest_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c), a);
-        assert_eq!(closest_on_triangle(DVec3::new(0.5, -1.0, 0.0), a, b, c), DVec3::new(0.5, 0.0, 0.0));
+        assert_eq!(
+            closest_on_triangle(DVec3::new(0.5, -1.0, 0.0), a, b, c),
+            DVec3::new(0.5, 0.0, 0.0)
+        );
     }
 }

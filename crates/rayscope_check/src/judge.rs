@@ -257,6 +257,9 @@ impl Eval {
     }
 }
 
+/// A sample offset or image-plane half extents, with the mistake it stands for (none: rayscope's).
+type Guess = ((f64, f64), Option<(Code, &'static str)>);
+
 /// A position-and-projection guess for a camera ray.
 #[derive(Debug, Clone, Copy)]
 struct CamGuess {
@@ -287,10 +290,7 @@ pub struct Judge<'a> {
 
 /// The scale tolerances are multiplied by.
 fn scale(points: &[DVec3]) -> f64 {
-    points
-        .iter()
-        .map(|p| p.abs().max_element())
-        .fold(1.0, f64::max)
+    points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max)
 }
 
 impl<'a> Judge<'a> {
@@ -524,7 +524,11 @@ impl<'a> Judge<'a> {
             self.derivation(r, &kind, lv, f);
             sound &= f.len() == before;
         }
-        let light = if kind == Kind::Shadow { self.aim(r, &kind, f) } else { None };
+        let light = if kind == Kind::Shadow {
+            self.aim(r, &kind, f)
+        } else {
+            None
+        };
         let t_max = light.map_or(f64::INFINITY, |li| {
             (d3(Vec3A::from(self.scene.lights[li as usize].position)) - o).length()
         });
@@ -615,7 +619,10 @@ impl<'a> Judge<'a> {
                 r,
                 kind,
                 Code::CameraOrigin,
-                format!("starts {:.3e} away from the camera", (r.origin - self.cam_origin).length()),
+                format!(
+                    "starts {:.3e} away from the camera",
+                    (r.origin - self.cam_origin).length()
+                ),
                 vec![Value {
                     what: "origin".into(),
                     yours: vjson(r.origin),
@@ -652,7 +659,7 @@ impl<'a> Judge<'a> {
         let half = if horizontal { (t, t / aspect) } else { (t * aspect, t) };
         let n = f64::from(self.grid);
         let (i, j) = (f64::from(s % self.grid), f64::from(s / self.grid));
-        let mut offs: Vec<((f64, f64), Option<(Code, &'static str)>)> = vec![
+        let mut offs: Vec<Guess> = vec![
             (((i + 0.5) / n, (j + 0.5) / n), None),
             (
                 (i / n, j / n),
@@ -672,7 +679,10 @@ impl<'a> Judge<'a> {
             ));
             offs.push((
                 (0.5, 0.5),
-                Some((Code::CameraSubpixelGrid, "through the pixel centre instead of sample s's grid cell")),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "through the pixel centre instead of sample s's grid cell",
+                )),
             ));
             offs.push((
                 (i / (n - 1.0), j / (n - 1.0)),
@@ -682,7 +692,7 @@ impl<'a> Judge<'a> {
                 )),
             ));
         }
-        let mut projs: Vec<((f64, f64), Option<(Code, &'static str)>)> = vec![(half, None)];
+        let mut projs: Vec<Guess> = vec![(half, None)];
         if self.settings.width != self.settings.height {
             let swapped = if horizontal { (t * aspect, t) } else { (t, t / aspect) };
             projs.push((
@@ -745,10 +755,7 @@ impl<'a> Judge<'a> {
         }
         // Where the tracer's ray crosses rayscope's image plane.
         let (us, vs) = if dc.z > 0.0 {
-            (
-                (dc.x / dc.z / half.0 + 1.0) * 0.5,
-                (1.0 - dc.y / dc.z / half.1) * 0.5,
-            )
+            ((dc.x / dc.z / half.0 + 1.0) * 0.5, (1.0 - dc.y / dc.z / half.1) * 0.5)
         } else {
             (f64::NAN, f64::NAN)
         };
@@ -773,8 +780,7 @@ impl<'a> Judge<'a> {
             },
         ];
         let off_by = format!("{:.4}° off", err.to_degrees());
-        if let Some((e, g)) = best.filter(|(e, _)| *e <= self.cam_tol) {
-            let _ = e;
+        if let Some((_, g)) = best.filter(|(e, _)| *e <= self.cam_tol) {
             for (code, why) in [g.pos_code, g.proj_code].into_iter().flatten() {
                 f.push(self.finding(
                     r,
@@ -1201,7 +1207,10 @@ impl<'a> Judge<'a> {
         let where_ = if sigma.abs() <= 1e-9 * scale(&[lv.point]) {
             "it starts exactly on the surface (no offset)".to_string()
         } else if sigma * r.direction.dot(lv.facing) < 0.0 {
-            format!("its origin is offset {:.2e} to the wrong side of the surface", sigma.abs())
+            format!(
+                "its origin is offset {:.2e} to the wrong side of the surface",
+                sigma.abs()
+            )
         } else {
             format!("its origin is only {:.2e} off the surface", sigma.abs())
         };
@@ -1219,7 +1228,7 @@ impl<'a> Judge<'a> {
             yours: vjson(n),
             rayscope: vjson(if h.front { h.own } else { -h.own }),
         }];
-        if !(len > 0.0) {
+        if len.is_nan() || len <= 0.0 {
             f.push(self.finding(r, kind, Code::HitNormalWrong, "the normal is zero".into(), values));
             return;
         }
@@ -1234,7 +1243,10 @@ impl<'a> Judge<'a> {
         }
         let nh = n / len;
         let own = self.geo.shading_normal(h.prim, h.point).unwrap_or(h.own);
-        let (a_plus, a_minus) = (angle(nh, own).min(angle(nh, h.own)), angle(nh, -own).min(angle(nh, -h.own)));
+        let (a_plus, a_minus) = (
+            angle(nh, own).min(angle(nh, h.own)),
+            angle(nh, -own).min(angle(nh, -h.own)),
+        );
         let tol = self.tol.normal;
         if a_plus.min(a_minus) > tol {
             f.push(self.finding(
@@ -1382,7 +1394,11 @@ impl<'a> Judge<'a> {
                         format!(
                             "'{}' {} the shadow ray within rounding",
                             self.name(e),
-                            if touching { "touches the point it leaves, at" } else { "grazes" }
+                            if touching {
+                                "touches the point it leaves, at"
+                            } else {
+                                "grazes"
+                            }
                         ),
                         v,
                     ));
@@ -1445,13 +1461,12 @@ impl<'a> Judge<'a> {
                         v,
                     )),
                     None => {
-                        let (dd, prim) = self.geo.entity_distance(e, o_trace);
+                        let (_, prim) = self.geo.entity_distance(e, o_trace);
                         let graze = prim.is_some_and(|p| {
-                            // The ray's nearest approach to the primitive's edge.
-                            let foot = o_trace + d * (self.geo.intersect(p, o_trace, d, -1e300, 1e300).unwrap_or(0.0));
-                            self.geo.margin(p, o_trace, d, foot) <= self.tol.tie * l
+                            // Where the ray's line meets the primitive's surface, against its edge.
+                            let t = self.geo.intersect(p, o_trace, d, f64::MIN, f64::MAX).unwrap_or(0.0);
+                            self.geo.margin(p, o_trace, d, o_trace + d * t) <= self.tol.tie * l
                         });
-                        let _ = dd;
                         if graze {
                             f.push(self.finding(
                                 r,
@@ -1489,7 +1504,10 @@ impl<'a> Judge<'a> {
                 r,
                 kind,
                 Code::SecondaryOriginNotAtHit,
-                format!("starts {away:.4} away from its parent's hit on '{}'", self.name(lv.entity)),
+                format!(
+                    "starts {away:.4} away from its parent's hit on '{}'",
+                    self.name(lv.entity)
+                ),
                 vec![Value {
                     what: "origin".into(),
                     yours: vjson(o),

@@ -197,7 +197,11 @@ impl fmt::Display for LogError {
                 ray,
                 offset,
                 message,
-            } => write!(f, "error: {message}\n  --> {}: ray {ray}, byte {offset}", path.display()),
+            } => write!(
+                f,
+                "error: {message}\n  --> {}: ray {ray}, byte {offset}",
+                path.display()
+            ),
         }
     }
 }
@@ -364,7 +368,7 @@ impl<R: Read> RaySource for JsonlReader<R> {
             no += 1;
         }
         let (ctx, path) = (&self.ctx, self.path.as_path());
-        let parsed: Vec<Result<Option<LoggedRay>, Diagnostic>> = lines
+        let parsed: Vec<Result<Option<LoggedRay>, Box<Diagnostic>>> = lines
             .par_iter()
             .with_min_len(256)
             .map(|&(n, l)| parse_line(l, n, path, ctx))
@@ -376,10 +380,10 @@ impl<R: Read> RaySource for JsonlReader<R> {
                 Err(d) if self.lenient => {
                     self.skipped += 1;
                     if self.first_skipped.is_none() {
-                        self.first_skipped = Some(d);
+                        self.first_skipped = Some(*d);
                     }
                 }
-                Err(d) => return Err(LogError::Malformed(Box::new(d))),
+                Err(d) => return Err(LogError::Malformed(d)),
             }
         }
         self.next_line = no;
@@ -464,7 +468,7 @@ fn value_column(line: &str, key: &str, value: &str) -> (usize, usize) {
 }
 
 /// Parses one line: `Ok(None)` for a blank line.
-fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Result<Option<LoggedRay>, Diagnostic> {
+fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Result<Option<LoggedRay>, Box<Diagnostic>> {
     let bytes = bytes.strip_suffix(b"\r").unwrap_or(bytes);
     let bytes = if line_no == 1 {
         bytes.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(bytes)
@@ -476,7 +480,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     }
     let shown = String::from_utf8_lossy(bytes);
     let err = |col: usize, span: usize, msg: String| {
-        Diagnostic::error(path, line_no as usize, &shown, col, span, msg).with_note(FORMAT_NOTE)
+        Box::new(Diagnostic::error(path, line_no as usize, &shown, col, span, msg).with_note(FORMAT_NOTE))
     };
     let raw: RawRay = match serde_json::from_slice(bytes) {
         Ok(r) => r,
@@ -541,7 +545,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
             ));
         }
     }
-    let entity = |name: &str, key: &str| -> Result<u32, Diagnostic> {
+    let entity = |name: &str, key: &str| -> Result<u32, Box<Diagnostic>> {
         ctx.entities.get(name).copied().ok_or_else(|| {
             let (c, s) = value_column(&shown, key, name);
             err(

@@ -121,7 +121,11 @@ impl Report {
             let Some(groups) = v.get_mut(list).and_then(|g| g.as_array_mut()) else {
                 continue;
             };
-            let src = if list == "verdicts" { &self.verdicts } else { &self.tie_verdicts };
+            let src = if list == "verdicts" {
+                &self.verdicts
+            } else {
+                &self.tie_verdicts
+            };
             for (g, sg) in groups.iter_mut().zip(src) {
                 let Some(ex) = g.get_mut("examples").and_then(|e| e.as_array_mut()) else {
                     continue;
@@ -219,7 +223,13 @@ fn example(f: &Finding, cmd: Option<String>) -> String {
     let _ = writeln!(s, "{head}");
     let _ = writeln!(s, "    {}", f.detail);
     if !f.values.is_empty() {
-        let w = f.values.iter().map(|v| v.what.chars().count()).max().unwrap_or(0).max(4);
+        let w = f
+            .values
+            .iter()
+            .map(|v| v.what.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max(4);
         let cells: Vec<(String, String)> = f.values.iter().map(|v| (show(&v.yours), show(&v.rayscope))).collect();
         let yw = cells.iter().map(|c| c.0.chars().count()).max().unwrap_or(0).max(5);
         let _ = writeln!(s, "    {:w$}  {:yw$}  rayscope", "", "yours");

@@ -199,7 +199,11 @@ mod tests {
     fn readme_lists_every_code() {
         let readme = include_str!("../../../README.md");
         for &c in Code::ALL {
-            assert!(readme.contains(&format!("`{}`", c.as_str())), "README misses {}", c.as_str());
+            assert!(
+                readme.contains(&format!("`{}`", c.as_str())),
+                "README misses {}",
+                c.as_str()
+            );
         }
     }
 }

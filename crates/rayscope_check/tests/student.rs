@@ -15,13 +15,20 @@ fn root() -> PathBuf {
 /// The course's reference folder, read in place.
 fn reference(rel: &str) -> PathBuf {
     let p = root().join("../shared/reference").join(rel);
-    assert!(p.exists(), "missing {}: the tests need ../shared/reference", p.display());
+    assert!(
+        p.exists(),
+        "missing {}: the tests need ../shared/reference",
+        p.display()
+    );
     p
 }
 
 /// python3, or `None` (loudly) when it is missing outside CI.
 fn python() -> Option<&'static str> {
-    let ok = Command::new("python3").arg("--version").output().is_ok_and(|o| o.status.success());
+    let ok = Command::new("python3")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
     if ok {
         return Some("python3");
     }
@@ -63,7 +70,14 @@ impl Run<'_> {
         cmd.arg(root().join("crates/rayscope_check/tests/student/tracer.py"))
             .arg("-f")
             .arg(&self.scene)
-            .args(["-w", &self.w.to_string(), "-h", &self.h.to_string(), "-x", &self.aa.to_string()])
+            .args([
+                "-w",
+                &self.w.to_string(),
+                "-h",
+                &self.h.to_string(),
+                "-x",
+                &self.aa.to_string(),
+            ])
             .args(["--bug", self.bug])
             .arg("--log")
             .arg(&log);
@@ -71,7 +85,11 @@ impl Run<'_> {
             cmd.arg("--region").arg(format!("{a},{b},{c},{d}"));
         }
         let out = cmd.output().expect("run the student tracer");
-        assert!(out.status.success(), "tracer failed: {}", String::from_utf8_lossy(&out.stderr));
+        assert!(
+            out.status.success(),
+            "tracer failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         let file = rayscope_scene::load(&self.scene).expect("scene");
         let scene = Scene::from_file(&file);
         let settings = RenderSettings {
@@ -158,7 +176,10 @@ fn refraction_normal_not_flipped_is_named() {
 
 #[test]
 fn shadow_rays_without_offset_are_named_as_acne() {
-    for scene in [reference("tests/sample_scene_1.txt"), reference("tests/sample_scene_2.txt")] {
+    for scene in [
+        reference("tests/sample_scene_1.txt"),
+        reference("tests/sample_scene_2.txt"),
+    ] {
         assert_named(
             Run {
                 bug: "shadow-no-offset",
@@ -215,11 +236,7 @@ fn refraction_without_total_internal_reflection_is_named() {
     assert_named(
         Run {
             bug: "no-tir",
-            ..Run::new(
-                root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"),
-                40,
-                30,
-            )
+            ..Run::new(root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"), 40, 30)
         },
         Code::RefractionTirMissed,
         &[],
