@@ -288,6 +288,23 @@ pub struct Judge<'a> {
     pub tol: Tolerances,
 }
 
+/// The smallest share of a sample a missing refracted ray must carry to be a verdict.
+const MIN_SHARE: f64 = 0.01;
+
+/// Fresnel reflectance (unpolarised) where the parent ray meets glass of index `ior`.
+fn glass_fresnel(lv: &Leave, ior: f64) -> f64 {
+    let (n1, n2) = if lv.front { (1.0, ior) } else { (ior, 1.0) };
+    let cos_i = (-lv.parent_dir.dot(lv.facing)).clamp(0.0, 1.0);
+    let sin2_t = (n1 / n2).powi(2) * (1.0 - cos_i * cos_i);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
+    0.5 * (rs * rs + rp * rp)
+}
+
 /// The scale tolerances are multiplied by.
 fn scale(points: &[DVec3]) -> f64 {
     points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max)
@@ -456,7 +473,11 @@ impl<'a> Judge<'a> {
             let eta = if lv.front { 1.0 / ior } else { ior };
             let cos_i = -lv.parent_dir.dot(lv.facing);
             let sin2_t = eta * eta * (1.0 - cos_i * cos_i);
-            if sin2_t < 1.0 - 1e-3 {
+            // A refracted ray that would carry a negligible share of the sample may be pruned
+            // (rayscope prunes Whitted branches below 1/4096 of a level): only a missing
+            // refraction worth at least MIN_SHARE of the sample is a verdict.
+            let share = self.path_weight(p, parent, evals, kinds) * (1.0 - glass_fresnel(&lv, ior));
+            if sin2_t < 1.0 - 1e-3 && share >= MIN_SHARE {
                 let t = refract(lv.parent_dir, lv.facing, eta).unwrap_or(DVec3::ZERO);
                 let f = self.finding(
                     &rays[k],
@@ -475,6 +496,30 @@ impl<'a> Judge<'a> {
                 findings[k].push(f);
             }
         }
+    }
+
+    /// The share of its sample that ray `i` carries by Fresnel's weights at the glass hits above
+    /// it (mirrors pass everything on).
+    fn path_weight(&self, i: usize, parent: &[Option<usize>], evals: &[Option<Eval>], kinds: &[Kind]) -> f64 {
+        let (mut w, mut k) = (1.0, i);
+        for _ in 0..64 {
+            let Some(p) = parent[k] else {
+                break;
+            };
+            if let Some(lv) = evals[p].and_then(|e| e.leave()) {
+                let m = &self.scene.materials[lv.material as usize];
+                if m.kind == MaterialKind::Refractive {
+                    let kr = glass_fresnel(&lv, f64::from(m.value));
+                    w *= match kinds[k] {
+                        Kind::Reflection => kr,
+                        Kind::Refraction => 1.0 - kr,
+                        _ => 1.0,
+                    };
+                }
+            }
+            k = p;
+        }
+        w
     }
 
     fn infer_kind(&self, r: &LoggedRay) -> Kind {
@@ -571,7 +616,7 @@ impl<'a> Judge<'a> {
         if kind == Kind::Shadow {
             if let (Some(li), blocked) = (light, r.blocked_by) {
                 if blocked != Answer::NotLogged {
-                    self.blocked(r, &kind, li, t_skip, blocked, leave, f);
+                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, blocked, leave, f);
                 }
             }
         }
@@ -1304,6 +1349,7 @@ impl<'a> Judge<'a> {
         r: &LoggedRay,
         kind: &Kind,
         li: u32,
+        rs: Option<&RsHit>,
         t_skip: f64,
         blocked: Answer<u32>,
         leave: Option<&Leave>,
@@ -1312,7 +1358,8 @@ impl<'a> Judge<'a> {
         let (o_trace, d) = (r.origin, r.direction);
         let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
         let dist = (light - o_trace).length();
-        let b = self.trace(o_trace, d, t_skip, dist, o_trace);
+        // `rs` is the ray's closest hit on the segment to this light.
+        let b = rs.copied();
         let l = scale(&[r.origin, light]);
         let pos = self.tol.position * l;
         let values = |yours: Option<u32>, rs: Option<u32>| {
