@@ -52,6 +52,8 @@ pub enum Command {
     View(ViewArgs),
     /// Test your own intersector: run it as a child process and send it a battery of rays.
     Probe(ProbeArgs),
+    /// Judge every ray your own tracer logged against rayscope's trace of the scene.
+    Check(CheckArgs),
 }
 
 /// Which of the course's stages to render.
@@ -401,7 +403,7 @@ pub struct ProbeArgs {
     /// Seed of the random rays.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Print the report as JSON (schema in the README).
+    /// Print the report as JSON (schema in docs/probe.md).
     #[arg(long)]
     pub json: bool,
     /// Show every example of each finding, not just the first.
@@ -417,6 +419,31 @@ fn parse_positive_f64(s: &str) -> Result<f64, String> {
         Ok(v) if v.is_finite() && v > 0.0 => Ok(v),
         _ => Err(format!("expected a number of seconds greater than 0, found '{s}'")),
     }
+}
+
+/// `rayscope check`.
+#[derive(Debug, Clone, Args)]
+pub struct CheckArgs {
+    /// Scene file.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// Your tracer's ray log: JSON Lines (docs/check.md), or RayTracer.Debug's binary `.rays`.
+    #[arg(long = "rays", value_name = "LOG")]
+    pub rays: PathBuf,
+    /// Print JSON (for scripts and autograders) instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Skip malformed lines, counting them, instead of stopping at the first.
+    #[arg(long)]
+    pub lenient: bool,
+    /// What a `.rays` file's ids mean: "x,y" (default), e.g. "x,y,sample,id,parent", or "none".
+    #[arg(long = "ray-ids", default_value = "x,y", value_name = "ROLES")]
+    pub ray_ids: String,
+    /// Examples shown per verdict.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    pub examples: u32,
+    #[command(flatten)]
+    pub opts: RenderOpts,
 }
 
 fn parse_whole(s: &str, lo: u32, hi: u32, what: &str) -> Result<u32, String> {

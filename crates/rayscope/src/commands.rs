@@ -55,8 +55,12 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
         Some(Command::View(a)) => rayscope_debug_cli::view(&a),
         Some(Command::Probe(a)) => crate::probe::run(&a),
+        Some(Command::Check(a)) => check_cli::check(&a),
     }
 }
+
+#[path = "check_cli.rs"]
+mod check_cli;
 
 #[path = "debug_cli.rs"]
 mod rayscope_debug_cli;

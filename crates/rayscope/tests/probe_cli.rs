@@ -99,7 +99,9 @@ fn a_correct_intersector_passes_every_course_scene_and_ours_in_double_and_single
 
 #[test]
 fn the_python_example_tracer_passes() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let out = rayscope()
         .args(["probe", "-f"])
         .arg(course.scene("sample_scene_2.txt"))
@@ -145,7 +147,9 @@ fn names(mistakes: &str, scene: &Path, required: &[(&str, &str, &str)], allowed:
 
 #[test]
 fn names_a_sphere_returning_the_root_behind_the_origin() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     names(
         "sphere-inside",
         &course.scene("sample_scene_2.txt"),
@@ -161,7 +165,9 @@ fn names_a_sphere_returning_the_root_behind_the_origin() {
 
 #[test]
 fn names_a_sphere_taking_the_far_root() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let all = ["outside-hit", "grazing", "near", "far", "tiny", "huge"].map(|c| ("sphere", c, "wrong-root"));
     names(
         "sphere-far-root",
@@ -173,7 +179,9 @@ fn names_a_sphere_taking_the_far_root() {
 
 #[test]
 fn names_a_one_sided_triangle() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     names(
         "triangle-one-sided",
         &course.scene("sample_scene_2.txt"),
@@ -184,7 +192,9 @@ fn names_a_one_sided_triangle() {
 
 #[test]
 fn names_a_plane_that_divides_by_zero_for_parallel_rays() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let scene = course.scene("sample_scene_1.txt");
     names(
         "plane-parallel",
@@ -214,7 +224,9 @@ fn names_a_plane_that_divides_by_zero_for_parallel_rays() {
 
 #[test]
 fn names_a_strict_edge_test() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     names(
         "triangle-strict",
         &course.scene("sample_scene_2.txt"),
@@ -225,7 +237,9 @@ fn names_a_strict_edge_test() {
 
 #[test]
 fn names_normals_that_are_not_unit_length() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let (code, report) = probe(&course.scene("sample_scene_2.txt"), "normal-unnormalised");
     assert_eq!(code, 1);
     // One finding per kind of primitive, on every hit, not one per case.
@@ -243,7 +257,9 @@ fn names_normals_that_are_not_unit_length() {
 
 #[test]
 fn the_text_report_explains_and_reproduces() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let out = rayscope()
         .args(["probe", "-f"])
         .arg(course.scene("sample_scene_2.txt"))
@@ -330,7 +346,9 @@ fn a_crashing_program_shows_its_exit_status_and_stderr() {
 
 #[test]
 fn a_program_printing_garbage_is_quoted() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let (code, err, _) = probe_program(
         &format!("{READY}sys.stdin.readline()\nprint('Hit sphere at 0.5', flush=True)\ntime.sleep(60)\n"),
         &["--timeout", "5"],
@@ -379,7 +397,9 @@ fn a_program_printing_garbage_is_quoted() {
 
 #[test]
 fn the_csharp_adapter_compiles_and_passes() {
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let have = StdCommand::new("mcs")
         .arg("--version")
         .output()

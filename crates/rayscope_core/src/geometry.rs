@@ -1,4 +1,4 @@
-//! Analytic ray–primitive intersection: plane, sphere and triangle (the workshop's task 7).
+//! Analytic ray–primitive intersection: plane, sphere and triangle.
 //!
 //! Every routine is two-sided and returns the nearest `t` in the open interval `(t_min, t_max)`.
 //! Rays must have unit-length directions.

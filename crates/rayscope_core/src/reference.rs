@@ -1,5 +1,5 @@
 //! An independent intersector built on parry3d, used to check rayscope's own routines (tests,
-//! and the debugger's per-pixel "check the intersector" view).
+//! and the debugger's per-pixel self-test of the intersector).
 //!
 //! It tests every primitive for every ray (no BVH), so it is slow but shares no code with
 //! [`crate::geometry`] or [`crate::bvh`].

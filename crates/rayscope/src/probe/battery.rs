@@ -942,11 +942,15 @@ mod tests {
     fn every_case_of_the_course_scenes_is_labelled_truthfully() {
         // The generator's intent and the oracle agree: hit cases expect hits, miss cases misses.
         use CaseKind::*;
-        for scene in ["sample_scene_1.txt", "sample_scene_2.txt"] {
-            let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-                .join("../../../shared/reference/tests")
-                .join(scene);
-            let file = rayscope_scene::load(&path).expect("course scene");
+        let mut scenes = vec![
+            rayscope_testkit::scene("basic.txt"),
+            rayscope_testkit::scene("room.txt"),
+        ];
+        if let Some(course) = rayscope_testkit::course_part() {
+            scenes.extend(["sample_scene_1.txt", "sample_scene_2.txt"].map(|s| course.scene(s)));
+        }
+        for path in scenes {
+            let file = rayscope_scene::load(&path).expect("scene");
             for (i, s) in sources(&file, 4).iter().enumerate() {
                 for c in battery(s, i, 20, 1) {
                     let e = &c.expect;

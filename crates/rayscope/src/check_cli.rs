@@ -1,0 +1,99 @@
+//! `rayscope check`: reads a tracer's ray log and prints rayscope_check's verdicts.
+
+use std::io::IsTerminal;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayscope_check::log::IdRole;
+use rayscope_check::{CheckOptions, Finding, Judge, LogContext, LogError};
+
+use super::{load_scene, replay_flags, settings, setup_threads, Failure};
+use crate::cli::CheckArgs;
+
+fn log_failure(e: LogError) -> Failure {
+    match e {
+        LogError::Io { .. } => Failure::input(e.to_string().trim_start_matches("error: ").to_string()),
+        other => Failure {
+            code: 2,
+            message: other.to_string(),
+            diagnostic: true,
+        },
+    }
+}
+
+/// Runs `rayscope check`: exit 0 when every ray agrees, 1 when any disagrees, 2 for bad input.
+pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
+    let settings = settings(&a.opts)?;
+    let roles = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
+    setup_threads(&a.opts);
+    let scene = load_scene(&a.file, a.opts.quiet)?;
+    let judge = Judge::new(&scene, &settings);
+    let ctx = LogContext::new(
+        &scene,
+        settings.width,
+        settings.height,
+        judge.samples_per_pixel(),
+        settings.aa,
+    );
+    let mut source = rayscope_check::log::open(&a.rays, ctx, a.lenient, &roles).map_err(log_failure)?;
+
+    let show = !a.opts.quiet && std::io::stderr().is_terminal();
+    let bar = ProgressBar::with_draw_target(None, ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} checking [{bar:40}] {bytes}/{total_bytes} ({eta})")
+            .unwrap_or_else(|_| ProgressStyle::default_bar())
+            .progress_chars("=> "),
+    );
+    if show {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+    }
+    let progress = |done: u64, total: u64| {
+        bar.set_length(total.max(done));
+        bar.set_position(done);
+    };
+    let start = Instant::now();
+    let opts = CheckOptions {
+        examples: a.examples as usize,
+    };
+    let report = rayscope_check::check(&judge, source.as_mut(), opts, &progress);
+    bar.finish_and_clear();
+    let report = report.map_err(log_failure)?;
+    let secs = start.elapsed().as_secs_f64();
+
+    let flags = replay_flags(&a.opts);
+    let file = a.file.display().to_string();
+    let trace = |f: &Finding| {
+        f.pixel.map(|[x, y]| {
+            format!(
+                "rayscope trace -f {file} --pixel {x},{y} --sample {} {flags}",
+                f.sample.unwrap_or(0)
+            )
+        })
+    };
+    if a.json {
+        let v = report.to_json(&trace);
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&v).map_err(|e| Failure::failed(e.to_string()))?
+        );
+    } else {
+        print!("{}", report.to_text(&trace));
+    }
+    if !a.opts.quiet {
+        let t = report.timing;
+        eprintln!(
+            "{} rays in {secs:.3} s ({:.2} M rays/s; reading {:.3} s, judging {:.3} s on {} threads)",
+            report.rays,
+            report.rays as f64 / 1e6 / secs.max(1e-9),
+            t.reading.as_secs_f64(),
+            t.judging.as_secs_f64(),
+            rayon::current_num_threads()
+        );
+    }
+    Ok(if report.passed() {
+        ExitCode::SUCCESS
+    } else {
+        ExitCode::from(1)
+    })
+}

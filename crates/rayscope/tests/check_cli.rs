@@ -1,0 +1,212 @@
+//! `rayscope check`: exit codes, malformed logs, `--lenient`, `.rays` files and `--json`.
+
+mod common;
+
+use std::path::Path;
+
+use common::rayscope;
+use glam::Vec3A;
+use rayscope_core::{Camera, CameraSettings, Ray, Scene};
+
+/// rayscope's camera ray for the centre of pixel (`x`, `y`) of a `w`×`h` image.
+fn camera_ray(w: u32, h: u32, x: u32, y: u32) -> Ray {
+    let cam = Camera::new(CameraSettings::default(), w, h);
+    let (u, v) = cam.pixel_center(x, y);
+    cam.ray(u, v)
+}
+
+fn scene1() -> Scene {
+    Scene::from_file(&rayscope_scene::load(&rayscope_testkit::scene("basic.txt")).expect("scene"))
+}
+
+fn write(path: &Path, text: &str) {
+    std::fs::write(path, text).expect("write log");
+}
+
+fn camera_line(x: u32, y: u32, d: Vec3A) -> String {
+    format!(
+        "{{\"pixel\": [{x}, {y}], \"id\": {}, \"kind\": \"camera\", \"origin\": [0, 0, 0], \"direction\": [{}, {}, {}]}}\n",
+        y * 100 + x,
+        d.x,
+        d.y,
+        d.z
+    )
+}
+
+fn check_cmd(log: &Path) -> assert_cmd::Command {
+    let mut c = rayscope();
+    c.arg("check")
+        .arg("-f")
+        .arg(rayscope_testkit::scene("basic.txt"))
+        .arg("--rays")
+        .arg(log)
+        .args(["-w", "8", "-h", "6", "--quiet"]);
+    c
+}
+
+#[test]
+fn agreeing_log_exits_0_and_a_malformed_line_exits_2_with_its_place() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("rays.jsonl");
+    let good: String = (0..6)
+        .flat_map(|y| (0..8).map(move |x| camera_line(x, y, camera_ray(8, 6, x, y).dir)))
+        .collect();
+    write(&log, &good);
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(0), "{}", String::from_utf8_lossy(&out.stdout));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("checked 48 rays") && stdout.contains("every ray agrees"),
+        "{stdout}"
+    );
+
+    // Line 3's direction has a string where a number belongs.
+    let lines: Vec<&str> = good.lines().collect();
+    let bad = format!(
+        "{}\n{}\n{{\"pixel\": [2, 0], \"origin\": [0, 0, 0], \"direction\": [0, \"x\", 1]}}\n{}\n",
+        lines[0], lines[1], lines[3]
+    );
+    write(&log, &bad);
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(out.stdout.is_empty(), "no report on bad input");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rays.jsonl:3:"), "{err}");
+    assert!(
+        err.contains("expected a JSON ray record") && err.contains("f64"),
+        "{err}"
+    );
+
+    // --lenient skips it, counts it and judges the rest.
+    let out = check_cmd(&log).arg("--lenient").output().unwrap();
+    assert_eq!(out.status.code(), Some(0));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(stdout.contains("checked 3 rays"), "{stdout}");
+    assert!(stdout.contains("skipped 1 malformed line (--lenient)"), "{stdout}");
+    assert!(stdout.contains("rays.jsonl:3:"), "{stdout}");
+}
+
+#[test]
+fn names_and_ranges_are_checked_against_the_scene_and_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("rays.jsonl");
+    write(
+        &log,
+        "{\"origin\": [0, 0, 0], \"direction\": [0, 0, 1], \"hit\": {\"t\": 2, \"entity\": \"Shpere\"}}\n",
+    );
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rays.jsonl:1:73"), "{err}");
+    assert!(
+        err.contains("no entity named 'Shpere'") && err.contains("'Sphere'"),
+        "{err}"
+    );
+
+    write(&log, &camera_line(8, 0, Vec3A::Z));
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("outside the 8×6 image") && err.contains("-w and -h"),
+        "{err}"
+    );
+
+    write(
+        &log,
+        "{\"sample\": 3, \"origin\": [0, 0, 0], \"direction\": [0, 0, 1]}\n",
+    );
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("pass the -x your tracer used"));
+}
+
+#[test]
+fn json_report_has_codes_counts_examples_and_replay_commands() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("rays.jsonl");
+    // Every ray through the image centre: pixel (0, 0)'s ray is far off.
+    let text: String = (0..3).map(|x| camera_line(x, 0, Vec3A::Z)).collect();
+    write(&log, &text);
+    let out = check_cmd(&log).arg("--json").output().unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).expect("JSON on stdout");
+    assert_eq!(v["rays"], 3);
+    assert_eq!(v["disagree"], 3);
+    assert_eq!(v["agree"], 0);
+    let g = &v["verdicts"][0];
+    assert_eq!(g["code"], "camera.direction");
+    assert_eq!(g["count"], 3);
+    assert!(g["explanation"].as_str().unwrap().len() > 40);
+    let ex = &g["examples"][0];
+    assert_eq!(ex["line"], 1);
+    assert_eq!(ex["pixel"], serde_json::json!([0, 0]));
+    assert_eq!(ex["sample"], 0);
+    assert_eq!(ex["kind"], "camera");
+    assert_eq!(ex["values"][0]["what"], "direction");
+    assert_eq!(ex["values"][0]["yours"], serde_json::json!([0.0, 0.0, 1.0]));
+    let cmd = ex["trace_command"].as_str().unwrap();
+    assert!(
+        cmd.starts_with("rayscope trace -f ") && cmd.contains("--pixel 0,0 --sample 0 -w 8 -h 6"),
+        "{cmd}"
+    );
+    assert!(v["tie_verdicts"].as_array().unwrap().is_empty());
+    assert!(v["tolerances"]["position"].as_f64().unwrap() > 0.0);
+}
+
+/// A RayTracer.Debug `.rays` file: int32 count, per ray a byte n, n int32 ids, from and to.
+fn rays_file(rays: &[(Vec<i32>, Vec3A, Vec3A)]) -> Vec<u8> {
+    let mut b = (rays.len() as i32).to_le_bytes().to_vec();
+    for (ids, from, to) in rays {
+        b.push(ids.len() as u8);
+        for id in ids {
+            b.extend(id.to_le_bytes());
+        }
+        for c in from.to_array().iter().chain(&to.to_array()) {
+            b.extend(f64::from(*c).to_le_bytes());
+        }
+    }
+    b
+}
+
+#[test]
+fn binary_rays_files_are_read_and_judged() {
+    let scene = scene1();
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("log.rays");
+    // Camera rays from the camera to their hit points (or a point along the ray on a miss).
+    let seg = |x: u32, y: u32, flip: bool| {
+        let r = camera_ray(8, 6, x, if flip { 5 - y } else { y });
+        let t = scene.intersect(&r, 0.0, f32::INFINITY).map_or(3.0, |h| h.t);
+        (vec![x as i32, y as i32], r.origin, r.at(t))
+    };
+    let good: Vec<_> = (0..6)
+        .flat_map(|y| (0..8).map(move |x| (x, y)))
+        .map(|(x, y)| seg(x, y, false))
+        .collect();
+    std::fs::write(&path, rays_file(&good)).unwrap();
+    let out = check_cmd(&path).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{stdout}");
+    assert!(stdout.contains("checked 48 rays (48 camera rays)"), "{stdout}");
+
+    // An upside-down image.
+    let flipped: Vec<_> = (0..6)
+        .flat_map(|y| (0..8).map(move |x| (x, y)))
+        .map(|(x, y)| seg(x, y, true))
+        .collect();
+    std::fs::write(&path, rays_file(&flipped)).unwrap();
+    let out = check_cmd(&path).output().unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(1), "{stdout}");
+    assert!(stdout.contains("camera.flipped"), "{stdout}");
+
+    // Truncated in the middle of the last ray.
+    let mut bytes = rays_file(&good);
+    bytes.truncate(bytes.len() - 10);
+    std::fs::write(&path, bytes).unwrap();
+    let out = check_cmd(&path).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("ends inside ray 48") && err.contains("log.rays"), "{err}");
+}

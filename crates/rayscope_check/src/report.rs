@@ -1,0 +1,272 @@
+//! A check's result: counts, verdicts with their first examples, and the text and JSON forms
+//! `rayscope check` prints.
+
+use std::fmt::Write;
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::judge::{Finding, Tally, Tolerances};
+use crate::verdict::Code;
+
+/// Where a check spent its time.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Timing {
+    /// Reading and parsing the log, and grouping its rays.
+    pub reading: Duration,
+    /// Judging the rays.
+    pub judging: Duration,
+    /// Everything.
+    pub total: Duration,
+}
+
+/// One verdict code's rays.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct VerdictGroup {
+    /// The code.
+    pub code: Code,
+    /// Rays with this verdict.
+    pub count: u64,
+    /// One line: what was found.
+    pub summary: &'static str,
+    /// The likely mistake and how to fix it.
+    pub explanation: &'static str,
+    /// The first rays with it, by line.
+    pub examples: Vec<Finding>,
+}
+
+/// The result of checking a log.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Report {
+    /// Rays judged.
+    pub rays: u64,
+    /// Rays without any verdict.
+    pub agree: u64,
+    /// Rays with a verdict that is not a tie.
+    pub disagree: u64,
+    /// Rays whose only verdicts are ties.
+    pub ties: u64,
+    /// Camera rays judged.
+    pub camera_rays: u64,
+    /// Camera rays with a verdict.
+    pub camera_disagree: u64,
+    /// Rays naming a parent that was not among the rays of their pixel sample.
+    pub orphans: u64,
+    /// Malformed lines skipped under `--lenient`.
+    pub skipped_lines: u64,
+    /// The first skipped line's diagnostic.
+    pub first_skipped: Option<String>,
+    /// Verdicts against the tracer, most frequent first.
+    pub verdicts: Vec<VerdictGroup>,
+    /// Genuine ties, most frequent first.
+    pub tie_verdicts: Vec<VerdictGroup>,
+    /// The tolerances used.
+    pub tolerances: Tolerances,
+    /// Time spent.
+    #[serde(skip)]
+    pub timing: Timing,
+}
+
+impl Report {
+    /// The report of a finished tally.
+    #[must_use]
+    pub fn new(t: Tally, skipped: u64, first_skipped: Option<String>, tolerances: Tolerances, timing: Timing) -> Self {
+        let mut verdicts = Vec::new();
+        let mut ties = Vec::new();
+        for (code, (count, examples)) in t.codes {
+            let g = VerdictGroup {
+                code,
+                count,
+                summary: code.summary(),
+                explanation: code.explanation(),
+                examples,
+            };
+            if code.is_tie() {
+                ties.push(g);
+            } else {
+                verdicts.push(g);
+            }
+        }
+        verdicts.sort_by_key(|g| std::cmp::Reverse(g.count));
+        ties.sort_by_key(|g| std::cmp::Reverse(g.count));
+        let disagree = t.disagree.min(t.rays);
+        Report {
+            rays: t.rays,
+            agree: t.rays - disagree - t.tied.min(t.rays - disagree),
+            disagree,
+            ties: t.tied.min(t.rays - disagree),
+            camera_rays: t.camera,
+            camera_disagree: t.camera_disagree,
+            orphans: t.orphans,
+            skipped_lines: skipped,
+            first_skipped,
+            verdicts,
+            tie_verdicts: ties,
+            tolerances,
+            timing,
+        }
+    }
+
+    /// True when no ray disagrees.
+    #[must_use]
+    pub fn passed(&self) -> bool {
+        self.disagree == 0
+    }
+
+    /// The report as JSON, each example with the command that shows rayscope's ray tree.
+    #[must_use]
+    pub fn to_json(&self, trace_command: &dyn Fn(&Finding) -> Option<String>) -> serde_json::Value {
+        let mut v = serde_json::to_value(self).unwrap_or_default();
+        for list in ["verdicts", "tie_verdicts"] {
+            let Some(groups) = v.get_mut(list).and_then(|g| g.as_array_mut()) else {
+                continue;
+            };
+            let src = if list == "verdicts" {
+                &self.verdicts
+            } else {
+                &self.tie_verdicts
+            };
+            for (g, sg) in groups.iter_mut().zip(src) {
+                let Some(ex) = g.get_mut("examples").and_then(|e| e.as_array_mut()) else {
+                    continue;
+                };
+                for (e, f) in ex.iter_mut().zip(&sg.examples) {
+                    if let Some(obj) = e.as_object_mut() {
+                        obj.insert("trace_command".into(), trace_command(f).into());
+                    }
+                }
+            }
+        }
+        v
+    }
+
+    /// The report as text for a terminal.
+    #[must_use]
+    pub fn to_text(&self, trace_command: &dyn Fn(&Finding) -> Option<String>) -> String {
+        let mut s = String::new();
+        let _ = writeln!(
+            s,
+            "checked {} rays ({} camera rays): {} agree, {} disagree, {} ties (not counted against you)",
+            self.rays, self.camera_rays, self.agree, self.disagree, self.ties
+        );
+        if self.skipped_lines > 0 {
+            let _ = writeln!(
+                s,
+                "skipped {} malformed line{} (--lenient); the first:",
+                self.skipped_lines,
+                if self.skipped_lines == 1 { "" } else { "s" }
+            );
+            if let Some(d) = &self.first_skipped {
+                for l in d.lines() {
+                    let _ = writeln!(s, "  {l}");
+                }
+            }
+        }
+        if self.camera_rays > 0 && self.camera_disagree * 2 > self.camera_rays {
+            let _ = writeln!(
+                s,
+                "note: most camera rays disagree; make sure check gets the same -w, -h, -x, --fov and camera flags your tracer rendered with"
+            );
+        }
+        if self.orphans > 0 {
+            let _ = writeln!(
+                s,
+                "note: {} rays name a parent id not found among the rays of their pixel sample, so how they leave their parent was not judged (write each sample's rays together, ids unique within it)",
+                self.orphans
+            );
+        }
+        let all: Vec<&VerdictGroup> = self.verdicts.iter().chain(&self.tie_verdicts).collect();
+        if all.is_empty() {
+            let _ = writeln!(s, "\nevery ray agrees with rayscope");
+            return s;
+        }
+        let width = all.iter().map(|g| g.code.as_str().len()).max().unwrap_or(0);
+        let _ = writeln!(s, "\n{:>9}  {:width$}  what", "rays", "verdict");
+        for g in &all {
+            let _ = writeln!(s, "{:>9}  {:width$}  {}", g.count, g.code.as_str(), g.summary);
+        }
+        for g in all {
+            let _ = writeln!(
+                s,
+                "\n{} — {} ray{}",
+                g.code.as_str(),
+                g.count,
+                if g.count == 1 { "" } else { "s" }
+            );
+            for l in wrap(g.explanation, 96) {
+                let _ = writeln!(s, "  {l}");
+            }
+            for f in &g.examples {
+                let _ = writeln!(s, "{}", example(f, trace_command(f)));
+            }
+            if g.count > g.examples.len() as u64 {
+                let _ = writeln!(s, "  … and {} more", g.count - g.examples.len() as u64);
+            }
+        }
+        s
+    }
+}
+
+fn example(f: &Finding, cmd: Option<String>) -> String {
+    let mut s = String::new();
+    let mut head = format!("  line {}:", f.line);
+    if let Some([x, y]) = f.pixel {
+        let _ = write!(head, " pixel ({x}, {y})");
+    }
+    if let Some(sm) = f.sample {
+        let _ = write!(head, " sample {sm}");
+    }
+    let _ = write!(head, ", {} ray", f.kind);
+    if let Some(id) = f.id {
+        let _ = write!(head, " {id}");
+    }
+    let _ = writeln!(s, "{head}");
+    let _ = writeln!(s, "    {}", f.detail);
+    if !f.values.is_empty() {
+        let w = f
+            .values
+            .iter()
+            .map(|v| v.what.chars().count())
+            .max()
+            .unwrap_or(0)
+            .max(4);
+        let cells: Vec<(String, String)> = f.values.iter().map(|v| (show(&v.yours), show(&v.rayscope))).collect();
+        let yw = cells.iter().map(|c| c.0.chars().count()).max().unwrap_or(0).max(5);
+        let _ = writeln!(s, "    {:w$}  {:yw$}  rayscope", "", "yours");
+        for (v, (y, r)) in f.values.iter().zip(cells) {
+            let _ = writeln!(s, "    {:w$}  {:yw$}  {}", v.what, y, r);
+        }
+    }
+    if let Some(c) = cmd {
+        let _ = writeln!(s, "    rayscope's ray tree: {c}");
+    }
+    s.trim_end().to_string()
+}
+
+/// A JSON value as a compact text cell.
+fn show(v: &serde_json::Value) -> String {
+    match v {
+        serde_json::Value::String(s) => s.clone(),
+        serde_json::Value::Array(a) => format!("({})", a.iter().map(show).collect::<Vec<_>>().join(", ")),
+        serde_json::Value::Null => "—".into(),
+        other => other.to_string(),
+    }
+}
+
+fn wrap(text: &str, width: usize) -> Vec<String> {
+    let mut lines = Vec::new();
+    let mut cur = String::new();
+    for w in text.split_whitespace() {
+        if !cur.is_empty() && cur.chars().count() + 1 + w.chars().count() > width {
+            lines.push(std::mem::take(&mut cur));
+        }
+        if !cur.is_empty() {
+            cur.push(' ');
+        }
+        cur.push_str(w);
+    }
+    if !cur.is_empty() {
+        lines.push(cur);
+    }
+    lines
+}

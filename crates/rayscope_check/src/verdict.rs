@@ -1,0 +1,209 @@
+//! Verdict codes: stable names, a one-line summary and a plain-English explanation of the likely
+//! mistake behind each.
+
+use serde::Serialize;
+
+macro_rules! codes {
+    ($( $variant:ident = $name:literal, $tie:literal, $summary:literal, $explain:literal; )*) => {
+        /// A verdict's stable code (`camera.fov-axis`, `shadow.acne`, …).
+        #[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+        pub enum Code {
+            $(
+                #[doc = $summary]
+                $variant,
+            )*
+        }
+
+        impl Code {
+            /// Every code, in the order reports list them.
+            pub const ALL: &'static [Code] = &[$(Code::$variant),*];
+
+            /// The stable code.
+            #[must_use]
+            pub fn as_str(self) -> &'static str {
+                match self { $(Code::$variant => $name),* }
+            }
+
+            /// True for a genuine tie, which is reported but not counted against the tracer.
+            #[must_use]
+            pub fn is_tie(self) -> bool {
+                match self { $(Code::$variant => $tie),* }
+            }
+
+            /// One line: what was found.
+            #[must_use]
+            pub fn summary(self) -> &'static str {
+                match self { $(Code::$variant => $summary),* }
+            }
+
+            /// A paragraph: the likely mistake and how to fix it.
+            #[must_use]
+            pub fn explanation(self) -> &'static str {
+                match self { $(Code::$variant => $explain),* }
+            }
+
+            /// The code named `s`.
+            #[must_use]
+            pub fn parse(s: &str) -> Option<Code> {
+                match s { $($name => Some(Code::$variant),)* _ => None }
+            }
+        }
+    };
+}
+
+codes! {
+    CameraOrigin = "camera.origin", false,
+        "camera ray does not start at the camera",
+        "Camera rays start at the camera position (the origin unless --cam-pos moves it). Check the origin you give your camera rays.";
+    CameraFovAxis = "camera.fov-axis", false,
+        "field of view spans the wrong side of the image",
+        "Your camera rays fit a field of view measured across the other side of the image: the course's 60° spans the image width (horizontal), and the height follows from the aspect ratio. The Unity workshop used a vertical FOV; on a square image the two agree, which is why this only shows on non-square images. Compute the half-width as tan(fov/2) and the half-height as tan(fov/2) × height / width (or check with --fov-axis vertical if that is what you meant).";
+    CameraAspect = "camera.aspect", false,
+        "wrong aspect ratio",
+        "Your camera rays fit an image plane whose width-to-height ratio is wrong: either the aspect ratio is ignored (a square image plane on a non-square image) or it is applied the wrong way round (height / width instead of width / height). Objects look stretched. With a horizontal FOV the image plane is 2·tan(fov/2) wide and 2·tan(fov/2)·height/width high.";
+    CameraPixelCorner = "camera.pixel-corner", false,
+        "ray through the pixel's corner instead of its centre",
+        "Your camera ray goes through the top-left corner of the pixel (or of the sub-pixel cell) rather than its centre: use (x + 0.5) / width and (y + 0.5) / height. The whole image shifts by half a pixel.";
+    CameraFlipped = "camera.flipped", false,
+        "image upside down or mirrored",
+        "Your camera rays fit rayscope's with the image flipped: row 0 is the top of the image, so the image-plane y is (1 − 2·(y + 0.5)/height)·half-height (positive at the top), and +x is to the right in the course's left-handed camera looking along +z.";
+    CameraPlaneDistance = "camera.plane-distance", false,
+        "wrong distance to the image plane (or a wrong field of view)",
+        "Your camera rays fit an image plane at a different distance from the camera than the one its size was computed for, which is the same as using a different field of view: the course puts the plane at distance 1 with a half-width of tan(fov/2). Check the image plane's distance, and whether the FOV is converted from degrees to radians and halved.";
+    CameraSubpixelGrid = "camera.subpixel-grid", false,
+        "sample not at rayscope's sub-pixel grid position",
+        "With -x N each pixel is sampled on an N×N regular grid: sample s is cell (i, j) = (s mod N, s div N), at ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height). Your ray lies elsewhere: rows and columns swapped, every sample at the pixel centre, a grid that spans the pixel's corners, or random jitter. Number your samples row by row, as rayscope does, to compare them.";
+    CameraDirection = "camera.direction", false,
+        "camera ray points elsewhere",
+        "Your camera ray's direction matches none of the usual mistakes rayscope knows. The details name the pixel your ray actually passes through. Check how you map pixel coordinates to the image plane, the FOV, and the camera's rotation.";
+    HitMissed = "hit.missed", false,
+        "missed a hit",
+        "rayscope's trace of your ray hits a surface your tracer did not report. Common causes: a wrong intersection test (a sign in the quadratic, a wrong t range, rejecting t for the wrong root), or an object missing from the list you test.";
+    HitPhantom = "hit.phantom", false,
+        "reported a hit where there is none",
+        "Your tracer reports a hit that rayscope does not find: nothing is there at that distance along the ray. Check the intersection test's acceptance conditions (a triangle's inside-outside test, a sphere's discriminant) and that t comes from the same ray you log.";
+    HitFarther = "hit.farther", false,
+        "chose a farther surface over a nearer one",
+        "Your tracer reports a surface that lies beyond the nearest one: rayscope finds another entity in front of it. Keep the hit with the smallest positive t over all entities (not the first one found, and not the last one tested).";
+    HitOneSidedTriangle = "hit.one-sided-triangle", false,
+        "ray passed through a triangle's back face",
+        "Your ray went through a triangle from its back side, as a one-sided (back-face culling) intersection test does. The course's triangles are two-sided: accept the hit whatever the sign of the determinant (d · n), and flip the normal to face the ray when shading.";
+    HitWrongT = "hit.wrong-t", false,
+        "right surface, wrong distance",
+        "Your tracer hits the right entity at the wrong distance along the ray: for spheres, the other root of the quadratic (the smaller positive root is the visible one, the larger one when the ray starts inside); elsewhere, t computed for an unnormalised direction, or from a different origin.";
+    HitPointOffRay = "hit.point-off-ray", false,
+        "hit point is not origin + t · direction",
+        "The point you log is not where your own t puts it on your own ray. Usually the direction used to compute t was not normalised, or the point was computed from a different ray.";
+    HitBehindOrigin = "hit.behind-origin", false,
+        "hit behind the ray's origin",
+        "Your tracer accepts a hit with t < 0, behind where the ray starts. Only hits with t > 0 (or t > a small epsilon) are in front of the ray; for spheres, discard negative roots.";
+    HitNormalNotUnit = "hit.normal-not-unit", false,
+        "normal not of unit length",
+        "The normal at this hit is not normalised. Lambert's cosine and the reflection and refraction formulas assume a unit normal: normalise it.";
+    HitNormalReversedWinding = "hit.normal-reversed-winding", false,
+        "triangle normal from the wrong winding",
+        "The triangle's normal points away from the ray on the triangle's front face: it is the negation of (v1 − v0) × (v2 − v0), the course's convention (clockwise winding is the front face). Check the order of the cross product.";
+    HitNormalWrong = "hit.normal-wrong", false,
+        "normal is neither the outward normal nor the one facing the ray",
+        "The normal at this hit is neither the surface's own (outward) normal nor that normal flipped to face the ray, which are the two conventions that work. For spheres it is (point − centre) / radius; for planes the normal given in the scene; for triangles (v1 − v0) × (v2 − v0), normalised.";
+    HitNormalInconsistent = "hit.normal-inconsistent", false,
+        "normals follow two conventions",
+        "Where a ray hits the back of a surface, your tracer sometimes reports the outward normal and sometimes the one facing the ray. Either convention is fine, but mixing them means some of your shading and refraction code gets the wrong side. Pick one and use it everywhere.";
+    ShadowAcne = "shadow.acne", false,
+        "shadow ray blocked by the surface it leaves (shadow acne)",
+        "Your shadow ray is blocked by the very surface it starts on, a rounding-error hit at t ≈ 0: the speckled dark pattern called shadow acne. Start the shadow ray a little off the surface, at point + normal · ε with the normal facing the incoming ray (ε about 1e-5 at the course's scale), or ignore hits closer than ε.";
+    SecondaryAcne = "secondary.acne", false,
+        "secondary ray hits the surface it leaves (self-intersection)",
+        "Your reflected or refracted ray hits the surface it starts on at t ≈ 0, from rounding error. Offset its origin: point + n·ε for reflections and point − n·ε for refractions, with n facing the incoming ray.";
+    SecondaryOriginNotAtHit = "secondary.origin-not-at-hit", false,
+        "secondary ray does not start at its parent's hit point",
+        "This ray should start where its parent ray hit (plus a tiny offset), but it starts somewhere else. Check which point you pass on, and that the parent's t is the closest hit.";
+    SecondaryOffsetWrongSide = "secondary.offset-wrong-side", false,
+        "origin offset to the wrong side of the surface",
+        "The ray's origin is offset to the wrong side of the surface it leaves: shadow and reflected rays must start on the side the incoming ray came from (point + n·ε), refracted rays on the other side (point − n·ε), with n facing the incoming ray. Offsetting along the outward normal instead of the facing one does this on the inside of glass.";
+    SecondaryWrongMaterial = "secondary.wrong-material", false,
+        "ray kind does not fit the material it leaves",
+        "This ray's kind does not match the material of the surface its parent hit in rayscope's trace: refracted rays leave Refractive materials only, mirror reflections leave Reflective and Refractive ones. Check how you look up the material of the entity you hit.";
+    ReflectionNotMirror = "reflection.not-mirror", false,
+        "reflected ray is not the mirror image of its parent",
+        "The reflected direction should be r = d − 2 (d · n) n, with d the incoming direction and n the unit normal. Yours differs: check the sign, the factor 2, that n is normalised, and that d points toward the surface (not away).";
+    RefractionNormalNotFlipped = "refraction.normal-not-flipped", false,
+        "refraction leaving glass used the outward normal",
+        "Where the ray leaves the glass (it hits the inside of the surface), your refraction used the outward normal instead of the normal flipped to face the ray. With Snell's formula t = η d + (η cos θi − cos θt) n this bends the ray back into the glass. When d · n > 0, negate n (and swap the indices) before refracting.";
+    RefractionIndicesNotSwapped = "refraction.indices-not-swapped", false,
+        "refraction leaving glass did not swap the indices",
+        "Your refracted ray bends as if going from air into glass when it is leaving the glass (or the other way round): η must be n_glass / n_air on the way out and n_air / n_glass on the way in. Swap the indices when the ray hits the inside of the surface.";
+    RefractionSnell = "refraction.snell", false,
+        "refracted ray breaks Snell's law",
+        "The refracted direction does not satisfy Snell's law, sin θt = (n1 / n2) sin θi, for the material's index. The details give the ratio your ray bends by. Check the formula t = η d + (η cos θi − √(1 − η² (1 − cos² θi))) n, with unit d and n and n facing the ray.";
+    RefractionTirMissed = "refraction.tir-missed", false,
+        "refracted ray where total internal reflection happens",
+        "Past the critical angle nothing is transmitted: 1 − η² (1 − cos² θi) < 0, and all light is reflected (total internal reflection). Your tracer cast a refracted ray anyway. Check for a negative value under the square root and reflect instead.";
+    RefractionTirInvented = "refraction.tir-invented", false,
+        "total internal reflection where the ray refracts",
+        "Your tracer reflected at glass and cast no refracted ray, as if the ray were past the critical angle, but it is not: rayscope refracts here. Check the total-internal-reflection test (it applies only when 1 − η² (1 − cos² θi) < 0, with η = n1 / n2 of the side the ray comes from).";
+    ShadowNotAtLight = "shadow.not-at-light", false,
+        "shadow ray not aimed at a light",
+        "A shadow ray must point from the hit point toward a light: direction = normalise(light − point). This one points at no light of the scene (or not at the light it names). Check for light − point reversed as point − light, and for a direction left unnormalised.";
+    ShadowBlockedBeyondLight = "shadow.blocked-beyond-light", false,
+        "shadow ray blocked by something beyond the light",
+        "Your tracer counts the light as blocked by an entity that lies farther away than the light itself. Only hits with t smaller than the distance to the light block it: compare t with |light − point|.";
+    ShadowOneSidedTriangle = "shadow.one-sided-triangle", false,
+        "triangle does not block a shadow ray arriving at its back face",
+        "A triangle lies between the point and the light, but your shadow ray passes through it because it arrives at the triangle's back side: your triangle test is one-sided (it culls back faces). The course's triangles block light from both sides (scene 1's triangle casts its shadow that way): accept hits whatever the sign of d · n.";
+    ShadowMissedBlocker = "shadow.missed-blocker", false,
+        "shadow ray reached the light through an occluder",
+        "An entity lies between the point and the light, but your tracer says the light is reached. Check that the shadow test intersects every entity (glass included) and accepts hits with 0 < t < distance to the light.";
+    ShadowPhantomBlocker = "shadow.phantom-blocker", false,
+        "shadow ray blocked by something that is not in the way",
+        "Your tracer says this light is blocked by an entity that rayscope does not find on the segment from the point to the light. Check the intersection test's acceptance and that the shadow ray's direction is normalised before comparing t with the distance to the light.";
+    ShadowWrongBlocker = "shadow.wrong-blocker", false,
+        "light blocked, but not by the entity named",
+        "The light is blocked, but the entity your tracer names is not on the shadow ray. The answer (in shadow) is right; the entity you report comes from somewhere else, perhaps an earlier ray.";
+    TieEdge = "tie.edge", true,
+        "two surfaces meet where the ray hits (a genuine tie)",
+        "The ray hits where two entities meet, at the same distance (an edge of a box, a seam between two triangles): either answer is right, and which one a tracer returns is rounding. Not counted against you.";
+    TieGrazing = "tie.grazing", true,
+        "ray grazes an edge or silhouette (a genuine tie)",
+        "The ray passes within the tolerance of a triangle's edge or a sphere's silhouette, so whether it hits depends on rounding. Not counted against you.";
+    TieLightOnSurface = "tie.light-on-surface", true,
+        "light lies on a surface (a genuine tie)",
+        "The light sits on (or within rounding of) the surface in the way, so whether that surface blocks the shadow ray is rounding. Not counted against you.";
+    TieCriticalAngle = "tie.critical-angle", true,
+        "ray at the critical angle (a genuine tie)",
+        "The ray meets the glass within rounding of the critical angle, so whether it refracts or is totally reflected is rounding. Not counted against you.";
+}
+
+impl Serialize for Code {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn codes_are_unique_and_round_trip() {
+        let mut seen = std::collections::HashSet::new();
+        for &c in Code::ALL {
+            assert!(seen.insert(c.as_str()), "duplicate {}", c.as_str());
+            assert_eq!(Code::parse(c.as_str()), Some(c));
+            assert_eq!(c.is_tie(), c.as_str().starts_with("tie."));
+            assert!(c.explanation().len() > 60, "{} needs an explanation", c.as_str());
+        }
+    }
+
+    #[test]
+    fn readme_lists_every_code() {
+        let readme = include_str!("../../../docs/check.md");
+        for &c in Code::ALL {
+            assert!(
+                readme.contains(&format!("`{}`", c.as_str())),
+                "docs/check.md misses {}",
+                c.as_str()
+            );
+        }
+    }
+}

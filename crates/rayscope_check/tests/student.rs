@@ -1,0 +1,287 @@
+//! `check` against a student-style Python tracer (tests/student/tracer.py) with one realistic
+//! mistake at a time: each must be named, and the correct tracer must get no verdict.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use rayscope_check::log::{open, IdRole};
+use rayscope_check::{check, CheckOptions, Code, Judge, LogContext, Report};
+use rayscope_core::{RenderSettings, Scene, Stage};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// python3, or `None` (loudly) when it is missing outside CI.
+fn python() -> Option<&'static str> {
+    let ok = Command::new("python3")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if ok {
+        return Some("python3");
+    }
+    assert!(
+        std::env::var("CI").as_deref() != Ok("true"),
+        "python3 is required for the student-tracer tests in CI"
+    );
+    eprintln!("SKIPPED: python3 not found; the student-tracer tests did not run");
+    None
+}
+
+struct Run<'a> {
+    scene: PathBuf,
+    w: u32,
+    h: u32,
+    aa: u32,
+    region: Option<[u32; 4]>,
+    bug: &'a str,
+}
+
+impl Run<'_> {
+    fn new(scene: PathBuf, w: u32, h: u32) -> Self {
+        Run {
+            scene,
+            w,
+            h,
+            aa: 1,
+            region: None,
+            bug: "none",
+        }
+    }
+
+    /// Runs the student tracer and checks its log; `None` when python3 is missing.
+    fn check(&self) -> Option<Report> {
+        let py = python()?;
+        let dir = tempfile::tempdir().expect("temp dir");
+        let log = dir.path().join("rays.jsonl");
+        let mut cmd = Command::new(py);
+        cmd.arg(root().join("crates/rayscope_check/tests/student/tracer.py"))
+            .arg("-f")
+            .arg(&self.scene)
+            .args([
+                "-w",
+                &self.w.to_string(),
+                "-h",
+                &self.h.to_string(),
+                "-x",
+                &self.aa.to_string(),
+            ])
+            .args(["--bug", self.bug])
+            .arg("--log")
+            .arg(&log);
+        if let Some([a, b, c, d]) = self.region {
+            cmd.arg("--region").arg(format!("{a},{b},{c},{d}"));
+        }
+        let out = cmd.output().expect("run the student tracer");
+        assert!(
+            out.status.success(),
+            "tracer failed: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let file = rayscope_scene::load(&self.scene).expect("scene");
+        let scene = Scene::from_file(&file);
+        let settings = RenderSettings {
+            width: self.w,
+            height: self.h,
+            aa: self.aa,
+            stage: Stage::Two,
+            ..RenderSettings::default()
+        };
+        let judge = Judge::new(&scene, &settings);
+        let ctx = LogContext::new(&scene, self.w, self.h, judge.samples_per_pixel(), self.aa);
+        let mut src = open(&log, ctx, false, &[IdRole::X, IdRole::Y]).expect("open log");
+        Some(check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check"))
+    }
+}
+
+fn text(r: &Report) -> String {
+    r.to_text(&|_| None)
+}
+
+/// The correct tracer: no verdict at all.
+fn assert_clean(run: Run<'_>) {
+    let Some(r) = run.check() else {
+        return;
+    };
+    assert!(r.rays > 1000, "too few rays: {}", r.rays);
+    assert_eq!(r.disagree, 0, "the correct tracer got verdicts:\n{}", text(&r));
+}
+
+/// A mistake: named by `code`, the most frequent verdict, and no verdict outside `allowed`.
+fn assert_named(run: Run<'_>, code: Code, allowed: &[Code]) {
+    let Some(r) = run.check() else {
+        return;
+    };
+    let t = text(&r);
+    assert!(r.disagree > 0, "bug '{}' went unnoticed:\n{t}", run.bug);
+    assert_eq!(r.verdicts[0].code, code, "bug '{}' is not named first:\n{t}", run.bug);
+    for v in &r.verdicts {
+        assert!(
+            v.code == code || allowed.contains(&v.code),
+            "bug '{}' also gave {}:\n{t}",
+            run.bug,
+            v.code.as_str()
+        );
+    }
+}
+
+#[test]
+fn correct_tracer_gets_no_verdict_on_course_scene_1() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_clean(Run::new(course.scene("sample_scene_1.txt"), 40, 40));
+}
+
+#[test]
+fn correct_tracer_gets_no_verdict_on_course_scene_2_with_aa() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_clean(Run {
+        aa: 2,
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    });
+}
+
+#[test]
+fn correct_tracer_gets_no_verdict_on_our_scenes() {
+    assert_clean(Run::new(root().join("scenes/whitted.txt"), 40, 40));
+    assert_clean(Run::new(
+        root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"),
+        40,
+        30,
+    ));
+}
+
+#[test]
+fn refraction_normal_not_flipped_is_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for scene in [course.scene("sample_scene_2.txt"), root().join("scenes/whitted.txt")] {
+        assert_named(
+            Run {
+                bug: "refraction-normal",
+                ..Run::new(scene, 40, 40)
+            },
+            Code::RefractionNormalNotFlipped,
+            &[],
+        );
+    }
+}
+
+#[test]
+fn shadow_rays_without_offset_are_named_as_acne() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for scene in [course.scene("sample_scene_1.txt"), course.scene("sample_scene_2.txt")] {
+        assert_named(
+            Run {
+                bug: "shadow-no-offset",
+                ..Run::new(scene, 40, 40)
+            },
+            Code::ShadowAcne,
+            &[],
+        );
+    }
+}
+
+#[test]
+fn vertical_fov_on_a_400x300_image_is_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_named(
+        Run {
+            bug: "vertical-fov",
+            region: Some([0, 0, 400, 3]),
+            ..Run::new(course.scene("sample_scene_1.txt"), 400, 300)
+        },
+        Code::CameraFovAxis,
+        &[],
+    );
+}
+
+#[test]
+fn wrong_aspect_ratio_is_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_named(
+        Run {
+            bug: "aspect",
+            region: Some([0, 140, 400, 143]),
+            ..Run::new(course.scene("sample_scene_1.txt"), 400, 300)
+        },
+        Code::CameraAspect,
+        &[],
+    );
+}
+
+#[test]
+fn one_sided_triangles_are_named_where_they_fail_to_cast_shadows() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // The floor behind scene 1's triangle, in its shadow: the shadow rays meet its back face.
+    assert_named(
+        Run {
+            bug: "one-sided",
+            region: Some([200, 250, 280, 300]),
+            ..Run::new(course.scene("sample_scene_1.txt"), 400, 400)
+        },
+        Code::ShadowOneSidedTriangle,
+        &[Code::HitOneSidedTriangle],
+    );
+}
+
+#[test]
+fn refraction_without_total_internal_reflection_is_named() {
+    assert_named(
+        Run {
+            bug: "no-tir",
+            ..Run::new(root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"), 40, 30)
+        },
+        Code::RefractionTirMissed,
+        &[],
+    );
+}
+
+/// rayscope's own trace, logged in the documented format (f32 numbers, the facing-normal
+/// convention, per-sample ids): the judge's tolerances must accept it everywhere.
+#[test]
+fn rayscope_own_log_gets_no_verdict() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for (scene, w, aa) in [
+        (course.scene("sample_scene_1.txt"), 32, 1),
+        (course.scene("sample_scene_2.txt"), 24, 2),
+        (root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"), 24, 1),
+    ] {
+        let file = rayscope_scene::load(&scene).expect("scene");
+        let scene = Scene::from_file(&file);
+        let settings = RenderSettings {
+            width: w,
+            height: w,
+            aa,
+            stage: Stage::Two,
+            ..RenderSettings::default()
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        let log = dir.path().join("own.jsonl");
+        let mut f = std::fs::File::create(&log).expect("log");
+        let n = rayscope_check::selflog::write_log(&scene, &settings, 0..w, &mut f).expect("write");
+        drop(f);
+        let judge = Judge::new(&scene, &settings);
+        let ctx = LogContext::new(&scene, w, w, judge.samples_per_pixel(), aa);
+        let mut src = open(&log, ctx, false, &[]).expect("open");
+        let r = check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check");
+        assert_eq!(r.rays, n);
+        assert_eq!(r.disagree, 0, "{}", text(&r));
+        assert_eq!(r.camera_rays, u64::from(w * w * aa * aa));
+    }
+}

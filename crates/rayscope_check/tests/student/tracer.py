@@ -1,0 +1,291 @@
+#!/usr/bin/env python3
+"""A small student-style Whitted ray tracer for the course's scene format, for rayscope's
+`check` tests. Standard library only.
+
+It renders stage 2 as the course describes it (point lights with shadow rays, mirrors, Fresnel
+glass with total internal reflection, an N x N sub-pixel grid) and logs every ray it casts in
+rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
+
+  refraction-normal  refraction never flips the normal when the ray leaves glass
+  shadow-no-offset   shadow rays start exactly on the surface (no offset)
+  vertical-fov       the 60 degrees span the image height instead of its width
+  one-sided          triangles are one-sided (back faces culled)
+  aspect             the aspect ratio is applied the wrong way round
+  no-tir             refraction without total internal reflection
+
+Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
+       [--log rays.jsonl] [--image out.ppm]
+"""
+
+import argparse
+import json
+import math
+import re
+import sys
+
+EPS = 1e-5
+MAX_DEPTH = 8
+
+
+def add(a, b):
+    return (a[0] + b[0], a[1] + b[1], a[2] + b[2])
+
+
+def sub(a, b):
+    return (a[0] - b[0], a[1] - b[1], a[2] - b[2])
+
+
+def mul(a, s):
+    return (a[0] * s, a[1] * s, a[2] * s)
+
+
+def dot(a, b):
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+
+
+def cross(a, b):
+    return (a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0])
+
+
+def normalize(a):
+    n = math.sqrt(dot(a, a))
+    return (a[0] / n, a[1] / n, a[2] / n)
+
+
+def hadamard(a, b):
+    return (a[0] * b[0], a[1] * b[1], a[2] * b[2])
+
+
+class Entity:
+    def __init__(self, name, kind, material, **geo):
+        self.name = name
+        self.kind = kind
+        self.material = material
+        self.__dict__.update(geo)
+
+
+def load_scene(path):
+    materials, lights, entities = {}, [], []
+    with open(path) as f:
+        for line in f:
+            tok = [t for t in re.split(r'[\s,"()]+', line) if t]
+            if not tok or tok[0].startswith("#"):
+                continue
+            cmd, a = tok[0], tok[1:]
+            num = lambda i, n: tuple(float(x) for x in a[i:i + n])
+            if cmd == "Material":
+                materials[a[0]] = {"type": a[1], "color": num(2, 3), "value": float(a[5])}
+            elif cmd == "PointLight":
+                lights.append({"name": a[0], "pos": num(1, 3), "color": num(4, 3)})
+            elif cmd == "Plane":
+                entities.append(Entity(a[0], "plane", materials[a[7]], p=num(1, 3), n=normalize(num(4, 3))))
+            elif cmd == "Sphere":
+                entities.append(Entity(a[0], "sphere", materials[a[5]], c=num(1, 3), r=float(a[4])))
+            elif cmd == "Triangle":
+                v0, v1, v2 = num(1, 3), num(4, 3), num(7, 3)
+                e1, e2 = sub(v1, v0), sub(v2, v0)
+                entities.append(Entity(a[0], "triangle", materials[a[10]], v0=v0, e1=e1, e2=e2,
+                                       n=normalize(cross(e1, e2))))
+            else:
+                sys.exit(f"{path}: unsupported command {cmd}")
+    return materials, lights, entities
+
+
+class Tracer:
+    def __init__(self, scene, args, log):
+        self.materials, self.lights, self.entities = scene
+        self.bug = args.bug
+        self.log = log
+        self.next_id = 0
+        self.pixel = (0, 0)
+        self.sample = 0
+
+    # --- intersection -------------------------------------------------------------------
+    def intersect(self, e, o, d):
+        """Nearest t > 0 of the ray with entity e, or None."""
+        if e.kind == "plane":
+            den = dot(e.n, d)
+            if den == 0:
+                return None
+            t = dot(sub(e.p, o), e.n) / den
+            return t if t > 0 else None
+        if e.kind == "sphere":
+            oc = sub(o, e.c)
+            b = dot(oc, d)
+            c = dot(oc, oc) - e.r * e.r
+            disc = b * b - c
+            if disc < 0:
+                return None
+            s = math.sqrt(disc)
+            for t in (-b - s, -b + s):
+                if t > 0:
+                    return t
+            return None
+        # Moller-Trumbore; det > 0 on the front face.
+        p = cross(d, e.e2)
+        det = dot(e.e1, p)
+        if self.bug == "one-sided":
+            if det < 1e-12:
+                return None
+        elif abs(det) < 1e-12:
+            return None
+        inv = 1.0 / det
+        s = sub(o, e.v0)
+        u = dot(s, p) * inv
+        if u < 0 or u > 1:
+            return None
+        q = cross(s, e.e1)
+        v = dot(d, q) * inv
+        if v < 0 or u + v > 1:
+            return None
+        t = dot(e.e2, q) * inv
+        return t if t > 0 else None
+
+    def closest(self, o, d):
+        best = None
+        for e in self.entities:
+            t = self.intersect(e, o, d)
+            if t is not None and (best is None or t < best[0]):
+                best = (t, e)
+        return best
+
+    def blocker(self, o, d, dist):
+        for e in self.entities:
+            t = self.intersect(e, o, d)
+            if t is not None and t < dist:
+                return e
+        return None
+
+    def normal(self, e, p):
+        if e.kind == "sphere":
+            return normalize(sub(p, e.c))
+        return e.n
+
+    # --- logging ------------------------------------------------------------------------
+    def new_id(self):
+        self.next_id += 1
+        return self.next_id
+
+    def emit(self, rec):
+        if self.log:
+            rec["pixel"] = list(self.pixel)
+            rec["sample"] = self.sample
+            self.log.write(json.dumps(rec) + "\n")
+
+    # --- shading ------------------------------------------------------------------------
+    def trace(self, o, d, depth, parent, kind):
+        rid = self.new_id()
+        h = self.closest(o, d)
+        rec = {"id": rid, "parent": parent, "kind": kind, "origin": list(o), "direction": list(d)}
+        if h is None:
+            rec["hit"] = None
+            self.emit(rec)
+            return (0.0, 0.0, 0.0)
+        t, e = h
+        p = add(o, mul(d, t))
+        n = self.normal(e, p)
+        front = dot(n, d) < 0
+        nf = n if front else mul(n, -1)
+        rec["hit"] = {"t": t, "point": list(p), "normal": list(nf), "entity": e.name}
+        self.emit(rec)
+        m = e.material
+        if m["type"] in ("Diffuse", "Emissive", "Glossy"):
+            return self.diffuse(p, nf, m, rid)
+        if depth >= MAX_DEPTH:
+            return (0.0, 0.0, 0.0)
+        if m["type"] == "Reflective":
+            r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
+            return self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
+        return self.glass(d, p, n, nf, front, m, depth, rid)
+
+    def diffuse(self, p, nf, m, rid):
+        col = (0.0, 0.0, 0.0)
+        for light in self.lights:
+            so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
+            to = sub(light["pos"], so)
+            dist = math.sqrt(dot(to, to))
+            ldir = mul(to, 1 / dist)
+            b = self.blocker(so, ldir, dist)
+            self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
+                       "direction": list(ldir), "light": light["name"],
+                       "blocked_by": b.name if b else None})
+            if b is None:
+                col = add(col, mul(hadamard(m["color"], light["color"]), max(0.0, dot(nf, ldir))))
+        return col
+
+    def glass(self, d, p, n, nf, front, m, depth, rid):
+        ior = m["value"]
+        n1, n2 = (1.0, ior) if front else (ior, 1.0)
+        nn = n if self.bug == "refraction-normal" else nf
+        eta = n1 / n2
+        cosi = -dot(d, nn)
+        k = 1 - eta * eta * (1 - cosi * cosi)
+        # Fresnel (unpolarised) with the facing normal's cosine.
+        ci = abs(cosi)
+        if k < 0:
+            kr = 1.0
+        else:
+            ct = math.sqrt(k)
+            rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct)
+            rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
+            kr = 0.5 * (rs * rs + rp * rp)
+        r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
+        col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
+        if k < 0 and self.bug != "no-tir":
+            return col
+        k = max(k, 0.0)
+        tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
+        sub_col = self.trace(sub(p, mul(nn, EPS)), tdir, depth + 1, rid, "refraction")
+        return add(col, mul(sub_col, 1 - kr))
+
+
+def main():
+    ap = argparse.ArgumentParser(add_help=False)
+    ap.add_argument("-f", required=True)
+    ap.add_argument("-w", type=int, default=400)
+    ap.add_argument("-h", type=int, default=400)
+    ap.add_argument("-x", type=int, default=1)
+    ap.add_argument("--region", default=None)
+    ap.add_argument("--bug", default="none")
+    ap.add_argument("--log", default="-")
+    ap.add_argument("--image", default=None)
+    args = ap.parse_args()
+    if args.bug not in ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided",
+                        "aspect", "no-tir"):
+        sys.exit(f"unknown bug {args.bug}")
+    w, h, n = args.w, args.h, args.x
+    x0, y0, x1, y1 = 0, 0, w, h
+    if args.region:
+        x0, y0, x1, y1 = (int(v) for v in args.region.split(","))
+    log = sys.stdout if args.log == "-" else open(args.log, "w")
+    tr = Tracer(load_scene(args.f), args, log)
+    t = math.tan(math.radians(60) / 2)
+    hx, hy = t, t * h / w
+    if args.bug == "vertical-fov":
+        hx, hy = t * w / h, t
+    elif args.bug == "aspect":
+        hx, hy = t, t * w / h
+    image = {}
+    for y in range(y0, y1):
+        for x in range(x0, x1):
+            total = (0.0, 0.0, 0.0)
+            for j in range(n):
+                for i in range(n):
+                    tr.pixel, tr.sample = (x, y), j * n + i
+                    u = (x + (i + 0.5) / n) / w
+                    v = (y + (j + 0.5) / n) / h
+                    d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, 1.0))
+                    total = add(total, tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera"))
+            image[(x, y)] = mul(total, 1 / (n * n))
+    if log is not sys.stdout:
+        log.close()
+    if args.image:
+        with open(args.image, "w") as f:
+            f.write(f"P3\n{x1 - x0} {y1 - y0}\n255\n")
+            for y in range(y0, y1):
+                f.write(" ".join(" ".join(str(int(min(c, 1.0) * 255)) for c in image[(x, y)])
+                                 for x in range(x0, x1)) + "\n")
+
+
+if __name__ == "__main__":
+    main()
