@@ -2,6 +2,7 @@
 
 mod cli;
 mod commands;
+mod diagnose_cli;
 
 use std::process::ExitCode;
 
