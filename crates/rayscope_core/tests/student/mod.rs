@@ -61,6 +61,8 @@ struct Hit {
     p: DVec3,
     /// The normal as the student's code computes it (not yet turned towards the ray).
     n: DVec3,
+    /// The interpolated normal of a smooth mesh, on the same side as `n`.
+    shading: DVec3,
     obj: usize,
 }
 
@@ -92,8 +94,8 @@ impl Student {
                     source, offset, scale, ..
                 } => {
                     let tris = read_obj(source, *offset, *scale, &bugs);
-                    let centre = tris.iter().flat_map(|t| t.v).fold(DVec3::ZERO, |a, v| a + v)
-                        / (3 * tris.len()).max(1) as f64;
+                    let centre =
+                        tris.iter().flat_map(|t| t.v).fold(DVec3::ZERO, |a, v| a + v) / (3 * tris.len()).max(1) as f64;
                     let radius = tris
                         .iter()
                         .flat_map(|t| t.v)
@@ -186,13 +188,20 @@ impl Student {
         let outside = hit.n.dot(ray.d) < 0.0;
         // Turn the normal towards the ray, unless the student trusts the winding.
         let n = if outside || reversed { hit.n } else { -hit.n };
+        let ns = if outside || reversed { hit.shading } else { -hit.shading };
         match obj.kind {
             MaterialKind::Reflective => {
                 if depth >= self.max_depth() {
                     return DVec3::ZERO;
                 }
                 let r = reflect(ray.d, n);
-                self.trace(Ray { o: hit.p + n * EPS, d: r }, depth + 1)
+                self.trace(
+                    Ray {
+                        o: hit.p + n * EPS,
+                        d: r,
+                    },
+                    depth + 1,
+                )
             }
             MaterialKind::Refractive => {
                 if depth >= self.max_depth() {
@@ -200,7 +209,7 @@ impl Student {
                 }
                 self.glass(ray, &hit, n, outside, obj.ior, depth)
             }
-            _ => self.diffuse(&hit, n, obj.color),
+            _ => self.diffuse(&hit, n, ns, obj.color),
         }
     }
 
@@ -212,7 +221,8 @@ impl Student {
         }
     }
 
-    fn diffuse(&self, hit: &Hit, n: DVec3, color: DVec3) -> DVec3 {
+    /// Offsets along the surface's normal `n`, shades with the interpolated one `ns`.
+    fn diffuse(&self, hit: &Hit, n: DVec3, ns: DVec3, color: DVec3) -> DVec3 {
         let origin = if self.bug("no-shadow-offset") {
             hit.p
         } else if self.bug("huge-shadow-offset") {
@@ -225,14 +235,18 @@ impl Student {
             if k > 0 && self.bug("first-light-only") {
                 break;
             }
-            let to = *pos - origin;
+            let to = *pos - hit.p;
             let dist = to.length();
             let l = to / dist;
-            let reach = if self.bug("shadow-past-light") { f64::INFINITY } else { dist };
+            let reach = if self.bug("shadow-past-light") {
+                f64::INFINITY
+            } else {
+                dist
+            };
             if self.closest(Ray { o: origin, d: l }, reach).is_some() {
                 continue;
             }
-            let mut add = color * *col * n.dot(l).max(0.0);
+            let mut add = color * *col * ns.dot(l).max(0.0);
             if self.bug("light-falloff") {
                 add /= dist * dist;
             }
@@ -251,7 +265,11 @@ impl Student {
             (ior, 1.0)
         };
         // Without the flip, leaving the glass uses the outward normal.
-        let n = if !outside && self.bug("refraction-no-normal-flip") { -n } else { n };
+        let n = if !outside && self.bug("refraction-no-normal-flip") {
+            -n
+        } else {
+            n
+        };
         let eta = n1 / n2;
         let cos_i = -ray.d.dot(n);
         let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
@@ -281,7 +299,10 @@ impl Student {
             (rs * rs + rp * rp) / 2.0
         };
         let t = (ray.d * eta + n * (eta * cos_i - cos_t)).normalize();
-        let refracted = Ray { o: hit.p - n * EPS, d: t };
+        let refracted = Ray {
+            o: hit.p - n * EPS,
+            d: t,
+        };
         let mut c = self.trace(refracted, depth + 1) * (1.0 - kr);
         if kr > 0.0 {
             c += self.trace(reflected, depth + 1) * kr;
@@ -300,14 +321,17 @@ impl Student {
                         None
                     } else {
                         let t = (*p - ray.o).dot(*n) / dn;
-                        Some((t, *n))
+                        Some((t, *n, *n))
                     }
                 }
-                Geo::Sphere { c, r } => sphere(ray, *c, *r).map(|t| (t, (ray.o + ray.d * t - *c) / *r)),
+                Geo::Sphere { c, r } => sphere(ray, *c, *r).map(|t| {
+                    let n = (ray.o + ray.d * t - *c) / *r;
+                    (t, n, n)
+                }),
                 Geo::Tri(tri) => self.triangle(ray, tri, limit),
                 Geo::Mesh { tris, centre, radius } => {
                     if sphere_touches(ray, *centre, *radius) {
-                        let mut b: Option<(f64, DVec3)> = None;
+                        let mut b: Option<(f64, DVec3, DVec3)> = None;
                         for tri in tris {
                             let lim = b.map_or(limit, |x| x.0);
                             if let Some(h) = self.triangle(ray, tri, lim) {
@@ -320,12 +344,13 @@ impl Student {
                     }
                 }
             };
-            if let Some((t, n)) = found {
+            if let Some((t, n, shading)) = found {
                 if t > 0.0 && t < limit {
                     best = Some(Hit {
                         t,
                         p: ray.o + ray.d * t,
                         n,
+                        shading,
                         obj: i,
                     });
                 }
@@ -334,8 +359,9 @@ impl Student {
         best
     }
 
-    /// Möller–Trumbore; returns t and the normal (interpolated for meshes with normals).
-    fn triangle(&self, ray: Ray, tri: &Tri, limit: f64) -> Option<(f64, DVec3)> {
+    /// Möller–Trumbore; returns t, the face normal and the shading normal (interpolated for
+    /// meshes with normals).
+    fn triangle(&self, ray: Ray, tri: &Tri, limit: f64) -> Option<(f64, DVec3, DVec3)> {
         let [a, b, c] = tri.v;
         let (e1, e2) = (b - a, c - a);
         let face = if self.bug("reversed-normals") && tri.n.is_none() {
@@ -366,7 +392,7 @@ impl Student {
         if t <= 0.0 || t >= limit {
             return None;
         }
-        let n = match tri.n {
+        let shading = match tri.n {
             Some([na, nb, nc]) if !self.bug("obj-flat-normals") => {
                 let s = (na * (1.0 - u - v) + nb * u + nc * v).normalize();
                 // Keep the interpolated normal on the face's side, as the course's renderer does.
@@ -378,7 +404,7 @@ impl Student {
             }
             _ => face,
         };
-        Some((t, n))
+        Some((t, face, shading))
     }
 }
 
