@@ -104,7 +104,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
         let s = serde_json::to_string_pretty(&d).map_err(|e| Failure::failed(e.to_string()))?;
         println!("{s}");
     } else {
-        print!("{}", report_text(&d));
+        print!("{}", report_text(&d, &a.file.display().to_string()));
     }
     Ok(if d.matches {
         ExitCode::SUCCESS

@@ -117,7 +117,8 @@ pub struct Explanation {
     pub settings: Vec<String>,
     /// Human-readable description.
     pub summary: String,
-    /// Flags that render this explanation with rayscope.
+    /// Flags that render this explanation with rayscope: the size, stage, the settings the
+    /// search varies and the mistakes (the camera flags given to `diagnose` are to be added).
     pub flags: String,
     /// PSNR of the image against this render, pixel for pixel.
     #[serde(serialize_with = "ser_db")]
@@ -293,14 +294,7 @@ impl Candidate {
                 }
             }
         }
-        let mut flags = settings.join(" ");
-        if !mistakes.is_empty() {
-            let all = self.settings(base).mistakes;
-            if !flags.is_empty() {
-                flags.push(' ');
-            }
-            flags.push_str(&format!("--mistake {all}"));
-        }
+        let flags = render_flags(&self.settings(base));
         Explanation {
             mistakes,
             settings,
@@ -312,6 +306,30 @@ impl Candidate {
             matches: m.robust >= MATCH_DB,
         }
     }
+}
+
+/// The flags of `s` that [`diagnose`] decides: size, stage, anti-aliasing, recursion limit,
+/// field-of-view axis and mistakes.
+fn render_flags(s: &RenderSettings) -> String {
+    let mut f = format!("-w {} -h {}", s.width, s.height);
+    f.push_str(match s.stage {
+        crate::settings::Stage::One => " --stage 1",
+        crate::settings::Stage::Two => " --stage 2",
+        crate::settings::Stage::Full => "",
+    });
+    if s.aa != 1 {
+        f.push_str(&format!(" -x {}", s.aa));
+    }
+    if s.max_depth != RenderSettings::default().max_depth {
+        f.push_str(&format!(" --max-depth {}", s.max_depth));
+    }
+    if s.camera.fov_axis == FovAxis::Vertical {
+        f.push_str(" --fov-axis vertical");
+    }
+    if !s.mistakes.is_empty() {
+        f.push_str(&format!(" --mistake {}", s.mistakes));
+    }
+    f
 }
 
 /// Atoms that cannot be combined: two values of one setting, or two ways of doing one thing.
@@ -865,17 +883,31 @@ fn search(
         let sy = y.1.score() - candidates[y.0].penalty();
         sy.total_cmp(&sx)
     });
+    // A pair is no better an explanation than its half that does as well alone, and far
+    // behind the best is no explanation at all.
+    let alone = |a: &Atom| {
+        confirmed
+            .iter()
+            .find(|(j, _)| candidates[*j].0 == [*a])
+            .map_or(f64::NEG_INFINITY, |(_, m)| m.score())
+    };
+    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m)| m.score());
     let explanations = ranked
         .into_iter()
+        .filter(|(i, m)| {
+            let c = &candidates[*i];
+            let redundant = c.0.len() > 1 && c.0.iter().any(|a| alone(a) >= m.score() - 0.5);
+            !redundant && m.score() >= best - 6.0
+        })
         .take(opts.report)
         .map(|&(i, m)| candidates[i].explain(base, m))
         .collect();
     (explanations, tried)
 }
 
-/// The diagnosis as text for a terminal.
+/// The diagnosis as text for a terminal; `scene` names the scene file in the commands it shows.
 #[must_use]
-pub fn report_text(d: &Diagnosis) -> String {
+pub fn report_text(d: &Diagnosis, scene: &str) -> String {
     let db = |v: f64| {
         if v.is_finite() {
             format!("{v:.1} dB")
@@ -939,13 +971,20 @@ pub fn report_text(d: &Diagnosis) -> String {
             out.push_str("What explains it (best first):\n");
             for (i, e) in d.explanations.iter().enumerate() {
                 let verb = if e.matches { "matches" } else { "comes closest to" };
+                let how = if e.robust_db.is_infinite() {
+                    format!("exactly (was {})", db(d.robust_db))
+                } else {
+                    format!(
+                        "at {} ({} downsampled; was {})",
+                        db(e.robust_db),
+                        db(e.psnr_downsampled_db),
+                        db(d.robust_db)
+                    )
+                };
                 out.push_str(&format!(
-                    "  {}. your image {verb} {} at {} ({} downsampled; was {})\n     render it: rayscope -f SCENE -o OUT.png {}\n",
+                    "  {}. your image {verb} {} {how}\n     see it: rayscope -f {scene} -o explained.png {}\n",
                     i + 1,
                     e.summary,
-                    db(e.robust_db),
-                    db(e.psnr_downsampled_db),
-                    db(d.robust_db),
                     e.flags
                 ));
             }

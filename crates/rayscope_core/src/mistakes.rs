@@ -334,7 +334,7 @@ impl Mistakes {
 
     /// Number of mistakes in the set.
     #[must_use]
-    pub fn len(self) -> usize {
+    pub fn len(&self) -> usize {
         self.0.count_ones() as usize
     }
 

@@ -78,7 +78,7 @@ fn trees(file: &SceneFile, s: &RenderSettings) -> Vec<RayTree> {
         .collect()
 }
 
-fn kind_of<'a>(file: &'a SceneFile, entity: u32) -> &'static str {
+fn kind_of(file: &SceneFile, entity: u32) -> &'static str {
     file.entities[entity as usize].shape.command()
 }
 
@@ -197,14 +197,14 @@ fn pixel_corners_move_the_picture_half_a_pixel() {
     for &i in &c.diff {
         let (x, y) = (i % w, i / w);
         let v = px(&c.wrong, i);
-        for ch in 0..3 {
+        for (ch, &value) in v.iter().enumerate() {
             let near: Vec<u8> = (y.saturating_sub(1)..=y)
                 .flat_map(|yy| (x.saturating_sub(1)..=x).map(move |xx| (xx, yy)))
                 .filter(|&(xx, yy)| xx < w && yy < h)
                 .map(|(xx, yy)| px(&c.right, yy * w + xx)[ch])
                 .collect();
             let (lo, hi) = (*near.iter().min().unwrap(), *near.iter().max().unwrap());
-            if v[ch] + 1 < lo || v[ch] > hi + 1 {
+            if value + 1 < lo || value > hi + 1 {
                 outside += 1;
                 break;
             }
