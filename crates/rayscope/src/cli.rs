@@ -54,6 +54,10 @@ pub enum Command {
     Probe(ProbeArgs),
     /// Judge every ray your own tracer logged against rayscope's trace of the scene.
     Check(CheckArgs),
+    /// List the course's common mistakes that --mistake renders and diagnose looks for.
+    Mistakes,
+    /// Explain a wrong picture: where it differs from rayscope's, and which mistakes explain it.
+    Diagnose(crate::diagnose_cli::DiagnoseArgs),
 }
 
 /// Which of the course's stages to render.
@@ -169,6 +173,9 @@ pub struct RenderOpts {
     /// Allow images over the pixel budget (64 megapixels).
     #[arg(long = "allow-large")]
     pub allow_large: bool,
+    /// Render as a tracer with these common mistakes would (`--mistake help` lists them).
+    #[arg(long = "mistake", value_name = "NAME[,NAME…]", value_parser = crate::diagnose_cli::MistakeParser)]
+    pub mistake: Option<rayscope_core::Mistakes>,
 }
 
 impl RenderOpts {
@@ -225,6 +232,7 @@ impl RenderOpts {
                 ChannelArg::Albedo => Channel::Albedo,
                 ChannelArg::Cost => Channel::Cost,
             },
+            mistakes: self.mistake.unwrap_or_default(),
         };
         settings.check(&Limits::command_line(self.allow_large))?;
         Ok(settings)

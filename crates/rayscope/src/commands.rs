@@ -28,6 +28,7 @@ pub struct Failure {
 }
 
 impl Failure {
+    /// A usage or input error (exit 2).
     pub(crate) fn input(message: impl Into<String>) -> Self {
         Self {
             code: 2,
@@ -35,6 +36,7 @@ impl Failure {
             diagnostic: false,
         }
     }
+    /// A failure (exit 1).
     pub(crate) fn failed(message: impl Into<String>) -> Self {
         Self {
             code: 1,
@@ -56,6 +58,8 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::View(a)) => rayscope_debug_cli::view(&a),
         Some(Command::Probe(a)) => crate::probe::run(&a),
         Some(Command::Check(a)) => check_cli::check(&a),
+        Some(Command::Mistakes) => crate::diagnose_cli::list(),
+        Some(Command::Diagnose(a)) => crate::diagnose_cli::diagnose(&a),
     }
 }
 
@@ -66,7 +70,7 @@ mod check_cli;
 mod rayscope_debug_cli;
 
 /// Builds the thread pool for `--threads` (global, once).
-fn setup_threads(opts: &RenderOpts) {
+pub fn setup_threads(opts: &RenderOpts) {
     if let Some(n) = opts.threads {
         // Fails only if a pool was already built, which cannot happen in this process.
         let _ = rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global();
@@ -77,6 +81,13 @@ fn setup_threads(opts: &RenderOpts) {
 /// file's meshes are freed before the BVH build (see [`Scene::from_owned_file`]).
 pub fn load_scene(path: &Path, quiet: bool) -> Result<Scene, Failure> {
     Ok(Scene::from_owned_file(load_file(path, quiet)?))
+}
+
+/// [`load_scene`] with the OBJ mistakes of `settings` made while loading.
+fn load_scene_for(path: &Path, quiet: bool, settings: &RenderSettings) -> Result<Scene, Failure> {
+    let mut file = load_file(path, quiet)?;
+    settings.mistakes.apply_to_file(&mut file);
+    Ok(Scene::from_owned_file(file))
 }
 
 /// Loads a scene file, printing warnings unless quiet. Input errors exit with 2.
@@ -111,7 +122,7 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     check_writable(output).map_err(|e| Failure::input(e.to_string()))?;
     // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
-    let scene = load_scene(file, opts.quiet)?;
+    let scene = load_scene_for(file, opts.quiet, &settings)?;
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -163,6 +174,9 @@ fn replay_flags(o: &RenderOpts) -> String {
     ));
     if o.fov_axis == crate::cli::FovAxisArg::Vertical {
         s.push_str(" --fov-axis vertical");
+    }
+    if let Some(m) = o.mistake.filter(|m| !m.is_empty()) {
+        s.push_str(&format!(" --mistake {m}"));
     }
     if let Some(stage) = o.stage {
         s.push_str(match stage {
@@ -238,7 +252,7 @@ fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
             settings.width, settings.height
         )));
     }
-    let scene = load_scene(&a.file, a.opts.quiet)?;
+    let scene = load_scene_for(&a.file, a.opts.quiet, &settings)?;
     let spp = rayscope_core::integrator::Integrator::new(&scene, &settings).samples_per_pixel();
     if a.sample >= spp {
         return Err(Failure::input(format!(
@@ -318,7 +332,7 @@ fn depth_of(t: &RayTree, id: u32) -> usize {
     d
 }
 
-fn read_rgb8(path: &Path) -> Result<image::RgbImage, Failure> {
+pub fn read_rgb8(path: &Path) -> Result<image::RgbImage, Failure> {
     Ok(image::open(path)
         .map_err(|e| Failure::input(format!("cannot read image '{}': {e}", path.display())))?
         .to_rgb8())

@@ -36,6 +36,7 @@ macro_rules! eprintln {
 mod cli;
 mod commands;
 mod probe;
+mod diagnose_cli;
 
 use std::process::ExitCode;
 

@@ -39,6 +39,7 @@ use crate::bsdf::Bsdf;
 use crate::camera::Camera;
 use crate::lights::Emitters;
 use crate::math::{basis, offset_eps, reflect, Ray};
+use crate::mistakes::{self, Mistake};
 use crate::observer::{RayKind, RayObserver};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
@@ -331,11 +332,15 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 .fold(1.0f32, f32::max);
             MIN_BRANCH_RADIANCE / (lights * albedo).max(f32::MIN_POSITIVE)
         };
+        let mut camera = Camera::new(settings.camera, settings.width, settings.height);
+        if I::MISTAKEN {
+            isect.mistakes().adjust_camera(&mut camera);
+        }
         Self {
             scene,
             isect,
             settings,
-            camera: Camera::new(settings.camera, settings.width, settings.height),
+            camera,
             emitters,
             stochastic,
             branch_cutoff,
@@ -395,6 +400,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             self.cells = (0..n * n).map(|c| Self::cell_offset_of(c, n)).collect();
         }
         self
+    }
+
+    /// True when this render makes mistake `m`: never for rayscope's own intersectors, for
+    /// which the test is a constant false.
+    #[inline(always)]
+    fn mistake(&self, m: Mistake) -> bool {
+        I::MISTAKEN && self.isect.mistakes().has(m)
     }
 
     /// Offset of cell `cell` of an `n`×`n` grid inside its pixel.
@@ -458,6 +470,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[inline]
     fn position_in_cell(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> (f32, f32) {
         let [mut ox, mut oy] = self.cell_offset(s);
+        if self.mistake(Mistake::PixelCorners) {
+            // The cell's top-left corner, (i/N, j/N), rather than its centre.
+            let n = self.grid as f32;
+            ox = (ox * n - 0.5).round() / n;
+            oy = (oy * n - 0.5).round() / n;
+        }
         if self.stochastic && self.settings.channel == Channel::Color {
             // Paths spread over their cell, so a pixel converges to the integral over its area
             // (edges antialiased as a box filter would) rather than to N×N point samples.
@@ -496,6 +514,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Colour of one sample of pixel (`x`, `y`).
     #[inline]
     pub fn sample<O: RayObserver>(&self, x: u32, y: u32, s: u32, obs: &mut O, c: &mut Counters) -> Vec3A {
+        let y = if self.mistake(Mistake::ImageFlipped) {
+            self.settings.height - 1 - y
+        } else {
+            y
+        };
         let mut rng = self.sample_rng(x, y, s);
         let ray = self.camera_ray(x, y, s, &mut rng);
         c.camera += 1;
@@ -594,6 +617,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         obs: &mut O,
         c: &mut Counters,
     ) -> Li {
+        let reversed;
+        let s = if self.mistake(Mistake::ReversedNormals) {
+            reversed = self.reversed_normal(hit, s);
+            &reversed
+        } else {
+            s
+        };
         if O::ENABLED {
             obs.hit(id, self.scene, hit.t, s);
         }
@@ -633,6 +663,27 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             }
         };
         self.absorb(path, hit.t, out)
+    }
+
+    /// The surface as a tracer with [`Mistake::ReversedNormals`] sees it: a triangle's normal
+    /// (v2 − v0) × (v1 − v0), not turned towards the ray.
+    #[cold]
+    fn reversed_normal(&self, hit: &Hit, s: &Surface) -> Surface {
+        let triangle = matches!(hit.prim, crate::scene::PrimRef::Triangle(_))
+            && self.scene.entities[s.entity as usize].kind == "Triangle";
+        if !triangle {
+            return *s;
+        }
+        if !s.front_face {
+            // Seen from behind, the reversed normal is the one that faces the ray.
+            return Surface { front_face: true, ..*s };
+        }
+        Surface {
+            normal: -s.normal,
+            shading_normal: -s.shading_normal,
+            front_face: false,
+            ..*s
+        }
     }
 
     /// Fresnel glass: both rays while the path is still deterministic, one chosen by its
@@ -682,6 +733,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// The two rays leaving a glass hit, before any is chosen or pruned.
     #[inline]
     fn glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
+        if I::MISTAKEN {
+            return self.mistaken_glass(ray, s, m, path);
+        }
         let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
         let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
         let kr = fresnel(cos_i, n1, n2);
@@ -696,6 +750,55 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             kr,
             reflected: Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize()),
             refracted: refracted.map(|t| Ray::new(s.point - s.normal * eps, t)),
+            refl_medium,
+            refr_medium,
+        }
+    }
+
+    /// [`Self::glass`] as a tracer with this render's glass mistakes computes it.
+    #[cold]
+    fn mistaken_glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
+        let swap = !s.front_face && !self.mistake(Mistake::RefractionNoIndexSwap);
+        let (n1, n2) = if swap { (m.value, 1.0) } else { (1.0, m.value) };
+        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
+        let tir = {
+            let eta = n1 / n2;
+            eta * eta * (1.0 - cos_i * cos_i).max(0.0) >= 1.0
+        };
+        let kr = if tir {
+            1.0
+        } else if self.mistake(Mistake::NoFresnel) {
+            0.0
+        } else if self.mistake(Mistake::FresnelHalf) {
+            0.5
+        } else if self.mistake(Mistake::Schlick) {
+            mistakes::schlick(cos_i, n1, n2)
+        } else {
+            fresnel(cos_i, n1, n2)
+        };
+        // Leaving the glass without the flip, the normal is the outward one, facing away from
+        // the ray: Snell's formula then gets cos θᵢ < 0 and the offsets go to the wrong sides.
+        let n = if !s.front_face && self.mistake(Mistake::RefractionNoNormalFlip) {
+            -s.normal
+        } else {
+            s.normal
+        };
+        let eps = offset_eps(s.point, ray.origin);
+        let refracted = if tir {
+            None
+        } else {
+            let eta = n1 / n2;
+            let c = -ray.dir.dot(n);
+            let cos_t = (1.0 - eta * eta * (1.0 - c * c)).max(0.0).sqrt();
+            Some((ray.dir * eta + n * (eta * c - cos_t)).normalize())
+        };
+        let (refl_medium, refr_medium) = self.glass_media(s, m, path);
+        let no_tir = tir && self.mistake(Mistake::NoTir);
+        Glass {
+            // Without total internal reflection the ray that should reflect brings nothing.
+            kr: if no_tir { 0.0 } else { kr },
+            reflected: Ray::new(s.point + n * eps, reflect(ray.dir, n).normalize()),
+            refracted: refracted.map(|t| Ray::new(s.point - n * eps, t)),
             refl_medium,
             refr_medium,
         }
@@ -942,9 +1045,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         c: &mut Counters,
     ) -> Vec3A {
         let mut sum = Vec3A::ZERO;
-        let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
+        let eps = offset_eps(s.point, ray.origin);
+        let origin = if I::MISTAKEN {
+            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, eps)
+        } else {
+            s.point + s.normal * eps
+        };
         for (li, light) in self.scene.lights.iter().enumerate() {
-            let to = Vec3A::from(light.position) - origin;
+            if li > 0 && self.mistake(Mistake::FirstLightOnly) {
+                break;
+            }
+            // A student's huge offset moves the shadow ray only: the light's direction is
+            // still taken from the hit point.
+            let from = if self.mistake(Mistake::HugeShadowOffset) {
+                s.point
+            } else {
+                origin
+            };
+            let to = Vec3A::from(light.position) - from;
             let dist = to.length();
             if dist == 0.0 {
                 continue;
@@ -953,12 +1071,17 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             let cos = s.shading_normal.dot(l);
             let shadow = Ray::new(origin, l);
             c.shadow += 1;
-            let id = obs.ray(Some(parent), RayKind::Shadow, 0, &shadow, dist);
+            let reach = if self.mistake(Mistake::ShadowPastLight) {
+                f32::INFINITY
+            } else {
+                dist
+            };
+            let id = obs.ray(Some(parent), RayKind::Shadow, 0, &shadow, reach);
             let blocker = if O::ENABLED {
                 self.isect
-                    .occluder(&shadow, 0.0, dist)
+                    .occluder(&shadow, 0.0, reach)
                     .map(|p| self.scene.prim_info(p).0)
-            } else if cos <= 0.0 || self.isect.occluded(&shadow, 0.0, dist) {
+            } else if cos <= 0.0 || self.isect.occluded(&shadow, 0.0, reach) {
                 // Shadow rays behind the surface cannot contribute; only the recorder needs them traced.
                 Some(u32::MAX)
             } else {
@@ -978,8 +1101,16 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             } else {
                 Vec3A::ZERO
             };
+            let contrib = if self.mistake(Mistake::LightFalloff) {
+                contrib / (dist * dist)
+            } else {
+                contrib
+            };
             obs.result(id, cos.max(0.0), contrib);
             sum += contrib;
+        }
+        if self.mistake(Mistake::AmbientTerm) {
+            sum += albedo * mistakes::AMBIENT;
         }
         sum
     }

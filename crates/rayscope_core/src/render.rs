@@ -62,6 +62,20 @@ pub fn render_with<I: Intersect>(
     progress: &(dyn Fn(u64, u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
+    if !settings.mistakes.is_empty() {
+        return crate::mistakes::render(scene, isect, settings, progress, cancel);
+    }
+    render_tiles(scene, isect, settings, progress, cancel)
+}
+
+/// The tile loop of [`render_with`], for settings whose mistakes (if any) `isect` makes.
+pub(crate) fn render_tiles<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
     let start = Instant::now();
     let integ = Integrator::with_intersector(scene, isect, settings);
     let spp = integ.samples_per_pixel();
@@ -338,7 +352,14 @@ pub fn trace_pixel_with<I: Intersect>(
     y: u32,
     sample: u32,
 ) -> RayTree {
-    let integ = Integrator::with_intersector(scene, isect, settings);
+    if !settings.mistakes.is_empty() {
+        return crate::mistakes::trace_pixel(scene, isect, settings, x, y, sample);
+    }
+    record_pixel(&Integrator::with_intersector(scene, isect, settings), x, y, sample)
+}
+
+/// Traces sample `sample` of pixel (`x`, `y`) with `integ` and a recorder.
+pub(crate) fn record_pixel<I: Intersect>(integ: &Integrator<'_, I>, x: u32, y: u32, sample: u32) -> RayTree {
     let mut rec = RayRecorder::default();
     let mut c = Counters::default();
     let v = integ.sample(x, y, sample, &mut rec, &mut c);

@@ -156,6 +156,15 @@ pub struct Scene {
 
 /// A closest-hit and any-hit query over a [`Scene`]: rayscope's BVH or the parry3d reference.
 pub trait Intersect: Sync {
+    /// True for an intersector whose renders make the course's mistakes
+    /// ([`crate::mistakes::Mistaken`]); false everywhere else, so the integrator's checks for
+    /// them compile away.
+    const MISTAKEN: bool = false;
+    /// The mistakes this intersector's renders make.
+    #[inline]
+    fn mistakes(&self) -> crate::mistakes::Mistakes {
+        crate::mistakes::Mistakes::NONE
+    }
     /// The closest hit with `t_min < t < t_max`.
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit>;
     /// Some primitive on the ray with `t_min < t < t_max`, not necessarily the closest.

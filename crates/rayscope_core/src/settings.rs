@@ -3,6 +3,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::camera::CameraSettings;
+use crate::mistakes::Mistakes;
 
 /// Which of the course's stages to render.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -59,6 +60,9 @@ pub struct RenderSettings {
     pub seed: u64,
     /// What pixels show.
     pub channel: Channel,
+    /// The course's mistakes to make (`--mistake`); none for a correct render.
+    #[serde(default, skip_serializing_if = "Mistakes::is_empty")]
+    pub mistakes: Mistakes,
 }
 
 impl Default for RenderSettings {
@@ -74,6 +78,7 @@ impl Default for RenderSettings {
             camera: CameraSettings::default(),
             seed: 0,
             channel: Channel::Color,
+            mistakes: Mistakes::NONE,
         }
     }
 }

@@ -1,0 +1,137 @@
+//! `--mistake`, `rayscope mistakes` and `rayscope diagnose` as a student runs them: the
+//! catalogue, exit codes 0 / 1 / 2, the text and the JSON.
+
+mod common;
+
+use common::{rayscope, reference, render};
+use predicates::prelude::*;
+
+#[test]
+fn the_catalogue_is_listed_two_ways() {
+    for args in [&["mistakes"][..], &["--mistake", "help"][..]] {
+        rayscope()
+            .args(args)
+            .assert()
+            .success()
+            .stdout(predicate::str::contains("no-shadow-offset").and(predicate::str::contains("obj-no-z-flip")));
+    }
+    rayscope()
+        .args(["-f", "x.txt", "-o", "x.png", "--mistake", "no-tir,nope"])
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("unknown mistake 'nope'"));
+}
+
+#[test]
+fn a_mistake_renders_differently_and_replays_in_trace() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = reference("tests/sample_scene_1.txt");
+    let right = render(&scene, &dir.path().join("a.png"), &["-w", "40", "-h", "30"]);
+    let wrong = render(
+        &scene,
+        &dir.path().join("b.png"),
+        &["-w", "40", "-h", "30", "--mistake", "image-flipped"],
+    );
+    for y in 0..30 {
+        for x in 0..40 {
+            assert_eq!(wrong.get_pixel(x, y), right.get_pixel(x, 29 - y));
+        }
+    }
+    // The trace of a mistaken render is that render's ray tree: row 0 shows the bottom row.
+    rayscope()
+        .args([
+            "trace",
+            "-w",
+            "40",
+            "-h",
+            "30",
+            "--pixel",
+            "5,0",
+            "--mistake",
+            "image-flipped",
+            "-f",
+        ])
+        .arg(&scene)
+        .assert()
+        .success()
+        .stdout(predicate::str::contains("hit 'Plane'"));
+}
+
+#[test]
+fn diagnose_exits_0_1_or_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = reference("tests/sample_scene_2.txt");
+    let flags = ["-w", "48", "-h", "36", "--stage", "2"];
+    let right = dir.path().join("right.png");
+    let wrong = dir.path().join("wrong.png");
+    render(&scene, &right, &flags);
+    render(&scene, &wrong, &[&flags[..], &["--mistake", "no-fresnel"]].concat());
+
+    rayscope()
+        .args(["diagnose", "--stage", "2", "-f"])
+        .arg(&scene)
+        .arg(&right)
+        .assert()
+        .code(0)
+        .stdout(predicate::str::contains("matches rayscope's render"));
+
+    let out = rayscope()
+        .args(["diagnose", "--stage", "2", "--json", "-f"])
+        .arg(&scene)
+        .arg(&wrong)
+        .assert()
+        .code(1)
+        .get_output()
+        .stdout
+        .clone();
+    let d: serde_json::Value = serde_json::from_slice(&out).expect("JSON");
+    assert_eq!(d["matches"], false);
+    assert_eq!(d["explanations"][0]["mistakes"][0], "no-fresnel", "{d:#}");
+    assert!(
+        d["explanations"][0]["psnr_db"].is_null(),
+        "rayscope's own mistake is exact: {d:#}"
+    );
+    assert_eq!(d["attribution"][0]["entity"], "GlassSphere", "{d:#}");
+
+    rayscope()
+        .args(["diagnose", "--stage", "2", "-f"])
+        .arg(&scene)
+        .arg(&wrong)
+        .assert()
+        .code(1)
+        .stdout(
+            predicate::str::contains("GlassSphere")
+                .and(predicate::str::contains("your image matches 'no-fresnel'"))
+                .and(predicate::str::contains(
+                    "-o explained.png -w 48 -h 36 --stage 2 --mistake no-fresnel",
+                )),
+        );
+
+    // Flags that name another size than the image's.
+    rayscope()
+        .args(["diagnose", "-w", "400", "-h", "400", "-f"])
+        .arg(&scene)
+        .arg(&right)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("48×36").and(predicate::str::contains("400×400")));
+    // Not an image.
+    rayscope()
+        .args(["diagnose", "-f"])
+        .arg(&scene)
+        .arg(&scene)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains("cannot read image"));
+}
+
+#[test]
+fn the_manual_lists_every_mistake() {
+    let readme = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/mistakes.md"))
+        .unwrap();
+    for m in rayscope_core::Mistake::ALL {
+        let i = m.info();
+        let row = format!("| `{}` | {} | {} | {} |", i.name, i.wrong, i.looks, i.rubric);
+        assert!(readme.contains(&row), "docs/mistakes.md's catalogue lacks or differs on:\n{row}");
+    }
+}

@@ -1,0 +1,1039 @@
+//! What does a wrong picture mean? [`diagnose`] compares a student's image with rayscope's,
+//! says where they differ (attributed to the entities each differing pixel's ray tree ends on,
+//! a mirror's reflection to the thing reflected), and searches the renderer's free settings and
+//! the catalogue of [`Mistake`]s, alone and in pairs, for the render that explains the image.
+//!
+//! The search is two passes. The coarse pass renders every candidate on a sparse grid of the
+//! image's pixels (about [`DiagnoseOptions::coarse_samples`] samples) and scores it against the
+//! same pixels of the student's image; the best few are then rendered at full size and ranked.
+//! Each pass scores a candidate by the better of two PSNRs: pixel for pixel, and between block
+//! averages of both images (a "downsampled" comparison, which sees speckle such as shadow acne
+//! as the darkening it is even where the speckles themselves fall on other pixels). The
+//! pixel-for-pixel one is robust: it leaves out up to [`OUTLIERS`] of the pixels, worst first,
+//! among those whose colour some pixel next to them has in rayscope's render. Where two surfaces
+//! meet at exactly the same distance (the course's box edges) which one a ray sees is
+//! floating-point noise, and two correct tracers disagree there by up to the whole colour, but
+//! each shows a colour of one side of the edge.
+
+use std::collections::HashMap;
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use glam::{Vec3, Vec3A};
+use rayon::prelude::*;
+use rayscope_scene::{MaterialKind, SceneFile, Shape};
+use serde::{Serialize, Serializer};
+
+use crate::camera::FovAxis;
+use crate::compare::compare_rgb8;
+use crate::film::to_byte;
+use crate::integrator::{Counters, Integrator};
+use crate::mistakes::{Mistake, Mistaken, Mistakes};
+use crate::observer::{NoObserver, RayTree};
+use crate::render::{render, trace_pixel};
+use crate::scene::{Intersect, Scene};
+use crate::settings::{Channel, RenderSettings};
+
+/// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
+/// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
+/// course's own scene-1 image 72 dB with every pixel counted), while the subtlest catalogue
+/// entries stay below 60 (Schlick's approximation 57 dB, rounded colours 51 dB).
+pub const MATCH_DB: f64 = 65.0;
+
+/// Side of the blocks both images are averaged over for the downsampled comparison at full size.
+pub const BLOCK: u32 = 4;
+
+/// Largest share of the pixels the robust PSNR leaves out (see the module's notes).
+pub const OUTLIERS: f64 = 0.01;
+
+/// Slack, in levels, of the neighbourhood test that excuses a pixel (see [`near_in`]).
+const NEIGHBOUR_LEVELS: u8 = 2;
+
+/// How hard [`diagnose`] searches.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DiagnoseOptions {
+    /// Try pairs of mistakes and settings, not only single ones.
+    pub pairs: bool,
+    /// Samples the coarse pass renders per candidate (pixels × samples per pixel).
+    pub coarse_samples: u64,
+    /// Candidates the coarse pass hands to the full-size pass.
+    pub confirm: usize,
+    /// Explanations reported.
+    pub report: usize,
+}
+
+impl Default for DiagnoseOptions {
+    fn default() -> Self {
+        Self {
+            pairs: true,
+            coarse_samples: 10_000,
+            confirm: 6,
+            report: 5,
+        }
+    }
+}
+
+/// Serialises a PSNR, with `null` for identical images (infinite PSNR).
+fn ser_db<S: Serializer>(v: &f64, s: S) -> Result<S::Ok, S::Error> {
+    if v.is_finite() {
+        s.serialize_f64((v * 100.0).round() / 100.0)
+    } else {
+        s.serialize_none()
+    }
+}
+
+/// A share of the differing pixels, attributed to what the pixels' rays end on.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Share {
+    /// The entity (or `(background)` where rayscope's ray hits nothing).
+    pub entity: String,
+    /// Mirrors the difference is seen in, nearest first (empty: seen directly).
+    pub seen_in: Vec<String>,
+    /// Differing pixels attributed to it (of those traced).
+    pub pixels: u64,
+    /// Their share of the differing pixels traced, in percent.
+    pub percent: f64,
+}
+
+/// A rectangle of pixels, `x0..x1` × `y0..y1`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct Region {
+    /// First column.
+    pub x0: u32,
+    /// First row.
+    pub y0: u32,
+    /// One past the last column.
+    pub x1: u32,
+    /// One past the last row.
+    pub y1: u32,
+}
+
+/// One explanation: settings changes and mistakes whose render matches the image better.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Explanation {
+    /// Mistakes (catalogue names).
+    pub mistakes: Vec<String>,
+    /// Settings changed from the flags, as flags (`-x 1`, `--max-depth 3`, `--fov-axis vertical`).
+    pub settings: Vec<String>,
+    /// Human-readable description.
+    pub summary: String,
+    /// Flags that render this explanation with rayscope: the size, stage, the settings the
+    /// search varies and the mistakes (the camera flags given to `diagnose` are to be added).
+    pub flags: String,
+    /// PSNR of the image against this render, pixel for pixel.
+    #[serde(serialize_with = "ser_db")]
+    pub psnr_db: f64,
+    /// The same without up to [`OUTLIERS`] of the pixels: the worst of those whose colour a
+    /// neighbouring pixel of the render has.
+    #[serde(serialize_with = "ser_db")]
+    pub robust_db: f64,
+    /// PSNR of the two images averaged over blocks of [`BLOCK`]×[`BLOCK`] pixels.
+    #[serde(serialize_with = "ser_db")]
+    pub psnr_downsampled_db: f64,
+    /// True when the image is this render: [`Self::robust_db`] ≥ [`MATCH_DB`].
+    pub matches: bool,
+}
+
+/// What [`diagnose`] found.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Diagnosis {
+    /// True when the image matches rayscope's render under the given settings.
+    pub matches: bool,
+    /// PSNR of the image against rayscope's render (null when identical).
+    #[serde(serialize_with = "ser_db")]
+    pub psnr_db: f64,
+    /// The same without up to [`OUTLIERS`] of the pixels (those a neighbour's colour explains);
+    /// the image matches when this is at least [`MATCH_DB`].
+    #[serde(serialize_with = "ser_db")]
+    pub robust_db: f64,
+    /// PSNR after averaging both over [`BLOCK`]×[`BLOCK`] blocks.
+    #[serde(serialize_with = "ser_db")]
+    pub psnr_downsampled_db: f64,
+    /// Pixels whose largest channel difference is at least `threshold`.
+    pub differing_pixels: u64,
+    /// Pixels in the image.
+    pub total_pixels: u64,
+    /// Channel difference (in 8-bit levels) counted as a difference.
+    pub threshold: u8,
+    /// Largest channel difference.
+    pub max_channel_diff: u8,
+    /// The box around the differing pixels.
+    pub region: Option<Region>,
+    /// Where the differences are, largest share first.
+    pub attribution: Vec<Share>,
+    /// Explanations, best first (empty when the image matches or nothing explains it better).
+    pub explanations: Vec<Explanation>,
+    /// Candidate renders the search tried.
+    pub candidates: usize,
+    /// Wall time of the diagnosis in seconds.
+    pub seconds: f64,
+}
+
+/// A student's image: 8-bit RGB, row-major from the top-left.
+#[derive(Debug, Clone, Copy)]
+pub struct Image<'a> {
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// `width × height × 3` bytes.
+    pub rgb: &'a [u8],
+}
+
+/// Why [`diagnose`] could not run.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum DiagnoseError {
+    /// The image's size is not the one the settings ask for.
+    #[error("the image is {image_w}×{image_h} but the flags ask for {flags_w}×{flags_h}; pass -w {image_w} -h {image_h} (or leave both out)")]
+    Size {
+        /// The image's width.
+        image_w: u32,
+        /// The image's height.
+        image_h: u32,
+        /// The settings' width.
+        flags_w: u32,
+        /// The settings' height.
+        flags_h: u32,
+    },
+    /// The pixel buffer does not hold `width × height` RGB pixels.
+    #[error("the image buffer holds {0} bytes, not width × height × 3")]
+    Buffer(usize),
+}
+
+/// One setting of rayscope's that a student may have set differently.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum SettingChange {
+    Aa(u32),
+    MaxDepth(u32),
+    Fov(FovAxis),
+}
+
+/// One ingredient of a candidate render.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Atom {
+    Setting(SettingChange),
+    Mistake(Mistake),
+}
+
+/// A candidate render: the flags' settings with some atoms applied.
+#[derive(Debug, Clone, PartialEq, Eq)]
+struct Candidate(Vec<Atom>);
+
+impl Candidate {
+    fn settings(&self, base: &RenderSettings) -> RenderSettings {
+        let mut s = *base;
+        for a in &self.0 {
+            match *a {
+                Atom::Setting(SettingChange::Aa(n)) => s.aa = n,
+                Atom::Setting(SettingChange::MaxDepth(d)) => s.max_depth = d,
+                Atom::Setting(SettingChange::Fov(f)) => s.camera.fov_axis = f,
+                Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
+            }
+        }
+        s
+    }
+
+    /// Search order cost: settings are cheaper explanations than code mistakes.
+    fn penalty(&self) -> f64 {
+        self.0
+            .iter()
+            .map(|a| match a {
+                Atom::Setting(_) => 0.25,
+                Atom::Mistake(_) => 0.5,
+            })
+            .sum()
+    }
+
+    fn explain(&self, base: &RenderSettings, m: Metrics) -> Explanation {
+        let mut mistakes = Vec::new();
+        let mut settings = Vec::new();
+        let mut words = Vec::new();
+        for a in &self.0 {
+            match *a {
+                Atom::Mistake(m) => {
+                    mistakes.push(m.name().to_string());
+                    words.push(format!("'{}' ({})", m.name(), m.info().wrong));
+                }
+                Atom::Setting(c) => {
+                    let (flag, word) = match c {
+                        SettingChange::Aa(n) => (
+                            format!("-x {n}"),
+                            format!("-x {n} instead of -x {} (anti-aliasing)", base.aa),
+                        ),
+                        SettingChange::MaxDepth(d) => (
+                            format!("--max-depth {d}"),
+                            if d == 3 {
+                                format!(
+                                    "a recursion limit of {d} instead of {} ('{}')",
+                                    base.max_depth,
+                                    Mistake::RecursionLimit3.name()
+                                )
+                            } else {
+                                format!("a recursion limit of {d} instead of {}", base.max_depth)
+                            },
+                        ),
+                        SettingChange::Fov(f) => {
+                            let name = match f {
+                                FovAxis::Vertical => "vertical",
+                                FovAxis::Horizontal => "horizontal",
+                            };
+                            let word = if f == FovAxis::Vertical {
+                                format!(
+                                    "the field of view on the vertical axis ('{}': {})",
+                                    Mistake::FovVertical.name(),
+                                    Mistake::FovVertical.info().wrong
+                                )
+                            } else {
+                                "the field of view on the horizontal axis".to_string()
+                            };
+                            (format!("--fov-axis {name}"), word)
+                        }
+                    };
+                    settings.push(flag);
+                    words.push(word);
+                }
+            }
+        }
+        let flags = render_flags(&self.settings(base));
+        Explanation {
+            mistakes,
+            settings,
+            summary: words.join(" + "),
+            flags,
+            psnr_db: m.psnr,
+            robust_db: m.robust,
+            psnr_downsampled_db: m.blurred,
+            matches: m.robust >= MATCH_DB,
+        }
+    }
+}
+
+/// The flags of `s` that [`diagnose`] decides: size, stage, anti-aliasing, recursion limit,
+/// field-of-view axis and mistakes.
+fn render_flags(s: &RenderSettings) -> String {
+    let mut f = format!("-w {} -h {}", s.width, s.height);
+    f.push_str(match s.stage {
+        crate::settings::Stage::One => " --stage 1",
+        crate::settings::Stage::Two => " --stage 2",
+        crate::settings::Stage::Full => "",
+    });
+    if s.aa != 1 {
+        f.push_str(&format!(" -x {}", s.aa));
+    }
+    if s.max_depth != RenderSettings::default().max_depth {
+        f.push_str(&format!(" --max-depth {}", s.max_depth));
+    }
+    if s.camera.fov_axis == FovAxis::Vertical {
+        f.push_str(" --fov-axis vertical");
+    }
+    if !s.mistakes.is_empty() {
+        f.push_str(&format!(" --mistake {}", s.mistakes));
+    }
+    f
+}
+
+/// Atoms that cannot be combined: two values of one setting, or two ways of doing one thing.
+fn exclusive(a: Atom, b: Atom) -> bool {
+    use Mistake as M;
+    let group = |x: Atom| match x {
+        Atom::Setting(SettingChange::Aa(_)) => 1,
+        Atom::Setting(SettingChange::MaxDepth(_)) => 2,
+        Atom::Setting(SettingChange::Fov(_)) => 3,
+        Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
+        Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick) => 5,
+        Atom::Mistake(_) => 0,
+    };
+    let (ga, gb) = (group(a), group(b));
+    ga != 0 && ga == gb
+}
+
+/// What the scene contains, to skip mistakes that cannot show in it.
+struct Contents {
+    glass: bool,
+    specular: bool,
+    triangles: bool,
+    single_triangles: bool,
+    meshes: bool,
+    mesh_normals: bool,
+    lights: usize,
+}
+
+impl Contents {
+    fn of(file: &SceneFile) -> Contents {
+        let used = |k: MaterialKind| file.entities.iter().any(|e| file.materials[e.material].kind == k);
+        let mesh = |f: &dyn Fn(&rayscope_scene::Mesh) -> bool| {
+            file.entities
+                .iter()
+                .any(|e| matches!(&e.shape, Shape::Mesh { mesh, .. } if f(mesh)))
+        };
+        Contents {
+            glass: used(MaterialKind::Refractive),
+            specular: used(MaterialKind::Refractive) || used(MaterialKind::Reflective),
+            single_triangles: file.entities.iter().any(|e| matches!(e.shape, Shape::Triangle { .. })),
+            triangles: file
+                .entities
+                .iter()
+                .any(|e| matches!(e.shape, Shape::Triangle { .. } | Shape::Mesh { .. })),
+            meshes: mesh(&|m| !m.triangles.is_empty()),
+            mesh_normals: mesh(&|m| m.triangles.iter().any(|t| t.normals.is_some())),
+            lights: file.lights.len(),
+        }
+    }
+
+    fn shows(&self, m: Mistake, s: &RenderSettings) -> bool {
+        use Mistake as M;
+        match m {
+            // Covered by the settings atoms that give the same renders.
+            M::FovVertical | M::RecursionLimit3 => false,
+            M::AspectIgnored => s.width != s.height,
+            M::PixelCorners | M::ImageFlipped | M::RoundedColours | M::Gamma => true,
+            M::NoShadowOffset | M::HugeShadowOffset | M::LightFalloff | M::ShadowPastLight | M::AmbientTerm => {
+                self.lights > 0
+            }
+            M::FirstLightOnly => self.lights > 1,
+            M::OneSidedTriangles => self.triangles,
+            M::ReversedNormals => self.single_triangles,
+            M::RefractionNoNormalFlip
+            | M::RefractionNoIndexSwap
+            | M::NoTir
+            | M::NoFresnel
+            | M::FresnelHalf
+            | M::Schlick => self.glass,
+            M::ObjNoZFlip => self.meshes,
+            M::ObjFlatNormals => self.mesh_normals,
+        }
+    }
+}
+
+/// The single atoms worth trying for this scene and these settings.
+fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
+    let mut out = Vec::new();
+    for n in 1..=4 {
+        if n != base.aa {
+            out.push(Atom::Setting(SettingChange::Aa(n)));
+        }
+    }
+    if contents.specular {
+        let mut depths: Vec<u32> = (1..=5).collect();
+        if base.max_depth <= 5 {
+            depths.push(8);
+        }
+        for d in depths {
+            if d != base.max_depth {
+                out.push(Atom::Setting(SettingChange::MaxDepth(d)));
+            }
+        }
+    }
+    if base.width != base.height {
+        let other = match base.camera.fov_axis {
+            FovAxis::Horizontal => FovAxis::Vertical,
+            FovAxis::Vertical => FovAxis::Horizontal,
+        };
+        out.push(Atom::Setting(SettingChange::Fov(other)));
+    }
+    for m in Mistake::ALL {
+        if contents.shows(m, base) && !base.mistakes.has(m) {
+            out.push(Atom::Mistake(m));
+        }
+    }
+    out
+}
+
+/// The scenes candidate renders need: one per combination of OBJ mistakes.
+struct Scenes<'a> {
+    file: &'a SceneFile,
+    built: HashMap<Mistakes, Scene>,
+}
+
+impl Scenes<'_> {
+    fn key(m: Mistakes) -> Mistakes {
+        let mut k = Mistakes::NONE;
+        for o in [Mistake::ObjNoZFlip, Mistake::ObjFlatNormals] {
+            if m.has(o) {
+                k = k.with(o);
+            }
+        }
+        k
+    }
+
+    fn prepare(&mut self, m: Mistakes) {
+        let k = Self::key(m);
+        if !self.built.contains_key(&k) {
+            let mut f = self.file.clone();
+            k.apply_to_file(&mut f);
+            self.built.insert(k, Scene::from_owned_file(f));
+        }
+    }
+
+    fn get(&self, m: Mistakes) -> &Scene {
+        &self.built[&Self::key(m)]
+    }
+}
+
+/// The colours `settings` give the pixels `pixels`, as bytes: what a full render writes there.
+fn render_pixels(scene: &Scene, settings: &RenderSettings, pixels: &[(u32, u32)]) -> Vec<u8> {
+    let m = settings.mistakes;
+    if m.is_empty() {
+        pixel_bytes(&Integrator::new(scene, settings), m, pixels)
+    } else {
+        let wrapped = Mistaken {
+            inner: scene,
+            scene,
+            mistakes: m,
+        };
+        let s = m.settings(settings);
+        pixel_bytes(&Integrator::with_intersector(scene, &wrapped, &s), m, pixels)
+    }
+}
+
+fn pixel_bytes<I: Intersect>(integ: &Integrator<'_, I>, m: Mistakes, pixels: &[(u32, u32)]) -> Vec<u8> {
+    let spp = integ.samples_per_pixel();
+    let inv = 1.0 / spp as f32;
+    let mut c = Counters::default();
+    let mut out = Vec::with_capacity(pixels.len() * 3);
+    for &(x, y) in pixels {
+        // The render loop's sum: samples in order, non-finite ones dropped.
+        let mut sum = Vec3A::ZERO;
+        for s in 0..spp {
+            let v = integ.sample(x, y, s, &mut NoObserver, &mut c);
+            if v.is_finite() {
+                sum += v;
+            }
+        }
+        let v = m.output(Vec3::from(sum * inv));
+        out.extend_from_slice(&[to_byte(v.x), to_byte(v.y), to_byte(v.z)]);
+    }
+    out
+}
+
+/// How close a render is to the student's image.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Metrics {
+    /// Plain PSNR.
+    psnr: f64,
+    /// PSNR without up to [`OUTLIERS`] of the pixels.
+    robust: f64,
+    /// PSNR of the block averages.
+    blurred: f64,
+}
+
+impl Metrics {
+    /// Of render `ours` against image `theirs`, RGB8 grids of `w`×`h`, with blocks of `k`×`k`
+    /// for the blurred one. `adjacent`: the grid's pixels are neighbours in the image, so a
+    /// pixel may be excused by its neighbours' colours; otherwise (the coarse pass's sparse
+    /// grid) any of the worst pixels may be.
+    fn of(ours: &[u8], theirs: &[u8], w: u32, h: u32, k: u32, adjacent: bool) -> Metrics {
+        let per_pixel: Vec<(f64, bool)> = (0..w * h)
+            .map(|i| {
+                let p = (i * 3) as usize;
+                let se: f64 = (0..3)
+                    .map(|c| f64::from(ours[p + c].abs_diff(theirs[p + c])).powi(2))
+                    .sum();
+                let excusable = !adjacent || se == 0.0 || near_in(ours, theirs, w, h, i);
+                (se, excusable)
+            })
+            .collect();
+        let (ma, mb) = (block_means(ours, w, h, k), block_means(theirs, w, h, k));
+        let se_blur: f64 = ma.iter().zip(&mb).map(|(x, y)| f64::from(x - y).powi(2)).sum();
+        Metrics {
+            psnr: compare_rgb8(ours, theirs).psnr,
+            robust: robust_psnr(per_pixel),
+            blurred: db_of(se_blur, ma.len()),
+        }
+    }
+
+    /// The score candidates are ranked by.
+    fn score(&self) -> f64 {
+        self.robust.max(self.blurred)
+    }
+}
+
+/// True when each channel of pixel `i` of `theirs` lies (within [`NEIGHBOUR_LEVELS`]) in the
+/// range the pixels around it span in `ours`: a colour of one side of an edge, or a mix of both
+/// (anti-aliased).
+fn near_in(ours: &[u8], theirs: &[u8], w: u32, h: u32, i: u32) -> bool {
+    let (x, y) = (i % w, i / w);
+    let t = &theirs[(i * 3) as usize..(i * 3 + 3) as usize];
+    let (mut lo, mut hi) = ([u8::MAX; 3], [0u8; 3]);
+    for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+        for xx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+            let q = ((yy * w + xx) * 3) as usize;
+            for c in 0..3 {
+                lo[c] = lo[c].min(ours[q + c]);
+                hi[c] = hi[c].max(ours[q + c]);
+            }
+        }
+    }
+    (0..3).all(|c| t[c].saturating_add(NEIGHBOUR_LEVELS) >= lo[c] && t[c] <= hi[c].saturating_add(NEIGHBOUR_LEVELS))
+}
+
+/// PSNR of a squared error summed over `n` values.
+fn db_of(se: f64, n: usize) -> f64 {
+    if se == 0.0 {
+        return f64::INFINITY;
+    }
+    10.0 * (255.0f64 * 255.0 / (se / n.max(1) as f64)).log10()
+}
+
+/// PSNR of per-pixel squared errors (summed over the three channels), leaving out up to
+/// [`OUTLIERS`] of the pixels: the worst of those marked excusable.
+fn robust_psnr(mut px: Vec<(f64, bool)>) -> f64 {
+    let n = px.len();
+    let limit = (n as f64 * OUTLIERS).floor() as usize;
+    px.sort_by(|a, b| b.0.total_cmp(&a.0));
+    let mut dropped = 0;
+    let mut se = 0.0;
+    for (e, excusable) in px {
+        if excusable && dropped < limit && e > 0.0 {
+            dropped += 1;
+        } else {
+            se += e;
+        }
+    }
+    db_of(se, 3 * (n - dropped))
+}
+
+/// Averages an RGB8 grid of `w`×`h` over blocks of `k`×`k` (partial blocks at the edges), as f32.
+fn block_means(rgb: &[u8], w: u32, h: u32, k: u32) -> Vec<f32> {
+    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
+    let mut sum = vec![0.0f32; (bw * bh * 3) as usize];
+    let mut count = vec![0u32; (bw * bh) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let b = ((y / k) * bw + x / k) as usize;
+            let p = ((y * w + x) * 3) as usize;
+            for c in 0..3 {
+                sum[b * 3 + c] += f32::from(rgb[p + c]);
+            }
+            count[b] += 1;
+        }
+    }
+    for (b, n) in count.iter().enumerate() {
+        for c in 0..3 {
+            sum[b * 3 + c] /= *n as f32;
+        }
+    }
+    sum
+}
+
+/// The sparse grid of the coarse pass: every `k`-th pixel both ways, `k` chosen so the grid
+/// holds about `samples / spp` pixels; returns the pixels and the grid's size.
+fn coarse_grid(w: u32, h: u32, spp: u64, samples: u64) -> (Vec<(u32, u32)>, u32, u32) {
+    let want = (samples / spp.max(1)).max(400);
+    let k = (((w as u64 * h as u64) as f64 / want as f64).sqrt().floor() as u32).max(1);
+    let xs: Vec<u32> = (k / 2..w).step_by(k as usize).collect();
+    let ys: Vec<u32> = (k / 2..h).step_by(k as usize).collect();
+    let pixels = ys.iter().flat_map(|&y| xs.iter().map(move |&x| (x, y))).collect();
+    (pixels, xs.len() as u32, ys.len() as u32)
+}
+
+/// Where a pixel's difference belongs: the first entity its camera ray's path meets that is not
+/// a mirror, and the mirrors it is seen in.
+fn attribute(tree: &RayTree) -> (String, Vec<String>) {
+    let mut seen_in = Vec::new();
+    let mut node = match tree.nodes.first() {
+        Some(n) => n,
+        None => return ("(background)".into(), seen_in),
+    };
+    loop {
+        let Some(h) = &node.hit else {
+            return ("(background)".into(), seen_in);
+        };
+        if h.material_kind == "Reflective" {
+            let child = tree
+                .nodes
+                .iter()
+                .find(|c| c.parent == Some(node.id) && c.kind == crate::observer::RayKind::Reflection);
+            if let Some(c) = child {
+                seen_in.push(h.entity_name.clone());
+                node = c;
+                continue;
+            }
+        }
+        return (h.entity_name.clone(), seen_in);
+    }
+}
+
+/// Most differing pixels whose ray trees [`diagnose`] traces for the attribution.
+const MAX_TRACED: usize = 20_000;
+
+/// Diagnoses `image` against rayscope's render of `file` under `settings`.
+///
+/// # Errors
+/// When the image's size is not the settings' or its buffer is the wrong length.
+pub fn diagnose(
+    file: &SceneFile,
+    settings: &RenderSettings,
+    image: Image<'_>,
+    opts: &DiagnoseOptions,
+) -> Result<Diagnosis, DiagnoseError> {
+    let start = Instant::now();
+    if (image.width, image.height) != (settings.width, settings.height) {
+        return Err(DiagnoseError::Size {
+            image_w: image.width,
+            image_h: image.height,
+            flags_w: settings.width,
+            flags_h: settings.height,
+        });
+    }
+    if image.rgb.len() != image.width as usize * image.height as usize * 3 {
+        return Err(DiagnoseError::Buffer(image.rgb.len()));
+    }
+    let base = RenderSettings {
+        channel: Channel::Color,
+        ..*settings
+    };
+    let (w, h) = (base.width, base.height);
+    let mut scenes = Scenes {
+        file,
+        built: HashMap::new(),
+    };
+    scenes.prepare(base.mistakes);
+    let never = AtomicBool::new(false);
+    let full = |scenes: &Scenes<'_>, s: &RenderSettings| -> Vec<u8> {
+        render(scenes.get(s.mistakes), s, &|_, _| {}, &never)
+            .map(|o| o.film.to_rgb8())
+            .unwrap_or_default()
+    };
+    let ours = full(&scenes, &base);
+    let cmp = compare_rgb8(&ours, image.rgb);
+    let m0 = Metrics::of(&ours, image.rgb, w, h, BLOCK, true);
+    let matches = m0.robust >= MATCH_DB;
+
+    // Where: pixels off by at least two levels (one level where nothing differs by more).
+    let diffs: Vec<u8> = ours
+        .chunks_exact(3)
+        .zip(image.rgb.chunks_exact(3))
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0))
+        .collect();
+    let threshold = if diffs.iter().any(|&d| d >= 2) { 2 } else { 1 };
+    let differing: Vec<u32> = (0..diffs.len() as u32)
+        .filter(|&i| diffs[i as usize] >= threshold)
+        .collect();
+    let region = (!differing.is_empty()).then(|| {
+        let mut r = Region {
+            x0: w,
+            y0: h,
+            x1: 0,
+            y1: 0,
+        };
+        for &i in &differing {
+            let (x, y) = (i % w, i / w);
+            r.x0 = r.x0.min(x);
+            r.y0 = r.y0.min(y);
+            r.x1 = r.x1.max(x + 1);
+            r.y1 = r.y1.max(y + 1);
+        }
+        r
+    });
+    let attribution = if matches {
+        Vec::new()
+    } else {
+        attribution(scenes.get(base.mistakes), &base, &differing, w)
+    };
+
+    let mut explanations = Vec::new();
+    let mut tried = 1;
+    if !matches {
+        let (found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
+        explanations = found;
+        tried += n;
+    }
+    Ok(Diagnosis {
+        matches,
+        psnr_db: cmp.psnr,
+        robust_db: m0.robust,
+        psnr_downsampled_db: m0.blurred,
+        differing_pixels: differing.len() as u64,
+        total_pixels: cmp.total,
+        threshold,
+        max_channel_diff: cmp.max_diff,
+        region,
+        attribution,
+        explanations,
+        candidates: tried,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// The shares of the differing pixels (`differing`, as indices into a `w`-wide image) by what
+/// their ray trees end on.
+fn attribution(scene: &Scene, base: &RenderSettings, differing: &[u32], w: u32) -> Vec<Share> {
+    if differing.is_empty() {
+        return Vec::new();
+    }
+    let step = differing.len().div_ceil(MAX_TRACED);
+    let traced: Vec<u32> = differing.iter().copied().step_by(step).collect();
+    let labels: Vec<(String, Vec<String>)> = traced
+        .par_iter()
+        .map(|&i| attribute(&trace_pixel(scene, base, i % w, i / w, 0)))
+        .collect();
+    let mut counts: HashMap<(String, Vec<String>), u64> = HashMap::new();
+    for l in labels {
+        *counts.entry(l).or_default() += 1;
+    }
+    let total = traced.len() as f64;
+    let mut shares: Vec<Share> = counts
+        .into_iter()
+        .map(|((entity, seen_in), pixels)| Share {
+            entity,
+            seen_in,
+            pixels,
+            percent: (1000.0 * pixels as f64 / total).round() / 10.0,
+        })
+        .collect();
+    shares.sort_by(|a, b| b.pixels.cmp(&a.pixels).then_with(|| a.entity.cmp(&b.entity)));
+    shares
+}
+
+/// The search: every candidate on the coarse grid, then the best at full size. Returns the
+/// explanations that beat `baseline` (the correct render's score) and the candidates tried.
+fn search(
+    scenes: &mut Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    opts: &DiagnoseOptions,
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    baseline: f64,
+) -> (Vec<Explanation>, usize) {
+    let (w, h) = (base.width, base.height);
+    let contents = Contents::of(scenes.file);
+    let singles = atoms(&contents, base);
+    let spp = u64::from(base.aa * base.aa);
+    let (grid, gw, gh) = coarse_grid(w, h, spp, opts.coarse_samples);
+    let theirs: Vec<u8> = grid
+        .iter()
+        .flat_map(|&(x, y)| {
+            let p = ((y * w + x) * 3) as usize;
+            image.rgb[p..p + 3].to_vec()
+        })
+        .collect();
+    let score = |bytes: &[u8]| Metrics::of(bytes, &theirs, gw, gh, 2, gw == w).score();
+
+    let mut candidates: Vec<Candidate> = vec![Candidate(Vec::new())];
+    candidates.extend(singles.iter().map(|&a| Candidate(vec![a])));
+    for c in &candidates {
+        scenes.prepare(c.settings(base).mistakes);
+    }
+    let eval = |scenes: &Scenes<'_>, cs: &[Candidate]| -> Vec<(Vec<u8>, f64)> {
+        cs.par_iter()
+            .map(|c| {
+                let s = c.settings(base);
+                let bytes = render_pixels(scenes.get(s.mistakes), &s, &grid);
+                let sc = score(&bytes);
+                (bytes, sc)
+            })
+            .collect()
+    };
+    let mut results = eval(scenes, &candidates);
+    let coarse_base = results[0].0.clone();
+    // Pairs of the singles that change the picture at all (an atom whose render is the correct
+    // one's cannot be half of an explanation either).
+    if opts.pairs {
+        let live: Vec<Atom> = singles
+            .iter()
+            .zip(&results[1..])
+            .filter(|(_, (bytes, _))| *bytes != coarse_base)
+            .map(|(&a, _)| a)
+            .collect();
+        let mut pairs = Vec::new();
+        for (i, &a) in live.iter().enumerate() {
+            for &b in &live[i + 1..] {
+                if !exclusive(a, b) {
+                    pairs.push(Candidate(vec![a, b]));
+                }
+            }
+        }
+        for c in &pairs {
+            scenes.prepare(c.settings(base).mistakes);
+        }
+        results.extend(eval(scenes, &pairs));
+        candidates.extend(pairs);
+    }
+    let tried = candidates.len() - 1;
+
+    // The best distinct renders go on to full size; the correct render is the baseline.
+    let mut order: Vec<usize> = (1..candidates.len()).collect();
+    order.sort_by(|&a, &b| {
+        let sa = results[a].1 - candidates[a].penalty();
+        let sb = results[b].1 - candidates[b].penalty();
+        sb.total_cmp(&sa)
+    });
+    let mut picked: Vec<usize> = Vec::new();
+    for i in order {
+        if picked.len() >= opts.confirm {
+            break;
+        }
+        if results[i].0 == coarse_base || picked.iter().any(|&p| results[p].0 == results[i].0) {
+            continue;
+        }
+        picked.push(i);
+    }
+    let confirmed: Vec<(usize, Metrics)> = picked
+        .into_iter()
+        .map(|i| {
+            let s = candidates[i].settings(base);
+            let bytes = full(scenes, &s);
+            (i, Metrics::of(&bytes, image.rgb, w, h, BLOCK, true))
+        })
+        .collect();
+    let mut ranked: Vec<&(usize, Metrics)> = confirmed.iter().filter(|(_, m)| m.score() >= baseline + 3.0).collect();
+    ranked.sort_by(|x, y| {
+        let sx = x.1.score() - candidates[x.0].penalty();
+        let sy = y.1.score() - candidates[y.0].penalty();
+        sy.total_cmp(&sx)
+    });
+    // A pair is no better an explanation than its half that does as well alone, and far
+    // behind the best is no explanation at all.
+    let alone = |a: &Atom| {
+        confirmed
+            .iter()
+            .find(|(j, _)| candidates[*j].0 == [*a])
+            .map_or(f64::NEG_INFINITY, |(_, m)| m.score())
+    };
+    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m)| m.score());
+    let explanations = ranked
+        .into_iter()
+        .filter(|(i, m)| {
+            let c = &candidates[*i];
+            let redundant = c.0.len() > 1 && c.0.iter().any(|a| alone(a) >= m.score() - 0.5);
+            !redundant && m.score() >= best - 6.0
+        })
+        .take(opts.report)
+        .map(|&(i, m)| candidates[i].explain(base, m))
+        .collect();
+    (explanations, tried)
+}
+
+/// The diagnosis as text for a terminal; `scene` names the scene file in the commands it shows.
+#[must_use]
+pub fn report_text(d: &Diagnosis, scene: &str) -> String {
+    let db = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.1} dB")
+        } else {
+            "identical".to_string()
+        }
+    };
+    let mut out = String::new();
+    if d.matches {
+        out.push_str(&format!(
+            "Your image matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
+            db(d.psnr_db),
+            db(d.robust_db),
+            d.differing_pixels,
+            d.total_pixels,
+            d.threshold
+        ));
+        return out;
+    }
+    out.push_str(&format!(
+        "Your image differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
+        db(d.psnr_db),
+        db(d.robust_db),
+        db(d.psnr_downsampled_db),
+        d.differing_pixels,
+        d.total_pixels,
+        100.0 * d.differing_pixels as f64 / d.total_pixels.max(1) as f64,
+        d.threshold,
+        d.max_channel_diff
+    ));
+    if let Some(r) = d.region {
+        out.push_str(&format!(
+            "The differences lie in columns {}–{}, rows {}–{}.\n",
+            r.x0,
+            r.x1 - 1,
+            r.y0,
+            r.y1 - 1
+        ));
+    }
+    if !d.attribution.is_empty() {
+        out.push_str("Where they are:\n");
+        for s in d.attribution.iter().take(8) {
+            let seen = if s.seen_in.is_empty() {
+                String::new()
+            } else {
+                format!(", seen in {}", s.seen_in.join(" in "))
+            };
+            out.push_str(&format!("  {:5.1} %  {}{}\n", s.percent, s.entity, seen));
+        }
+        if d.attribution.len() > 8 {
+            let rest: f64 = d.attribution[8..].iter().map(|s| s.percent).sum();
+            out.push_str(&format!("  {rest:5.1} %  elsewhere\n"));
+        }
+    }
+    match d.explanations.first() {
+        None => out.push_str(&format!(
+            "No setting or catalogued mistake (alone or in pairs, {} renders tried) explains it better; `rayscope mistakes` lists the catalogue.\n",
+            d.candidates
+        )),
+        Some(_) => {
+            out.push_str("What explains it (best first):\n");
+            for (i, e) in d.explanations.iter().enumerate() {
+                let verb = if e.matches { "matches" } else { "comes closest to" };
+                let how = if e.robust_db.is_infinite() {
+                    format!("exactly (was {})", db(d.robust_db))
+                } else {
+                    format!(
+                        "at {} ({} downsampled; was {})",
+                        db(e.robust_db),
+                        db(e.psnr_downsampled_db),
+                        db(d.robust_db)
+                    )
+                };
+                out.push_str(&format!(
+                    "  {}. your image {verb} {} {how}\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                    i + 1,
+                    e.summary,
+                    e.flags
+                ));
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn block_means_and_grids() {
+        let img = [0u8, 0, 0, 10, 10, 10, 20, 20, 20, 30, 30, 30];
+        assert_eq!(block_means(&img, 2, 2, 2), vec![15.0; 3]);
+        assert!(Metrics::of(&img, &img, 2, 2, 2, true).score().is_infinite());
+        // One pixel in a hundred may show its neighbour's colour…
+        let mut a = vec![100u8; 300];
+        a[3..6].copy_from_slice(&[0, 0, 0]);
+        let mut b = a.clone();
+        b[0..3].copy_from_slice(&[0, 0, 0]);
+        let m = Metrics::of(&a, &b, 10, 10, 2, true);
+        assert!(m.robust.is_infinite() && m.psnr < 30.0, "{m:?}");
+        // …but not a colour outside what is near it, nor a second one.
+        let mut c = a.clone();
+        c[297..300].copy_from_slice(&[7, 7, 7]);
+        assert!(Metrics::of(&a, &c, 10, 10, 2, true).robust.is_finite());
+        b[30..33].copy_from_slice(&[0, 0, 0]);
+        assert!(Metrics::of(&a, &b, 10, 10, 2, true).robust.is_finite());
+        let (g, gw, gh) = coarse_grid(400, 400, 1, 10_000);
+        assert_eq!((g.len(), gw, gh), (10_000, 100, 100));
+        assert_eq!(g[0], (2, 2));
+        let (g, ..) = coarse_grid(10, 10, 16, 10_000);
+        assert_eq!(g.len(), 100, "small images are searched whole");
+    }
+
+    #[test]
+    fn exclusive_atoms() {
+        let aa = |n| Atom::Setting(SettingChange::Aa(n));
+        assert!(exclusive(aa(1), aa(2)));
+        assert!(exclusive(
+            Atom::Mistake(Mistake::Schlick),
+            Atom::Mistake(Mistake::NoFresnel)
+        ));
+        assert!(!exclusive(
+            Atom::Mistake(Mistake::Schlick),
+            Atom::Mistake(Mistake::NoTir)
+        ));
+        assert!(!exclusive(aa(1), Atom::Mistake(Mistake::NoTir)));
+    }
+}

@@ -1,0 +1,673 @@
+//! The course's common mistakes as render switches: `--mistake NAME[,NAME…]` renders a scene the
+//! way a tracer with those mistakes would, so a student can see what a mistake looks like and
+//! `diagnose` can search for the mistakes that explain a wrong picture.
+//!
+//! A render with any mistake goes through the one-ray-at-a-time recursive integrator: its
+//! intersector is a [`Mistaken`] wrapper, which offers no wide BVH (so the packet and wave engines
+//! are never chosen) and whose [`Intersect::MISTAKEN`] turns on the integrator's few checks. Every
+//! other intersector leaves that constant false, so those checks compile away and correct renders
+//! run exactly the code they always did.
+
+use std::fmt;
+use std::sync::atomic::AtomicBool;
+
+use glam::{Vec3, Vec3A};
+use rayscope_scene::{SceneFile, Shape};
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
+use crate::camera::{Camera, FovAxis};
+use crate::film::Film;
+use crate::integrator::Integrator;
+use crate::math::Ray;
+use crate::observer::RayTree;
+use crate::render::{record_pixel, render_tiles, Cancelled, RenderOutput};
+use crate::scene::{Hit, Intersect, PrimRef, Scene};
+use crate::settings::{Channel, RenderSettings};
+
+/// One of the course's common mistakes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+#[repr(u8)]
+pub enum Mistake {
+    /// The field of view spans the image's height.
+    FovVertical,
+    /// Both image-plane axes use tan(fov/2): the aspect ratio is ignored.
+    AspectIgnored,
+    /// Rays through pixel corners instead of centres.
+    PixelCorners,
+    /// Row 0 is the bottom row.
+    ImageFlipped,
+    /// Shadow rays start on the surface.
+    NoShadowOffset,
+    /// Shadow rays start 0.1 units off the surface.
+    HugeShadowOffset,
+    /// Triangles hit from their back side are ignored.
+    OneSidedTriangles,
+    /// Triangle normals are (v2 − v0) × (v1 − v0) and never turned towards the ray.
+    ReversedNormals,
+    /// Leaving glass, the outward normal is used as it is.
+    RefractionNoNormalFlip,
+    /// Leaving glass, the indices are not swapped.
+    RefractionNoIndexSwap,
+    /// Total internal reflection is not handled: black.
+    NoTir,
+    /// Glass only refracts (no Fresnel reflection).
+    NoFresnel,
+    /// Glass mixes reflection and refraction half and half.
+    FresnelHalf,
+    /// Schlick's approximation instead of the exact Fresnel equations.
+    Schlick,
+    /// Recursion stops after 3 bounces.
+    RecursionLimit3,
+    /// Point lights fall off with the squared distance.
+    LightFalloff,
+    /// A constant ambient term is added at diffuse hits.
+    AmbientTerm,
+    /// Shadow rays are blocked by objects beyond the light.
+    ShadowPastLight,
+    /// Only the first light is counted.
+    FirstLightOnly,
+    /// Colours are rounded to bytes instead of truncated.
+    RoundedColours,
+    /// Colours are gamma-corrected before they are written.
+    Gamma,
+    /// OBJ vertices are used without negating z.
+    ObjNoZFlip,
+    /// OBJ triangles are shaded with their face normals.
+    ObjFlatNormals,
+}
+
+/// What the catalogue says about a mistake.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+pub struct MistakeInfo {
+    /// Kebab-case name, as `--mistake` takes it.
+    pub name: &'static str,
+    /// What the code does wrong.
+    pub wrong: &'static str,
+    /// What the picture looks like.
+    pub looks: &'static str,
+    /// The part of the course's marking the mistake costs.
+    pub rubric: &'static str,
+}
+
+const CAMERA: &str = "Stage 1: camera rays through the pixel grid";
+const SHADOWS: &str = "Stage 2: diffuse lighting and shadow rays";
+const REFRACTION: &str = "Stage 2: refraction (Snell's law, total internal reflection)";
+const FRESNEL: &str = "Stage 2: Fresnel mix of reflection and refraction";
+const OUTPUT: &str = "Output: the image matches the reference";
+const OBJ: &str = "Stage 3 C: OBJ models";
+
+/// The offset [`Mistake::HugeShadowOffset`] moves shadow rays off the surface, in scene units.
+pub const HUGE_OFFSET: f32 = 0.1;
+/// The ambient term [`Mistake::AmbientTerm`] adds, as a fraction of the material colour.
+pub const AMBIENT: f32 = 0.1;
+/// The exponent [`Mistake::Gamma`] raises colours to.
+pub const GAMMA: f32 = 1.0 / 2.2;
+
+impl Mistake {
+    /// Every mistake, in catalogue order.
+    pub const ALL: [Mistake; 23] = [
+        Mistake::FovVertical,
+        Mistake::AspectIgnored,
+        Mistake::PixelCorners,
+        Mistake::ImageFlipped,
+        Mistake::NoShadowOffset,
+        Mistake::HugeShadowOffset,
+        Mistake::OneSidedTriangles,
+        Mistake::ReversedNormals,
+        Mistake::RefractionNoNormalFlip,
+        Mistake::RefractionNoIndexSwap,
+        Mistake::NoTir,
+        Mistake::NoFresnel,
+        Mistake::FresnelHalf,
+        Mistake::Schlick,
+        Mistake::RecursionLimit3,
+        Mistake::LightFalloff,
+        Mistake::AmbientTerm,
+        Mistake::ShadowPastLight,
+        Mistake::FirstLightOnly,
+        Mistake::RoundedColours,
+        Mistake::Gamma,
+        Mistake::ObjNoZFlip,
+        Mistake::ObjFlatNormals,
+    ];
+
+    /// The catalogue entry.
+    #[must_use]
+    pub fn info(self) -> MistakeInfo {
+        let (name, wrong, looks, rubric) = match self {
+            Mistake::FovVertical => (
+                "fov-vertical",
+                "spans the 60° field of view over the image's height (Unity's camera, the workshop) instead of its width",
+                "a wide image shows more of the scene than it should, a tall one less; square images are unaffected",
+                CAMERA,
+            ),
+            Mistake::AspectIgnored => (
+                "aspect-ignored",
+                "scales both image-plane axes by tan(fov/2), ignoring the image's width : height",
+                "non-square images are stretched: spheres become ellipses; square images are unaffected",
+                CAMERA,
+            ),
+            Mistake::PixelCorners => (
+                "pixel-corners",
+                "sends rays through (x/W, y/H), the pixels' top-left corners, instead of their centres ((x + 0.5)/W, (y + 0.5)/H)",
+                "the whole picture moves half a pixel right and down; differences only along edges",
+                CAMERA,
+            ),
+            Mistake::ImageFlipped => (
+                "image-flipped",
+                "treats image row 0 as the bottom row (y up in the image) instead of the top",
+                "the picture is upside down, mirrored top to bottom",
+                CAMERA,
+            ),
+            Mistake::NoShadowOffset => (
+                "no-shadow-offset",
+                "starts shadow rays exactly at the hit point, so they can hit the surface they leave",
+                "shadow acne: lit surfaces are speckled or striped with dark dots",
+                SHADOWS,
+            ),
+            Mistake::HugeShadowOffset => (
+                "huge-shadow-offset",
+                "starts shadow rays 0.1 units off the surface (rayscope: 1e-5 of the coordinates' size)",
+                "shadows shift and shrink, and come loose where an object meets the surface it stands on",
+                SHADOWS,
+            ),
+            Mistake::OneSidedTriangles => (
+                "one-sided-triangles",
+                "ignores a triangle hit from its back side (the side its normal points away from)",
+                "shadows of triangles seen from behind by the light vanish; triangles seen from behind disappear",
+                SHADOWS,
+            ),
+            Mistake::ReversedNormals => (
+                "reversed-normals",
+                "computes a triangle's normal as (v2 − v0) × (v1 − v0) and uses it without turning it towards the ray",
+                "triangles seen from their front come out black, as if lit from behind",
+                SHADOWS,
+            ),
+            Mistake::RefractionNoNormalFlip => (
+                "refraction-no-normal-flip",
+                "leaving glass, refracts about the outward normal instead of the one facing the ray (and offsets to the wrong side)",
+                "the view through glass is wrong: dark or scrambled spheres",
+                REFRACTION,
+            ),
+            Mistake::RefractionNoIndexSwap => (
+                "refraction-no-index-swap",
+                "leaving glass, keeps n₁ = 1, n₂ = n instead of swapping them to n₁ = n, n₂ = 1",
+                "the view through glass bends the wrong amount and the dark total-internal-reflection rim is missing",
+                REFRACTION,
+            ),
+            Mistake::NoTir => (
+                "no-tir",
+                "past the critical angle, gives up (black) instead of reflecting the whole ray (total internal reflection)",
+                "black patches inside glass where the ray should have reflected",
+                REFRACTION,
+            ),
+            Mistake::NoFresnel => (
+                "no-fresnel",
+                "ignores the Fresnel equations: glass only refracts (a fixed mix of 0 % reflection)",
+                "glass shows no reflections of the room, its rim no bright edge",
+                FRESNEL,
+            ),
+            Mistake::FresnelHalf => (
+                "fresnel-half",
+                "mixes reflection and refraction half and half instead of by the Fresnel equations",
+                "glass looks half mirror: strong reflections over its whole face",
+                FRESNEL,
+            ),
+            Mistake::Schlick => (
+                "schlick",
+                "uses Schlick's approximation instead of the exact (unpolarised) Fresnel equations",
+                "glass differs by a few levels, most near its rim; invisible by eye elsewhere",
+                FRESNEL,
+            ),
+            Mistake::RecursionLimit3 => (
+                "recursion-limit-3",
+                "stops mirrors and glass after 3 bounces (the course's images need 7 or more)",
+                "black where a ray bounces between mirrors and glass more than 3 times",
+                "Stage 2: recursive reflection and refraction",
+            ),
+            Mistake::LightFalloff => (
+                "light-falloff",
+                "divides each light's contribution by the squared distance to the light",
+                "the picture is darker away from the lights (the course's lights do not fall off)",
+                SHADOWS,
+            ),
+            Mistake::AmbientTerm => (
+                "ambient-term",
+                "adds an ambient term (0.1 × the material colour) at every diffuse hit",
+                "shadows are not black and every surface is a little brighter",
+                SHADOWS,
+            ),
+            Mistake::ShadowPastLight => (
+                "shadow-past-light",
+                "lets anything on the shadow ray block the light, even beyond the light",
+                "surfaces go dark wherever something lies behind the light; in a closed room, everything",
+                SHADOWS,
+            ),
+            Mistake::FirstLightOnly => (
+                "first-light-only",
+                "adds the first light only (the loop over lights returns early)",
+                "darker, with the other lights' highlights and shadows missing",
+                SHADOWS,
+            ),
+            Mistake::RoundedColours => (
+                "rounded-colours",
+                "rounds v · 255 to the nearest byte instead of truncating it like the template's (byte) cast",
+                "about half the pixels one level brighter; invisible by eye",
+                OUTPUT,
+            ),
+            Mistake::Gamma => (
+                "gamma",
+                "gamma-corrects colours (v^(1/2.2)) before writing them; the course writes linear values",
+                "a brighter, washed-out picture with lighter shadows' edges",
+                OUTPUT,
+            ),
+            Mistake::ObjNoZFlip => (
+                "obj-no-z-flip",
+                "places OBJ vertices without negating z (the OBJ file is right-handed, the scene left-handed)",
+                "the model is mirrored front to back",
+                OBJ,
+            ),
+            Mistake::ObjFlatNormals => (
+                "obj-flat-normals",
+                "shades OBJ triangles with their face normals, ignoring the file's vn normals",
+                "the model looks faceted instead of smooth",
+                OBJ,
+            ),
+        };
+        MistakeInfo {
+            name,
+            wrong,
+            looks,
+            rubric,
+        }
+    }
+
+    /// The kebab-case name.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        self.info().name
+    }
+
+    /// The mistake called `name`.
+    #[must_use]
+    pub fn from_name(name: &str) -> Option<Mistake> {
+        Mistake::ALL.into_iter().find(|m| m.name() == name)
+    }
+
+    fn bit(self) -> u32 {
+        1 << self as u8
+    }
+}
+
+/// A set of [`Mistake`]s; empty for a correct render. Serialised as a list of names.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
+pub struct Mistakes(u32);
+
+impl Mistakes {
+    /// No mistakes: the correct render.
+    pub const NONE: Mistakes = Mistakes(0);
+
+    /// True for the correct render.
+    #[must_use]
+    #[inline]
+    pub fn is_empty(&self) -> bool {
+        self.0 == 0
+    }
+
+    /// True when `m` is in the set.
+    #[must_use]
+    #[inline(always)]
+    pub fn has(self, m: Mistake) -> bool {
+        self.0 & m.bit() != 0
+    }
+
+    /// The set with `m` added.
+    #[must_use]
+    pub fn with(self, m: Mistake) -> Mistakes {
+        Mistakes(self.0 | m.bit())
+    }
+
+    /// The mistakes in catalogue order.
+    pub fn iter(self) -> impl Iterator<Item = Mistake> {
+        Mistake::ALL.into_iter().filter(move |&m| self.has(m))
+    }
+
+    /// Number of mistakes in the set.
+    #[must_use]
+    pub fn len(&self) -> usize {
+        self.0.count_ones() as usize
+    }
+
+    /// Parses comma-separated names (`no-tir,gamma`); the error names the unknown one and
+    /// lists the valid names.
+    pub fn parse(s: &str) -> Result<Mistakes, String> {
+        let mut set = Mistakes::NONE;
+        for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            match Mistake::from_name(name) {
+                Some(m) => set = set.with(m),
+                None => {
+                    let names: Vec<&str> = Mistake::ALL.iter().map(|m| m.name()).collect();
+                    return Err(format!(
+                        "unknown mistake '{name}'; expected one of: {} (`rayscope mistakes` describes them)",
+                        names.join(", ")
+                    ));
+                }
+            }
+        }
+        Ok(set)
+    }
+
+    /// True when the set changes how OBJ files are loaded ([`Self::apply_to_file`]).
+    #[must_use]
+    pub fn changes_obj(self) -> bool {
+        self.has(Mistake::ObjNoZFlip) || self.has(Mistake::ObjFlatNormals)
+    }
+
+    /// Makes the OBJ mistakes in a parsed scene: meshes mirrored back along z about their
+    /// offset, or stripped of their vertex normals.
+    pub fn apply_to_file(self, file: &mut SceneFile) {
+        for e in &mut file.entities {
+            let Shape::Mesh { offset, mesh, .. } = &mut e.shape else {
+                continue;
+            };
+            if self.has(Mistake::ObjNoZFlip) {
+                // The loader placed z at −s·z + oz; the student's s·z + oz is its mirror image.
+                for p in &mut mesh.positions {
+                    p.z = (2.0 * offset.z - f64::from(p.z)) as f32;
+                }
+                for n in &mut mesh.normals {
+                    n.z = -n.z;
+                }
+            }
+            if self.has(Mistake::ObjFlatNormals) {
+                mesh.normals.clear();
+                for t in &mut mesh.triangles {
+                    t.normals = None;
+                }
+            }
+        }
+    }
+
+    /// The settings a render with these mistakes runs under: those mistakes that are settings
+    /// of rayscope's too (the field of view's axis, the recursion limit) applied.
+    #[must_use]
+    pub fn settings(self, s: &RenderSettings) -> RenderSettings {
+        let mut s = *s;
+        if self.has(Mistake::FovVertical) {
+            s.camera.fov_axis = FovAxis::Vertical;
+        }
+        if self.has(Mistake::RecursionLimit3) {
+            s.max_depth = 3;
+        }
+        s
+    }
+
+    /// Makes the camera mistakes that change the image plane.
+    pub(crate) fn adjust_camera(self, cam: &mut Camera) {
+        if self.has(Mistake::AspectIgnored) {
+            let t = (cam.settings.fov_deg.to_radians() * 0.5).tan();
+            cam.half = glam::Vec2::splat(t);
+        }
+    }
+
+    /// A linear colour as the student's output code would write it, in a form the course's
+    /// truncating conversion ([`crate::film::to_byte`]) turns into the student's bytes.
+    #[must_use]
+    #[inline]
+    pub fn output(self, v: Vec3) -> Vec3 {
+        let mut v = v;
+        if self.has(Mistake::Gamma) {
+            v = Vec3::new(gamma(v.x), gamma(v.y), gamma(v.z));
+        }
+        if self.has(Mistake::RoundedColours) {
+            v = Vec3::new(rounded(v.x), rounded(v.y), rounded(v.z));
+        }
+        v
+    }
+
+    /// True when [`Self::output`] changes colours.
+    #[must_use]
+    pub fn changes_output(self) -> bool {
+        self.has(Mistake::Gamma) || self.has(Mistake::RoundedColours)
+    }
+
+    /// Applies [`Self::output`] to every pixel of `film`.
+    pub fn apply_to_film(self, film: &mut Film) {
+        if self.changes_output() {
+            for p in &mut film.pixels {
+                *p = self.output(*p);
+            }
+        }
+    }
+}
+
+fn gamma(v: f32) -> f32 {
+    if v > 0.0 {
+        v.powf(GAMMA)
+    } else {
+        0.0
+    }
+}
+
+/// The value whose truncated byte is `round(clamp(v) · 255)`: the middle of that byte's range.
+fn rounded(v: f32) -> f32 {
+    let c = if v >= 0.0 { v.min(1.0) } else { 0.0 };
+    ((c * 255.0).round() + 0.5) / 255.0
+}
+
+impl fmt::Display for Mistakes {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let names: Vec<&str> = self.iter().map(Mistake::name).collect();
+        f.write_str(&names.join(","))
+    }
+}
+
+impl Serialize for Mistakes {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.collect_seq(self.iter().map(Mistake::name))
+    }
+}
+
+impl<'de> Deserialize<'de> for Mistakes {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let names = Vec::<String>::deserialize(d)?;
+        Mistakes::parse(&names.join(",")).map_err(serde::de::Error::custom)
+    }
+}
+
+/// The catalogue as text, for `rayscope mistakes` and `--mistake help`.
+#[must_use]
+pub fn catalogue_text() -> String {
+    let mut out = String::from(
+        "The course's common mistakes; render one with --mistake NAME[,NAME…], find them with `rayscope diagnose`.\n\n",
+    );
+    for m in Mistake::ALL {
+        let i = m.info();
+        out.push_str(&format!(
+            "{}\n  wrong: {}\n  looks: {}\n  costs: {}\n",
+            i.name, i.wrong, i.looks, i.rubric
+        ));
+    }
+    out
+}
+
+/// An intersector that traces rays as a tracer with `mistakes` would (one-sided triangles), and
+/// whose renders make the integrator's mistakes ([`Intersect::MISTAKEN`]). It offers no wide
+/// BVH, so its renders run one ray at a time.
+#[derive(Debug, Clone, Copy)]
+pub struct Mistaken<'a, I: Intersect> {
+    /// The intersector rays are really traced with.
+    pub inner: &'a I,
+    /// The scene (for the triangles' normals).
+    pub scene: &'a Scene,
+    /// The mistakes.
+    pub mistakes: Mistakes,
+}
+
+impl<I: Intersect> Mistaken<'_, I> {
+    /// True when the hit must be skipped: a triangle seen from the side the student's
+    /// one-sided test rejects.
+    #[inline]
+    fn culled(&self, ray: &Ray, hit: PrimRef) -> bool {
+        if !self.mistakes.has(Mistake::OneSidedTriangles) {
+            return false;
+        }
+        let PrimRef::Triangle(i) = hit else {
+            return false;
+        };
+        let front = self.scene.triangles[i as usize].geometric_normal().dot(ray.dir) < 0.0;
+        // With reversed normals the student's front is rayscope's back.
+        front == self.mistakes.has(Mistake::ReversedNormals)
+    }
+}
+
+/// Most culled hits one query steps past before it gives up (a ray grazing a mesh can meet many).
+const MAX_CULLED: usize = 1024;
+
+impl<I: Intersect> Intersect for Mistaken<'_, I> {
+    const MISTAKEN: bool = true;
+
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let mut lo = t_min;
+        for _ in 0..MAX_CULLED {
+            let hit = self.inner.intersect(ray, lo, t_max)?;
+            if !self.culled(ray, hit.prim) {
+                return Some(hit);
+            }
+            lo = hit.t;
+        }
+        None
+    }
+
+    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        if !self.mistakes.has(Mistake::OneSidedTriangles) {
+            return self.inner.occluder(ray, t_min, t_max);
+        }
+        self.intersect(ray, t_min, t_max).map(|h| h.prim)
+    }
+
+    fn mistakes(&self) -> Mistakes {
+        self.mistakes
+    }
+}
+
+/// [`crate::render_with`] for settings with mistakes: the scene traced through a [`Mistaken`]
+/// intersector under [`Mistakes::settings`], its colours written as the student's code would.
+pub(crate) fn render<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
+    let m = settings.mistakes;
+    let wrapped = Mistaken {
+        inner: isect,
+        scene,
+        mistakes: m,
+    };
+    let s = m.settings(settings);
+    let mut out = render_tiles(scene, &wrapped, &s, progress, cancel)?;
+    if s.channel == Channel::Color {
+        m.apply_to_film(&mut out.film);
+    }
+    Ok(out)
+}
+
+/// [`crate::trace_pixel_with`] for settings with mistakes.
+pub(crate) fn trace_pixel<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    sample: u32,
+) -> RayTree {
+    let m = settings.mistakes;
+    let wrapped = Mistaken {
+        inner: isect,
+        scene,
+        mistakes: m,
+    };
+    let s = m.settings(settings);
+    record_pixel(&Integrator::with_intersector(scene, &wrapped, &s), x, y, sample)
+}
+
+/// The shadow-ray origin a tracer with `mistakes` uses at `point` with normal `normal` (facing
+/// the ray), given rayscope's own offset `eps`.
+#[must_use]
+#[inline]
+pub(crate) fn shadow_origin(mistakes: Mistakes, point: Vec3A, normal: Vec3A, eps: f32) -> Vec3A {
+    if mistakes.has(Mistake::NoShadowOffset) {
+        point
+    } else if mistakes.has(Mistake::HugeShadowOffset) {
+        point + normal * HUGE_OFFSET
+    } else {
+        point + normal * eps
+    }
+}
+
+/// Schlick's approximation of the Fresnel reflectance, from `n1` into `n2` at `cos_i`; 1 under
+/// total internal reflection.
+#[must_use]
+pub fn schlick(cos_i: f32, n1: f32, n2: f32) -> f32 {
+    let r0 = ((n1 - n2) / (n1 + n2)).powi(2);
+    let eta = n1 / n2;
+    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    // Going into the denser medium the incident angle is the larger one; leaving it, the
+    // transmitted one is.
+    let c = if n1 <= n2 { cos_i } else { (1.0 - sin2_t).sqrt() };
+    r0 + (1.0 - r0) * (1.0 - c).powi(5)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip_and_are_kebab_case() {
+        for m in Mistake::ALL {
+            assert_eq!(Mistake::from_name(m.name()), Some(m));
+            assert!(m
+                .name()
+                .chars()
+                .all(|c| c.is_ascii_lowercase() || c.is_ascii_digit() || c == '-'));
+        }
+        let set = Mistakes::parse("no-tir, gamma").unwrap();
+        assert_eq!(set.iter().collect::<Vec<_>>(), [Mistake::NoTir, Mistake::Gamma]);
+        assert_eq!(set.to_string(), "no-tir,gamma");
+        let err = Mistakes::parse("no-tir,nope").unwrap_err();
+        assert!(err.contains("'nope'") && err.contains("fresnel-half"), "{err}");
+    }
+
+    #[test]
+    fn rounding_and_gamma_reach_the_bytes_the_student_writes() {
+        use crate::film::to_byte;
+        let r = Mistakes::NONE.with(Mistake::RoundedColours);
+        for k in 0..=2550 {
+            let v = k as f32 / 2550.0;
+            assert_eq!(to_byte(r.output(Vec3::splat(v)).x), (v * 255.0).round() as u8, "{v}");
+        }
+        let g = Mistakes::NONE.with(Mistake::Gamma);
+        assert_eq!(
+            to_byte(g.output(Vec3::splat(0.5)).x),
+            (0.5f32.powf(GAMMA) * 255.0) as u8
+        );
+        assert_eq!(g.output(Vec3::splat(-1.0)).x, 0.0);
+    }
+
+    #[test]
+    fn schlick_is_close_to_fresnel_but_not_equal() {
+        use crate::integrator::fresnel;
+        for k in 0..=20 {
+            let c = k as f32 / 20.0;
+            let (s, f) = (schlick(c, 1.0, 1.5), fresnel(c, 1.0, 1.5));
+            assert!((s - f).abs() < 0.06, "{c}: {s} vs {f}");
+        }
+        assert!((schlick(0.5, 1.0, 1.5) - fresnel(0.5, 1.0, 1.5)).abs() > 1e-4);
+        assert_eq!(schlick(0.1, 1.5, 1.0), 1.0, "TIR");
+    }
+}

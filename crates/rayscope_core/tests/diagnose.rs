@@ -1,0 +1,308 @@
+//! `diagnose` explains pictures from a student's tracer (`student/`, written for these tests with
+//! the course's mistakes as switches): a correct picture matches, each catalogued mistake is
+//! found when it is the only one (on a course scene and one of ours), pairs are found, a free
+//! setting is blamed before code, and the differences are attributed to the right entities.
+
+mod student;
+
+use std::path::{Path, PathBuf};
+
+use rayscope_core::diagnose::{diagnose, DiagnoseError, DiagnoseOptions, Diagnosis, Image};
+use rayscope_core::{RenderSettings, Stage};
+use rayscope_scene::SceneFile;
+use student::{Options, Student};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn course(name: &str) -> PathBuf {
+    root().join("../shared/reference/tests").join(name)
+}
+
+fn ours(name: &str) -> PathBuf {
+    root().join("scenes").join(name)
+}
+
+fn load(path: &Path) -> SceneFile {
+    rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+const W: u32 = 80;
+const H: u32 = 60;
+
+/// The flags a student would pass: stage 2, the image's size, `aa`.
+fn flags(aa: u32) -> RenderSettings {
+    RenderSettings {
+        width: W,
+        height: H,
+        aa,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    }
+}
+
+/// Fewer coarse samples than the command line's default: these images are small.
+fn search(pairs: bool) -> DiagnoseOptions {
+    DiagnoseOptions {
+        pairs,
+        coarse_samples: 2_400,
+        ..DiagnoseOptions::default()
+    }
+}
+
+fn run(path: &Path, bugs: &[&'static str], student: Options, flags: &RenderSettings, pairs: bool) -> Diagnosis {
+    let file = load(path);
+    let img = Student::new(&file, bugs, student).render();
+    let image = Image {
+        width: student.width,
+        height: student.height,
+        rgb: &img,
+    };
+    diagnose(&file, flags, image, &search(pairs)).expect("the sizes agree")
+}
+
+/// The names an explanation gives, settings standing for the mistakes they are.
+fn names(d: &Diagnosis, k: usize) -> Vec<String> {
+    let Some(e) = d.explanations.get(k) else {
+        return Vec::new();
+    };
+    let mut out = e.mistakes.clone();
+    for s in &e.settings {
+        out.push(match s.as_str() {
+            "--fov-axis vertical" => "fov-vertical".to_string(),
+            "--max-depth 3" => "recursion-limit-3".to_string(),
+            other => other.to_string(),
+        });
+    }
+    out.sort();
+    out
+}
+
+fn summary(d: &Diagnosis) -> String {
+    let mut s = format!(
+        "psnr {:.1} / {:.1} / {:.1}\n",
+        d.psnr_db, d.robust_db, d.psnr_downsampled_db
+    );
+    for e in &d.explanations {
+        s.push_str(&format!(
+            "  {:?} {:?} {:.1} / {:.1} / {:.1}\n",
+            e.mistakes, e.settings, e.psnr_db, e.robust_db, e.psnr_downsampled_db
+        ));
+    }
+    s
+}
+
+/// `bug` alone, in each scene, is the first explanation diagnose gives, and a matching one.
+fn found_alone(bug: &'static str, scenes: &[PathBuf]) {
+    for path in scenes {
+        let d = run(path, &[bug], Options::new(W, H), &flags(1), false);
+        assert!(!d.matches, "{bug} in {}: the image was called correct", path.display());
+        assert_eq!(names(&d, 0), [bug], "{bug} in {}:\n{}", path.display(), summary(&d));
+        // Acne's speckles fall where each tracer's rounding puts them, so two tracers with the
+        // mistake agree only on average (the downsampled comparison), never pixel for pixel.
+        if bug != "no-shadow-offset" {
+            assert!(
+                d.explanations[0].matches,
+                "{bug} in {}:\n{}",
+                path.display(),
+                summary(&d)
+            );
+        }
+    }
+}
+
+#[test]
+fn a_correct_picture_matches() {
+    for path in [
+        course("sample_scene_1.txt"),
+        course("sample_scene_2.txt"),
+        ours("whitted.txt"),
+    ] {
+        let d = run(&path, &[], Options::new(W, H), &flags(1), true);
+        assert!(d.matches, "{}: {}", path.display(), summary(&d));
+        assert!(d.explanations.is_empty() && d.attribution.is_empty());
+    }
+    let d = run(
+        &course("sample_scene_2.txt"),
+        &[],
+        Options {
+            aa: 2,
+            ..Options::new(W, H)
+        },
+        &flags(2),
+        true,
+    );
+    assert!(d.matches, "-x 2: {}", summary(&d));
+}
+
+#[test]
+fn camera_mistakes_are_found() {
+    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    for bug in ["fov-vertical", "aspect-ignored", "pixel-corners", "image-flipped"] {
+        found_alone(bug, &scenes);
+    }
+}
+
+#[test]
+fn shadow_mistakes_are_found() {
+    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    for bug in [
+        "no-shadow-offset",
+        "huge-shadow-offset",
+        "light-falloff",
+        "ambient-term",
+    ] {
+        found_alone(bug, &scenes);
+    }
+    let two_lights = [course("sample_scene_2.txt"), ours("whitted.txt")];
+    for bug in ["shadow-past-light", "first-light-only"] {
+        found_alone(bug, &two_lights);
+    }
+}
+
+#[test]
+fn triangle_mistakes_are_found() {
+    // Our still life's triangles face their lights; the stripes and slab of ours do not.
+    found_alone("one-sided-triangles", &[course("sample_scene_1.txt"), ours("beer.txt")]);
+    found_alone("reversed-normals", &[course("sample_scene_1.txt"), ours("whitted.txt")]);
+}
+
+#[test]
+fn glass_mistakes_are_found() {
+    let scenes = [course("sample_scene_2.txt"), ours("whitted.txt")];
+    for bug in [
+        "refraction-no-normal-flip",
+        "refraction-no-index-swap",
+        "no-fresnel",
+        "fresnel-half",
+        "schlick",
+        "recursion-limit-3",
+    ] {
+        found_alone(bug, &scenes);
+    }
+    // Rays inside a sphere never pass the critical angle, so only our glass slab shows it.
+    found_alone("no-tir", &[ours("beer.txt")]);
+}
+
+#[test]
+fn output_mistakes_are_found() {
+    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    for bug in ["rounded-colours", "gamma"] {
+        found_alone(bug, &scenes);
+    }
+}
+
+#[test]
+fn obj_mistakes_are_found() {
+    let scenes = [course("sample_scene_obj.txt"), ours("obj.txt")];
+    for bug in ["obj-no-z-flip", "obj-flat-normals"] {
+        found_alone(bug, &scenes);
+    }
+}
+
+#[test]
+fn pairs_of_mistakes_are_found() {
+    for (path, bugs) in [
+        (course("sample_scene_2.txt"), ["no-fresnel", "first-light-only"]),
+        (course("sample_scene_1.txt"), ["image-flipped", "ambient-term"]),
+        (ours("whitted.txt"), ["pixel-corners", "gamma"]),
+        (course("sample_scene_2.txt"), ["reversed-normals", "schlick"]),
+    ] {
+        let d = run(&path, &bugs, Options::new(W, H), &flags(1), true);
+        let mut want: Vec<String> = bugs.iter().map(|b| b.to_string()).collect();
+        want.sort();
+        assert_eq!(names(&d, 0), want, "{bugs:?} in {}:\n{}", path.display(), summary(&d));
+        assert!(d.explanations[0].matches, "{bugs:?}:\n{}", summary(&d));
+    }
+}
+
+#[test]
+fn free_settings_are_blamed_before_code() {
+    // The student rendered without anti-aliasing; the flags say -x 2.
+    let d = run(&course("sample_scene_2.txt"), &[], Options::new(W, H), &flags(2), true);
+    assert_eq!(names(&d, 0), ["-x 1"], "{}", summary(&d));
+    // A recursion limit of 2 is a setting too.
+    let d = run(
+        &course("sample_scene_2.txt"),
+        &[],
+        Options {
+            max_depth: 2,
+            ..Options::new(W, H)
+        },
+        &flags(1),
+        true,
+    );
+    assert_eq!(names(&d, 0), ["--max-depth 2"], "{}", summary(&d));
+}
+
+#[test]
+fn differences_are_attributed_to_what_the_rays_end_on() {
+    // Fresnel ignored: the glass sphere.
+    let d = run(
+        &course("sample_scene_2.txt"),
+        &["no-fresnel"],
+        Options::new(W, H),
+        &flags(1),
+        false,
+    );
+    let top = &d.attribution[0];
+    assert_eq!(
+        (top.entity.as_str(), top.seen_in.len()),
+        ("GlassSphere", 0),
+        "{:?}",
+        d.attribution
+    );
+    assert!(top.percent > 50.0, "{:?}", d.attribution);
+    // Reversed triangle normals blacken the walls, also where the mirror shows them: those
+    // pixels belong to the walls, seen in the mirror.
+    let d = run(
+        &course("sample_scene_2.txt"),
+        &["reversed-normals"],
+        Options::new(W, H),
+        &flags(1),
+        false,
+    );
+    assert!(
+        d.attribution
+            .iter()
+            .any(|s| s.entity.contains("Wall") && s.seen_in == ["MirrorSphere"]),
+        "{:?}",
+        d.attribution
+    );
+    assert!(
+        d.attribution.iter().all(|s| s.entity != "MirrorSphere"),
+        "{:?}",
+        d.attribution
+    );
+    let total: f64 = d.attribution.iter().map(|s| s.percent).sum();
+    assert!((total - 100.0).abs() < 0.5, "{total}");
+}
+
+#[test]
+fn a_picture_of_the_wrong_size_is_refused() {
+    let file = load(&course("sample_scene_1.txt"));
+    let img = vec![0u8; 30 * 20 * 3];
+    let e = diagnose(
+        &file,
+        &flags(1),
+        Image {
+            width: 30,
+            height: 20,
+            rgb: &img,
+        },
+        &search(false),
+    )
+    .unwrap_err();
+    assert!(matches!(
+        e,
+        DiagnoseError::Size {
+            image_w: 30,
+            image_h: 20,
+            flags_w: 80,
+            flags_h: 60
+        }
+    ));
+    let msg = e.to_string();
+    assert!(msg.contains("30×20") && msg.contains("80×60"), "{msg}");
+}

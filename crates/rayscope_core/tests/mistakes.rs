@@ -1,0 +1,493 @@
+//! Each of the course's common mistakes, rendered with `--mistake`, changes the picture where
+//! and only where that mistake shows: checked against the correct render and its ray trees.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use rayscope_core::observer::{RayKind, RayNode, RayTree};
+use rayscope_core::settings::Channel;
+use rayscope_core::{render, trace_pixel, Mistake, Mistakes, RenderSettings, Scene, Stage};
+use rayscope_scene::SceneFile;
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn course(name: &str) -> PathBuf {
+    root().join("../shared/reference/tests").join(name)
+}
+
+fn ours(name: &str) -> PathBuf {
+    root().join("scenes").join(name)
+}
+
+fn load(path: &Path) -> SceneFile {
+    rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+}
+
+fn settings(w: u32, h: u32) -> RenderSettings {
+    RenderSettings {
+        width: w,
+        height: h,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    }
+}
+
+fn with(s: &RenderSettings, m: Mistake) -> RenderSettings {
+    RenderSettings {
+        mistakes: Mistakes::NONE.with(m),
+        ..*s
+    }
+}
+
+/// The scene as a tracer with `s`'s mistakes loads it (OBJ mistakes change the meshes).
+fn scene_for(file: &SceneFile, s: &RenderSettings) -> Scene {
+    let mut f = file.clone();
+    s.mistakes.apply_to_file(&mut f);
+    Scene::from_owned_file(f)
+}
+
+fn bytes(file: &SceneFile, s: &RenderSettings) -> Vec<u8> {
+    let scene = scene_for(file, s);
+    render(&scene, s, &|_, _| {}, &AtomicBool::new(false))
+        .expect("not cancelled")
+        .film
+        .to_rgb8()
+}
+
+/// Pixel indices where the two images differ in any channel.
+fn differing(a: &[u8], b: &[u8]) -> Vec<usize> {
+    a.chunks_exact(3)
+        .zip(b.chunks_exact(3))
+        .enumerate()
+        .filter(|(_, (x, y))| x != y)
+        .map(|(i, _)| i)
+        .collect()
+}
+
+fn px(img: &[u8], i: usize) -> [u8; 3] {
+    [img[3 * i], img[3 * i + 1], img[3 * i + 2]]
+}
+
+fn trees(file: &SceneFile, s: &RenderSettings) -> Vec<RayTree> {
+    let scene = scene_for(file, s);
+    (0..s.height)
+        .flat_map(|y| (0..s.width).map(move |x| (x, y)))
+        .map(|(x, y)| trace_pixel(&scene, s, x, y, 0))
+        .collect()
+}
+
+fn kind_of(file: &SceneFile, entity: u32) -> &'static str {
+    file.entities[entity as usize].shape.command()
+}
+
+fn any_node(t: &RayTree, f: impl Fn(&RayNode) -> bool) -> bool {
+    t.nodes.iter().any(f)
+}
+
+fn hits_material(t: &RayTree, kind: &str) -> bool {
+    any_node(t, |n| n.hit.as_ref().is_some_and(|h| h.material_kind == kind))
+}
+
+fn lit(v: [f32; 3]) -> bool {
+    v.iter().any(|&c| c > 0.0)
+}
+
+/// A mistake's render, the correct one and the pixels where they differ.
+struct Case {
+    file: SceneFile,
+    base: RenderSettings,
+    right: Vec<u8>,
+    wrong: Vec<u8>,
+    diff: Vec<usize>,
+}
+
+fn case(path: &Path, base: RenderSettings, m: Mistake) -> Case {
+    let file = load(path);
+    let right = bytes(&file, &base);
+    let wrong = bytes(&file, &with(&base, m));
+    let diff = differing(&right, &wrong);
+    assert!(!diff.is_empty(), "{} changes nothing in {}", m.name(), path.display());
+    Case {
+        file,
+        base,
+        right,
+        wrong,
+        diff,
+    }
+}
+
+impl Case {
+    /// Every differing pixel's correct ray tree passes `f`.
+    fn only_where(&self, what: &str, f: impl Fn(&RayTree) -> bool) {
+        let t = trees(&self.file, &self.base);
+        let bad: Vec<usize> = self.diff.iter().copied().filter(|&i| !f(&t[i])).collect();
+        assert!(
+            bad.is_empty(),
+            "{} of {} differing pixels are not {what}, e.g. pixel {:?}",
+            bad.len(),
+            self.diff.len(),
+            bad.first()
+                .map(|&i| (i as u32 % self.base.width, i as u32 / self.base.width))
+        );
+    }
+
+    /// Every differing pixel is darker (`sign` < 0) or brighter (> 0) in every channel.
+    fn direction(&self, sign: i32) {
+        self.direction_within(sign, 0);
+    }
+
+    /// [`Self::direction`], allowing `slack` levels the other way (shading that moves by a
+    /// rounding step where a ray's origin moves).
+    fn direction_within(&self, sign: i32, slack: u8) {
+        for &i in &self.diff {
+            let (r, w) = (px(&self.right, i), px(&self.wrong, i));
+            let ok = (0..3).all(|c| {
+                if sign < 0 {
+                    w[c] <= r[c].saturating_add(slack)
+                } else {
+                    w[c].saturating_add(slack) >= r[c]
+                }
+            });
+            assert!(ok, "pixel {i}: right {r:?}, wrong {w:?}");
+        }
+    }
+}
+
+#[test]
+fn camera_mistakes_show_only_on_non_square_images() {
+    let file = load(&course("sample_scene_2.txt"));
+    for m in [Mistake::FovVertical, Mistake::AspectIgnored] {
+        let square = settings(40, 40);
+        assert_eq!(bytes(&file, &square), bytes(&file, &with(&square, m)), "{}", m.name());
+        let wide = settings(61, 41);
+        let (right, wrong) = (bytes(&file, &wide), bytes(&file, &with(&wide, m)));
+        let diff = differing(&right, &wrong);
+        assert!(diff.len() > 61 * 41 / 4, "{}: {} pixels", m.name(), diff.len());
+        let centre = 20 * 61 + 30;
+        assert_eq!(
+            px(&right, centre),
+            px(&wrong, centre),
+            "{}: the centre ray stays",
+            m.name()
+        );
+    }
+}
+
+#[test]
+fn pixel_corners_move_the_picture_half_a_pixel() {
+    let c = case(&course("sample_scene_1.txt"), settings(64, 48), Mistake::PixelCorners);
+    let (w, h) = (64usize, 48usize);
+    // Every camera ray goes through its pixel's top-left corner.
+    let scene = Scene::from_file(&c.file);
+    let cam = rayscope_core::Camera::new(c.base.camera, 64, 48);
+    let wrong = with(&c.base, Mistake::PixelCorners);
+    for (x, y) in (0..48).flat_map(|y| (0..64).map(move |x| (x, y))) {
+        let t = trace_pixel(&scene, &wrong, x, y, 0);
+        assert_eq!(
+            t.nodes[0].direction,
+            cam.ray(x as f32 / 64.0, y as f32 / 48.0).dir.to_array(),
+            "pixel ({x}, {y})"
+        );
+    }
+    // A corner sees what the pixels around it see: a differing pixel lies within the range of
+    // the correct pixels that share the corner, but where a feature is thinner than a pixel.
+    let mut outside = 0;
+    for &i in &c.diff {
+        let (x, y) = (i % w, i / w);
+        let v = px(&c.wrong, i);
+        for (ch, &value) in v.iter().enumerate() {
+            let near: Vec<u8> = (y.saturating_sub(1)..=y)
+                .flat_map(|yy| (x.saturating_sub(1)..=x).map(move |xx| (xx, yy)))
+                .filter(|&(xx, yy)| xx < w && yy < h)
+                .map(|(xx, yy)| px(&c.right, yy * w + xx)[ch])
+                .collect();
+            let (lo, hi) = (*near.iter().min().unwrap(), *near.iter().max().unwrap());
+            if value + 1 < lo || value > hi + 1 {
+                outside += 1;
+                break;
+            }
+        }
+    }
+    assert!(
+        outside * 50 <= c.diff.len(),
+        "{outside} of {} differing pixels see what no neighbour sees",
+        c.diff.len()
+    );
+}
+
+#[test]
+fn flipped_image_is_the_correct_one_upside_down() {
+    let file = load(&course("sample_scene_2.txt"));
+    for aa in [1, 2] {
+        let s = RenderSettings { aa, ..settings(50, 34) };
+        let right = bytes(&file, &s);
+        let wrong = bytes(&file, &with(&s, Mistake::ImageFlipped));
+        let row = 50 * 3;
+        for y in 0..34 {
+            assert_eq!(
+                wrong[y * row..(y + 1) * row],
+                right[(33 - y) * row..(34 - y) * row],
+                "row {y} at -x {aa}"
+            );
+        }
+    }
+}
+
+#[test]
+fn shadow_acne_darkens_only_lit_diffuse_surfaces() {
+    let c = case(&course("sample_scene_1.txt"), settings(64, 64), Mistake::NoShadowOffset);
+    // The light's direction from the un-offset point differs in the last bit: one level at most.
+    c.direction_within(-1, 1);
+    c.only_where("lit diffuse surfaces", |t| {
+        t.nodes[0].hit.as_ref().is_some_and(|h| h.material_kind == "Diffuse")
+            && any_node(t, |n| {
+                n.kind == RayKind::Shadow && n.blocked_by.is_none() && lit(n.value)
+            })
+    });
+    assert!(c.diff.len() > 100, "acne on {} pixels only", c.diff.len());
+}
+
+#[test]
+fn huge_offsets_move_only_shadows() {
+    for path in [course("sample_scene_1.txt"), ours("whitted.txt")] {
+        let c = case(&path, settings(64, 48), Mistake::HugeShadowOffset);
+        // The shadow test moves; the light's direction is taken from the hit point (rayscope
+        // takes it from the offset point, 1e-5 away: a level at most). So a pixel changes by
+        // more than a level only where one of the two renders finds its light blocked.
+        let wrong = trees(&c.file, &with(&c.base, Mistake::HugeShadowOffset));
+        let right = trees(&c.file, &c.base);
+        let shadowed = |t: &RayTree| any_node(t, |n| n.blocked_by.is_some());
+        for &i in &c.diff {
+            let step = (0..3).map(|k| px(&c.right, i)[k].abs_diff(px(&c.wrong, i)[k])).max();
+            if step > Some(1) {
+                assert!(
+                    shadowed(&right[i]) || shadowed(&wrong[i]),
+                    "{}: pixel {i}",
+                    path.display()
+                );
+            }
+        }
+        let lighter = c.diff.iter().filter(|&&i| px(&c.wrong, i) > px(&c.right, i)).count();
+        assert!(lighter > 0, "some shadow shrinks");
+    }
+}
+
+#[test]
+fn one_sided_triangles_change_only_the_shadows_they_cast_from_behind() {
+    let c = case(
+        &course("sample_scene_1.txt"),
+        settings(64, 64),
+        Mistake::OneSidedTriangles,
+    );
+    c.direction(1);
+    let file = &c.file;
+    c.only_where("shadowed by a triangle", |t| {
+        any_node(t, |n| {
+            n.blocked_by.as_ref().is_some_and(|b| {
+                file.entities
+                    .iter()
+                    .any(|e| &e.name == b && e.shape.command() == "Triangle")
+            })
+        })
+    });
+}
+
+#[test]
+fn reversed_normals_blacken_the_triangles_seen_from_the_front() {
+    let c = case(
+        &course("sample_scene_1.txt"),
+        settings(64, 64),
+        Mistake::ReversedNormals,
+    );
+    let file = &c.file;
+    c.only_where("on a triangle", |t| {
+        t.nodes[0]
+            .hit
+            .as_ref()
+            .is_some_and(|h| kind_of(file, h.entity) == "Triangle" && h.front_face)
+    });
+    for &i in &c.diff {
+        assert_eq!(px(&c.wrong, i), [0, 0, 0], "pixel {i}");
+    }
+}
+
+#[test]
+fn glass_mistakes_change_only_what_is_seen_in_glass() {
+    let base = settings(64, 64);
+    for m in [
+        Mistake::RefractionNoNormalFlip,
+        Mistake::RefractionNoIndexSwap,
+        Mistake::NoTir,
+        Mistake::NoFresnel,
+        Mistake::FresnelHalf,
+        Mistake::Schlick,
+    ] {
+        // No ray inside a sphere meets its surface past the critical angle (it leaves at the
+        // angle it entered at), so total internal reflection needs the glass slab of ours.
+        let path = if m == Mistake::NoTir {
+            ours("beer.txt")
+        } else {
+            course("sample_scene_2.txt")
+        };
+        let c = case(&path, base, m);
+        c.only_where("seen through glass", |t| hits_material(t, "Refractive"));
+        if m == Mistake::NoTir {
+            // Only where a glass hit reflected everything: one reflection of weight 1, no
+            // refraction.
+            c.only_where("totally internally reflected", |t| {
+                t.nodes.iter().any(|n| {
+                    n.hit.as_ref().is_some_and(|h| h.material_kind == "Refractive")
+                        && !t
+                            .nodes
+                            .iter()
+                            .any(|k| k.parent == Some(n.id) && k.kind == RayKind::Refraction)
+                        && t.nodes
+                            .iter()
+                            .any(|k| k.parent == Some(n.id) && k.kind == RayKind::Reflection && k.weight == 1.0)
+                })
+            });
+            c.direction(-1);
+        }
+    }
+}
+
+#[test]
+fn recursion_limit_3_darkens_only_deep_paths() {
+    let c = case(
+        &course("sample_scene_2.txt"),
+        settings(64, 64),
+        Mistake::RecursionLimit3,
+    );
+    c.direction(-1);
+    c.only_where("a path more than 3 bounces deep", |t| {
+        any_node(t, |n| {
+            n.depth >= 3
+                && n.hit
+                    .as_ref()
+                    .is_some_and(|h| h.material_kind == "Reflective" || h.material_kind == "Refractive")
+        })
+    });
+}
+
+#[test]
+fn lighting_mistakes_change_what_they_should() {
+    let s1 = course("sample_scene_1.txt");
+    let s2 = course("sample_scene_2.txt");
+    let base = settings(48, 48);
+
+    let c = case(&s1, base, Mistake::LightFalloff);
+    c.only_where("lit", |t| lit(t.color));
+    let lit_pixels = c.right.chunks_exact(3).filter(|p| p.iter().any(|&v| v > 1)).count();
+    assert!(
+        c.diff.len() * 10 > lit_pixels * 9,
+        "falloff changes nearly every lit pixel"
+    );
+
+    let c = case(&s1, base, Mistake::AmbientTerm);
+    c.direction(1);
+    c.only_where("on a diffuse surface", |t| hits_material(t, "Diffuse"));
+    let t = trees(&c.file, &base);
+    for (i, tree) in t.iter().enumerate() {
+        if tree.nodes[0].hit.is_some() && px(&c.right, i) == [0, 0, 0] {
+            assert_ne!(px(&c.wrong, i), [0, 0, 0], "a shadow stays black at pixel {i}");
+        }
+    }
+
+    let c = case(&s2, base, Mistake::ShadowPastLight);
+    c.direction(-1);
+    c.only_where("shaded by a light", |t| any_node(t, |n| n.kind == RayKind::Shadow));
+
+    let c = case(&s2, base, Mistake::FirstLightOnly);
+    c.direction(-1);
+    c.only_where("lit by the second light", |t| {
+        any_node(t, |n| {
+            n.light.as_deref() == Some("Light2") && n.blocked_by.is_none() && lit(n.value)
+        })
+    });
+}
+
+#[test]
+fn output_mistakes_change_levels_not_shapes() {
+    let base = settings(48, 48);
+    let c = case(&course("sample_scene_2.txt"), base, Mistake::RoundedColours);
+    for (r, w) in c.right.iter().zip(&c.wrong) {
+        assert!(*w == *r || *w == r + 1, "{r} → {w}");
+    }
+    assert!(c.diff.len() > 48 * 48 / 4, "rounding raises about half the pixels");
+
+    let c = case(&course("sample_scene_2.txt"), base, Mistake::Gamma);
+    c.direction(1);
+    for (r, w) in c.right.iter().zip(&c.wrong) {
+        if *r == 0 || *r == 255 {
+            assert_eq!(r, w, "black and white stay");
+        }
+    }
+}
+
+#[test]
+fn obj_mistakes_change_only_the_model_and_its_shadow() {
+    for path in [course("sample_scene_obj.txt"), ours("obj.txt")] {
+        let base = settings(48, 48);
+        let file = load(&path);
+        let mesh = |t: &RayTree| {
+            any_node(t, |n| {
+                n.hit.as_ref().is_some_and(|h| kind_of(&file, h.entity) == "ObjModel")
+                    || n.blocked_by.as_ref().is_some_and(|b| {
+                        file.entities
+                            .iter()
+                            .any(|e| &e.name == b && e.shape.command() == "ObjModel")
+                    })
+            })
+        };
+
+        let c = case(&path, base, Mistake::ObjNoZFlip);
+        let flipped = trees(&file, &with(&base, Mistake::ObjNoZFlip));
+        let right = trees(&file, &base);
+        for &i in &c.diff {
+            assert!(mesh(&right[i]) || mesh(&flipped[i]), "{}: pixel {i}", path.display());
+        }
+
+        let c = case(&path, base, Mistake::ObjFlatNormals);
+        let entity = |s: &RenderSettings| {
+            bytes(
+                &file,
+                &RenderSettings {
+                    channel: Channel::Entity,
+                    ..*s
+                },
+            )
+        };
+        assert_eq!(
+            entity(&base),
+            entity(&with(&base, Mistake::ObjFlatNormals)),
+            "same silhouette"
+        );
+        c.only_where("on the model (directly or in a mirror)", |t| {
+            any_node(t, |n| {
+                n.hit.as_ref().is_some_and(|h| kind_of(&file, h.entity) == "ObjModel")
+            })
+        });
+    }
+}
+
+#[test]
+fn settings_with_mistakes_round_trip_through_json_and_old_json_still_reads() {
+    let s = RenderSettings {
+        mistakes: Mistakes::parse("no-tir,gamma").unwrap(),
+        ..RenderSettings::default()
+    };
+    let json = serde_json::to_string(&s).unwrap();
+    assert!(json.contains(r#""mistakes":["no-tir","gamma"]"#), "{json}");
+    assert_eq!(serde_json::from_str::<RenderSettings>(&json).unwrap(), s);
+    let plain = serde_json::to_string(&RenderSettings::default()).unwrap();
+    assert!(
+        !plain.contains("mistakes"),
+        "correct settings serialise as before: {plain}"
+    );
+    assert_eq!(
+        serde_json::from_str::<RenderSettings>(&plain).unwrap(),
+        RenderSettings::default()
+    );
+}

@@ -1,0 +1,476 @@
+//! A student's stage-2 ray tracer, written the way the course's template invites (f64, one
+//! recursive `Trace`, brute-force intersection), with the course's common mistakes as switches.
+//! `diagnose` is tested on its pictures: it shares no code with rayscope's renderer, so its
+//! images match rayscope's only as closely as two correct tracers do.
+
+use std::collections::HashSet;
+use std::path::Path;
+
+use glam::DVec3;
+use rayscope_scene::{MaterialKind, SceneFile, Shape};
+
+/// The image and what the student's command line said.
+#[derive(Debug, Clone, Copy)]
+pub struct Options {
+    pub width: u32,
+    pub height: u32,
+    pub aa: u32,
+    pub max_depth: u32,
+}
+
+impl Options {
+    pub fn new(width: u32, height: u32) -> Self {
+        Self {
+            width,
+            height,
+            aa: 1,
+            max_depth: 8,
+        }
+    }
+}
+
+#[derive(Clone, Copy)]
+struct Ray {
+    o: DVec3,
+    d: DVec3,
+}
+
+#[derive(Clone, Copy)]
+struct Tri {
+    v: [DVec3; 3],
+    n: Option<[DVec3; 3]>,
+}
+
+enum Geo {
+    Plane { p: DVec3, n: DVec3 },
+    Sphere { c: DVec3, r: f64 },
+    Tri(Tri),
+    Mesh { tris: Vec<Tri>, centre: DVec3, radius: f64 },
+}
+
+struct Obj {
+    geo: Geo,
+    kind: MaterialKind,
+    color: DVec3,
+    ior: f64,
+    is_triangle: bool,
+}
+
+struct Hit {
+    t: f64,
+    p: DVec3,
+    /// The normal as the student's code computes it (not yet turned towards the ray).
+    n: DVec3,
+    /// The interpolated normal of a smooth mesh, on the same side as `n`.
+    shading: DVec3,
+    obj: usize,
+}
+
+/// The student's program.
+pub struct Student {
+    objs: Vec<Obj>,
+    lights: Vec<(DVec3, DVec3)>,
+    bugs: HashSet<&'static str>,
+    opts: Options,
+}
+
+const EPS: f64 = 1e-5;
+
+impl Student {
+    /// The student's tracer for `file`, with the mistakes named in `bugs` (catalogue names).
+    pub fn new(file: &SceneFile, bugs: &[&'static str], opts: Options) -> Student {
+        let bugs: HashSet<&'static str> = bugs.iter().copied().collect();
+        let mut objs = Vec::new();
+        for e in &file.entities {
+            let m = &file.materials[e.material];
+            let geo = match &e.shape {
+                Shape::Plane { point, normal } => Geo::Plane {
+                    p: *point,
+                    n: normal.normalize(),
+                },
+                Shape::Sphere { center, radius } => Geo::Sphere { c: *center, r: *radius },
+                Shape::Triangle { vertices } => Geo::Tri(Tri { v: *vertices, n: None }),
+                Shape::Mesh {
+                    source, offset, scale, ..
+                } => {
+                    let tris = read_obj(source, *offset, *scale, &bugs);
+                    let centre =
+                        tris.iter().flat_map(|t| t.v).fold(DVec3::ZERO, |a, v| a + v) / (3 * tris.len()).max(1) as f64;
+                    let radius = tris
+                        .iter()
+                        .flat_map(|t| t.v)
+                        .map(|v| (v - centre).length())
+                        .fold(0.0, f64::max);
+                    Geo::Mesh {
+                        tris,
+                        centre,
+                        radius: radius * 1.001,
+                    }
+                }
+            };
+            objs.push(Obj {
+                geo,
+                kind: m.kind,
+                color: m.color,
+                ior: m.value,
+                is_triangle: matches!(e.shape, Shape::Triangle { .. }),
+            });
+        }
+        Student {
+            objs,
+            lights: file.lights.iter().map(|l| (l.position, l.color)).collect(),
+            bugs,
+            opts,
+        }
+    }
+
+    fn bug(&self, name: &str) -> bool {
+        self.bugs.contains(name)
+    }
+
+    /// The picture, RGB8 from the top-left.
+    pub fn render(&self) -> Vec<u8> {
+        let (w, h, n) = (self.opts.width, self.opts.height, self.opts.aa);
+        let mut out = Vec::with_capacity((w * h * 3) as usize);
+        let tan = (60f64.to_radians() / 2.0).tan();
+        let aspect = w as f64 / h as f64;
+        let (sx, sy) = if self.bug("fov-vertical") {
+            (tan * aspect, tan)
+        } else if self.bug("aspect-ignored") {
+            (tan, tan)
+        } else {
+            (tan, tan / aspect)
+        };
+        for row in 0..h {
+            let y = if self.bug("image-flipped") { h - 1 - row } else { row };
+            for x in 0..w {
+                let mut sum = DVec3::ZERO;
+                for j in 0..n {
+                    for i in 0..n {
+                        let (ox, oy) = if self.bug("pixel-corners") {
+                            (i as f64 / n as f64, j as f64 / n as f64)
+                        } else {
+                            ((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64)
+                        };
+                        let u = (x as f64 + ox) / w as f64;
+                        let v = (y as f64 + oy) / h as f64;
+                        let d = DVec3::new((2.0 * u - 1.0) * sx, (1.0 - 2.0 * v) * sy, 1.0).normalize();
+                        sum += self.trace(Ray { o: DVec3::ZERO, d }, 0);
+                    }
+                }
+                let c = sum / (n * n) as f64;
+                for v in [c.x, c.y, c.z] {
+                    out.push(self.byte(v));
+                }
+            }
+        }
+        out
+    }
+
+    fn byte(&self, v: f64) -> u8 {
+        let mut v = v.clamp(0.0, 1.0);
+        if self.bug("gamma") {
+            v = v.powf(1.0 / 2.2);
+        }
+        if self.bug("rounded-colours") {
+            (v * 255.0).round() as u8
+        } else {
+            (v * 255.0) as u8
+        }
+    }
+
+    fn trace(&self, ray: Ray, depth: u32) -> DVec3 {
+        let Some(hit) = self.closest(ray, f64::INFINITY) else {
+            return DVec3::ZERO;
+        };
+        let obj = &self.objs[hit.obj];
+        let reversed = obj.is_triangle && self.bug("reversed-normals");
+        let outside = hit.n.dot(ray.d) < 0.0;
+        // Turn the normal towards the ray, unless the student trusts the winding.
+        let n = if outside || reversed { hit.n } else { -hit.n };
+        let ns = if outside || reversed { hit.shading } else { -hit.shading };
+        match obj.kind {
+            MaterialKind::Reflective => {
+                if depth >= self.max_depth() {
+                    return DVec3::ZERO;
+                }
+                let r = reflect(ray.d, n);
+                self.trace(
+                    Ray {
+                        o: hit.p + n * EPS,
+                        d: r,
+                    },
+                    depth + 1,
+                )
+            }
+            MaterialKind::Refractive => {
+                if depth >= self.max_depth() {
+                    return DVec3::ZERO;
+                }
+                self.glass(ray, &hit, n, outside, obj.ior, depth)
+            }
+            _ => self.diffuse(&hit, n, ns, obj.color),
+        }
+    }
+
+    fn max_depth(&self) -> u32 {
+        if self.bug("recursion-limit-3") {
+            3
+        } else {
+            self.opts.max_depth
+        }
+    }
+
+    /// Offsets along the surface's normal `n`, shades with the interpolated one `ns`.
+    fn diffuse(&self, hit: &Hit, n: DVec3, ns: DVec3, color: DVec3) -> DVec3 {
+        let origin = if self.bug("no-shadow-offset") {
+            hit.p
+        } else if self.bug("huge-shadow-offset") {
+            hit.p + n * 0.1
+        } else {
+            hit.p + n * EPS
+        };
+        let mut c = DVec3::ZERO;
+        for (k, (pos, col)) in self.lights.iter().enumerate() {
+            if k > 0 && self.bug("first-light-only") {
+                break;
+            }
+            let to = *pos - hit.p;
+            let dist = to.length();
+            let l = to / dist;
+            let reach = if self.bug("shadow-past-light") {
+                f64::INFINITY
+            } else {
+                dist
+            };
+            if self.closest(Ray { o: origin, d: l }, reach).is_some() {
+                continue;
+            }
+            let mut add = color * *col * ns.dot(l).max(0.0);
+            if self.bug("light-falloff") {
+                add /= dist * dist;
+            }
+            c += add;
+        }
+        if self.bug("ambient-term") {
+            c += color * 0.1;
+        }
+        c
+    }
+
+    fn glass(&self, ray: Ray, hit: &Hit, n: DVec3, outside: bool, ior: f64, depth: u32) -> DVec3 {
+        let (n1, n2) = if outside || self.bug("refraction-no-index-swap") {
+            (1.0, ior)
+        } else {
+            (ior, 1.0)
+        };
+        // Without the flip, leaving the glass uses the outward normal.
+        let n = if !outside && self.bug("refraction-no-normal-flip") {
+            -n
+        } else {
+            n
+        };
+        let eta = n1 / n2;
+        let cos_i = -ray.d.dot(n);
+        let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+        let reflected = Ray {
+            o: hit.p + n * EPS,
+            d: reflect(ray.d, n),
+        };
+        if k < 0.0 {
+            if self.bug("no-tir") {
+                return DVec3::ZERO;
+            }
+            return self.trace(reflected, depth + 1);
+        }
+        let cos_t = k.sqrt();
+        let ci = cos_i.abs();
+        let kr = if self.bug("no-fresnel") {
+            0.0
+        } else if self.bug("fresnel-half") {
+            0.5
+        } else if self.bug("schlick") {
+            let r0 = ((n1 - n2) / (n1 + n2)).powi(2);
+            let c = if n1 <= n2 { ci } else { cos_t };
+            r0 + (1.0 - r0) * (1.0 - c).powi(5)
+        } else {
+            let rs = (n1 * ci - n2 * cos_t) / (n1 * ci + n2 * cos_t);
+            let rp = (n2 * ci - n1 * cos_t) / (n2 * ci + n1 * cos_t);
+            (rs * rs + rp * rp) / 2.0
+        };
+        let t = (ray.d * eta + n * (eta * cos_i - cos_t)).normalize();
+        let refracted = Ray {
+            o: hit.p - n * EPS,
+            d: t,
+        };
+        let mut c = self.trace(refracted, depth + 1) * (1.0 - kr);
+        if kr > 0.0 {
+            c += self.trace(reflected, depth + 1) * kr;
+        }
+        c
+    }
+
+    fn closest(&self, ray: Ray, t_max: f64) -> Option<Hit> {
+        let mut best: Option<Hit> = None;
+        for (i, obj) in self.objs.iter().enumerate() {
+            let limit = best.as_ref().map_or(t_max, |b| b.t);
+            let found = match &obj.geo {
+                Geo::Plane { p, n } => {
+                    let dn = ray.d.dot(*n);
+                    if dn.abs() < 1e-12 {
+                        None
+                    } else {
+                        let t = (*p - ray.o).dot(*n) / dn;
+                        Some((t, *n, *n))
+                    }
+                }
+                Geo::Sphere { c, r } => sphere(ray, *c, *r).map(|t| {
+                    let n = (ray.o + ray.d * t - *c) / *r;
+                    (t, n, n)
+                }),
+                Geo::Tri(tri) => self.triangle(ray, tri, limit),
+                Geo::Mesh { tris, centre, radius } => {
+                    if sphere_touches(ray, *centre, *radius) {
+                        let mut b: Option<(f64, DVec3, DVec3)> = None;
+                        for tri in tris {
+                            let lim = b.map_or(limit, |x| x.0);
+                            if let Some(h) = self.triangle(ray, tri, lim) {
+                                b = Some(h);
+                            }
+                        }
+                        b
+                    } else {
+                        None
+                    }
+                }
+            };
+            if let Some((t, n, shading)) = found {
+                if t > 0.0 && t < limit {
+                    best = Some(Hit {
+                        t,
+                        p: ray.o + ray.d * t,
+                        n,
+                        shading,
+                        obj: i,
+                    });
+                }
+            }
+        }
+        best
+    }
+
+    /// Möller–Trumbore; returns t, the face normal and the shading normal (interpolated for
+    /// meshes with normals).
+    fn triangle(&self, ray: Ray, tri: &Tri, limit: f64) -> Option<(f64, DVec3, DVec3)> {
+        let [a, b, c] = tri.v;
+        let (e1, e2) = (b - a, c - a);
+        let face = if self.bug("reversed-normals") && tri.n.is_none() {
+            e2.cross(e1).normalize()
+        } else {
+            e1.cross(e2).normalize()
+        };
+        if self.bug("one-sided-triangles") && ray.d.dot(face) >= 0.0 {
+            return None;
+        }
+        let pv = ray.d.cross(e2);
+        let det = e1.dot(pv);
+        if det.abs() < 1e-14 {
+            return None;
+        }
+        let inv = 1.0 / det;
+        let tv = ray.o - a;
+        let u = tv.dot(pv) * inv;
+        if !(0.0..=1.0).contains(&u) {
+            return None;
+        }
+        let qv = tv.cross(e1);
+        let v = ray.d.dot(qv) * inv;
+        if v < 0.0 || u + v > 1.0 {
+            return None;
+        }
+        let t = e2.dot(qv) * inv;
+        if t <= 0.0 || t >= limit {
+            return None;
+        }
+        let shading = match tri.n {
+            Some([na, nb, nc]) if !self.bug("obj-flat-normals") => {
+                let s = (na * (1.0 - u - v) + nb * u + nc * v).normalize();
+                // Keep the interpolated normal on the face's side, as the course's renderer does.
+                if s.dot(face) < 0.0 {
+                    -s
+                } else {
+                    s
+                }
+            }
+            _ => face,
+        };
+        Some((t, face, shading))
+    }
+}
+
+fn reflect(d: DVec3, n: DVec3) -> DVec3 {
+    (d - n * 2.0 * d.dot(n)).normalize()
+}
+
+fn sphere(ray: Ray, c: DVec3, r: f64) -> Option<f64> {
+    let oc = ray.o - c;
+    let b = oc.dot(ray.d);
+    let disc = b * b - (oc.dot(oc) - r * r);
+    if disc < 0.0 {
+        return None;
+    }
+    let s = disc.sqrt();
+    let t0 = -b - s;
+    if t0 > 0.0 {
+        return Some(t0);
+    }
+    let t1 = -b + s;
+    (t1 > 0.0).then_some(t1)
+}
+
+fn sphere_touches(ray: Ray, c: DVec3, r: f64) -> bool {
+    let oc = ray.o - c;
+    let b = oc.dot(ray.d);
+    let cc = oc.dot(oc) - r * r;
+    cc <= 0.0 || (b <= 0.0 && b * b >= cc)
+}
+
+/// The student's OBJ reader: `v`, `vn` and `f` (any of the slash forms), fan-triangulated.
+fn read_obj(path: &Path, offset: DVec3, scale: f64, bugs: &HashSet<&'static str>) -> Vec<Tri> {
+    let text = std::fs::read_to_string(path).expect("the OBJ file the scene names");
+    let flip = if bugs.contains("obj-no-z-flip") { 1.0 } else { -1.0 };
+    let (mut vs, mut ns, mut tris) = (Vec::new(), Vec::new(), Vec::new());
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let c: Vec<f64> = it.take(3).map(|x| x.parse().unwrap()).collect();
+                vs.push(DVec3::new(c[0] * scale, c[1] * scale, flip * c[2] * scale) + offset);
+            }
+            Some("vn") => {
+                let c: Vec<f64> = it.take(3).map(|x| x.parse().unwrap()).collect();
+                ns.push(DVec3::new(c[0], c[1], flip * c[2]).normalize());
+            }
+            Some("f") => {
+                let corners: Vec<(usize, Option<usize>)> = it
+                    .map(|c| {
+                        let mut p = c.split('/');
+                        let v = p.next().unwrap().parse::<usize>().unwrap() - 1;
+                        let n = p.nth(1).and_then(|s| s.parse::<usize>().ok()).map(|k| k - 1);
+                        (v, n)
+                    })
+                    .collect();
+                for k in 1..corners.len() - 1 {
+                    let idx = [corners[0], corners[k], corners[k + 1]];
+                    let n = idx.iter().map(|c| c.1).collect::<Option<Vec<usize>>>();
+                    tris.push(Tri {
+                        v: idx.map(|c| vs[c.0]),
+                        n: n.map(|n| [ns[n[0]], ns[n[1]], ns[n[2]]]),
+                    });
+                }
+            }
+            _ => {}
+        }
+    }
+    tris
+}
