@@ -35,8 +35,8 @@ macro_rules! eprintln {
 
 mod cli;
 mod commands;
-mod probe;
 mod diagnose_cli;
+mod probe;
 
 use std::process::ExitCode;
 

@@ -3,7 +3,7 @@
 
 mod common;
 
-use common::{rayscope, reference, render};
+use common::{rayscope, render};
 use predicates::prelude::*;
 
 #[test]
@@ -24,8 +24,11 @@ fn the_catalogue_is_listed_two_ways() {
 
 #[test]
 fn a_mistake_renders_differently_and_replays_in_trace() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let scene = reference("tests/sample_scene_1.txt");
+    let scene = course.scene("sample_scene_1.txt");
     let right = render(&scene, &dir.path().join("a.png"), &["-w", "40", "-h", "30"]);
     let wrong = render(
         &scene,
@@ -59,8 +62,11 @@ fn a_mistake_renders_differently_and_replays_in_trace() {
 
 #[test]
 fn diagnose_exits_0_1_or_2() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let scene = reference("tests/sample_scene_2.txt");
+    let scene = course.scene("sample_scene_2.txt");
     let flags = ["-w", "48", "-h", "36", "--stage", "2"];
     let right = dir.path().join("right.png");
     let wrong = dir.path().join("wrong.png");
@@ -127,11 +133,15 @@ fn diagnose_exits_0_1_or_2() {
 
 #[test]
 fn the_manual_lists_every_mistake() {
-    let readme = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/mistakes.md"))
-        .unwrap();
+    let readme =
+        std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/mistakes.md"))
+            .unwrap();
     for m in rayscope_core::Mistake::ALL {
         let i = m.info();
         let row = format!("| `{}` | {} | {} | {} |", i.name, i.wrong, i.looks, i.rubric);
-        assert!(readme.contains(&row), "docs/mistakes.md's catalogue lacks or differs on:\n{row}");
+        assert!(
+            readme.contains(&row),
+            "docs/mistakes.md's catalogue lacks or differs on:\n{row}"
+        );
     }
 }

@@ -16,10 +16,6 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn course(name: &str) -> PathBuf {
-    root().join("../shared/reference/tests").join(name)
-}
-
 fn ours(name: &str) -> PathBuf {
     root().join("scenes").join(name)
 }
@@ -114,9 +110,12 @@ fn found_alone(bug: &'static str, scenes: &[PathBuf]) {
 
 #[test]
 fn a_correct_picture_matches() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     for path in [
-        course("sample_scene_1.txt"),
-        course("sample_scene_2.txt"),
+        course.scene("sample_scene_1.txt"),
+        course.scene("sample_scene_2.txt"),
         ours("whitted.txt"),
     ] {
         let d = run(&path, &[], Options::new(W, H), &flags(1), true);
@@ -124,7 +123,7 @@ fn a_correct_picture_matches() {
         assert!(d.explanations.is_empty() && d.attribution.is_empty());
     }
     let d = run(
-        &course("sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[],
         Options {
             aa: 2,
@@ -138,7 +137,10 @@ fn a_correct_picture_matches() {
 
 #[test]
 fn camera_mistakes_are_found() {
-    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
     for bug in ["fov-vertical", "aspect-ignored", "pixel-corners", "image-flipped"] {
         found_alone(bug, &scenes);
     }
@@ -146,7 +148,10 @@ fn camera_mistakes_are_found() {
 
 #[test]
 fn shadow_mistakes_are_found() {
-    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
     for bug in [
         "no-shadow-offset",
         "huge-shadow-offset",
@@ -155,7 +160,7 @@ fn shadow_mistakes_are_found() {
     ] {
         found_alone(bug, &scenes);
     }
-    let two_lights = [course("sample_scene_2.txt"), ours("whitted.txt")];
+    let two_lights = [course.scene("sample_scene_2.txt"), ours("whitted.txt")];
     for bug in ["shadow-past-light", "first-light-only"] {
         found_alone(bug, &two_lights);
     }
@@ -163,14 +168,26 @@ fn shadow_mistakes_are_found() {
 
 #[test]
 fn triangle_mistakes_are_found() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     // Our still life's triangles face their lights; the stripes and slab of ours do not.
-    found_alone("one-sided-triangles", &[course("sample_scene_1.txt"), ours("beer.txt")]);
-    found_alone("reversed-normals", &[course("sample_scene_1.txt"), ours("whitted.txt")]);
+    found_alone(
+        "one-sided-triangles",
+        &[course.scene("sample_scene_1.txt"), ours("beer.txt")],
+    );
+    found_alone(
+        "reversed-normals",
+        &[course.scene("sample_scene_1.txt"), ours("whitted.txt")],
+    );
 }
 
 #[test]
 fn glass_mistakes_are_found() {
-    let scenes = [course("sample_scene_2.txt"), ours("whitted.txt")];
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scenes = [course.scene("sample_scene_2.txt"), ours("whitted.txt")];
     for bug in [
         "refraction-no-normal-flip",
         "refraction-no-index-swap",
@@ -187,7 +204,10 @@ fn glass_mistakes_are_found() {
 
 #[test]
 fn output_mistakes_are_found() {
-    let scenes = [course("sample_scene_1.txt"), ours("whitted.txt")];
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
     for bug in ["rounded-colours", "gamma"] {
         found_alone(bug, &scenes);
     }
@@ -195,7 +215,10 @@ fn output_mistakes_are_found() {
 
 #[test]
 fn obj_mistakes_are_found() {
-    let scenes = [course("sample_scene_obj.txt"), ours("obj.txt")];
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scenes = [course.scene("sample_scene_obj.txt"), ours("obj.txt")];
     for bug in ["obj-no-z-flip", "obj-flat-normals"] {
         found_alone(bug, &scenes);
     }
@@ -203,11 +226,14 @@ fn obj_mistakes_are_found() {
 
 #[test]
 fn pairs_of_mistakes_are_found() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     for (path, bugs) in [
-        (course("sample_scene_2.txt"), ["no-fresnel", "first-light-only"]),
-        (course("sample_scene_1.txt"), ["image-flipped", "ambient-term"]),
+        (course.scene("sample_scene_2.txt"), ["no-fresnel", "first-light-only"]),
+        (course.scene("sample_scene_1.txt"), ["image-flipped", "ambient-term"]),
         (ours("whitted.txt"), ["pixel-corners", "gamma"]),
-        (course("sample_scene_2.txt"), ["reversed-normals", "schlick"]),
+        (course.scene("sample_scene_2.txt"), ["reversed-normals", "schlick"]),
     ] {
         let d = run(&path, &bugs, Options::new(W, H), &flags(1), true);
         let mut want: Vec<String> = bugs.iter().map(|b| b.to_string()).collect();
@@ -219,12 +245,21 @@ fn pairs_of_mistakes_are_found() {
 
 #[test]
 fn free_settings_are_blamed_before_code() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     // The student rendered without anti-aliasing; the flags say -x 2.
-    let d = run(&course("sample_scene_2.txt"), &[], Options::new(W, H), &flags(2), true);
+    let d = run(
+        &course.scene("sample_scene_2.txt"),
+        &[],
+        Options::new(W, H),
+        &flags(2),
+        true,
+    );
     assert_eq!(names(&d, 0), ["-x 1"], "{}", summary(&d));
     // A recursion limit of 2 is a setting too.
     let d = run(
-        &course("sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &[],
         Options {
             max_depth: 2,
@@ -238,9 +273,12 @@ fn free_settings_are_blamed_before_code() {
 
 #[test]
 fn differences_are_attributed_to_what_the_rays_end_on() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     // Fresnel ignored: the glass sphere.
     let d = run(
-        &course("sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &["no-fresnel"],
         Options::new(W, H),
         &flags(1),
@@ -257,7 +295,7 @@ fn differences_are_attributed_to_what_the_rays_end_on() {
     // Reversed triangle normals blacken the walls, also where the mirror shows them: those
     // pixels belong to the walls, seen in the mirror.
     let d = run(
-        &course("sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         &["reversed-normals"],
         Options::new(W, H),
         &flags(1),
@@ -281,7 +319,10 @@ fn differences_are_attributed_to_what_the_rays_end_on() {
 
 #[test]
 fn a_picture_of_the_wrong_size_is_refused() {
-    let file = load(&course("sample_scene_1.txt"));
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let file = load(&course.scene("sample_scene_1.txt"));
     let img = vec![0u8; 30 * 20 * 3];
     let e = diagnose(
         &file,

@@ -13,10 +13,6 @@ fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-fn course(name: &str) -> PathBuf {
-    root().join("../shared/reference/tests").join(name)
-}
-
 fn ours(name: &str) -> PathBuf {
     root().join("scenes").join(name)
 }
@@ -157,7 +153,10 @@ impl Case {
 
 #[test]
 fn camera_mistakes_show_only_on_non_square_images() {
-    let file = load(&course("sample_scene_2.txt"));
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let file = load(&course.scene("sample_scene_2.txt"));
     for m in [Mistake::FovVertical, Mistake::AspectIgnored] {
         let square = settings(40, 40);
         assert_eq!(bytes(&file, &square), bytes(&file, &with(&square, m)), "{}", m.name());
@@ -177,7 +176,14 @@ fn camera_mistakes_show_only_on_non_square_images() {
 
 #[test]
 fn pixel_corners_move_the_picture_half_a_pixel() {
-    let c = case(&course("sample_scene_1.txt"), settings(64, 48), Mistake::PixelCorners);
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let c = case(
+        &course.scene("sample_scene_1.txt"),
+        settings(64, 48),
+        Mistake::PixelCorners,
+    );
     let (w, h) = (64usize, 48usize);
     // Every camera ray goes through its pixel's top-left corner.
     let scene = Scene::from_file(&c.file);
@@ -219,7 +225,10 @@ fn pixel_corners_move_the_picture_half_a_pixel() {
 
 #[test]
 fn flipped_image_is_the_correct_one_upside_down() {
-    let file = load(&course("sample_scene_2.txt"));
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let file = load(&course.scene("sample_scene_2.txt"));
     for aa in [1, 2] {
         let s = RenderSettings { aa, ..settings(50, 34) };
         let right = bytes(&file, &s);
@@ -237,7 +246,14 @@ fn flipped_image_is_the_correct_one_upside_down() {
 
 #[test]
 fn shadow_acne_darkens_only_lit_diffuse_surfaces() {
-    let c = case(&course("sample_scene_1.txt"), settings(64, 64), Mistake::NoShadowOffset);
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let c = case(
+        &course.scene("sample_scene_1.txt"),
+        settings(64, 64),
+        Mistake::NoShadowOffset,
+    );
     // The light's direction from the un-offset point differs in the last bit: one level at most.
     c.direction_within(-1, 1);
     c.only_where("lit diffuse surfaces", |t| {
@@ -251,7 +267,10 @@ fn shadow_acne_darkens_only_lit_diffuse_surfaces() {
 
 #[test]
 fn huge_offsets_move_only_shadows() {
-    for path in [course("sample_scene_1.txt"), ours("whitted.txt")] {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for path in [course.scene("sample_scene_1.txt"), ours("whitted.txt")] {
         let c = case(&path, settings(64, 48), Mistake::HugeShadowOffset);
         // The shadow test moves; the light's direction is taken from the hit point (rayscope
         // takes it from the offset point, 1e-5 away: a level at most). So a pixel changes by
@@ -276,8 +295,11 @@ fn huge_offsets_move_only_shadows() {
 
 #[test]
 fn one_sided_triangles_change_only_the_shadows_they_cast_from_behind() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let c = case(
-        &course("sample_scene_1.txt"),
+        &course.scene("sample_scene_1.txt"),
         settings(64, 64),
         Mistake::OneSidedTriangles,
     );
@@ -296,8 +318,11 @@ fn one_sided_triangles_change_only_the_shadows_they_cast_from_behind() {
 
 #[test]
 fn reversed_normals_blacken_the_triangles_seen_from_the_front() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let c = case(
-        &course("sample_scene_1.txt"),
+        &course.scene("sample_scene_1.txt"),
         settings(64, 64),
         Mistake::ReversedNormals,
     );
@@ -315,6 +340,9 @@ fn reversed_normals_blacken_the_triangles_seen_from_the_front() {
 
 #[test]
 fn glass_mistakes_change_only_what_is_seen_in_glass() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let base = settings(64, 64);
     for m in [
         Mistake::RefractionNoNormalFlip,
@@ -329,7 +357,7 @@ fn glass_mistakes_change_only_what_is_seen_in_glass() {
         let path = if m == Mistake::NoTir {
             ours("beer.txt")
         } else {
-            course("sample_scene_2.txt")
+            course.scene("sample_scene_2.txt")
         };
         let c = case(&path, base, m);
         c.only_where("seen through glass", |t| hits_material(t, "Refractive"));
@@ -355,8 +383,11 @@ fn glass_mistakes_change_only_what_is_seen_in_glass() {
 
 #[test]
 fn recursion_limit_3_darkens_only_deep_paths() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let c = case(
-        &course("sample_scene_2.txt"),
+        &course.scene("sample_scene_2.txt"),
         settings(64, 64),
         Mistake::RecursionLimit3,
     );
@@ -373,8 +404,11 @@ fn recursion_limit_3_darkens_only_deep_paths() {
 
 #[test]
 fn lighting_mistakes_change_what_they_should() {
-    let s1 = course("sample_scene_1.txt");
-    let s2 = course("sample_scene_2.txt");
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let s1 = course.scene("sample_scene_1.txt");
+    let s2 = course.scene("sample_scene_2.txt");
     let base = settings(48, 48);
 
     let c = case(&s1, base, Mistake::LightFalloff);
@@ -410,14 +444,17 @@ fn lighting_mistakes_change_what_they_should() {
 
 #[test]
 fn output_mistakes_change_levels_not_shapes() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let base = settings(48, 48);
-    let c = case(&course("sample_scene_2.txt"), base, Mistake::RoundedColours);
+    let c = case(&course.scene("sample_scene_2.txt"), base, Mistake::RoundedColours);
     for (r, w) in c.right.iter().zip(&c.wrong) {
         assert!(*w == *r || *w == r + 1, "{r} → {w}");
     }
     assert!(c.diff.len() > 48 * 48 / 4, "rounding raises about half the pixels");
 
-    let c = case(&course("sample_scene_2.txt"), base, Mistake::Gamma);
+    let c = case(&course.scene("sample_scene_2.txt"), base, Mistake::Gamma);
     c.direction(1);
     for (r, w) in c.right.iter().zip(&c.wrong) {
         if *r == 0 || *r == 255 {
@@ -428,7 +465,10 @@ fn output_mistakes_change_levels_not_shapes() {
 
 #[test]
 fn obj_mistakes_change_only_the_model_and_its_shadow() {
-    for path in [course("sample_scene_obj.txt"), ours("obj.txt")] {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for path in [course.scene("sample_scene_obj.txt"), ours("obj.txt")] {
         let base = settings(48, 48);
         let file = load(&path);
         let mesh = |t: &RayTree| {

@@ -8,10 +8,7 @@ use std::time::Instant;
 
 use common::{peak_rss_kib, request, send, send_raw, start_server, wait_for_render};
 
-const SCENE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_2.txt"
-);
+const SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/room.txt");
 
 fn width(addr: std::net::SocketAddr) -> u64 {
     let (code, body) = request(addr, "GET", "/api/settings", b"");

@@ -11,10 +11,7 @@ use std::time::{Duration, Instant};
 use common::{open_fds, parse_answer, request, send, start_server_with};
 use rayscope_debug::ServerLimits;
 
-const SCENE: &str = concat!(
-    env!("CARGO_MANIFEST_DIR"),
-    "/../../../shared/reference/tests/sample_scene_2.txt"
-);
+const SCENE: &str = concat!(env!("CARGO_MANIFEST_DIR"), "/../../scenes/room.txt");
 
 /// One-second timeouts, so the tests take seconds.
 fn quick() -> ServerLimits {
