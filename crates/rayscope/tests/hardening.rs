@@ -31,6 +31,18 @@ fn run(args: &[&str]) -> std::process::Output {
     Command::new(bin()).args(args).output().unwrap()
 }
 
+/// Renders `scene` into `out` with extra flags.
+fn render(scene: &Path, out: &Path, flags: &[&str]) -> std::process::Output {
+    Command::new(bin())
+        .arg("-f")
+        .arg(scene)
+        .arg("-o")
+        .arg(out)
+        .args(flags)
+        .output()
+        .unwrap()
+}
+
 fn stderr(o: &std::process::Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
@@ -103,34 +115,14 @@ fn a_replaced_file_keeps_its_permissions_and_long_names_work() {
     let out = dir.path().join("private.png");
     fs::write(&out, "old").unwrap();
     fs::set_permissions(&out, fs::Permissions::from_mode(0o600)).unwrap();
-    let o = run(&[
-        "-f",
-        s.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-w",
-        "8",
-        "-h",
-        "8",
-        "--quiet",
-    ]);
+    let o = render(&s, &out, &["-w", "8", "-h", "8", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(fs::metadata(&out).unwrap().permissions().mode() & 0o777, 0o600);
     assert!(image::open(&out).is_ok());
 
     // 250 bytes is a valid name on every common file system; the temporary name must not be longer.
     let long = dir.path().join(format!("{}.png", "a".repeat(246)));
-    let o = run(&[
-        "-f",
-        s.to_str().unwrap(),
-        "-o",
-        long.to_str().unwrap(),
-        "-w",
-        "8",
-        "-h",
-        "8",
-        "--quiet",
-    ]);
+    let o = render(&s, &long, &["-w", "8", "-h", "8", "--quiet"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(image::open(&long).is_ok());
     let names: Vec<_> = fs::read_dir(dir.path())
@@ -205,30 +197,10 @@ fn samples_past_single_precision_are_refused_up_front() {
     let dir = tempfile::tempdir().unwrap();
     let s = scene(dir.path());
     let out = dir.path().join("x.png");
-    let o = run(&[
-        "-f",
-        s.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-x",
-        "64",
-        "-q",
-        "16",
-        "-l",
-    ]);
+    let o = render(&s, &out, &["-x", "64", "-q", "16", "-l"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("268435456 samples per pixel"), "{}", stderr(&o));
-    let o = run(&[
-        "-f",
-        s.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-w",
-        "65536",
-        "-h",
-        "65536",
-        "--allow-large",
-    ]);
+    let o = render(&s, &out, &["-w", "65536", "-h", "65536", "--allow-large"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("even with --allow-large"), "{}", stderr(&o));
     assert!(!out.exists());
@@ -265,16 +237,7 @@ fn devices_pipes_folders_and_huge_lines_are_named_not_read() {
         "7 ".repeat(1 << 22)
     );
     fs::write(&long, scene).unwrap();
-    let o = run(&[
-        "-f",
-        long.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-w",
-        "8",
-        "-h",
-        "8",
-    ]);
+    let o = render(&long, &out, &["-w", "8", "-h", "8"]);
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(stderr(&o).contains("long.txt:7:"), "{}", stderr(&o));
     assert!(stderr(&o).contains("4194304 extra tokens ignored"), "{}", stderr(&o));
@@ -367,19 +330,7 @@ fn exr_files_are_the_same_bytes_for_any_thread_count() {
     let mut files = Vec::new();
     for threads in ["1", "2", "2"] {
         let out = dir.path().join(format!("img-{}.exr", files.len()));
-        let o = run(&[
-            "-f",
-            s.to_str().unwrap(),
-            "-o",
-            out.to_str().unwrap(),
-            "-w",
-            "160",
-            "-h",
-            "120",
-            "--threads",
-            threads,
-            "--quiet",
-        ]);
+        let o = render(&s, &out, &["-w", "160", "-h", "120", "--threads", threads, "--quiet"]);
         assert!(o.status.success(), "{}", stderr(&o));
         files.push(fs::read(&out).unwrap());
     }
@@ -397,16 +348,7 @@ fn unbalanced_quotes_and_parentheses_render_with_a_warning() {
     )
     .unwrap();
     let out = dir.path().join("x.png");
-    let o = run(&[
-        "-f",
-        s.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "-w",
-        "8",
-        "-h",
-        "8",
-    ]);
+    let o = render(&s, &out, &["-w", "8", "-h", "8"]);
     let err = stderr(&o);
     assert!(o.status.success(), "{err}");
     assert!(
