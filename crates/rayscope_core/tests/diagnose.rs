@@ -12,14 +12,6 @@ use rayscope_core::{RenderSettings, Stage};
 use rayscope_scene::SceneFile;
 use student::{Options, Student};
 
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn ours(name: &str) -> PathBuf {
-    root().join("scenes").join(name)
-}
-
 fn load(path: &Path) -> SceneFile {
     rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
 }
@@ -116,7 +108,7 @@ fn a_correct_picture_matches() {
     for path in [
         course.scene("sample_scene_1.txt"),
         course.scene("sample_scene_2.txt"),
-        ours("whitted.txt"),
+        rayscope_testkit::scene("whitted.txt"),
     ] {
         let d = run(&path, &[], Options::new(W, H), &flags(1), true);
         assert!(d.matches, "{}: {}", path.display(), summary(&d));
@@ -140,7 +132,10 @@ fn camera_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
+    let scenes = [
+        course.scene("sample_scene_1.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ];
     for bug in ["fov-vertical", "aspect-ignored", "pixel-corners", "image-flipped"] {
         found_alone(bug, &scenes);
     }
@@ -151,7 +146,10 @@ fn shadow_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
+    let scenes = [
+        course.scene("sample_scene_1.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ];
     for bug in [
         "no-shadow-offset",
         "huge-shadow-offset",
@@ -160,7 +158,10 @@ fn shadow_mistakes_are_found() {
     ] {
         found_alone(bug, &scenes);
     }
-    let two_lights = [course.scene("sample_scene_2.txt"), ours("whitted.txt")];
+    let two_lights = [
+        course.scene("sample_scene_2.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ];
     for bug in ["shadow-past-light", "first-light-only"] {
         found_alone(bug, &two_lights);
     }
@@ -174,11 +175,14 @@ fn triangle_mistakes_are_found() {
     // Our still life's triangles face their lights; the stripes and slab of ours do not.
     found_alone(
         "one-sided-triangles",
-        &[course.scene("sample_scene_1.txt"), ours("beer.txt")],
+        &[course.scene("sample_scene_1.txt"), rayscope_testkit::scene("beer.txt")],
     );
     found_alone(
         "reversed-normals",
-        &[course.scene("sample_scene_1.txt"), ours("whitted.txt")],
+        &[
+            course.scene("sample_scene_1.txt"),
+            rayscope_testkit::scene("whitted.txt"),
+        ],
     );
 }
 
@@ -187,7 +191,10 @@ fn glass_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let scenes = [course.scene("sample_scene_2.txt"), ours("whitted.txt")];
+    let scenes = [
+        course.scene("sample_scene_2.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ];
     for bug in [
         "refraction-no-normal-flip",
         "refraction-no-index-swap",
@@ -199,7 +206,7 @@ fn glass_mistakes_are_found() {
         found_alone(bug, &scenes);
     }
     // Rays inside a sphere never pass the critical angle, so only our glass slab shows it.
-    found_alone("no-tir", &[ours("beer.txt")]);
+    found_alone("no-tir", &[rayscope_testkit::scene("beer.txt")]);
 }
 
 #[test]
@@ -207,7 +214,10 @@ fn output_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let scenes = [course.scene("sample_scene_1.txt"), ours("whitted.txt")];
+    let scenes = [
+        course.scene("sample_scene_1.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ];
     for bug in ["rounded-colours", "gamma"] {
         found_alone(bug, &scenes);
     }
@@ -218,7 +228,7 @@ fn obj_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let scenes = [course.scene("sample_scene_obj.txt"), ours("obj.txt")];
+    let scenes = [course.scene("sample_scene_obj.txt"), rayscope_testkit::scene("obj.txt")];
     for bug in ["obj-no-z-flip", "obj-flat-normals"] {
         found_alone(bug, &scenes);
     }
@@ -232,7 +242,7 @@ fn pairs_of_mistakes_are_found() {
     for (path, bugs) in [
         (course.scene("sample_scene_2.txt"), ["no-fresnel", "first-light-only"]),
         (course.scene("sample_scene_1.txt"), ["image-flipped", "ambient-term"]),
-        (ours("whitted.txt"), ["pixel-corners", "gamma"]),
+        (rayscope_testkit::scene("whitted.txt"), ["pixel-corners", "gamma"]),
         (course.scene("sample_scene_2.txt"), ["reversed-normals", "schlick"]),
     ] {
         let d = run(&path, &bugs, Options::new(W, H), &flags(1), true);

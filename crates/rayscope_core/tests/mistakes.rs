@@ -1,21 +1,13 @@
 //! Each of the course's common mistakes, rendered with `--mistake`, changes the picture where
 //! and only where that mistake shows: checked against the correct render and its ray trees.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use rayscope_core::observer::{RayKind, RayNode, RayTree};
 use rayscope_core::settings::Channel;
 use rayscope_core::{render, trace_pixel, Mistake, Mistakes, RenderSettings, Scene, Stage};
 use rayscope_scene::SceneFile;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn ours(name: &str) -> PathBuf {
-    root().join("scenes").join(name)
-}
 
 fn load(path: &Path) -> SceneFile {
     rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
@@ -270,7 +262,10 @@ fn huge_offsets_move_only_shadows() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    for path in [course.scene("sample_scene_1.txt"), ours("whitted.txt")] {
+    for path in [
+        course.scene("sample_scene_1.txt"),
+        rayscope_testkit::scene("whitted.txt"),
+    ] {
         let c = case(&path, settings(64, 48), Mistake::HugeShadowOffset);
         // The shadow test moves; the light's direction is taken from the hit point (rayscope
         // takes it from the offset point, 1e-5 away: a level at most). So a pixel changes by
@@ -355,7 +350,7 @@ fn glass_mistakes_change_only_what_is_seen_in_glass() {
         // No ray inside a sphere meets its surface past the critical angle (it leaves at the
         // angle it entered at), so total internal reflection needs the glass slab of ours.
         let path = if m == Mistake::NoTir {
-            ours("beer.txt")
+            rayscope_testkit::scene("beer.txt")
         } else {
             course.scene("sample_scene_2.txt")
         };
@@ -468,7 +463,7 @@ fn obj_mistakes_change_only_the_model_and_its_shadow() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    for path in [course.scene("sample_scene_obj.txt"), ours("obj.txt")] {
+    for path in [course.scene("sample_scene_obj.txt"), rayscope_testkit::scene("obj.txt")] {
         let base = settings(48, 48);
         let file = load(&path);
         let mesh = |t: &RayTree| {
