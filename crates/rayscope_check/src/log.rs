@@ -17,6 +17,8 @@ use rayon::prelude::*;
 use rayscope_scene::Diagnostic;
 use serde::Deserialize;
 
+mod fast;
+
 /// Why a ray was cast, as the log names it.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub enum Kind {
@@ -410,7 +412,7 @@ where
     Option::<T>::deserialize(d).map(Some)
 }
 
-#[derive(Deserialize)]
+#[derive(Debug, PartialEq, Deserialize)]
 struct RawHit<'a> {
     t: Option<f64>,
     point: Option<[f64; 3]>,
@@ -419,7 +421,7 @@ struct RawHit<'a> {
     entity: Option<Cow<'a, str>>,
 }
 
-#[derive(Deserialize)]
+#[derive(Debug, PartialEq, Deserialize)]
 struct RawRay<'a> {
     pixel: Option<[u32; 2]>,
     sample: Option<u32>,
@@ -478,17 +480,19 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Ok(None);
     }
-    let shown = String::from_utf8_lossy(bytes);
+    // The line as text is needed only for a message, so it is decoded only then.
+    let shown = || String::from_utf8_lossy(bytes);
     let err = |col: usize, span: usize, msg: String| {
-        Box::new(Diagnostic::error(path, line_no as usize, &shown, col, span, msg).with_note(FORMAT_NOTE))
+        Box::new(Diagnostic::error(path, line_no as usize, &shown(), col, span, msg).with_note(FORMAT_NOTE))
     };
-    let raw: RawRay = match serde_json::from_slice(bytes) {
+    let raw: RawRay = match fast::parse(bytes).map_or_else(|| serde_json::from_slice(bytes), Ok) {
         Ok(r) => r,
         Err(e) => {
             let text = e.to_string();
             let what = text.split(" at line ").next().unwrap_or(&text).to_string();
             let mut msg = format!("expected a JSON ray record: {what}");
-            if shown.contains("NaN") || shown.contains("Infinity") {
+            let line = shown();
+            if line.contains("NaN") || line.contains("Infinity") {
                 msg.push_str(" (NaN and Infinity are not JSON numbers: your tracer produced a non-finite value)");
             }
             return Err(err(e.column().max(1), 1, msg));
@@ -509,7 +513,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     let dir_len = dir_raw.length();
     if !(dir_len > 0.0 && dir_len.is_finite()) {
         let key = if end.is_some() { "to" } else { "direction" };
-        let (c, s) = key_column(&shown, key);
+        let (c, s) = key_column(&shown(), key);
         let msg = if end.is_some() {
             "expected \"to\" to differ from \"from\": a segment needs a length"
         } else {
@@ -519,7 +523,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     }
     if let Some([x, y]) = raw.pixel {
         if x >= ctx.width || y >= ctx.height {
-            let (c, s) = key_column(&shown, "pixel");
+            let (c, s) = key_column(&shown(), "pixel");
             return Err(err(
                 c,
                 s,
@@ -532,7 +536,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     }
     if let Some(s) = raw.sample {
         if s >= ctx.spp {
-            let (c, span) = key_column(&shown, "sample");
+            let (c, span) = key_column(&shown(), "sample");
             return Err(err(
                 c,
                 span,
@@ -547,7 +551,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     }
     let entity = |name: &str, key: &str| -> Result<u32, Box<Diagnostic>> {
         ctx.entities.get(name).copied().ok_or_else(|| {
-            let (c, s) = value_column(&shown, key, name);
+            let (c, s) = value_column(&shown(), key, name);
             err(
                 c,
                 s,
@@ -579,7 +583,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     let light = match raw.light {
         None => None,
         Some(name) => Some(ctx.lights.get(name.as_ref()).copied().ok_or_else(|| {
-            let (c, s) = value_column(&shown, "light", &name);
+            let (c, s) = value_column(&shown(), "light", &name);
             err(
                 c,
                 s,

@@ -5,7 +5,7 @@
 //! [`crate::geometry`] or [`crate::bvh`].
 
 use glam::Vec3A;
-use parry3d::math::{Isometry, Point, Vector};
+use parry3d::math::{Pose, Vector};
 use parry3d::query::{Ray as PRay, RayCast};
 use parry3d::shape::{Ball, HalfSpace, Triangle as PTriangle};
 
@@ -15,13 +15,13 @@ use crate::scene::{Hit, Intersect, PrimRef, Scene};
 
 fn pray(ray: &Ray, t_min: f32) -> PRay {
     let o = ray.at(t_min);
-    PRay::new(Point::new(o.x, o.y, o.z), Vector::new(ray.dir.x, ray.dir.y, ray.dir.z))
+    PRay::new(Vector::new(o.x, o.y, o.z), Vector::new(ray.dir.x, ray.dir.y, ray.dir.z))
 }
 
 /// parry3d's answer for a sphere, as a [`PrimHit`] (two-sided: hits from inside too).
 #[must_use]
 pub fn sphere(s: &Sphere, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
-    let iso = Isometry::translation(s.center.x, s.center.y, s.center.z);
+    let iso = Pose::translation(s.center.x, s.center.y, s.center.z);
     let t = Ball::new(s.radius).cast_ray(&iso, &pray(ray, t_min), t_max - t_min, false)?;
     let t = t + t_min;
     (t > t_min && t < t_max).then_some(PrimHit { t, u: 0.0, v: 0.0 })
@@ -31,7 +31,7 @@ pub fn sphere(s: &Sphere, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> 
 #[must_use]
 pub fn triangle(tri: &Triangle, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
     let [a, b, c] = tri.vertices();
-    let p = |v: Vec3A| Point::new(v.x, v.y, v.z);
+    let p = |v: Vec3A| Vector::new(v.x, v.y, v.z);
     let shape = PTriangle::new(p(a), p(b), p(c));
     let t = shape.cast_local_ray(&pray(ray, t_min), t_max - t_min, false)? + t_min;
     if !(t > t_min && t < t_max) {
@@ -54,8 +54,8 @@ pub fn plane(pl: &Plane, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
     let o = ray.at(t_min);
     let side = (o - pl.point).dot(pl.normal);
     let n = if side >= 0.0 { pl.normal } else { -pl.normal };
-    let shape = HalfSpace::new(parry3d::na::Unit::new_normalize(Vector::new(n.x, n.y, n.z)));
-    let iso = Isometry::translation(pl.point.x, pl.point.y, pl.point.z);
+    let shape = HalfSpace::new(Vector::new(n.x, n.y, n.z).normalize());
+    let iso = Pose::translation(pl.point.x, pl.point.y, pl.point.z);
     let t = shape.cast_ray(&iso, &pray(ray, t_min), t_max - t_min, false)? + t_min;
     (t > t_min && t < t_max).then_some(PrimHit { t, u: 0.0, v: 0.0 })
 }

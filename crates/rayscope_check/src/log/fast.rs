@@ -1,0 +1,437 @@
+//! A reader for the common shape of a ray record, several times as fast as serde_json's generic
+//! deserialiser, which dominates the time of checking a large log.
+//!
+//! It accepts only what it can read exactly as serde_json would: strings without escapes or
+//! control characters, numbers in JSON's grammar (integers where the field is an integer), each
+//! field at most once, and nothing after the object. Anything else returns `None`, and the record
+//! is read by serde_json, which also words the error when the record is malformed.
+
+use std::borrow::Cow;
+
+use super::{RawHit, RawRay};
+
+/// A position in one record.
+struct Cursor<'a> {
+    b: &'a [u8],
+    i: usize,
+}
+
+impl<'a> Cursor<'a> {
+    fn skip_ws(&mut self) {
+        while let Some(&c) = self.b.get(self.i) {
+            if matches!(c, b' ' | b'\t' | b'\n' | b'\r') {
+                self.i += 1;
+            } else {
+                break;
+            }
+        }
+    }
+
+    fn peek(&mut self) -> Option<u8> {
+        self.skip_ws();
+        self.b.get(self.i).copied()
+    }
+
+    fn eat(&mut self, c: u8) -> bool {
+        if self.peek() == Some(c) {
+            self.i += 1;
+            true
+        } else {
+            false
+        }
+    }
+
+    fn literal(&mut self, word: &[u8]) -> bool {
+        self.skip_ws();
+        if self.b[self.i..].starts_with(word) {
+            self.i += word.len();
+            true
+        } else {
+            false
+        }
+    }
+
+    /// A string without escapes, borrowed from the record.
+    fn string(&mut self) -> Option<&'a str> {
+        if !self.eat(b'"') {
+            return None;
+        }
+        let start = self.i;
+        let len = memchr::memchr2(b'"', b'\\', &self.b[start..])?;
+        let s = &self.b[start..start + len];
+        if self.b[start + len] != b'"' || s.iter().any(|&c| c < 0x20) {
+            return None;
+        }
+        self.i = start + len + 1;
+        std::str::from_utf8(s).ok()
+    }
+
+    /// A number in JSON's grammar, as text, and whether it has a fraction or an exponent.
+    fn number(&mut self) -> Option<(&'a str, bool)> {
+        self.skip_ws();
+        let b = self.b;
+        let start = self.i;
+        let mut i = start;
+        let digits = |i: &mut usize| {
+            let from = *i;
+            while b.get(*i).is_some_and(u8::is_ascii_digit) {
+                *i += 1;
+            }
+            *i - from
+        };
+        if b.get(i) == Some(&b'-') {
+            i += 1;
+        }
+        let int_start = i;
+        let n = digits(&mut i);
+        if n == 0 || (n > 1 && b[int_start] == b'0') {
+            return None;
+        }
+        let mut real = false;
+        if b.get(i) == Some(&b'.') {
+            i += 1;
+            if digits(&mut i) == 0 {
+                return None;
+            }
+            real = true;
+        }
+        if matches!(b.get(i), Some(b'e' | b'E')) {
+            i += 1;
+            if matches!(b.get(i), Some(b'+' | b'-')) {
+                i += 1;
+            }
+            if digits(&mut i) == 0 {
+                return None;
+            }
+            real = true;
+        }
+        self.i = i;
+        // The bytes are ASCII digits, signs, '.' and 'e' only.
+        std::str::from_utf8(&b[start..i]).ok().map(|s| (s, real))
+    }
+
+    fn f64(&mut self) -> Option<f64> {
+        let (s, _) = self.number()?;
+        let v: f64 = s.parse().ok()?;
+        // serde_json refuses numbers too large for an f64.
+        v.is_finite().then_some(v)
+    }
+
+    fn u32(&mut self) -> Option<u32> {
+        match self.number()? {
+            (s, false) if !s.starts_with('-') => s.parse().ok(),
+            _ => None,
+        }
+    }
+
+    fn i64(&mut self) -> Option<i64> {
+        match self.number()? {
+            (s, false) if s != "-0" => s.parse().ok(),
+            _ => None,
+        }
+    }
+
+    fn vec3(&mut self) -> Option<[f64; 3]> {
+        if !self.eat(b'[') {
+            return None;
+        }
+        let x = self.f64()?;
+        if !self.eat(b',') {
+            return None;
+        }
+        let y = self.f64()?;
+        if !self.eat(b',') {
+            return None;
+        }
+        let z = self.f64()?;
+        self.eat(b']').then_some([x, y, z])
+    }
+
+    fn pixel(&mut self) -> Option<[u32; 2]> {
+        if !self.eat(b'[') {
+            return None;
+        }
+        let x = self.u32()?;
+        if !self.eat(b',') {
+            return None;
+        }
+        let y = self.u32()?;
+        self.eat(b']').then_some([x, y])
+    }
+
+    /// `null` as `Some(None)`, else the value `read` reads.
+    fn nullable<T>(&mut self, read: impl FnOnce(&mut Self) -> Option<T>) -> Option<Option<T>> {
+        if self.literal(b"null") {
+            Some(None)
+        } else {
+            read(self).map(Some)
+        }
+    }
+
+    /// Skips a value of a field the record format does not use, as serde_json ignores it.
+    fn skip_value(&mut self, depth: u32) -> Option<()> {
+        if depth > 32 {
+            return None;
+        }
+        match self.peek()? {
+            b'"' => self.string().map(drop),
+            b'{' | b'[' => {
+                let close = if self.eat(b'{') {
+                    b'}'
+                } else {
+                    self.i += 1;
+                    b']'
+                };
+                if self.eat(close) {
+                    return Some(());
+                }
+                loop {
+                    if close == b'}' {
+                        self.string()?;
+                        if !self.eat(b':') {
+                            return None;
+                        }
+                    }
+                    self.skip_value(depth + 1)?;
+                    if self.eat(close) {
+                        return Some(());
+                    }
+                    if !self.eat(b',') {
+                        return None;
+                    }
+                }
+            }
+            b't' => self.literal(b"true").then_some(()),
+            b'f' => self.literal(b"false").then_some(()),
+            b'n' => self.literal(b"null").then_some(()),
+            _ => self.number().map(drop),
+        }
+    }
+
+    /// The members of an object, each key handed to `field` with the cursor on its value.
+    fn object(&mut self, mut field: impl FnMut(&mut Self, &'a str) -> Option<()>) -> Option<()> {
+        if !self.eat(b'{') {
+            return None;
+        }
+        if self.eat(b'}') {
+            return Some(());
+        }
+        loop {
+            let key = self.string()?;
+            if !self.eat(b':') {
+                return None;
+            }
+            field(self, key)?;
+            if self.eat(b'}') {
+                return Some(());
+            }
+            if !self.eat(b',') {
+                return None;
+            }
+        }
+    }
+}
+
+/// Sets `slot` once; a second value for the same field is left to serde_json, which refuses it.
+fn once<T>(slot: &mut Option<T>, value: Option<T>) -> Option<()> {
+    if slot.is_some() {
+        return None;
+    }
+    *slot = Some(value?);
+    Some(())
+}
+
+fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
+    let (mut t, mut point, mut normal, mut entity) = (None, None, None, None);
+    c.object(|c, key| match key {
+        "t" => once(&mut t, c.nullable(Cursor::f64)),
+        "point" => once(&mut point, c.nullable(Cursor::vec3)),
+        "normal" => once(&mut normal, c.nullable(Cursor::vec3)),
+        "entity" => once(&mut entity, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        _ => c.skip_value(0),
+    })?;
+    Some(RawHit {
+        t: t.flatten(),
+        point: point.flatten(),
+        normal: normal.flatten(),
+        entity: entity.flatten(),
+    })
+}
+
+/// Reads one record of the common shape, or `None` to leave it to serde_json.
+pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
+    let mut c = Cursor { b: bytes, i: 0 };
+    let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
+    let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
+    let (mut hit_, mut light, mut blocked_by) = (None, None, None);
+    c.object(|c, key| match key {
+        "pixel" => once(&mut pixel, c.nullable(Cursor::pixel)),
+        "sample" => once(&mut sample, c.nullable(Cursor::u32)),
+        "id" => once(&mut id, c.nullable(Cursor::i64)),
+        "parent" => once(&mut parent, c.nullable(Cursor::i64)),
+        "kind" => once(&mut kind, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        "origin" => once(&mut origin, c.nullable(Cursor::vec3)),
+        "direction" => once(&mut direction, c.nullable(Cursor::vec3)),
+        "from" => once(&mut from, c.nullable(Cursor::vec3)),
+        "to" => once(&mut to, c.nullable(Cursor::vec3)),
+        "hit" => once(&mut hit_, c.nullable(hit)),
+        "light" => once(&mut light, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        "blocked_by" => once(&mut blocked_by, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        _ => c.skip_value(0),
+    })?;
+    c.skip_ws();
+    if c.i != bytes.len() {
+        return None;
+    }
+    Some(RawRay {
+        pixel: pixel.flatten(),
+        sample: sample.flatten(),
+        id: id.flatten(),
+        parent: parent.flatten(),
+        kind: kind.flatten(),
+        origin: origin.flatten(),
+        direction: direction.flatten(),
+        from: from.flatten(),
+        to: to.flatten(),
+        hit: hit_,
+        light: light.flatten(),
+        blocked_by,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use proptest::prelude::*;
+
+    use super::*;
+
+    fn serde(line: &str) -> Option<RawRay<'_>> {
+        serde_json::from_str(line).ok()
+    }
+
+    /// The fast reader either reads `line` exactly as serde_json does or leaves it to serde_json.
+    fn agrees(line: &str) -> bool {
+        match parse(line.as_bytes()) {
+            Some(fast) => serde(line).as_ref() == Some(&fast),
+            None => true,
+        }
+    }
+
+    #[test]
+    fn reads_the_records_tracers_write_as_serde_json_does() {
+        let lines = [
+            r#"{"pixel":[0,0],"sample":0,"id":0,"parent":null,"kind":"camera","origin":[0,0,0],"direction":[-0.44687796,0.44687796,0.774984],"hit":{"t":2.2377474,"point":[-1,1,1.7342185],"normal":[0,-1,0],"entity":"Roof"}}"#,
+            r#"{"pixel":[3,1],"sample":2,"id":1,"parent":0,"kind":"shadow","origin":[-1,0.99998266,1.7342185],"direction":[0.9557018,-0.19112378,-0.22384304],"light":"Light1","blocked_by":null}"#,
+            r#"{"pixel":[3,1],"id":7,"parent":3,"kind":"shadow","from":[1e-3,2E+2,-0.5e-7],"to":[4,5,6],"light":"L","blocked_by":"Box"}"#,
+            r#" { "pixel" : [ 10 , 20 ] , "kind" : "reflection" , "origin" : [ 1.5 , -2 , 3 ] , "direction" : [ 0 , 0 , 1 ] , "hit" : null } "#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"hit":{}}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"hit":{"t":null,"entity":null}}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"depth":3,"colour":[0.5,0.25,1],"debug":{"a":[1,{"b":null}],"c":true,"d":false,"e":"x"}}"#,
+            r#"{"origin":[-0,0.0,-0.0],"direction":[123456789012345678901234567890,1e-310,-1.7976931348623157e308]}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"id":-5,"parent":9223372036854775807}"#,
+            "{\"origin\":[0,0,0],\"direction\":[0,0,1],\"kind\":\"ré\u{fb01}exion\"}",
+        ];
+        for line in lines {
+            let fast = parse(line.as_bytes()).unwrap_or_else(|| panic!("the fast reader refused {line}"));
+            assert_eq!(Some(fast), serde(line), "{line}");
+        }
+    }
+
+    #[test]
+    fn leaves_what_it_cannot_read_exactly_to_serde_json() {
+        let lines = [
+            // Escapes, duplicate fields, trailing text, wrong shapes, JSON's number grammar.
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"kind":"cam\"era"}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"kind":"a\u0041"}"#,
+            r#"{"origin":[0,0,0],"origin":[0,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1]} x"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],}"#,
+            r#"{"origin":[0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[0,0,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[01,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[1.,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[.5,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[+1,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[NaN,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[1e999,0,0],"direction":[0,0,1]}"#,
+            r#"{"pixel":[1.0,2],"origin":[0,0,0],"direction":[0,0,1]}"#,
+            r#"{"pixel":[-1,2],"origin":[0,0,0],"direction":[0,0,1]}"#,
+            r#"{"sample":4294967296,"origin":[0,0,0],"direction":[0,0,1]}"#,
+            r#"{"id":1e2,"origin":[0,0,0],"direction":[0,0,1]}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"hit":{"t":1,"t":2}}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"hit":[1]}"#,
+            r#"{"origin":[0,0,0],"direction":[0,0,1],"hit":{"t":1}"#,
+            "{\"origin\":[0,0,0],\"direction\":[0,0,1],\"kind\":\"a\tb\"}",
+            r#"[1,2,3]"#,
+            r#"{"origin":[0,0,0] "direction":[0,0,1]}"#,
+        ];
+        for line in lines {
+            assert!(parse(line.as_bytes()).is_none(), "the fast reader accepted {line}");
+        }
+        // And a string that is not UTF-8.
+        assert!(parse(b"{\"origin\":[0,0,0],\"direction\":[0,0,1],\"kind\":\"\xff\"}").is_none());
+    }
+
+    /// A number written in one of the ways tracers print floats.
+    fn number() -> impl Strategy<Value = String> {
+        prop_oneof![
+            any::<f32>()
+                .prop_filter("finite", |v| v.is_finite())
+                .prop_map(|v| format!("{v}")),
+            any::<f64>()
+                .prop_filter("finite", |v| v.is_finite())
+                .prop_map(|v| format!("{v:e}")),
+            (-1e6f64..1e6).prop_map(|v| format!("{v:.9}")),
+            (-1000i64..1000).prop_map(|v| v.to_string()),
+            (-1e6f64..1e6).prop_map(|v| format!("{v:E}")),
+        ]
+    }
+
+    fn vec3() -> impl Strategy<Value = String> {
+        (number(), number(), number(), " ?", " ?").prop_map(|(x, y, z, a, b)| format!("[{x},{a}{y},{b}{z}]"))
+    }
+
+    fn member() -> impl Strategy<Value = String> {
+        prop_oneof![
+            (0u32..5000, 0u32..5000).prop_map(|(x, y)| format!("\"pixel\":[{x},{y}]")),
+            (0u32..64).prop_map(|s| format!("\"sample\":{s}")),
+            any::<i64>().prop_map(|v| format!("\"id\":{v}")),
+            prop_oneof![Just("null".to_string()), any::<i32>().prop_map(|v| v.to_string())]
+                .prop_map(|v| format!("\"parent\":{v}")),
+            "[a-z]{1,10}".prop_map(|k| format!("\"kind\":\"{k}\"")),
+            vec3().prop_map(|v| format!("\"origin\":{v}")),
+            vec3().prop_map(|v| format!("\"direction\":{v}")),
+            vec3().prop_map(|v| format!("\"to\":{v}")),
+            (number(), vec3(), "[A-Za-z0-9 ]{0,12}")
+                .prop_map(|(t, n, e)| format!("\"hit\":{{\"t\":{t},\"normal\":{n},\"entity\":\"{e}\"}}")),
+            Just("\"hit\":null".to_string()),
+            "[A-Za-z0-9]{1,8}".prop_map(|l| format!("\"light\":\"{l}\"")),
+            prop_oneof![
+                Just("null".to_string()),
+                "[A-Za-z]{1,8}".prop_map(|b| format!("\"{b}\""))
+            ]
+            .prop_map(|b| format!("\"blocked_by\":{b}")),
+            (number(), "[a-z]{1,6}").prop_map(|(v, k)| format!("\"x_{k}\":[{v},{{\"q\":[true,null]}}]")),
+        ]
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn random_records_read_as_serde_json_reads_them(
+            members in proptest::collection::vec(member(), 0..10),
+            spaced in any::<bool>(),
+        ) {
+            let sep = if spaced { ", " } else { "," };
+            let line = format!("{{{}}}", members.join(sep));
+            prop_assert!(agrees(&line), "{line}");
+            // Records without a repeated field are read by the fast reader itself.
+            let mut keys: Vec<&str> = members.iter().map(|m| m.split(':').next().unwrap_or("")).collect();
+            keys.sort_unstable();
+            let distinct = keys.windows(2).all(|w| w[0] != w[1]);
+            if distinct {
+                prop_assert!(parse(line.as_bytes()).is_some(), "refused {line}");
+            }
+        }
+    }
+}
