@@ -8,15 +8,16 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
 use rayscope_core::animation::frame_path;
+use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
 use rayscope_core::farm;
 use rayscope_core::output::{check_writable, write_film, Format};
-use rayscope_core::{render, render_tiles_of, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene};
+use rayscope_core::{
+    render, render_tiles_of, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene,
+};
 
 use crate::cli::{
-    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, MergeArgs, RenderArgs, RenderOpts,
-    TraceArgs,
+    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, MergeArgs, RenderArgs, RenderOpts, TraceArgs,
 };
 
 /// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
@@ -189,7 +190,7 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
         let output = out_path(frame);
         let tiles = farm.part.map(|spec| {
             let (tx, ty) = rayscope_core::render::tile_grid(settings.width, settings.height);
-            farm::deal(tx * ty, spec)
+            farm::deal(tx, ty, spec)
         });
         let out = render_progress(&scene, &settings, show, &cancel, tiles.as_deref())?;
         if out.nonfinite > 0 {
@@ -220,7 +221,12 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
         }
         if !opts.quiet {
             let what = match farm.part {
-                Some(p) => format!("part {}/{} ({} tiles), ", p.index, p.count, tiles.as_ref().map_or(0, Vec::len)),
+                Some(p) => format!(
+                    "part {}/{} ({} tiles), ",
+                    p.index,
+                    p.count,
+                    tiles.as_ref().map_or(0, Vec::len)
+                ),
                 None => String::new(),
             };
             let frame = frame.map_or(String::new(), |f| format!("frame {f}, "));

@@ -69,7 +69,12 @@ fn pod(job: &Value) -> Value {
 
 /// The shell command of a container (`sh -c ARG`).
 fn shell(c: &Value) -> String {
-    let cmd: Vec<&str> = c["command"].as_sequence().unwrap().iter().map(|v| v.as_str().unwrap()).collect();
+    let cmd: Vec<&str> = c["command"]
+        .as_sequence()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
     assert_eq!(cmd, ["/bin/sh", "-c"]);
     let args = c["args"].as_sequence().unwrap();
     assert_eq!(args.len(), 1);
@@ -83,17 +88,30 @@ fn the_indexed_job_maps_the_completion_index_to_the_part() {
     let completions = num(&job, "spec.completions");
     let parallelism = num(&job, "spec.parallelism");
     assert!(parallelism >= 1 && parallelism <= completions);
-    assert!(num(&job, "spec.backoffLimitPerIndex") >= 1, "a failed part is retried on its own");
+    assert!(
+        num(&job, "spec.backoffLimitPerIndex") >= 1,
+        "a failed part is retried on its own"
+    );
     let c = pod(&job);
-    assert_eq!(env(&c, "PARTS"), completions.to_string(), "PARTS must equal completions");
+    assert_eq!(
+        env(&c, "PARTS"),
+        completions.to_string(),
+        "PARTS must equal completions"
+    );
     let cmd = shell(&c);
     assert!(cmd.contains(r#"--part "${JOB_COMPLETION_INDEX}/${PARTS}""#), "{cmd}");
-    assert!(cmd.contains(r#"-o "/work/parts/part_${JOB_COMPLETION_INDEX}.exr""#), "{cmd}");
+    assert!(
+        cmd.contains(r#"-o "/work/parts/part_${JOB_COMPLETION_INDEX}.exr""#),
+        "{cmd}"
+    );
 
     let merge = manifest("merge-job.yaml");
     assert_eq!(num(&merge, "spec.completions"), 1);
     let m = shell(&pod(&merge));
-    assert!(m.contains("rayscope merge /work/parts/part_*.exr -o /work/final.png"), "{m}");
+    assert!(
+        m.contains("rayscope merge /work/parts/part_*.exr -o /work/final.png"),
+        "{m}"
+    );
 
     let claim = manifest("volume.yaml");
     assert_eq!(text(&claim, "kind"), "PersistentVolumeClaim");

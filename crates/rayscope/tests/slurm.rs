@@ -44,7 +44,9 @@ fn job_array_on_a_one_node_slurm_cluster_merges_into_the_local_render() {
         );
         return;
     }
-    let Some(course) = rayscope_testkit::course() else { return };
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
     let root = rayscope_testkit::workspace();
     let script = root.join("deploy/slurm/test-cluster.sh");
     let cases = [

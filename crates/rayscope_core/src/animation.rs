@@ -122,7 +122,10 @@ impl CameraPath {
 /// extension (`turn.png` → `turn_0007.png`).
 #[must_use]
 pub fn frame_path(path: &std::path::Path, frame: u32) -> std::path::PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
     let new = if let Some(start) = name.find('#') {
         let len = name[start..].chars().take_while(|&c| c == '#').count();
         format!("{}{frame:0len$}{}", &name[..start], &name[start + len..])
@@ -165,7 +168,10 @@ mod tests {
         assert_eq!(path.camera_at(base, 0), base);
         assert_eq!(path.camera_at(base, 4), base, "a full turn is frame 0 again");
         let quarter = path.camera_at(base, 1);
-        assert!((quarter.position - Vec3::new(-5.0, 0.0, 5.0)).length() < 1e-5, "{quarter:?}");
+        assert!(
+            (quarter.position - Vec3::new(-5.0, 0.0, 5.0)).length() < 1e-5,
+            "{quarter:?}"
+        );
         // It still looks at the centre: its forward (+z) is turned to +x.
         let fwd = Mat3::from_axis_angle(quarter.axis, quarter.angle_deg.to_radians()) * Vec3::Z;
         assert!((fwd - Vec3::X).length() < 1e-5, "{fwd}");

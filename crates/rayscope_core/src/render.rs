@@ -32,7 +32,12 @@ pub fn tile_grid(width: u32, height: u32) -> (u32, u32) {
 pub fn tile_rect(width: u32, height: u32, t: u32) -> (u32, u32, u32, u32) {
     let (tiles_x, _) = tile_grid(width, height);
     let (tx, ty) = (t % tiles_x, t / tiles_x);
-    (tx * TILE, ty * TILE, (tx * TILE + TILE).min(width), (ty * TILE + TILE).min(height))
+    (
+        tx * TILE,
+        ty * TILE,
+        (tx * TILE + TILE).min(width),
+        (ty * TILE + TILE).min(height),
+    )
 }
 
 /// The result of a finished render.
