@@ -252,14 +252,25 @@ fn merge_command(a: &MergeArgs) -> Result<ExitCode, Failure> {
             })
             .collect();
         let more = m.missing_tiles.len().saturating_sub(rects.len());
+        let (which, again) = match m.missing_parts.as_slice() {
+            [k] => (
+                format!("part {k} of {} is", m.header.parts),
+                format!("--part {k}/{}", m.header.parts),
+            ),
+            ks => (
+                format!("parts {} of {} are", farm::list(ks), m.header.parts),
+                format!("--part K/{}", m.header.parts),
+            ),
+        };
         eprintln!(
-            "warning: parts {} of {} are missing; their {} tiles are black: {}{}. Render them with `--part K/{}` and merge again",
-            farm::list(&m.missing_parts),
-            m.header.parts,
+            "warning: {which} missing; {} tiles are black: {}{}. Render them with `{again}` and merge again",
             m.missing_tiles.len(),
             rects.join("; "),
-            if more > 0 { format!("; and {more} more") } else { String::new() },
-            m.header.parts
+            if more > 0 {
+                format!("; and {more} more")
+            } else {
+                String::new()
+            },
         );
     }
     if m.nonfinite > 0 {
