@@ -58,6 +58,25 @@ pub enum Command {
     Mistakes,
     /// Explain a wrong picture: where it differs from rayscope's, and which mistakes explain it.
     Diagnose(crate::diagnose_cli::DiagnoseArgs),
+    /// Join the parts of a farm render (`--part K/N`) into the image one render would give.
+    Merge(MergeArgs),
+}
+
+/// `rayscope merge`.
+#[derive(Debug, Clone, Args)]
+pub struct MergeArgs {
+    /// The part files (EXR files written with --part K/N), in any order.
+    #[arg(required = true, value_name = "PART")]
+    pub parts: Vec<PathBuf>,
+    /// The image to write (.png, .exr or .ppm), as the render would have written it.
+    #[arg(short = 'o', long = "output", value_name = "IMAGE")]
+    pub output: PathBuf,
+    /// Write the image even if parts are missing (their tiles black), naming what is absent.
+    #[arg(long = "allow-missing")]
+    pub allow_missing: bool,
+    /// No summary.
+    #[arg(long)]
+    pub quiet: bool,
 }
 
 /// Which of the course's stages to render.
@@ -111,6 +130,89 @@ pub struct RenderArgs {
     pub output: Option<PathBuf>,
     #[command(flatten)]
     pub opts: RenderOpts,
+    #[command(flatten)]
+    pub farm: FarmArgs,
+}
+
+/// Farm and animation flags of a render (docs/farm.md).
+#[derive(Debug, Clone, Args)]
+pub struct FarmArgs {
+    /// Render only part K of N (K from 0 to N-1) into an EXR part; `rayscope merge` joins parts.
+    #[arg(long, value_name = "K/N", value_parser = rayscope_core::farm::PartSpec::parse)]
+    pub part: Option<rayscope_core::farm::PartSpec>,
+    /// Render frames A to B (both included) of an animation, each to a numbered file (a run of
+    /// `#` in -o becomes the frame number, else `_NNNN` goes before the extension).
+    #[arg(long, value_name = "A..B", value_parser = parse_frames)]
+    pub frames: Option<(u32, u32)>,
+    /// Circle the point X,Y,Z about the vertical axis over the frames (see --turntable-frames).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_vec3, allow_hyphen_values = true, requires = "frames")]
+    pub turntable: Option<Vec3>,
+    /// Frames per full turn of --turntable.
+    #[arg(long = "turntable-frames", value_name = "N", default_value_t = 120, value_parser = clap::value_parser!(u32).range(1..))]
+    pub turntable_frames: u32,
+    /// A camera position keyframe, FRAME:X,Y,Z (repeatable; interpolated linearly between frames).
+    #[arg(long = "key-p", value_name = "FRAME:X,Y,Z", value_parser = parse_key_vec3, allow_hyphen_values = true, requires = "frames")]
+    pub key_p: Vec<(u32, Vec3)>,
+    /// A camera axis keyframe, FRAME:X,Y,Z (repeatable).
+    #[arg(long = "key-a", value_name = "FRAME:X,Y,Z", value_parser = parse_key_vec3, allow_hyphen_values = true, requires = "frames")]
+    pub key_a: Vec<(u32, Vec3)>,
+    /// A camera angle keyframe, FRAME:DEGREES (repeatable).
+    #[arg(long = "key-n", value_name = "FRAME:DEG", value_parser = parse_key_f32, allow_hyphen_values = true, requires = "frames")]
+    pub key_n: Vec<(u32, f32)>,
+}
+
+impl FarmArgs {
+    /// The camera path the flags describe.
+    pub fn camera_path(&self) -> Result<rayscope_core::animation::CameraPath, String> {
+        use rayscope_core::animation::{CameraPath, Keys, Turntable};
+        if let Some((_, a)) = self.key_a.iter().find(|(_, a)| *a == Vec3::ZERO) {
+            return Err(format!("--key-a {a}: an axis must not be (0, 0, 0)"));
+        }
+        Ok(CameraPath {
+            position: Keys::new(self.key_p.clone(), "--key-p")?,
+            axis: Keys::new(self.key_a.clone(), "--key-a")?,
+            angle: Keys::new(self.key_n.clone(), "--key-n")?,
+            turntable: self.turntable.map(|center| Turntable {
+                center,
+                frames: self.turntable_frames,
+            }),
+        })
+    }
+}
+
+fn parse_frames(s: &str) -> Result<(u32, u32), String> {
+    let bad = || format!("expected frames A..B such as 0..119 (both included), or one frame N, found '{s}'");
+    let (a, b) = match s.split_once("..") {
+        Some((a, b)) => (a, b),
+        None => (s, s),
+    };
+    let a: u32 = a.trim().parse().map_err(|_| bad())?;
+    let b: u32 = b.trim().parse().map_err(|_| bad())?;
+    if b < a {
+        return Err(format!("--frames {s}: the last frame comes before the first"));
+    }
+    Ok((a, b))
+}
+
+fn split_key(s: &str) -> Result<(u32, &str), String> {
+    let (f, v) = s
+        .split_once(':')
+        .ok_or_else(|| format!("expected FRAME:VALUE such as 30:0,1,0, found '{s}'"))?;
+    let f = f
+        .trim()
+        .parse()
+        .map_err(|_| format!("expected a frame number before ':', found '{f}' in '{s}'"))?;
+    Ok((f, v))
+}
+
+fn parse_key_vec3(s: &str) -> Result<(u32, Vec3), String> {
+    let (f, v) = split_key(s)?;
+    Ok((f, parse_vec3(v)?))
+}
+
+fn parse_key_f32(s: &str) -> Result<(u32, f32), String> {
+    let (f, v) = split_key(s)?;
+    Ok((f, parse_finite(v)?))
 }
 
 /// Flags that shape a render, shared by rendering, `trace`, `view`, `debug` and `bench`.

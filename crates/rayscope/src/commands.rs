@@ -8,12 +8,16 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use rayscope_core::animation::frame_path;
 use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
-use rayscope_core::output::{check_writable, write_film};
-use rayscope_core::{render, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene};
+use rayscope_core::farm;
+use rayscope_core::output::{check_writable, write_film, Format};
+use rayscope_core::{
+    render, render_tiles_of, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene,
+};
 
 use crate::cli::{
-    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, RenderArgs, RenderOpts, TraceArgs,
+    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, MergeArgs, RenderArgs, RenderOpts, TraceArgs,
 };
 
 /// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
@@ -60,6 +64,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::Check(a)) => check_cli::check(&a),
         Some(Command::Mistakes) => crate::diagnose_cli::list(),
         Some(Command::Diagnose(a)) => crate::diagnose_cli::diagnose(&a),
+        Some(Command::Merge(a)) => merge_command(&a),
     }
 }
 
@@ -117,12 +122,49 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
         return Err(Failure::input("both -f/--file and -o/--output are required"));
     };
     let opts = &args.opts;
-    let settings = settings(opts)?;
+    let farm = &args.farm;
+    let base = settings(opts)?;
+    let path = farm.camera_path().map_err(Failure::input)?;
+    if let Some(spec) = farm.part {
+        if Format::from_path(output).ok() != Some(Format::Exr) {
+            return Err(Failure::input(format!(
+                "--part {}/{} writes a part in linear float: give -o an .exr name (e.g. part_{}.exr), and `rayscope merge` the parts into the image you want",
+                spec.index, spec.count, spec.index
+            )));
+        }
+        let (tx, ty) = rayscope_core::render::tile_grid(base.width, base.height);
+        if spec.count > tx * ty {
+            return Err(Failure::input(format!(
+                "--part {}/{}: a {}×{} image has only {} tiles of {t}×{t} pixels, so at most {} parts",
+                spec.index,
+                spec.count,
+                base.width,
+                base.height,
+                tx * ty,
+                tx * ty,
+                t = rayscope_core::render::TILE
+            )));
+        }
+    }
+    let frames: Vec<Option<u32>> = match farm.frames {
+        Some((a, b)) => (a..=b).map(Some).collect(),
+        None => vec![None],
+    };
+    let out_path = |frame: Option<u32>| match frame {
+        Some(f) => frame_path(output, f),
+        None => output.clone(),
+    };
     // Fail before the (possibly long) render if the output cannot be written.
-    check_writable(output).map_err(|e| Failure::input(e.to_string()))?;
+    check_writable(&out_path(frames[0])).map_err(|e| Failure::input(e.to_string()))?;
     // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
-    let scene = load_scene_for(file, opts.quiet, &settings)?;
+    let mut scene_file = load_file(file, opts.quiet)?;
+    let hash = match farm.part {
+        Some(_) => Some(farm::scene_hash(&scene_file).map_err(Failure::input)?),
+        None => None,
+    };
+    base.mistakes.apply_to_file(&mut scene_file);
+    let scene = Scene::from_owned_file(scene_file);
 
     let cancel = Arc::new(AtomicBool::new(false));
     {
@@ -136,19 +178,119 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
         });
     }
     let show = !opts.quiet && std::io::stderr().is_terminal();
-    let out = render_with_progress(&scene, &settings, show, &cancel)?;
-    if out.nonfinite > 0 {
-        let (x, y, s) = out.first_nonfinite.unwrap_or_default();
+    for frame in frames {
+        let mut settings = base;
+        let mut frame_opts = opts.clone();
+        if let Some(f) = frame {
+            settings.camera = path.camera_at(base.camera, f);
+            frame_opts.cam_pos = settings.camera.position;
+            frame_opts.cam_axis = settings.camera.axis;
+            frame_opts.cam_angle = settings.camera.angle_deg;
+        }
+        let output = out_path(frame);
+        let tiles = farm.part.map(|spec| {
+            let (tx, ty) = rayscope_core::render::tile_grid(settings.width, settings.height);
+            farm::deal(tx, ty, spec)
+        });
+        let out = render_progress(&scene, &settings, show, &cancel, tiles.as_deref())?;
+        if out.nonfinite > 0 {
+            let (x, y, s) = out.first_nonfinite.unwrap_or_default();
+            eprintln!(
+                "warning: {} samples were NaN or infinite and were written as black; replay the first with:\n  rayscope trace -f {} --pixel {x},{y} --sample {s} {}",
+                out.nonfinite,
+                file.display(),
+                replay_flags(&frame_opts)
+            );
+        }
+        match (farm.part, &tiles, &hash) {
+            (Some(spec), Some(tiles), Some(hash)) => {
+                let mut header = farm::PartHeader::new(
+                    file,
+                    hash.clone(),
+                    &settings,
+                    replay_flags(&frame_opts),
+                    frame,
+                    spec,
+                    tiles,
+                );
+                header.nonfinite = out.nonfinite;
+                header.render_seconds = out.elapsed.as_secs_f64();
+                farm::write_part(&output, &header, &out.film).map_err(|e| Failure::failed(e.to_string()))?;
+            }
+            _ => write_film(&out.film, &output).map_err(|e| Failure::failed(e.to_string()))?,
+        }
+        if !opts.quiet {
+            let what = match farm.part {
+                Some(p) => format!(
+                    "part {}/{} ({} tiles), ",
+                    p.index,
+                    p.count,
+                    tiles.as_ref().map_or(0, Vec::len)
+                ),
+                None => String::new(),
+            };
+            let frame = frame.map_or(String::new(), |f| format!("frame {f}, "));
+            eprintln!("{frame}{what}{}", summary(&settings, &out, &output));
+        }
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn merge_command(a: &MergeArgs) -> Result<ExitCode, Failure> {
+    check_writable(&a.output).map_err(|e| Failure::input(e.to_string()))?;
+    let start = Instant::now();
+    let m = farm::merge(&a.parts, a.allow_missing).map_err(|e| Failure::input(e.0))?;
+    let (w, h) = (m.film.width, m.film.height);
+    if !m.missing_parts.is_empty() {
+        let rects: Vec<String> = m
+            .missing_tiles
+            .iter()
+            .take(8)
+            .map(|&t| {
+                let (x0, y0, x1, y1) = rayscope_core::render::tile_rect(w, h, t);
+                format!("x {x0}..{x1} y {y0}..{y1}")
+            })
+            .collect();
+        let more = m.missing_tiles.len().saturating_sub(rects.len());
+        let (which, again) = match m.missing_parts.as_slice() {
+            [k] => (
+                format!("part {k} of {} is", m.header.parts),
+                format!("--part {k}/{}", m.header.parts),
+            ),
+            ks => (
+                format!("parts {} of {} are", farm::list(ks), m.header.parts),
+                format!("--part K/{}", m.header.parts),
+            ),
+        };
         eprintln!(
-            "warning: {} samples were NaN or infinite and were written as black; replay the first with:\n  rayscope trace -f {} --pixel {x},{y} --sample {s} {}",
-            out.nonfinite,
-            file.display(),
-            replay_flags(opts)
+            "warning: {which} missing; {} tiles are black: {}{}. Render them with `{again}` and merge again",
+            m.missing_tiles.len(),
+            rects.join("; "),
+            if more > 0 {
+                format!("; and {more} more")
+            } else {
+                String::new()
+            },
         );
     }
-    write_film(&out.film, output).map_err(|e| Failure::failed(e.to_string()))?;
-    if !opts.quiet {
-        eprintln!("{}", summary(&settings, &out, output));
+    if m.nonfinite > 0 {
+        eprintln!(
+            "warning: {} samples were NaN or infinite and were written as black (the parts' own messages say where)",
+            m.nonfinite
+        );
+    }
+    write_film(&m.film, &a.output).map_err(|e| Failure::failed(e.to_string()))?;
+    if !a.quiet {
+        let frame = m.header.frame.map_or(String::new(), |f| format!(", frame {f}"));
+        eprintln!(
+            "merged {} of {} parts of {}{frame} ({w}×{h}, {}) in {:.3} s → {}",
+            a.parts.len(),
+            m.header.parts,
+            m.header.scene,
+            m.header.flags,
+            start.elapsed().as_secs_f64(),
+            a.output.display()
+        );
     }
     Ok(ExitCode::SUCCESS)
 }
@@ -175,6 +317,9 @@ fn replay_flags(o: &RenderOpts) -> String {
     if o.fov_axis == crate::cli::FovAxisArg::Vertical {
         s.push_str(" --fov-axis vertical");
     }
+    if o.aov != crate::cli::ChannelArg::Color {
+        s.push_str(&format!(" --aov {}", format!("{:?}", o.aov).to_lowercase()));
+    }
     if let Some(m) = o.mistake.filter(|m| !m.is_empty()) {
         s.push_str(&format!(" --mistake {m}"));
     }
@@ -188,12 +333,14 @@ fn replay_flags(o: &RenderOpts) -> String {
     s
 }
 
-/// Renders with an indicatif bar that appears only for renders longer than about half a second.
-pub fn render_with_progress(
+/// Renders every tile, or only `tiles`, with an indicatif bar that appears only for renders
+/// longer than about half a second.
+fn render_progress(
     scene: &Scene,
     settings: &RenderSettings,
     show: bool,
     cancel: &AtomicBool,
+    tiles: Option<&[u32]>,
 ) -> Result<RenderOutput, Failure> {
     let total = settings.width as u64 * settings.height as u64;
     let bar = ProgressBar::with_draw_target(Some(total), ProgressDrawTarget::hidden());
@@ -204,7 +351,8 @@ pub fn render_with_progress(
     );
     let start = Instant::now();
     let shown = Mutex::new(false);
-    let progress = |done: u64, _total: u64| {
+    let progress = |done: u64, total: u64| {
+        bar.set_length(total);
         if show && start.elapsed() > Duration::from_millis(500) {
             let mut s = shown.lock().unwrap_or_else(|e| e.into_inner());
             if !*s {
@@ -214,7 +362,10 @@ pub fn render_with_progress(
         }
         bar.set_position(done);
     };
-    let result = render(scene, settings, &progress, cancel);
+    let result = match tiles {
+        Some(t) => render_tiles_of(scene, settings, t, &progress, cancel),
+        None => render(scene, settings, &progress, cancel),
+    };
     bar.finish_and_clear();
     result.map_err(|_| Failure {
         code: 130,

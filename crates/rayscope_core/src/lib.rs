@@ -3,11 +3,13 @@
 //! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
 //! [`render()`] turns into a [`Film`] under [`RenderSettings`].
 
+pub mod animation;
 pub mod bsdf;
 pub mod bvh;
 pub mod camera;
 pub mod compare;
 pub mod diagnose;
+pub mod farm;
 pub mod film;
 pub mod geometry;
 pub mod integrator;
@@ -29,6 +31,6 @@ pub use film::Film;
 pub use math::Ray;
 pub use mistakes::{Mistake, Mistakes};
 pub use observer::{NoObserver, RayKind, RayNode, RayObserver, RayRecorder, RayTree};
-pub use render::{render, render_with, trace_pixel, trace_pixel_with, Cancelled, RenderOutput};
+pub use render::{render, render_tiles_of, render_with, trace_pixel, trace_pixel_with, Cancelled, RenderOutput};
 pub use scene::Scene;
 pub use settings::{Channel, RenderSettings, Stage};

@@ -551,12 +551,13 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
     }
 }
 
-/// [`crate::render_with`] for settings with mistakes: the scene traced through a [`Mistaken`]
+/// [`crate::render_with`] (every tile, or only `only`) for settings with mistakes: the scene traced through a [`Mistaken`]
 /// intersector under [`Mistakes::settings`], its colours written as the student's code would.
 pub(crate) fn render<I: Intersect>(
     scene: &Scene,
     isect: &I,
     settings: &RenderSettings,
+    only: Option<&[u32]>,
     progress: &(dyn Fn(u64, u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
@@ -567,7 +568,7 @@ pub(crate) fn render<I: Intersect>(
         mistakes: m,
     };
     let s = m.settings(settings);
-    let mut out = render_tiles(scene, &wrapped, &s, progress, cancel)?;
+    let mut out = render_tiles(scene, &wrapped, &s, only, progress, cancel)?;
     if s.channel == Channel::Color {
         m.apply_to_film(&mut out.film);
     }

@@ -15,8 +15,30 @@ use crate::settings::RenderSettings;
 use crate::wide::LANES;
 
 /// Tile edge in pixels: small enough to balance two cores on tiny images, large enough to
-/// keep scheduling overhead negligible.
-const TILE: u32 = 16;
+/// keep scheduling overhead negligible. Tiles are also the unit a farm render deals out to its
+/// parts ([`render_tiles_of`], [`crate::farm`]).
+pub const TILE: u32 = 16;
+
+/// The tile grid of a `width` × `height` image: (columns, rows) of [`TILE`]-pixel tiles, the last
+/// column and row cut to the image. Tile `t` is column `t % columns`, row `t / columns`.
+#[must_use]
+pub fn tile_grid(width: u32, height: u32) -> (u32, u32) {
+    (width.div_ceil(TILE), height.div_ceil(TILE))
+}
+
+/// The pixel rectangle `(x0, y0, x1, y1)` (ends exclusive) of tile `t` in a `width` × `height`
+/// image.
+#[must_use]
+pub fn tile_rect(width: u32, height: u32, t: u32) -> (u32, u32, u32, u32) {
+    let (tiles_x, _) = tile_grid(width, height);
+    let (tx, ty) = (t % tiles_x, t / tiles_x);
+    (
+        tx * TILE,
+        ty * TILE,
+        (tx * TILE + TILE).min(width),
+        (ty * TILE + TILE).min(height),
+    )
+}
 
 /// The result of a finished render.
 #[derive(Debug, Clone)]
@@ -63,16 +85,41 @@ pub fn render_with<I: Intersect>(
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
     if !settings.mistakes.is_empty() {
-        return crate::mistakes::render(scene, isect, settings, progress, cancel);
+        return crate::mistakes::render(scene, isect, settings, None, progress, cancel);
     }
-    render_tiles(scene, isect, settings, progress, cancel)
+    render_tiles(scene, isect, settings, None, progress, cancel)
 }
 
-/// The tile loop of [`render_with`], for settings whose mistakes (if any) `isect` makes.
+/// [`render`] of only the tiles `tiles` (indices into [`tile_grid`], in any order, each at most
+/// once): every pixel of those tiles gets exactly the value a full render gives it (a pixel
+/// depends only on the seed, its position and its sample numbers, never on which tiles are
+/// rendered beside it); the film's other pixels stay black. `progress` counts the pixels of
+/// those tiles.
+///
+/// # Panics
+/// If a tile index is outside the grid.
+pub fn render_tiles_of(
+    scene: &Scene,
+    settings: &RenderSettings,
+    tiles: &[u32],
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
+    let (tx, ty) = tile_grid(settings.width, settings.height);
+    assert!(tiles.iter().all(|&t| t < tx * ty), "tile index outside the image");
+    if !settings.mistakes.is_empty() {
+        return crate::mistakes::render(scene, scene, settings, Some(tiles), progress, cancel);
+    }
+    render_tiles(scene, scene, settings, Some(tiles), progress, cancel)
+}
+
+/// The tile loop of [`render_with`], for settings whose mistakes (if any) `isect` makes: every
+/// tile, or only `only` (see [`render_tiles_of`]).
 pub(crate) fn render_tiles<I: Intersect>(
     scene: &Scene,
     isect: &I,
     settings: &RenderSettings,
+    only: Option<&[u32]>,
     progress: &(dyn Fn(u64, u64) + Sync),
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
@@ -80,28 +127,37 @@ pub(crate) fn render_tiles<I: Intersect>(
     let integ = Integrator::with_intersector(scene, isect, settings);
     let spp = integ.samples_per_pixel();
     let (w, h) = (settings.width, settings.height);
-    let tiles_x = w.div_ceil(TILE);
-    let tiles_y = h.div_ceil(TILE);
-    let total = w as u64 * h as u64;
+    let (tiles_x, tiles_y) = tile_grid(w, h);
+    // In raster order either way, so the first non-finite sample found is the first in raster
+    // order among the tiles rendered.
+    let tiles: Vec<u32> = match only {
+        None => (0..tiles_x * tiles_y).collect(),
+        Some(list) => {
+            let mut v = list.to_vec();
+            v.sort_unstable();
+            v
+        }
+    };
+    let total = match only {
+        None => w as u64 * h as u64,
+        Some(_) => tiles
+            .iter()
+            .map(|&t| {
+                let (x0, y0, x1, y1) = tile_rect(w, h, t);
+                (x1 - x0) as u64 * (y1 - y0) as u64
+            })
+            .sum(),
+    };
     let done = AtomicU64::new(0);
     let waves = WaveStats::default();
-    let results: Vec<Option<TileResult>> = (0..tiles_x * tiles_y)
+    let results: Vec<Option<TileResult>> = tiles
         .into_par_iter()
         .map(|t| {
             if cancel.load(Ordering::Relaxed) {
                 return None;
             }
-            let (tx, ty) = (t % tiles_x, t / tiles_x);
-            let r = render_tile(
-                &integ,
-                &waves,
-                tx * TILE,
-                ty * TILE,
-                (tx * TILE + TILE).min(w),
-                (ty * TILE + TILE).min(h),
-                spp,
-                cancel,
-            )?;
+            let (x0, y0, x1, y1) = tile_rect(w, h, t);
+            let r = render_tile(&integ, &waves, x0, y0, x1, y1, spp, cancel)?;
             let n = done.fetch_add(r.pixels.len() as u64, Ordering::Relaxed) + r.pixels.len() as u64;
             progress(n, total);
             Some(r)
