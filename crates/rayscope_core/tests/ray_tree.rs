@@ -47,9 +47,9 @@ fn offsets_are_the_origin_minus_the_parents_hit_point() {
             let p = parent(&t, n);
             let h = p.hit.as_ref().expect("the parent hit something");
             let o = n.offset.expect("secondary rays record their offset");
-            for i in 0..3 {
+            for ((p, o), origin) in h.point.iter().zip(o).zip(n.origin) {
                 // Exact: the point plus the offset is the origin, to the last bit.
-                assert_eq!((f64::from(h.point[i]) + o[i]) as f32, n.origin[i]);
+                assert_eq!((f64::from(*p) + o) as f32, origin);
             }
             let k = n.offset_along_normal.expect("rayscope offsets along the normal");
             let eps = f64::from(offset_eps(h.point.into(), p.origin.into()));

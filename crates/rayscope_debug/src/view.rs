@@ -1168,7 +1168,7 @@ impl Overlay<'_, '_> {
     fn arrow(&mut self, from: Vec3A, d: Vec3A, len: f32, color: Vec3) {
         let tip = from + d * len;
         let c = color.extend(1.0);
-        self.seg(from, tip, c, c, 2.0);
+        self.seg(from, tip, c, c, 2.4);
         let (t, b) = rayscope_core::math::basis(d);
         let head = len * 0.25;
         for side in [t, -t, b, -b] {
@@ -1190,7 +1190,8 @@ impl Overlay<'_, '_> {
     /// [`Self::normals`]' arrows.
     fn normal_arrows(&mut self, e: u32) {
         let scene = self.ctx.scene;
-        let color = Vec3::new(0.25, 1.0, 0.4);
+        // Yellow: apart from the selection's orange outline and from most materials.
+        let color = Vec3::new(1.0, 0.92, 0.1);
         let base = self.ctx.scale * 0.08;
         for (p, _) in scene.planes.iter().zip(&scene.plane_info).filter(|(_, i)| i.0 == e) {
             self.arrow(p.point, p.normal, base, color);

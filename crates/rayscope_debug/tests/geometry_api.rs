@@ -77,17 +77,17 @@ fn the_view_draws_the_selected_entitys_normals_on_request() {
         assert_eq!(code, 200, "{}", String::from_utf8_lossy(&png));
         image::load_from_memory(&png).unwrap().to_rgb8()
     };
-    let green = |img: &image::RgbImage| {
+    let yellow = |img: &image::RgbImage| {
         img.pixels()
-            .filter(|p| p.0[1] > 200 && p.0[0] < 110 && p.0[2] < 150)
+            .filter(|p| p.0[0] > 200 && p.0[1] > 180 && p.0[2] < 90)
             .count()
     };
     let without = view("");
     let with = view("&normals=1");
     assert!(
-        green(&with) > green(&without) + 30,
+        yellow(&with) > yellow(&without) + 30,
         "{} vs {}",
-        green(&with),
-        green(&without)
+        yellow(&with),
+        yellow(&without)
     );
 }
