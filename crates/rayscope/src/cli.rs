@@ -42,7 +42,7 @@ pub enum Command {
     /// Print the ray tree of one pixel sample (text, or JSON with --json).
     Trace(TraceArgs),
     /// Compare two images: PSNR, share of differing pixels, optional heat map.
-    Diff(DiffArgs),
+    Diff(crate::diff_cli::DiffArgs),
     /// Benchmarks: time a render, or closest-hit throughput.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -353,26 +353,14 @@ pub struct TraceArgs {
     /// Sample index within the pixel (0-based; the N×N grid is row-major).
     #[arg(long, default_value_t = 0)]
     pub sample: u32,
-    /// Print JSON (schema in docs/debugger.md) instead of text.
+    /// Print JSON (schema in docs/debugger.md, numbers at full precision) instead of text.
     #[arg(long)]
     pub json: bool,
+    /// Decimals of the numbers in the text (very small ones switch to scientific notation).
+    #[arg(long, default_value_t = 4, value_name = "N", value_parser = clap::value_parser!(u8).range(1..=12))]
+    pub precision: u8,
     #[command(flatten)]
     pub opts: RenderOpts,
-}
-
-/// `rayscope diff`.
-#[derive(Debug, Clone, Args)]
-pub struct DiffArgs {
-    /// First image.
-    pub a: PathBuf,
-    /// Second image.
-    pub b: PathBuf,
-    /// Write a difference heat map here.
-    #[arg(short = 'o', long = "output")]
-    pub output: Option<PathBuf>,
-    /// Succeed when PSNR ≥ DB instead of requiring identical images.
-    #[arg(long, value_name = "DB")]
-    pub tol: Option<f64>,
 }
 
 /// `rayscope bench …`.
@@ -482,6 +470,10 @@ pub struct ViewArgs {
     /// With --rays pixel:X,Y: also draw the pixel's ray tree (sample 0), coloured by kind.
     #[arg(long)]
     pub tree: bool,
+    /// Highlight entity NAME and draw its normals as arrows (a triangle's vertices numbered, so
+    /// its winding shows).
+    #[arg(long, value_name = "ENTITY")]
+    pub normals: Option<String>,
     /// View width in pixels.
     #[arg(long = "view-width", default_value_t = 960, value_parser = clap::value_parser!(u32).range(16..=8192))]
     pub view_width: u32,

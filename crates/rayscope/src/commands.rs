@@ -9,15 +9,12 @@ use std::time::{Duration, Instant};
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use rayscope_core::animation::frame_path;
-use rayscope_core::compare::{compare_rgb8, heatmap_rgb8};
 use rayscope_core::farm;
 use rayscope_core::output::{check_writable, write_film, Format};
-use rayscope_core::{
-    render, render_tiles_of, trace_pixel, Film, RayKind, RayTree, RenderOutput, RenderSettings, Scene,
-};
+use rayscope_core::{render, render_tiles_of, trace_pixel, RenderOutput, RenderSettings, Scene};
 
 use crate::cli::{
-    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, DiffArgs, MergeArgs, RenderArgs, RenderOpts, TraceArgs,
+    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, MergeArgs, RenderArgs, RenderOpts, TraceArgs,
 };
 
 /// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
@@ -55,7 +52,7 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
     match cli.command {
         None => render_command(&cli.render),
         Some(Command::Trace(a)) => trace_command(&a),
-        Some(Command::Diff(a)) => diff_command(&a),
+        Some(Command::Diff(a)) => crate::diff_cli::diff(&a),
         Some(Command::Bench(BenchCommand::Render(a))) => bench_render(&a),
         Some(Command::Bench(BenchCommand::Rays(a))) => bench_rays(&a),
         Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
@@ -89,7 +86,7 @@ pub fn load_scene(path: &Path, quiet: bool) -> Result<Scene, Failure> {
 }
 
 /// [`load_scene`] with the OBJ mistakes of `settings` made while loading.
-fn load_scene_for(path: &Path, quiet: bool, settings: &RenderSettings) -> Result<Scene, Failure> {
+pub(crate) fn load_scene_for(path: &Path, quiet: bool, settings: &RenderSettings) -> Result<Scene, Failure> {
     let mut file = load_file(path, quiet)?;
     settings.mistakes.apply_to_file(&mut file);
     Ok(Scene::from_owned_file(file))
@@ -417,120 +414,15 @@ fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
         let s = serde_json::to_string_pretty(&tree).map_err(|e| Failure::failed(e.to_string()))?;
         println!("{s}");
     } else {
-        print!("{}", format_tree(&tree));
+        print!("{}", crate::trace_text::format_tree(&tree, a.precision.into()));
     }
     Ok(ExitCode::SUCCESS)
-}
-
-fn v3(v: [f32; 3]) -> String {
-    format!("({:.4}, {:.4}, {:.4})", v[0], v[1], v[2])
-}
-
-/// A ray tree as indented text.
-pub fn format_tree(t: &RayTree) -> String {
-    let mut out = format!("pixel ({}, {}) sample {}: colour {}\n", t.x, t.y, t.sample, v3(t.color));
-    for n in &t.nodes {
-        let indent = "  ".repeat(depth_of(t, n.id));
-        let kind = match n.kind {
-            RayKind::Camera => "camera",
-            RayKind::Shadow => "shadow",
-            RayKind::Reflection => "reflection",
-            RayKind::Refraction => "refraction",
-            RayKind::Emitter => "emitter",
-            RayKind::Bounce => "bounce",
-        };
-        out.push_str(&format!(
-            "{indent}#{} {kind} from {} dir {}",
-            n.id,
-            v3(n.origin),
-            v3(n.direction)
-        ));
-        if n.weight != 1.0 {
-            out.push_str(&format!(" weight {:.4}", n.weight));
-        }
-        out.push('\n');
-        if let Some(light) = &n.light {
-            match &n.blocked_by {
-                Some(b) => out.push_str(&format!("{indent}   to light '{light}': blocked by '{b}'\n")),
-                None => out.push_str(&format!("{indent}   to light '{light}': reaches it\n")),
-            }
-        } else if let Some(h) = &n.hit {
-            out.push_str(&format!(
-                "{indent}   hit '{}' ({} '{}') at t={:.4} point {} normal {}{}\n",
-                h.entity_name,
-                h.material_kind,
-                h.material,
-                h.t,
-                v3(h.point),
-                v3(h.normal),
-                if h.front_face { "" } else { " (back face)" }
-            ));
-        } else {
-            out.push_str(&format!("{indent}   miss\n"));
-        }
-        out.push_str(&format!("{indent}   brings {}\n", v3(n.value)));
-    }
-    out
-}
-
-fn depth_of(t: &RayTree, id: u32) -> usize {
-    let mut d = 0;
-    let mut cur = t.nodes.get(id as usize).and_then(|n| n.parent);
-    while let Some(p) = cur {
-        d += 1;
-        cur = t.nodes.get(p as usize).and_then(|n| n.parent);
-    }
-    d
 }
 
 pub fn read_rgb8(path: &Path) -> Result<image::RgbImage, Failure> {
     Ok(image::open(path)
         .map_err(|e| Failure::input(format!("cannot read image '{}': {e}", path.display())))?
         .to_rgb8())
-}
-
-fn diff_command(a: &DiffArgs) -> Result<ExitCode, Failure> {
-    let ia = read_rgb8(&a.a)?;
-    let ib = read_rgb8(&a.b)?;
-    if ia.dimensions() != ib.dimensions() {
-        return Err(Failure::input(format!(
-            "the images differ in size: '{}' is {}×{}, '{}' is {}×{}",
-            a.a.display(),
-            ia.width(),
-            ia.height(),
-            a.b.display(),
-            ib.width(),
-            ib.height()
-        )));
-    }
-    let c = compare_rgb8(ia.as_raw(), ib.as_raw());
-    if let Some(out) = &a.output {
-        check_writable(out).map_err(|e| Failure::input(e.to_string()))?;
-        let heat = heatmap_rgb8(ia.as_raw(), ib.as_raw(), 32);
-        let mut film = Film::new(ia.width(), ia.height());
-        for (p, c) in film.pixels.iter_mut().zip(heat.chunks_exact(3)) {
-            // +0.5 keeps the 8-bit round trip through the course's truncating conversion exact.
-            *p = glam::Vec3::new(c[0] as f32 + 0.5, c[1] as f32 + 0.5, c[2] as f32 + 0.5) / 255.0;
-        }
-        write_film(&film, out).map_err(|e| Failure::failed(e.to_string()))?;
-    }
-    let psnr = if c.psnr.is_infinite() {
-        "inf".to_string()
-    } else {
-        format!("{:.2}", c.psnr)
-    };
-    println!(
-        "psnr_db={psnr} differing_pixels={} of {} ({:.3}%) max_channel_diff={}",
-        c.differing,
-        c.total,
-        100.0 * c.differing as f64 / c.total.max(1) as f64,
-        c.max_diff
-    );
-    let ok = match a.tol {
-        Some(db) => c.psnr >= db,
-        None => c.differing == 0,
-    };
-    Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }
 
 fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {

@@ -61,6 +61,20 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
         Err(e) => return Err(Failure::input(e.to_string())),
     }
     let scene = load_scene(&a.file, a.opts.quiet)?;
+    let normals_of = match &a.normals {
+        Some(name) => match scene.entities.iter().position(|e| &e.name == name) {
+            Some(e) => Some(e as u32),
+            None => {
+                let names: Vec<&str> = scene.entities.iter().take(12).map(|e| e.name.as_str()).collect();
+                return Err(Failure::input(format!(
+                    "--normals: the scene has no entity '{name}' (entities: {}{})",
+                    names.join(", "),
+                    if scene.entities.len() > 12 { ", …" } else { "" }
+                )));
+            }
+        },
+        None => None,
+    };
     let aspect = a.view_width as f32 / a.view_height as f32;
     let auto = auto_view(&scene, &settings, aspect);
     let camera = ViewCamera {
@@ -94,6 +108,10 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
         }
     } else if a.samples || a.tree {
         return Err(Failure::input("--samples and --tree need --rays pixel:X,Y"));
+    }
+    if let Some(e) = normals_of {
+        opts.selection = Some(rayscope_debug::Selection::Entity(e));
+        opts.normals = true;
     }
     let frame = render_view(&scene, &settings, image.as_ref(), &opts);
     let png = rayscope_debug::encode::png_small(&frame.image);

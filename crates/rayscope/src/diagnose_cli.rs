@@ -63,13 +63,13 @@ pub fn list() -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-/// True when the command line set `id` on the `diagnose` subcommand itself.
-fn given(id: &str) -> bool {
+/// True when the command line set `id` on the subcommand `sub` itself.
+pub(crate) fn given(sub: &str, id: &str) -> bool {
     Cli::command()
         .try_get_matches()
         .ok()
         .and_then(|m| {
-            m.subcommand_matches("diagnose")
+            m.subcommand_matches(sub)
                 .map(|d| d.value_source(id) == Some(ValueSource::CommandLine))
         })
         .unwrap_or(false)
@@ -80,7 +80,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
     let img = read_rgb8(&a.image)?;
     let mut opts = a.opts.clone();
     // The image's size is the render's, unless the flags name one.
-    if !given("width") && !given("height") {
+    if !given("diagnose", "width") && !given("diagnose", "height") {
         opts.width = img.width();
         opts.height = img.height();
     }

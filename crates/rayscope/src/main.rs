@@ -36,7 +36,9 @@ macro_rules! eprintln {
 mod cli;
 mod commands;
 mod diagnose_cli;
+mod diff_cli;
 mod probe;
+mod trace_text;
 
 use std::process::ExitCode;
 

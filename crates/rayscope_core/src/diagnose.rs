@@ -700,16 +700,7 @@ pub fn diagnose(
     let m0 = Metrics::of(&ours, image.rgb, w, h, BLOCK, true);
     let matches = m0.robust >= MATCH_DB;
 
-    // Where: pixels off by at least two levels (one level where nothing differs by more).
-    let diffs: Vec<u8> = ours
-        .chunks_exact(3)
-        .zip(image.rgb.chunks_exact(3))
-        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0))
-        .collect();
-    let threshold = if diffs.iter().any(|&d| d >= 2) { 2 } else { 1 };
-    let differing: Vec<u32> = (0..diffs.len() as u32)
-        .filter(|&i| diffs[i as usize] >= threshold)
-        .collect();
+    let (differing, threshold) = differing_pixels(&ours, image.rgb);
     let region = (!differing.is_empty()).then(|| {
         let mut r = Region {
             x0: w,
@@ -729,7 +720,7 @@ pub fn diagnose(
     let attribution = if matches {
         Vec::new()
     } else {
-        attribution(scenes.get(base.mistakes), &base, &differing, w)
+        attribution(scenes.get(base.mistakes), &base, &differing)
     };
 
     let mut explanations = Vec::new();
@@ -756,9 +747,30 @@ pub fn diagnose(
     })
 }
 
-/// The shares of the differing pixels (`differing`, as indices into a `w`-wide image) by what
-/// their ray trees end on.
-fn attribution(scene: &Scene, base: &RenderSettings, differing: &[u32], w: u32) -> Vec<Share> {
+/// The pixels where two RGB8 images differ, as indices (row-major), and the threshold used:
+/// pixels off by at least two levels in some channel, or by one where nothing differs by more
+/// (so one-level rounding noise does not drown a real difference).
+#[must_use]
+pub fn differing_pixels(a: &[u8], b: &[u8]) -> (Vec<u32>, u8) {
+    let diffs: Vec<u8> = a
+        .chunks_exact(3)
+        .zip(b.chunks_exact(3))
+        .map(|(a, b)| a.iter().zip(b).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0))
+        .collect();
+    let threshold = if diffs.iter().any(|&d| d >= 2) { 2 } else { 1 };
+    let differing = (0..diffs.len() as u32)
+        .filter(|&i| diffs[i as usize] >= threshold)
+        .collect();
+    (differing, threshold)
+}
+
+/// The shares of the pixels `differing` (indices into an image of `base`'s width) by what
+/// their ray trees under `base` end on: the first entity the camera ray's path meets that is
+/// not a mirror, and the mirrors it is seen in. At most 20,000 of the pixels are traced, evenly
+/// spread over them.
+#[must_use]
+pub fn attribution(scene: &Scene, base: &RenderSettings, differing: &[u32]) -> Vec<Share> {
+    let w = base.width.max(1);
     if differing.is_empty() {
         return Vec::new();
     }
@@ -905,6 +917,26 @@ fn search(
     (explanations, tried)
 }
 
+/// An attribution ([`attribution`]) as indented lines, largest share first: the first eight,
+/// then the rest together.
+#[must_use]
+pub fn attribution_text(shares: &[Share]) -> String {
+    let mut out = String::new();
+    for s in shares.iter().take(8) {
+        let seen = if s.seen_in.is_empty() {
+            String::new()
+        } else {
+            format!(", seen in {}", s.seen_in.join(" in "))
+        };
+        out.push_str(&format!("  {:5.1} %  {}{}\n", s.percent, s.entity, seen));
+    }
+    if shares.len() > 8 {
+        let rest: f64 = shares[8..].iter().map(|s| s.percent).sum();
+        out.push_str(&format!("  {rest:5.1} %  elsewhere\n"));
+    }
+    out
+}
+
 /// The diagnosis as text for a terminal; `scene` names the scene file in the commands it shows.
 #[must_use]
 pub fn report_text(d: &Diagnosis, scene: &str) -> String {
@@ -949,18 +981,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
     }
     if !d.attribution.is_empty() {
         out.push_str("Where they are:\n");
-        for s in d.attribution.iter().take(8) {
-            let seen = if s.seen_in.is_empty() {
-                String::new()
-            } else {
-                format!(", seen in {}", s.seen_in.join(" in "))
-            };
-            out.push_str(&format!("  {:5.1} %  {}{}\n", s.percent, s.entity, seen));
-        }
-        if d.attribution.len() > 8 {
-            let rest: f64 = d.attribution[8..].iter().map(|s| s.percent).sum();
-            out.push_str(&format!("  {rest:5.1} %  elsewhere\n"));
-        }
+        out.push_str(&attribution_text(&d.attribution));
     }
     match d.explanations.first() {
         None => out.push_str(&format!(

@@ -40,7 +40,7 @@ use crate::camera::Camera;
 use crate::lights::Emitters;
 use crate::math::{basis, offset_eps, reflect, Ray};
 use crate::mistakes::{self, Mistake};
-use crate::observer::{RayKind, RayObserver};
+use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
@@ -646,7 +646,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             _ if !want_reflected => return Li::default(),
             MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, s, m, path, id, rng, obs, c),
             MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
-                Li::reflected(self.direct_point_lights(s, ray, None, Vec3A::from(m.color), id, obs, c))
+                Li::reflected(self.direct_point_lights(s, ray, None, Vec3A::from(m.color), id, path.depth, obs, c))
             }
             MaterialKind::Reflective => {
                 if path.depth >= self.settings.max_depth {
@@ -703,10 +703,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let g = self.glass(ray, s, m, path);
         if path.branch || self.settings.stage != Stage::Full {
             let mut out = Vec3A::ZERO;
-            if let Some((r, p)) = self.glass_reflected(&g, path) {
+            let reflected = self.glass_reflected(&g, path);
+            let refracted = self.glass_refracted(&g, path);
+            if O::ENABLED {
+                let fate = |kept: bool, exists: bool| match (kept, exists) {
+                    (true, _) => BranchFate::Traced,
+                    (false, true) => BranchFate::Pruned,
+                    (false, false) => BranchFate::Absent,
+                };
+                let fates = (
+                    fate(reflected.is_some(), g.kr > 0.0),
+                    fate(refracted.is_some(), g.refracted.is_some()),
+                );
+                obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
+            }
+            if let Some((r, p)) = reflected {
                 out += self.secondary(&r, p, id, RayKind::Reflection, g.kr, rng, obs, c) * g.kr;
             }
-            if let Some((r, p)) = self.glass_refracted(&g, path) {
+            if let Some((r, p)) = refracted {
                 out += self.secondary(&r, p, id, RayKind::Refraction, 1.0 - g.kr, rng, obs, c) * (1.0 - g.kr);
             }
             out
@@ -714,19 +728,83 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             let child = |medium| path.specular(medium, path.beta);
             match g.refracted {
                 Some(r) if rng.next_f32() >= g.kr => {
+                    if O::ENABLED {
+                        let fates = (BranchFate::NotChosen, BranchFate::Traced);
+                        obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
+                    }
                     self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, rng, obs, c)
                 }
-                _ => self.secondary(
-                    &g.reflected,
-                    child(g.refl_medium),
-                    id,
-                    RayKind::Reflection,
-                    1.0,
-                    rng,
-                    obs,
-                    c,
-                ),
+                _ => {
+                    if O::ENABLED {
+                        let refr = if g.refracted.is_some() {
+                            BranchFate::NotChosen
+                        } else {
+                            BranchFate::Absent
+                        };
+                        obs.glass(
+                            id,
+                            &self.glass_decision(ray, s, m, &g, path, (BranchFate::Traced, refr)),
+                        );
+                    }
+                    self.secondary(
+                        &g.reflected,
+                        child(g.refl_medium),
+                        id,
+                        RayKind::Reflection,
+                        1.0,
+                        rng,
+                        obs,
+                        c,
+                    )
+                }
             }
+        }
+    }
+
+    /// What the recorder shows of a glass hit: the indices and angles Snell's law and Fresnel
+    /// used (as this render's mistakes, if any, chose them) and the fates of both rays.
+    #[cold]
+    #[allow(clippy::too_many_arguments)]
+    fn glass_decision(
+        &self,
+        ray: &Ray,
+        s: &Surface,
+        m: &Material,
+        g: &Glass,
+        path: PathState,
+        (refl_fate, refr_fate): (BranchFate, BranchFate),
+    ) -> GlassDecision {
+        let swap = !s.front_face && !self.mistake(Mistake::RefractionNoIndexSwap);
+        let (n1, n2) = if swap { (m.value, 1.0) } else { (1.0, m.value) };
+        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
+        let beta = path.beta.max_element();
+        // Measured from the ray actually sent, so a wrong refraction formula shows.
+        let cos_t = g.refracted.map(|r| -r.dir.dot(s.normal));
+        let split = path.branch || self.settings.stage != Stage::Full;
+        let (wr, wt) = if split { (g.kr, 1.0 - g.kr) } else { (1.0, 1.0) };
+        GlassDecision {
+            entering: s.front_face,
+            n1,
+            n2,
+            cos_i,
+            cos_t,
+            tir: (n1 / n2).powi(2) * (1.0 - cos_i * cos_i).max(0.0) >= 1.0,
+            reflectance: g.kr,
+            prune_below: if split { self.branch_cutoff } else { 0.0 },
+            reflected: GlassBranch {
+                fate: refl_fate,
+                weight: wr,
+                path_weight: beta * wr,
+                origin: Some(g.reflected.origin.to_array()),
+                direction: Some(g.reflected.dir.to_array()),
+            },
+            refracted: GlassBranch {
+                fate: refr_fate,
+                weight: if g.refracted.is_some() { wt } else { 0.0 },
+                path_weight: if g.refracted.is_some() { beta * wt } else { 0.0 },
+                origin: g.refracted.map(|r| r.origin.to_array()),
+                direction: g.refracted.map(|r| r.dir.to_array()),
+            },
         }
     }
 
@@ -894,6 +972,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             (!lambert).then_some((&bsdf, frame)),
             Vec3A::from(m.color),
             id,
+            path.depth,
             obs,
             c,
         );
@@ -927,7 +1006,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                             .occluder(&shadow, 0.0, t_max)
                             .map(|p| self.scene.prim_info(p).0);
                         let e = &self.emitters.list[ls.emitter as usize];
-                        obs.shadow(sid, self.scene, &self.scene.entities[e.entity as usize].name, blocker);
+                        let nearest = self.nearest_blocker(&shadow, t_max, blocker);
+                        let name = &self.scene.entities[e.entity as usize].name;
+                        obs.shadow(sid, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
                         let contrib = sr.contrib(blocker.is_some());
                         obs.result(sid, w, contrib);
                         l += contrib;
@@ -1031,8 +1112,18 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         v
     }
 
+    /// The closest surface on a shadow ray the occluder query found `blocker` on, for the
+    /// recorder: its distance and surface.
+    #[cold]
+    fn nearest_blocker(&self, shadow: &Ray, t_max: f32, blocker: Option<u32>) -> Option<(f32, Surface)> {
+        blocker?;
+        let hit = self.isect.intersect(shadow, 0.0, t_max)?;
+        Some((hit.t, self.scene.surface(shadow, &hit)))
+    }
+
     /// Point lights: the course's Σ max(0, N·L) · albedo · light colour over visible lights, or
-    /// with a BRDF, Σ π · f · light colour · max(0, N·L).
+    /// with a BRDF, Σ π · f · light colour · max(0, N·L). The shadow rays are recorded at
+    /// `depth`, that of the ray whose hit they light.
     #[allow(clippy::too_many_arguments)]
     fn direct_point_lights<O: RayObserver>(
         &self,
@@ -1041,6 +1132,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         brdf: Option<(&Bsdf, Frame)>,
         albedo: Vec3A,
         parent: u32,
+        depth: u32,
         obs: &mut O,
         c: &mut Counters,
     ) -> Vec3A {
@@ -1076,7 +1168,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             } else {
                 dist
             };
-            let id = obs.ray(Some(parent), RayKind::Shadow, 0, &shadow, reach);
+            let id = obs.ray(Some(parent), RayKind::Shadow, depth, &shadow, reach);
             let blocker = if O::ENABLED {
                 self.isect
                     .occluder(&shadow, 0.0, reach)
@@ -1088,7 +1180,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 None
             };
             if O::ENABLED {
-                obs.shadow(id, self.scene, &self.scene.light_names[li], blocker);
+                let nearest = self.nearest_blocker(&shadow, reach, blocker);
+                let name = &self.scene.light_names[li];
+                obs.shadow(id, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
             }
             let contrib = if blocker.is_none() && cos > 0.0 {
                 match brdf {

@@ -30,7 +30,9 @@ pub use camera::{Camera, CameraSettings, FovAxis};
 pub use film::Film;
 pub use math::Ray;
 pub use mistakes::{Mistake, Mistakes};
-pub use observer::{NoObserver, RayKind, RayNode, RayObserver, RayRecorder, RayTree};
+pub use observer::{
+    BranchFate, GlassBranch, GlassDecision, NoObserver, RayHitInfo, RayKind, RayNode, RayObserver, RayRecorder, RayTree,
+};
 pub use render::{render, render_tiles_of, render_with, trace_pixel, trace_pixel_with, Cancelled, RenderOutput};
 pub use scene::Scene;
 pub use settings::{Channel, RenderSettings, Stage};

@@ -19,7 +19,8 @@
 //! - `/api/render/status`: progress of the current job.
 //! - `/api/image.png?channel=color|normal|depth|entity|albedo|cost`: the image (0-based pixels).
 //! - `/api/view?eye=x,y,z&target=x,y,z&w=&h=&rays=&image=&channel=&select=&pixel=x,y&tree=1&
-//!   sample=&samples=1&check=1&format=jpeg|png`: a scene-view frame.
+//!   sample=&samples=1&check=1&normals=1&format=jpeg|png`: a scene-view frame (`normals=1`: the
+//!   selected entity's normals as arrows).
 //! - `/api/pick?eye=&target=&w=&h=&x=&y=`: what is under a view pixel.
 //! - `/api/trace?x=&y=&sample=&intersector=ours|reference`: a pixel sample's ray tree.
 //! - `/api/check`: pixels where rayscope's intersector and the parry3d reference disagree.
@@ -572,10 +573,21 @@ fn scene_json(cfg: &ServeConfig) -> Value {
         .enumerate()
         .map(|(i, e)| {
             let params = match &e.shape {
-                Shape::Plane { point, normal } => json!({"point": v3(*point), "normal": v3(*normal)}),
+                Shape::Plane { point, normal } => json!({
+                    "point": v3(*point),
+                    "normal": v3(*normal),
+                    "unit_normal": v3(normal.normalize_or_zero()),
+                }),
                 Shape::Sphere { center, radius } => json!({"center": v3(*center), "radius": radius}),
                 Shape::Triangle { vertices } => {
-                    json!({"v0": v3(vertices[0]), "v1": v3(vertices[1]), "v2": v3(vertices[2])})
+                    // The course's front face: (v1 − v0) × (v2 − v0), what the renderer uses.
+                    let n = (vertices[1] - vertices[0]).cross(vertices[2] - vertices[0]);
+                    json!({
+                        "v0": v3(vertices[0]),
+                        "v1": v3(vertices[1]),
+                        "v2": v3(vertices[2]),
+                        "normal": v3(n.normalize_or_zero()),
+                    })
                 }
                 Shape::Mesh {
                     source,
@@ -1247,6 +1259,7 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
     opts.cutaway = !is_off(&q, "cutaway");
     opts.ground_grid = !is_off(&q, "ground");
     opts.antialias = !is_off(&q, "aa");
+    opts.normals = flag("normals");
     opts.hidden_alpha = parse_num(&q, "hidden", 0.12f32, 0.0, 1.0)?;
     let (channel, name) = parse_channel(q.get("channel").map_or("color", String::as_str))?;
     let want_tree = flag("tree");
@@ -1514,11 +1527,11 @@ async fn api_compare(State(st): State<Arc<AppState>>, headers: HeaderMap, body: 
         let r = &rendered.image;
         let img = decode_reference(&body, r.width, r.height)?;
         let c = rayscope_core::compare::compare_rgb8(&r.rgb, img.as_raw());
-        let heat = rayscope_core::compare::heatmap_rgb8(&r.rgb, img.as_raw(), 32);
+        let heat = rayscope_core::compare::heatmap(&r.rgb, img.as_raw(), None);
         let png = encode::png(&RgbImage {
             width: r.width,
             height: r.height,
-            rgb: heat,
+            rgb: heat.rgb,
         });
         Ok((
             json!({
@@ -1526,6 +1539,8 @@ async fn api_compare(State(st): State<Arc<AppState>>, headers: HeaderMap, body: 
                 "differing": c.differing,
                 "total": c.total,
                 "max_diff": c.max_diff,
+                "heatmap_range": heat.range,
+                "heatmap_clipped": heat.clipped,
                 "render_job": rendered.job,
             }),
             png,

@@ -162,6 +162,8 @@ pub struct ViewOptions {
     pub gizmo: bool,
     /// Smooth the scene's silhouettes with extra samples on edge pixels.
     pub antialias: bool,
+    /// Draw the selected entity's normals as arrows (a triangle's vertices numbered 0, 1, 2).
+    pub normals: bool,
 }
 
 impl ViewOptions {
@@ -186,6 +188,7 @@ impl ViewOptions {
             max_rays: 4096,
             gizmo: true,
             antialias: true,
+            normals: false,
         }
     }
 }
@@ -972,6 +975,9 @@ impl Overlay<'_, '_> {
         if let Some(tree) = &opts.tree {
             self.tree(tree);
         }
+        if let (true, Some(Selection::Entity(e))) = (opts.normals, opts.selection) {
+            self.normals(e);
+        }
         for (x, y) in opts.highlight.iter().take(4096) {
             if *x < w && *y < h {
                 self.cell_outline(*x, *y, Vec3::new(1.0, 0.1, 1.0), 1.6);
@@ -1153,6 +1159,81 @@ impl Overlay<'_, '_> {
                 (None, _) => {
                     let end = n.t_max.unwrap_or(self.far());
                     self.seg(o, ray.at(end), c, color.extend(0.0), 2.0);
+                }
+            }
+        }
+    }
+
+    /// An arrow from `from` along the unit vector `d`, `len` long.
+    fn arrow(&mut self, from: Vec3A, d: Vec3A, len: f32, color: Vec3) {
+        let tip = from + d * len;
+        let c = color.extend(1.0);
+        self.seg(from, tip, c, c, 2.4);
+        let (t, b) = rayscope_core::math::basis(d);
+        let head = len * 0.25;
+        for side in [t, -t, b, -b] {
+            self.seg(tip, tip - d * head + side * (head * 0.45), c, c, 1.6);
+        }
+        self.dot(from, 2.2, c, Vec4::new(0.05, 0.05, 0.05, 0.9));
+    }
+
+    /// Arrows along entity `e`'s outward (geometric) normals: at a plane's point, at a
+    /// triangle's centroid (its vertices numbered, so the winding shows), over a sphere, and at
+    /// up to 400 of a mesh's triangles.
+    fn normals(&mut self, e: u32) {
+        // Arrows behind a surface (a triangle seen from its back) still show, faintly.
+        let saved = std::mem::replace(&mut self.canvas.hidden_alpha, 0.5);
+        self.normal_arrows(e);
+        self.canvas.hidden_alpha = saved;
+    }
+
+    /// [`Self::normals`]' arrows.
+    fn normal_arrows(&mut self, e: u32) {
+        let scene = self.ctx.scene;
+        // Yellow: apart from the selection's orange outline and from most materials.
+        let color = Vec3::new(1.0, 0.92, 0.1);
+        let base = self.ctx.scale * 0.08;
+        for (p, _) in scene.planes.iter().zip(&scene.plane_info).filter(|(_, i)| i.0 == e) {
+            self.arrow(p.point, p.normal, base, color);
+        }
+        for (sp, _) in scene.spheres.iter().zip(&scene.sphere_info).filter(|(_, i)| i.0 == e) {
+            let mut dirs = vec![Vec3A::X, -Vec3A::X, Vec3A::Y, -Vec3A::Y, Vec3A::Z, -Vec3A::Z];
+            for sx in [-1.0, 1.0] {
+                for sy in [-1.0, 1.0] {
+                    for sz in [-1.0, 1.0] {
+                        dirs.push(Vec3A::new(sx, sy, sz).normalize());
+                    }
+                }
+            }
+            for d in dirs {
+                self.arrow(sp.center + d * sp.radius, d, sp.radius * 0.6, color);
+            }
+        }
+        let tris: Vec<usize> = (0..scene.triangles.len())
+            .filter(|&i| scene.triangle_info[i].entity == e)
+            .collect();
+        let stride = tris.len().div_ceil(400).max(1);
+        let single = tris.len() == 1;
+        for &i in tris.iter().step_by(stride) {
+            let t = &scene.triangles[i];
+            let n = t.geometric_normal();
+            if n == Vec3A::ZERO {
+                continue;
+            }
+            let [a, b, c] = t.vertices();
+            let centroid = (a + b + c) / 3.0;
+            let edge = (b - a).length().max((c - b).length()).max((a - c).length());
+            let len = (edge * 0.4).clamp(self.ctx.scale * 0.004, base);
+            self.arrow(centroid, n, len, color);
+            if single {
+                for (k, v) in [a, b, c].into_iter().enumerate() {
+                    self.dot(v, 3.0, color.extend(1.0), Vec4::new(0.05, 0.05, 0.05, 0.9));
+                    let cam = self.ctx.proj.to_camera(v);
+                    if cam.z > NEAR {
+                        let sp = self.ctx.proj.screen(cam);
+                        let at = sp.p + Vec2::new(5.0, -16.0);
+                        self.canvas.text(at, &k.to_string(), 3, Vec4::new(1.0, 1.0, 1.0, 1.0));
+                    }
                 }
             }
         }

@@ -16,6 +16,7 @@ const st = {
   renderedJob: -1,
   check: null,
   heatmap: null,
+  normals: false,                   // draw the selected entity's normals in the view
   zoom: 0,
   imageData: null,
 };
@@ -94,6 +95,7 @@ function viewParams(draft) {
   p.set("image", $("image-mode").value);
   p.set("channel", $("channel").value);
   if (st.selection && (st.selection.type === "entity" || st.selection.type === "light")) p.set("select", `${st.selection.type}:${st.selection.index}`);
+  if (st.normals && st.selection && st.selection.type === "entity") p.set("normals", "1");
   else if (st.selection && st.selection.type === "camera") p.set("select", "camera");
   if (st.pixel) {
     p.set("pixel", st.pixel.join(","));
@@ -252,8 +254,29 @@ function renderInspector() {
     const e = s.entities[sel.index];
     box.append(el("h3", {}, e.name));
     const pairs = [["kind", e.kind], ["material", materialLink(e.material)], ["line", String(e.line)], ["primitives", String(e.primitives)]];
-    for (const [k, v] of Object.entries(e.params)) pairs.push([k, Array.isArray(v) ? vec(v) : fmt(v)]);
+    const p = e.params;
+    const shown = { unit_normal: 1, normal: e.kind === "Triangle" ? 1 : 0 };
+    for (const [k, v] of Object.entries(p)) if (!shown[k]) pairs.push([k, Array.isArray(v) ? vec(v) : fmt(v)]);
+    // Which side of a plane or triangle the ray tracer's camera is on: its front face is lit
+    // and seen from there.
+    const cam = st.settings && st.settings.cam_pos;
+    const side = (n, q) => {
+      if (!cam) return "—";
+      const d = n[0] * (cam[0] - q[0]) + n[1] * (cam[1] - q[1]) + n[2] * (cam[2] - q[2]);
+      return d > 0 ? "front face (the normal points towards it)" : d < 0 ? "back face (the normal points away)" : "edge-on";
+    };
+    if (e.kind === "Plane") {
+      pairs.push(["unit normal", vec(p.unit_normal, 4)], ["camera sees", side(p.unit_normal, p.point)]);
+    } else if (e.kind === "Triangle") {
+      pairs.push(["normal", el("span", {}, vec(p.normal, 4), el("div", { class: "dim" }, "(v1 − v0) × (v2 − v0), normalised"))]);
+      pairs.push(["winding", "v0 → v1 → v2 clockwise seen from the front (the side the normal points to; left-handed, +y up)"]);
+      pairs.push(["camera sees", side(p.normal, p.v0)]);
+    }
     box.append(dl(pairs));
+    const cb = el("input", { type: "checkbox", id: "show-normals" });
+    cb.checked = !!st.normals;
+    cb.addEventListener("change", () => { st.normals = cb.checked; requestView(); });
+    box.append(el("label", { class: "dim" }, cb, " show normals as arrows in the view"));
   } else if (sel.type === "light") {
     const l = s.lights[sel.index];
     box.append(el("h3", {}, l.name));
@@ -444,6 +467,27 @@ function selectPixel(x, y, sample = 0) {
 }
 
 // ---------- ray tree ----------
+// Very small numbers (an acne blocker at t = 3e-7) in scientific notation rather than as 0.000.
+const fmtSmall = (v) => (v !== 0 && Math.abs(v) < 5e-4 ? v.toExponential(3) : fmt(v, 4));
+// A secondary ray's origin as its parent's hit point P plus the offset.
+function offsetText(n) {
+  if (!n.offset) return null;
+  let t;
+  if (n.offset.every((x) => x === 0)) t = "P (no offset)";
+  else if (n.offset_along_normal != null) t = `P ${n.offset_along_normal < 0 ? "−" : "+"} ${Math.abs(n.offset_along_normal).toExponential(3)}·n`;
+  else t = "P + (" + n.offset.map((x) => x.toExponential(2)).join(", ") + ")";
+  return el("div", { class: "dim" }, t);
+}
+function glassText(g) {
+  let s = `glass: ${g.entering ? "entering" : "leaving"}, n₁ ${fmt(g.n1, 4)} → n₂ ${fmt(g.n2, 4)}, cos θᵢ ${fmt(g.cos_i, 4)}`;
+  s += g.cos_t != null ? `, cos θₜ ${fmt(g.cos_t, 4)}` : ", total internal reflection";
+  return s + `, Fresnel reflectance ${fmt(g.reflectance, 4)}`;
+}
+function branchText(br, g) {
+  if (br.fate === "pruned") return `pruned, not traced: path weight ${br.path_weight.toExponential(2)} < ${g.prune_below.toExponential(2)}, so it could not change an 8-bit value (tracing it is not wrong)`;
+  if (br.fate === "not_chosen") return "not chosen (after a sampled bounce glass follows one ray, picked by its Fresnel weight)";
+  return g.tir && br.weight === 0 && !br.direction ? "none (total internal reflection)" : "none (weight 0)";
+}
 const KIND_COLORS = { camera: "#ffffff", shadow: "#ffdb33", reflection: "#33e5ff", refraction: "#ff59e5", emitter: "#ff9919", bounce: "#66ff66" };
 async function tracePixel() {
   if (!st.pixel) return;
@@ -469,23 +513,39 @@ async function tracePixel() {
     const tb = $("tree").querySelector("tbody");
     tb.innerHTML = "";
     for (const n of t.nodes) {
-      const h = n.hit;
-      const entity = h ? h.entity_name : n.blocked_by ? `blocked by ${n.blocked_by}` : n.light ? `→ ${n.light} (clear)` : "miss";
+      // A blocked shadow ray shows its blocker's distance, point and face in the hit columns.
+      const b = n.blocker;
+      const h = n.hit || b;
+      const face = (x) => (x.front_face ? " (front)" : " (back)");
+      const entity = n.hit ? n.hit.entity_name : n.blocked_by ? `blocked by ${n.blocked_by}` : n.light ? `→ ${n.light} (clear)` : "miss";
       const tr = el("tr", {},
         el("td", {}, String(n.id) + (n.parent !== null && n.parent !== undefined ? ` ←${n.parent}` : "")),
         el("td", { class: "k", style: `color:${n.blocked_by ? "#ff4026" : KIND_COLORS[n.kind] || "#fff"}` }, n.kind),
         el("td", {}, String(n.depth)),
-        el("td", {}, vec(n.origin)),
-        el("td", {}, vec(n.direction)),
-        el("td", {}, h ? fmt(h.t, 4) : n.t_max != null ? `≤ ${fmt(n.t_max, 4)}` : "∞"),
+        el("td", { title: `origin ${JSON.stringify(n.origin)}` + (n.offset ? `\noffset from the parent's hit point ${JSON.stringify(n.offset)}` : "") }, vec(n.origin), offsetText(n)),
+        el("td", { title: JSON.stringify(n.direction) }, vec(n.direction)),
+        el("td", { title: h ? String(h.t) : "" }, h ? fmtSmall(h.t) : n.t_max != null ? `≤ ${fmt(n.t_max, 4)}` : "∞"),
         el("td", { class: "entity" }, entity),
-        el("td", {}, h ? vec(h.point) : "—"),
-        el("td", {}, h ? vec(h.normal) + (h.front_face ? "" : " (back)") : "—"),
+        el("td", { title: h ? JSON.stringify(h.point) : "" }, h ? vec(h.point) : "—"),
+        el("td", { title: h ? JSON.stringify(h.normal) : "" }, h ? vec(h.normal) + face(h) : "—"),
         el("td", {}, h ? `${h.material} (${h.material_kind})` : "—"),
-        el("td", {}, fmt(n.weight, 3)),
+        el("td", { title: String(n.weight) }, fmt(n.weight, 3)),
         el("td", {}, el("span", { class: "swatch", style: `background:${rgbCss(n.value)}` }), " " + vec(n.value)),
       );
       tb.append(tr);
+      if (n.glass) {
+        tb.append(el("tr", { class: "glass" }, el("td"), el("td", { colspan: "11" }, glassText(n.glass))));
+        for (const [kind, br] of [["reflection", n.glass.reflected], ["refraction", n.glass.refracted]]) {
+          if (br.fate === "traced") continue;
+          tb.append(el("tr", { class: "pruned dim" },
+            el("td", {}, `– ←${n.id}`),
+            el("td", { class: "k" }, kind),
+            el("td", {}, String(n.depth + 1)),
+            el("td", {}, br.origin ? vec(br.origin) : "—"),
+            el("td", {}, br.direction ? vec(br.direction) : "—"),
+            el("td", { colspan: "7" }, branchText(br, n.glass))));
+        }
+      }
     }
   } catch (e) {
     $("tree-head").textContent = e.message;
