@@ -439,6 +439,19 @@ pub struct DebugArgs {
     /// Open the browser.
     #[arg(long)]
     pub open: bool,
+    /// Your tracer's ray log (JSON Lines, or RayTracer.Debug's `.rays`): judged as `rayscope check`
+    /// does, shown as a verdict map and as your rays beside rayscope's (docs/debugger.md).
+    #[arg(long = "rays", value_name = "LOG")]
+    pub rays: Option<PathBuf>,
+    /// Your tracer's image (PNG, JPEG or PPM), shown beside rayscope's render.
+    #[arg(long = "image", value_name = "IMAGE")]
+    pub image: Option<PathBuf>,
+    /// What a `.rays` file's ids mean: "x,y" (default), e.g. "x,y,sample,id,parent", or "none".
+    #[arg(long = "ray-ids", default_value = "x,y", value_name = "ROLES")]
+    pub ray_ids: String,
+    /// Skip malformed lines of the ray log, counting them, instead of refusing it.
+    #[arg(long)]
+    pub lenient: bool,
     #[command(flatten)]
     pub opts: RenderOpts,
 }
@@ -474,6 +487,16 @@ pub struct ViewArgs {
     /// its winding shows).
     #[arg(long, value_name = "ENTITY")]
     pub normals: Option<String>,
+    /// Your tracer's ray log: draws your rays dashed (those of --rays pixel:X,Y, else of pixels
+    /// spread over the image) and the verdict map on the grid (red: disagrees).
+    #[arg(long = "rays-log", value_name = "LOG")]
+    pub rays_log: Option<PathBuf>,
+    /// What a `.rays` file's ids mean: "x,y" (default), e.g. "x,y,sample,id,parent", or "none".
+    #[arg(long = "ray-ids", default_value = "x,y", value_name = "ROLES")]
+    pub ray_ids: String,
+    /// Skip malformed lines of the ray log instead of refusing it.
+    #[arg(long)]
+    pub lenient: bool,
     /// View width in pixels.
     #[arg(long = "view-width", default_value_t = 960, value_parser = clap::value_parser!(u32).range(16..=8192))]
     pub view_width: u32,

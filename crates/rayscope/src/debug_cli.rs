@@ -3,7 +3,10 @@
 use std::process::ExitCode;
 use std::sync::atomic::AtomicBool;
 
+use rayscope_check::log::IdRole;
+use rayscope_check::{LogError, PixelLog};
 use rayscope_core::output::Format;
+use rayscope_debug::student::{self, StudentInput};
 use rayscope_debug::view::{auto_view, render_view, ImageMode, RayMode, RgbImage, ViewCamera, ViewOptions};
 
 use super::{load_file, load_scene, settings, setup_threads, Failure};
@@ -17,6 +20,7 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
     // The debugger keeps the file: it draws the meshes as loaded.
     let file = load_file(&a.scene, a.opts.quiet)?;
     let scene = rayscope_core::Scene::from_file(&file);
+    let student = student_input(a)?;
     let cfg = rayscope_debug::ServeConfig {
         scene_path: a.scene.clone(),
         scene_file: file,
@@ -26,12 +30,57 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
         port: a.port,
         allow_hosts: a.allow_host.clone(),
         limits: rayscope_debug::ServerLimits::default(),
+        student,
     };
     rayscope_debug::serve(cfg, a.open).map_err(|e| match e {
         rayscope_debug::DebugError::Settings(m) => Failure::input(m),
         other => Failure::failed(other.to_string()),
     })?;
     Ok(ExitCode::SUCCESS)
+}
+
+/// The ray log and image `rayscope debug` loads: checked here, so a missing file is an error
+/// before the server starts.
+fn student_input(a: &DebugArgs) -> Result<StudentInput, Failure> {
+    let ray_ids = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
+    if let Some(p) = &a.rays {
+        std::fs::File::open(p).map_err(|e| Failure::input(format!("cannot read ray log {}: {e}", p.display())))?;
+    }
+    let image = a
+        .image
+        .as_ref()
+        .map(|p| rayscope_debug::student::load_image(p, rayscope_debug::server::MAX_IMAGE_SIDE))
+        .transpose()
+        .map_err(Failure::input)?;
+    Ok(StudentInput {
+        rays: a.rays.clone(),
+        image,
+        ray_ids,
+        lenient: a.lenient,
+    })
+}
+
+/// Judges `--rays-log` for `rayscope view`.
+fn judge_log(
+    a: &ViewArgs,
+    scene: &rayscope_core::Scene,
+    settings: &rayscope_core::RenderSettings,
+) -> Result<Option<PixelLog>, Failure> {
+    let Some(path) = &a.rays_log else {
+        return Ok(None);
+    };
+    let roles = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
+    let never = AtomicBool::new(false);
+    let log = rayscope_debug::student::judge_file(scene, settings, path, &roles, a.lenient, &|_, _| {}, &never)
+        .map_err(|e| match e {
+            LogError::Io { .. } => Failure::input(e.to_string().trim_start_matches("error: ").to_string()),
+            other => Failure {
+                code: 2,
+                message: other.to_string(),
+                diagnostic: true,
+            },
+        })?;
+    Ok(log)
 }
 
 /// `rayscope view`: write the debugger's scene view to a PNG, headless.
@@ -112,6 +161,27 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
     if let Some(e) = normals_of {
         opts.selection = Some(rayscope_debug::Selection::Entity(e));
         opts.normals = true;
+    }
+    if let Some(log) = judge_log(a, &scene, &settings)? {
+        opts.cell_tint = Some(std::sync::Arc::new(student::verdict_tint(&log)));
+        if let RayMode::Pixel(x, y) = rays {
+            // Every logged sample of the pixel, each with its first divergent ray highlighted.
+            for s in student::samples_at(&log, x, y) {
+                let cmp = student::compare_pixel(&scene, &settings, &log, x, y, s);
+                let hl = cmp.alignment.divergence.and_then(|r| cmp.alignment.rows[r].yours);
+                opts.foreign_rays.extend(student::foreign_rays(&cmp.yours, hl));
+            }
+        } else {
+            opts.foreign_rays = student::overview_rays(&log, 1500);
+        }
+        if !a.opts.quiet {
+            let [none, agree, tie, bad] = log.counts();
+            eprintln!(
+                "{}: {} rays; pixels: {bad} disagree, {tie} only ties, {agree} agree, {none} not logged",
+                a.rays_log.as_ref().map_or(String::new(), |p| p.display().to_string()),
+                log.report.rays
+            );
+        }
     }
     let frame = render_view(&scene, &settings, image.as_ref(), &opts);
     let png = rayscope_debug::encode::png_small(&frame.image);

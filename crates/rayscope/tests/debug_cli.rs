@@ -387,3 +387,142 @@ fn view_shows_sub_pixel_and_lens_samples() {
         .assert()
         .code(2);
 }
+
+/// `rayscope view --rays-log`: the student's rays drawn dashed beside rayscope's, the first one
+/// that disagrees over an orange halo, the verdict map tinting the grid.
+#[test]
+fn view_draws_a_students_ray_log() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("mine.jsonl");
+    // Pixel (4, 4), the centre of the 9×9 image, whose camera ray points straight ahead: this
+    // one points off to the upper right.
+    std::fs::write(
+        &log,
+        concat!(
+            r#"{"pixel":[4,4],"sample":0,"id":0,"kind":"camera","origin":[0,0,0],"direction":[0.35,0.2,1],"hit":null}"#,
+            "\n",
+            r#"{"pixel":[3,4],"sample":0,"id":0,"kind":"camera","origin":[0,0,0],"direction":[-0.0641,0,1]}"#,
+            "\n"
+        ),
+    )
+    .unwrap();
+    let plain = view_png(dir.path(), "plain.png", &["--rays", "pixel:4,4", "--tree"]);
+    let with = view_png(
+        dir.path(),
+        "with.png",
+        &["--rays", "pixel:4,4", "--tree", "--rays-log", log.to_str().unwrap()],
+    );
+    let changed = plain.pixels().zip(with.pixels()).filter(|(a, b)| a != b).count();
+    assert!(changed > 150, "the student's ray changed {changed} pixels");
+    let orange = |img: &image::RgbImage| {
+        img.pixels()
+            .filter(|p| p.0[0] > 200 && (60..170).contains(&p.0[1]) && p.0[2] < 90)
+            .count()
+    };
+    assert!(
+        orange(&with) > orange(&plain) + 40,
+        "no halo: {} vs {}",
+        orange(&with),
+        orange(&plain)
+    );
+    // Without a pixel: the log's rays over the image, and the grid's red cell.
+    let all = view_png(dir.path(), "all.png", &["--rays-log", log.to_str().unwrap()]);
+    let none = view_png(dir.path(), "none.png", &[]);
+    assert!(all.pixels().zip(none.pixels()).filter(|(a, b)| a != b).count() > 150);
+    // A log that does not fit the image is refused, naming the line.
+    std::fs::write(&log, r#"{"pixel":[40,4],"origin":[0,0,0],"direction":[0,0,1]}"#).unwrap();
+    let s = scene("basic.txt");
+    let out = dir.path().join("bad.png");
+    let o = rayscope()
+        .args(["view", "-f", &s, "-o", out.to_str().unwrap(), "-w", "9", "-h", "9"])
+        .args(["--rays-log", log.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        String::from_utf8_lossy(&o.stderr).contains("mine.jsonl:1:"),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(!out.exists());
+}
+
+/// `rayscope debug SCENE --rays LOG --image IMAGE`: judged at the start, served to the page.
+#[test]
+fn debug_judges_the_log_it_is_given() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("mine.jsonl");
+    std::fs::write(
+        &log,
+        r#"{"pixel":[4,4],"sample":0,"id":0,"kind":"camera","origin":[0,0,0],"direction":[0.35,0.2,1]}"#,
+    )
+    .unwrap();
+    let png = dir.path().join("mine.png");
+    image::RgbImage::from_pixel(9, 9, image::Rgb([10, 20, 30]))
+        .save(&png)
+        .unwrap();
+    let missing = dir.path().join("nope.jsonl");
+    let o = rayscope()
+        .args([
+            "debug",
+            &scene("basic.txt"),
+            "-w",
+            "9",
+            "-h",
+            "9",
+            "--rays",
+            missing.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", String::from_utf8_lossy(&o.stderr));
+    let mut child = Command::cargo_bin("rayscope")
+        .unwrap()
+        .args([
+            "debug",
+            &scene("basic.txt"),
+            "-w",
+            "9",
+            "-h",
+            "9",
+            "--fov-axis",
+            "vertical",
+            "--quiet",
+        ])
+        .args(["--rays", log.to_str().unwrap(), "--image", png.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let _kill = Kill(child);
+    let mut line = String::new();
+    BufReader::new(stdout).read_line(&mut line).unwrap();
+    let port: u16 = line
+        .split_whitespace()
+        .find(|w| w.starts_with("http://127.0.0.1:"))
+        .expect("prints its URL")
+        .trim_start_matches("http://127.0.0.1:")
+        .trim_end_matches('/')
+        .parse()
+        .unwrap();
+    let mut v = Value::Null;
+    for _ in 0..300 {
+        let (code, body) = http_get(port, "/api/rays/summary");
+        assert_eq!(code, 200, "{body}");
+        v = serde_json::from_str(body.trim()).unwrap();
+        if v["state"] != "judging" {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    assert_eq!(v["state"], "done", "{v:#}");
+    assert_eq!(v["judged"]["pixels"]["disagrees"], 1);
+    assert_eq!(v["judged"]["disagreeing"][0], serde_json::json!([4, 4]));
+    assert_eq!(v["image"]["matches"], true);
+    let (code, body) = http_get(port, "/api/rays/pixel?x=4&y=4");
+    assert_eq!(code, 200);
+    let p: Value = serde_json::from_str(body.trim()).unwrap();
+    assert_eq!(p["divergence"]["code"], "camera.direction", "{p:#}");
+    assert_eq!(p["their_rgb8"], serde_json::json!([10, 20, 30]));
+}

@@ -342,6 +342,18 @@ impl<'a> Judge<'a> {
         }
     }
 
+    /// The scene judged against.
+    #[must_use]
+    pub fn scene(&self) -> &'a Scene {
+        self.scene
+    }
+
+    /// The render settings judged under.
+    #[must_use]
+    pub fn settings(&self) -> &'a RenderSettings {
+        self.settings
+    }
+
     /// Samples per pixel under the settings.
     #[must_use]
     pub fn samples_per_pixel(&self) -> u32 {
@@ -393,6 +405,17 @@ impl<'a> Judge<'a> {
     /// Judges the rays of one pixel sample (or any set of rays whose `parent` links stay inside
     /// it), adding their verdicts to `tally`.
     pub fn judge_group(&self, rays: &[LoggedRay], tally: &mut Tally) {
+        self.judge_group_inner(rays, tally, false);
+    }
+
+    /// [`Judge::judge_group`], also returning each ray's verdicts (ties included), in the order of
+    /// `rays`. The log-wide verdict on mixed normal conventions (`hit.normal-inconsistent`) is
+    /// decided over the whole log by [`Tally::finish`] and is not among them.
+    pub fn judge_group_findings(&self, rays: &[LoggedRay], tally: &mut Tally) -> Vec<Vec<Finding>> {
+        self.judge_group_inner(rays, tally, true)
+    }
+
+    fn judge_group_inner(&self, rays: &[LoggedRay], tally: &mut Tally, keep: bool) -> Vec<Vec<Finding>> {
         let n = rays.len();
         let ids: HashMap<i64, usize> = rays
             .iter()
@@ -436,9 +459,14 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, &parent, &evals, &kinds, &mut findings);
+        let mut out = Vec::with_capacity(if keep { n } else { 0 });
         for (i, f) in findings.into_iter().enumerate() {
+            if keep {
+                out.push(f.clone());
+            }
             tally.add_ray(kinds[i] == Kind::Camera, f);
         }
+        out
     }
 
     /// Glass hits where the tracer reflected and did not refract although rayscope refracts.
@@ -520,6 +548,13 @@ impl<'a> Judge<'a> {
             k = p;
         }
         w
+    }
+
+    /// The ray's kind: as logged, else inferred (a ray naming a light is a shadow ray, a ray
+    /// from the camera without a parent a camera ray).
+    #[must_use]
+    pub fn kind_of(&self, r: &LoggedRay) -> Kind {
+        self.infer_kind(r)
     }
 
     fn infer_kind(&self, r: &LoggedRay) -> Kind {

@@ -4,22 +4,27 @@
 //!
 //! The pieces are separate so the debugger can use them one at a time: [`log`] reads a log into
 //! [`log::LoggedRay`]s, [`Judge`] judges the rays of a pixel sample, and [`check`] runs both over
-//! a whole log (streaming, with the judging spread over rayon's pool) into a [`Report`].
+//! a whole log (streaming, with the judging spread over rayon's pool) into a [`Report`];
+//! [`check_pixels`] does the same and keeps a verdict per pixel and the rays of each pixel (up to
+//! a cap), for the debugger's verdict map and its side-by-side ray trees.
 
 pub mod geom;
 pub mod judge;
 pub mod log;
+pub mod pixels;
 pub mod report;
 pub mod selflog;
 pub mod verdict;
 
 use std::collections::HashMap;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
 
 pub use judge::{Finding, Judge, Tally, Tolerances, Value};
 pub use log::{LogContext, LogError, LoggedRay, RaySource};
+pub use pixels::{align, check_pixels, AlignedRow, Alignment, PixelLog, PixelOptions, PixelStatus, Shape, ShownRay};
 pub use report::Report;
 pub use verdict::Code;
 
@@ -95,6 +100,24 @@ pub fn check(
     opts: CheckOptions,
     progress: &dyn Fn(u64, u64),
 ) -> Result<Report, LogError> {
+    let never = AtomicBool::new(false);
+    run(judge, source, opts, progress, &never, None).map(|r| r.expect("not cancelled"))
+}
+
+/// What [`run`] hands each judged pixel sample to: its rays and their verdicts.
+pub(crate) type Sink<'s> = &'s mut dyn FnMut(Vec<LoggedRay>, Vec<Vec<Finding>>);
+
+/// The check's loop: reads batches, groups them into pixel samples, judges the complete ones in
+/// parallel. With a `sink`, every sample's rays and verdicts go to it, in the order the samples
+/// complete. `None` when `cancel` was set.
+pub(crate) fn run(
+    judge: &Judge<'_>,
+    source: &mut dyn RaySource,
+    opts: CheckOptions,
+    progress: &dyn Fn(u64, u64),
+    cancel: &AtomicBool,
+    mut sink: Option<Sink<'_>>,
+) -> Result<Option<Report>, LogError> {
     let start = Instant::now();
     let mut reading = Duration::ZERO;
     let mut judging = Duration::ZERO;
@@ -103,6 +126,9 @@ pub fn check(
     let mut batch = Vec::with_capacity(log::BATCH);
     let mut ready: Vec<Vec<LoggedRay>> = Vec::new();
     loop {
+        if cancel.load(Ordering::Relaxed) {
+            return Ok(None);
+        }
         let t0 = Instant::now();
         batch.clear();
         let more = source.next_batch(&mut batch)?;
@@ -114,18 +140,34 @@ pub fn check(
         let t1 = Instant::now();
         if !ready.is_empty() {
             let keep = opts.examples;
-            let t = ready
-                .par_iter()
-                .with_min_len(16)
-                .fold(
-                    || Tally::new(keep),
-                    |mut t, g| {
-                        judge.judge_group(g, &mut t);
-                        t
-                    },
-                )
-                .reduce(|| Tally::new(keep), Tally::merge);
-            tally = tally.merge(t);
+            if let Some(sink) = sink.as_mut() {
+                let judged: Vec<(Tally, Vec<Vec<Finding>>)> = ready
+                    .par_iter()
+                    .with_min_len(16)
+                    .map(|g| {
+                        let mut t = Tally::new(keep);
+                        let f = judge.judge_group_findings(g, &mut t);
+                        (t, f)
+                    })
+                    .collect();
+                for (g, (t, f)) in ready.drain(..).zip(judged) {
+                    tally = tally.merge(t);
+                    sink(g, f);
+                }
+            } else {
+                let t = ready
+                    .par_iter()
+                    .with_min_len(16)
+                    .fold(
+                        || Tally::new(keep),
+                        |mut t, g| {
+                            judge.judge_group(g, &mut t);
+                            t
+                        },
+                    )
+                    .reduce(|| Tally::new(keep), Tally::merge);
+                tally = tally.merge(t);
+            }
             ready.clear();
         }
         judging += t1.elapsed();
@@ -137,7 +179,7 @@ pub fn check(
     }
     tally.finish();
     let (skipped, first) = source.skipped();
-    Ok(Report::new(
+    Ok(Some(Report::new(
         tally,
         skipped,
         first.map(ToString::to_string),
@@ -147,5 +189,5 @@ pub fn check(
             judging,
             total: start.elapsed(),
         },
-    ))
+    )))
 }

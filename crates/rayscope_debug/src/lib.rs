@@ -4,6 +4,8 @@
 //!   tracer's camera, frustum, image-plane pixel grid (carrying the rendered image), debug rays
 //!   and ray trees as depth-tested, anti-aliased lines. `rayscope view` and the browser share it.
 //! - [`server`]: the local web app behind `rayscope debug` (axum), with its UI embedded.
+//! - [`student`]: a student's own ray log and image in the debugger: verdicts per pixel, their
+//!   rays beside rayscope's, and the API behind them.
 //!
 //! Pixel coordinates are 0-based from the top-left everywhere.
 
@@ -12,9 +14,11 @@ pub mod encode;
 pub mod guard;
 mod net;
 pub mod server;
+pub mod student;
 pub mod view;
 
 pub use server::{serve, start, DebugError, RunningServer, ServeConfig, ServerLimits};
 pub use view::{
-    auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame, ViewOptions,
+    auto_view, pick, render_view, ForeignRay, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame,
+    ViewOptions,
 };

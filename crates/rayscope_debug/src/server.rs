@@ -7,8 +7,9 @@
 //!
 //! Security: the server answers only `Host` names on its allow-list (see [`HostPolicy`]), and
 //! only the debugger's own page may change state or start work (see [`cross_site_refusal`]):
-//! `POST`s need `Content-Type: application/json` (settings) or `image/png` (compare), types a
-//! page on another origin cannot send without a preflight, which is never granted. Heavy
+//! `POST`s need `Content-Type: application/json` (settings), `image/png` (compare, the student's
+//! image) or `application/x-ndjson` / `application/octet-stream` (a ray log), types a page on
+//! another origin cannot send without a preflight, which is never granted. Heavy
 //! requests share [`ServerLimits::heavy_slots`]; connections, head reads, bodies and writes are
 //! bounded in number and time (see [`ServerLimits`]).
 //!
@@ -26,6 +27,8 @@
 //! - `/api/check`: pixels where rayscope's intersector and the parry3d reference disagree.
 //! - `/api/compare` (`POST`, PNG body, `Content-Type: image/png`): PSNR against the current
 //!   render and a heat map id; `/api/compare/heatmap.png?id=`.
+//! - `/api/rays` (`POST`, a student's ray log), `/api/rays/summary`, `/api/rays/map.png`,
+//!   `/api/rays/pixel`, `/api/rays/image` (`POST`) and `/api/rays/image.png`: see [`rays_api`].
 //!
 //! [`HostPolicy`]: crate::guard::HostPolicy
 //! [`cross_site_refusal`]: crate::guard::cross_site_refusal
@@ -61,6 +64,9 @@ use crate::encode;
 use crate::guard::{cross_site_refusal, HostPolicy};
 use crate::net::MAX_URL_BYTES;
 use crate::view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewOptions};
+
+mod rays_api;
+pub use rays_api::{KEEP_LOG_BYTES, MAX_LOG_BYTES};
 
 /// Largest image the debugger renders, per side.
 pub const MAX_IMAGE_SIDE: u32 = 2048;
@@ -119,6 +125,8 @@ pub struct ServeConfig {
     pub allow_hosts: Vec<String>,
     /// Bounds on connections, time and concurrent heavy work.
     pub limits: ServerLimits,
+    /// A student's ray log and image to load at the start (`rayscope debug --rays --image`).
+    pub student: crate::student::StudentInput,
 }
 
 /// Bounds that keep the debugger answering whatever its clients do.
@@ -250,8 +258,9 @@ pub fn check_settings(s: &RenderSettings) -> Result<(), String> {
 ///
 /// # Errors
 /// If the address cannot be bound, or the settings are outside the debugger's limits.
-pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
+pub fn start(mut cfg: ServeConfig) -> Result<RunningServer, DebugError> {
     check_settings(&cfg.settings).map_err(DebugError::Settings)?;
+    let student = std::mem::take(&mut cfg.student);
     let addr_text = format!("{}:{}", cfg.host, cfg.port);
     let bind_err = |source| DebugError::Bind {
         addr: addr_text.clone(),
@@ -281,6 +290,7 @@ pub fn start(cfg: ServeConfig) -> Result<RunningServer, DebugError> {
     let host_names = hosts.names().to_vec();
     let state = Arc::new(AppState::new(cfg, hosts));
     state.start_render();
+    rays_api::start(&state, student);
     let app = router(state);
     let (tx, rx) = tokio::sync::oneshot::channel::<()>();
     let runtime = tokio::runtime::Builder::new_multi_thread()
@@ -441,6 +451,7 @@ struct AppState {
     limits: ServerLimits,
     heavy: HeavyPool,
     inner: Mutex<Inner>,
+    rays: rays_api::RaysState,
 }
 
 /// The slots heavy requests take, so that a flood of them costs a bounded amount of memory.
@@ -479,6 +490,7 @@ impl AppState {
             hosts,
             limits: cfg.limits,
             heavy: HeavyPool::new(cfg.limits.heavy_slots),
+            rays: rays_api::RaysState::default(),
             inner: Mutex::new(Inner {
                 settings: cfg.settings,
                 job: Job {
@@ -791,6 +803,12 @@ fn router(state: Arc<AppState>) -> Router {
         .route("/api/check", get(api_check))
         .route("/api/compare", post(api_compare))
         .route("/api/compare/heatmap.png", get(api_heatmap))
+        .route("/api/rays", post(rays_api::api_upload))
+        .route("/api/rays/summary", get(rays_api::api_summary))
+        .route("/api/rays/map.png", get(rays_api::api_map))
+        .route("/api/rays/pixel", get(rays_api::api_pixel))
+        .route("/api/rays/image", post(rays_api::api_image_upload))
+        .route("/api/rays/image.png", get(rays_api::api_image))
         .fallback(|| async { ApiError(StatusCode::NOT_FOUND, "no such page".into()) })
         .with_state(state.clone());
     // The guard wraps the whole router rather than each route, so that it also sees what the
@@ -1266,11 +1284,12 @@ async fn api_view(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResul
     let jpeg = !matches!(q.get("format").map(String::as_str), Some("png"));
     let quality = parse_num(&q, "quality", 88u8, 30, 100)?;
     let slot = st.heavy.slot()?;
-    let image = if opts.image == ImageMode::Traced {
+    let mut image = if opts.image == ImageMode::Traced {
         channel_image(&st, channel, name, &slot).await?
     } else {
         None
     };
+    rays_api::view_hook(&st, &q, &settings, sample, &mut opts, &mut image)?;
     if flag("check") {
         if let Some(c) = st.lock().check.as_ref().filter(|c| c.settings == settings) {
             opts.highlight = c.cells.clone();

@@ -9,6 +9,7 @@
 //! normalised image coordinates [x/W, (x+1)/W] × [y/H, (y+1)/H] on the image plane at distance 1.
 
 use std::str::FromStr;
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{Vec2, Vec3, Vec3A, Vec4};
@@ -164,6 +165,26 @@ pub struct ViewOptions {
     pub antialias: bool,
     /// Draw the selected entity's normals as arrows (a triangle's vertices numbered 0, 1, 2).
     pub normals: bool,
+    /// Another tracer's rays (a student's ray log), drawn dashed beside rayscope's.
+    pub foreign_rays: Vec<ForeignRay>,
+    /// Per image pixel (row-major from the top-left), a colour blended over its grid cell with
+    /// weight alpha / 255: the verdict map of a student's log.
+    pub cell_tint: Option<Arc<Vec<[u8; 4]>>>,
+}
+
+/// A ray of another tracer (a student's log), drawn dashed in its kind's colour.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ForeignRay {
+    /// Origin.
+    pub origin: Vec3,
+    /// Direction (any length).
+    pub direction: Vec3,
+    /// Where the tracer says it ends (`None`: it fades out far away).
+    pub end: Option<Vec3>,
+    /// Line colour (see [`kind_color_named`]).
+    pub color: Vec3,
+    /// Drawn wide with an orange halo and end rings: the first ray where the trees part.
+    pub highlight: bool,
 }
 
 impl ViewOptions {
@@ -189,6 +210,8 @@ impl ViewOptions {
             gizmo: true,
             antialias: true,
             normals: false,
+            foreign_rays: Vec::new(),
+            cell_tint: None,
         }
     }
 }
@@ -497,6 +520,12 @@ impl Ctx<'_> {
                         }
                         _ => Vec3::splat(0.02),
                     };
+                    if let Some(t) = self.opts.cell_tint.as_deref() {
+                        if let Some(&[r, g, b, a]) = t.get((iy * w + ix) as usize) {
+                            let tint = Vec3::new(f32::from(r), f32::from(g), f32::from(b)) / 255.0;
+                            c = c.lerp(tint, f32::from(a) / 255.0);
+                        }
+                    }
                     if !self.highlight.is_empty() && self.highlight[(iy * w + ix) as usize] {
                         c = c.lerp(Vec3::new(1.0, 0.0, 1.0), 0.65);
                     }
@@ -830,6 +859,21 @@ pub fn kind_color(kind: RayKind) -> Vec3 {
     }
 }
 
+/// Colour of a ray kind named as in a ray log (`camera`, `shadow`, `reflection`, `refraction`,
+/// `emitter`, `bounce`; grey for any other word).
+#[must_use]
+pub fn kind_color_named(kind: &str) -> Vec3 {
+    match kind {
+        "camera" => kind_color(RayKind::Camera),
+        "shadow" => kind_color(RayKind::Shadow),
+        "reflection" => kind_color(RayKind::Reflection),
+        "refraction" => kind_color(RayKind::Refraction),
+        "emitter" => kind_color(RayKind::Emitter),
+        "bounce" => kind_color(RayKind::Bounce),
+        _ => Vec3::splat(0.7),
+    }
+}
+
 struct Overlay<'a, 'b> {
     ctx: &'a Ctx<'a>,
     canvas: &'b mut Canvas,
@@ -978,6 +1022,7 @@ impl Overlay<'_, '_> {
         if let (true, Some(Selection::Entity(e))) = (opts.normals, opts.selection) {
             self.normals(e);
         }
+        self.foreign_rays(&opts.foreign_rays);
         for (x, y) in opts.highlight.iter().take(4096) {
             if *x < w && *y < h {
                 self.cell_outline(*x, *y, Vec3::new(1.0, 0.1, 1.0), 1.6);
@@ -1237,6 +1282,63 @@ impl Overlay<'_, '_> {
                 }
             }
         }
+    }
+
+    /// Another tracer's rays, dashed (about 9 pixels on, 6 off); the highlighted one over an
+    /// orange halo, with rings at both ends.
+    fn foreign_rays(&mut self, rays: &[ForeignRay]) {
+        let halo = Vec4::new(1.0, 0.42, 0.05, 0.6);
+        let ring = Vec4::new(1.0, 0.42, 0.05, 1.0);
+        let far = self.far();
+        // Through surfaces more than other lines: a student's mistake is often inside glass.
+        let saved = self.canvas.hidden_alpha;
+        for r in rays.iter().take(20_000) {
+            self.canvas.hidden_alpha = if r.highlight {
+                saved.max(0.7)
+            } else if saved > 0.0 {
+                saved.max(0.3)
+            } else {
+                0.0
+            };
+            let o = Vec3A::from(r.origin);
+            let d = Vec3A::from(r.direction).normalize_or_zero();
+            let (end, fades) = match r.end {
+                Some(e) => (Vec3A::from(e), false),
+                None => (o + d * far, true),
+            };
+            if r.highlight {
+                self.seg(o, end, halo, if fades { halo.with_w(0.0) } else { halo }, 7.0);
+            }
+            // Dash count from the projected length (clipped at the near plane).
+            let p = &self.ctx.proj;
+            let (ca, cb) = (p.to_camera(o), p.to_camera(end));
+            let len = if ca.z > NEAR && cb.z > NEAR {
+                (p.screen(ca).p - p.screen(cb).p).length()
+            } else {
+                400.0
+            };
+            let n = ((len / 15.0).ceil() as u32).clamp(1, 400);
+            let width = if r.highlight { 2.8 } else { 2.0 };
+            for k in 0..n {
+                let (s0, s1) = (k as f32 / n as f32, (k as f32 + 0.6) / n as f32);
+                let fade = |s: f32| if fades { 1.0 - s } else { 1.0 };
+                let c0 = r.color.extend(fade(s0));
+                let c1 = r.color.extend(fade(s1));
+                self.seg(o.lerp(end, s0), o.lerp(end, s1), c0, c1, width);
+            }
+            if let Some(e) = r.end {
+                let e = Vec3A::from(e);
+                if r.highlight {
+                    self.dot(e, 5.0, r.color.extend(1.0), ring);
+                } else {
+                    self.dot(e, 2.6, Vec4::new(0.05, 0.05, 0.05, 0.95), r.color.extend(1.0));
+                }
+            }
+            if r.highlight {
+                self.dot(o, 4.0, Vec4::new(0.05, 0.05, 0.05, 0.9), ring);
+            }
+        }
+        self.canvas.hidden_alpha = saved;
     }
 
     fn light_glyphs(&mut self) {

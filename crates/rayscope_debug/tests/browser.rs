@@ -87,8 +87,9 @@ async fn attr(c: &Client, css: &str, name: &str) -> Option<String> {
     e.attr(name).await.ok().flatten()
 }
 
-#[test]
-fn debugger_in_chromium() {
+/// Chromium and chromedriver, or `None` after reporting the test as not run (a failure under
+/// CI=true).
+fn chromium_and_driver() -> Option<(PathBuf, PathBuf)> {
     let chromium = find_exe(&["chromium", "chromium-browser", "google-chrome"]);
     let driver = find_exe(&["chromedriver"]);
     let (Some(chromium), Some(driver)) = (chromium, driver) else {
@@ -97,40 +98,21 @@ fn debugger_in_chromium() {
             "No chromium (or chromium-browser, google-chrome) and chromedriver found on PATH.",
             "To run it, install them (Debian: apt-get install chromium chromium-driver).",
         );
-        return;
+        return None;
     };
+    Some((chromium, driver))
+}
 
-    // The debugger, in process, on a free port: our basic scene as in the workshop (9×9,
-    // vertical FOV).
-    let scene_path = rayscope_testkit::scene("basic.txt");
-    let file = rayscope_scene::load(&scene_path).unwrap();
-    let scene = Scene::from_file(&file);
-    let settings = RenderSettings {
-        width: 9,
-        height: 9,
-        camera: CameraSettings {
-            fov_axis: FovAxis::Vertical,
-            ..CameraSettings::default()
-        },
-        ..RenderSettings::default()
-    };
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path,
-        scene_file: file,
-        scene,
-        settings,
-        host: "127.0.0.1".into(),
-        port: 0,
-        allow_hosts: Vec::new(),
-        limits: ServerLimits::default(),
-    })
-    .expect("debugger starts");
-    let url = server.url.clone();
-    let _server = Server(Some(server));
-
+/// Starts chromedriver, connects a headless Chromium to it and runs `drive` against `url`;
+/// takes `failure.png` and panics when `drive` fails.
+fn in_chromium<F, Fut>(chromium: &Path, driver: &Path, url: &str, failure: &str, drive: F)
+where
+    F: FnOnce(Client, String) -> Fut,
+    Fut: std::future::Future<Output = (Client, Result<(), String>)>,
+{
     let port = free_port();
     let _driver = Driver(
-        Command::new(&driver)
+        Command::new(driver)
             .arg(format!("--port={port}"))
             .stdout(Stdio::null())
             .stderr(Stdio::null())
@@ -138,7 +120,6 @@ fn debugger_in_chromium() {
             .expect("chromedriver starts"),
     );
     let profile = tempfile_dir();
-
     let rt = tokio::runtime::Builder::new_current_thread()
         .enable_all()
         .build()
@@ -170,10 +151,9 @@ fn debugger_in_chromium() {
             }
         })
         .await;
-
-        let result = drive(&c, &url).await;
+        let (c, result) = drive(c, url.to_string()).await;
         if result.is_err() {
-            shot(&c, "failure.png").await;
+            shot(&c, failure).await;
         }
         let _ = c.close().await;
         if let Err(e) = result {
@@ -183,8 +163,53 @@ fn debugger_in_chromium() {
     let _ = std::fs::remove_dir_all(tempfile_dir());
 }
 
+#[test]
+fn debugger_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+
+    // The debugger, in process, on a free port: our basic scene as in the workshop (9×9,
+    // vertical FOV).
+    let scene_path = rayscope_testkit::scene("basic.txt");
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let scene = Scene::from_file(&file);
+    let settings = RenderSettings {
+        width: 9,
+        height: 9,
+        camera: CameraSettings {
+            fov_axis: FovAxis::Vertical,
+            ..CameraSettings::default()
+        },
+        ..RenderSettings::default()
+    };
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path,
+        scene_file: file,
+        scene,
+        settings,
+        host: "127.0.0.1".into(),
+        port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
+        student: Default::default(),
+    })
+    .expect("debugger starts");
+    let url = server.url.clone();
+    let _server = Server(Some(server));
+
+    in_chromium(&chromium, &driver, &url, "failure.png", |c, url| async move {
+        let r = drive(&c, &url).await;
+        (c, r)
+    });
+}
+
 fn tempfile_dir() -> PathBuf {
-    let d = std::env::temp_dir().join(format!("rayscope-chromium-{}", std::process::id()));
+    let d = std::env::temp_dir().join(format!(
+        "rayscope-chromium-{}-{:?}",
+        std::process::id(),
+        std::thread::current().id()
+    ));
     std::fs::create_dir_all(&d).unwrap();
     d
 }
@@ -337,5 +362,220 @@ async fn drive(c: &Client, url: &str) -> Result<(), String> {
         .await
         .map_err(|e| e.to_string())?;
     assert_eq!(width, json!(12), "no forged request changed the settings");
+    Ok(())
+}
+
+/// A student's ray log in the page: loaded through the file picker, the verdict map over the
+/// image and the grid, a red pixel clicked, the two trees side by side and the divergence
+/// explained. The log is the student-style Python tracer's with its refraction mistake.
+#[test]
+fn student_log_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let python = Command::new("python3")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !python {
+        rayscope_testkit::not_run(
+            "needs python3",
+            "No python3 found on PATH: the student-style tracer that writes the log is a Python script.",
+            "To run it, install Python 3 (Debian: apt-get install python3).",
+        );
+        return;
+    }
+    let (w, h) = (32u32, 24u32);
+    let scene_path = rayscope_testkit::scene("whitted.txt");
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-log-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let log = dir.join("my_rays.jsonl");
+    let out = Command::new("python3")
+        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
+        .arg("-f")
+        .arg(&scene_path)
+        .args([
+            "-w",
+            &w.to_string(),
+            "-h",
+            &h.to_string(),
+            "--bug",
+            "refraction-normal",
+            "--log",
+        ])
+        .arg(&log)
+        .output()
+        .expect("run the student tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let scene = Scene::from_file(&file);
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path,
+        scene_file: file,
+        scene,
+        settings: RenderSettings {
+            width: w,
+            height: h,
+            stage: rayscope_core::Stage::Two,
+            ..RenderSettings::default()
+        },
+        host: "127.0.0.1".into(),
+        port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
+        student: Default::default(),
+    })
+    .expect("debugger starts");
+    let url = server.url.clone();
+    let _server = Server(Some(server));
+    let log2 = log.clone();
+    in_chromium(&chromium, &driver, &url, "student-failure.png", |c, url| async move {
+        let r = drive_student_log(&c, &url, &log2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), String> {
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    c.goto(url).await.map_err(|e| e.to_string())?;
+    wait_for("the page to load the scene", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+    wait_for("the rendered image", 30, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == "32x24")
+    })
+    .await;
+
+    // Load the log through the file picker, as a student would.
+    let input = c.find(Locator::Css("#rays-file")).await.map_err(e)?;
+    input.send_keys(&log.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the log to be judged", 60, || async {
+        attr(c, "#rays-summary", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let summary = c
+        .find(Locator::Css("#rays-summary"))
+        .await
+        .map_err(e)?
+        .text()
+        .await
+        .map_err(e)?;
+    assert_eq!(state, "done", "{summary}");
+    assert!(summary.starts_with("my_rays.jsonl: "), "{summary}");
+    let red: u32 = attr(c, "#rays-summary", "data-disagree")
+        .await
+        .and_then(|v| v.parse().ok())
+        .ok_or("no count of red pixels")?;
+    assert!(red > 10, "{summary}");
+    let codes = c
+        .find(Locator::Css("#rays-codes"))
+        .await
+        .map_err(e)?
+        .text()
+        .await
+        .map_err(e)?;
+    assert!(codes.contains("refraction.normal-not-flipped"), "{codes}");
+
+    // The verdict map over the image, and the student's rays in the view.
+    wait_for("the verdict map on the image", 20, || async {
+        attr(c, "#image-overlay", "data-verdicts")
+            .await
+            .filter(|v| *v == red.to_string())
+    })
+    .await;
+    let legend = c.find(Locator::Css("#legend-yours")).await.map_err(e)?;
+    assert!(
+        legend.is_displayed().await.map_err(e)?,
+        "the legend shows the student's dashed rays"
+    );
+    shot(c, "05-student-log-loaded.png").await;
+
+    // Click a red pixel (one from the middle of the list the page got).
+    let v = c
+        .execute_async(
+            r#"const [done] = arguments;
+            fetch("/api/rays/summary").then((r) => r.json()).then((s) => {
+              const list = s.judged.disagreeing;
+              const p = list[Math.floor(list.length / 2)];
+              const img = document.getElementById("image");
+              const r = img.getBoundingClientRect();
+              const box = document.getElementById("image-scroll").getBoundingClientRect();
+              // WebDriver offsets count from the centre of the element's visible part.
+              const left = Math.max(r.left, box.left), right = Math.min(r.right, box.right);
+              const top = Math.max(r.top, box.top), bottom = Math.min(r.bottom, box.bottom);
+              const tx = r.left + (p[0] + 0.5) / 32 * r.width, ty = r.top + (p[1] + 0.5) / 24 * r.height;
+              done({ x: p[0], y: p[1], dx: Math.round(tx - (left + right) / 2), dy: Math.round(ty - (top + bottom) / 2), w: r.width, h: r.height });
+            });"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    let (x, y) = (v["x"].as_u64().ok_or("x")?, v["y"].as_u64().ok_or("y")?);
+    let (iw, ih) = (v["w"].as_f64().ok_or("w")?, v["h"].as_f64().ok_or("h")?);
+    let (dx, dy) = (v["dx"].as_i64().ok_or("dx")?, v["dy"].as_i64().ok_or("dy")?);
+    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
+    let click = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: image,
+            duration: None,
+            x: dx,
+            y: dy,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(click).await.map_err(e)?;
+    let code = wait_for("the divergence to be explained", 30, || async {
+        attr(c, "#rays-divergence-box", "data-code").await
+    })
+    .await;
+    let head = c
+        .find(Locator::Css("#rays-pixel-head"))
+        .await
+        .map_err(e)?
+        .text()
+        .await
+        .map_err(e)?;
+    assert!(
+        head.starts_with(&format!("pixel ({x}, {y}): disagrees")),
+        "clicked ({x}, {y}) at offset ({dx}, {dy}) of a {iw}×{ih} image: {head}"
+    );
+    assert_eq!(code, "refraction.normal-not-flipped", "{head}");
+    let text = c
+        .find(Locator::Css("#rays-divergence-box"))
+        .await
+        .map_err(e)?
+        .text()
+        .await
+        .map_err(e)?;
+    assert!(
+        text.contains("refraction leaving glass used the outward normal") && text.contains("flipped to face the ray"),
+        "{text}"
+    );
+    // The two trees side by side, the divergent row marked, a refraction on both sides.
+    let row = c.find(Locator::Css("#rays-table tr.diverge")).await.map_err(e)?;
+    let cells = row.find_all(Locator::Css("td.k")).await.map_err(e)?;
+    let mut kinds = Vec::new();
+    for k in cells {
+        let t = k.prop("textContent").await.map_err(e)?.unwrap_or_default();
+        kinds.push(t.trim().to_string());
+    }
+    assert_eq!(kinds, ["refraction", "refraction"], "{kinds:?}");
+    // The view draws the student's rays of the pixel.
+    wait_for("a view with the student's rays", 20, || async {
+        attr(c, "#view", "data-student").await.filter(|v| v == "1")
+    })
+    .await;
+    tokio::time::sleep(Duration::from_millis(800)).await;
+    shot(c, "06-student-divergence.png").await;
     Ok(())
 }

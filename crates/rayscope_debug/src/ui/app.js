@@ -104,6 +104,7 @@ function viewParams(draft) {
     if ($("show-samples").checked) p.set("samples", "1");
   }
   if (st.check) p.set("check", "1");
+  raysViewParams(p);
   if (!$("cutaway").checked) p.set("cutaway", "0");
   p.set("hidden", $("xray").checked ? "0.12" : "0");
   if (draft) { p.set("aa", "0"); p.set("quality", "70"); }
@@ -338,6 +339,7 @@ function onNewSettings(settings, job) {
   pollStatus();
   requestView();
   if (st.pixel) tracePixel();
+  raysOnSettings();
 }
 
 // ---------- render status ----------
@@ -356,6 +358,7 @@ async function pollStatus() {
         st.renderedJob = s.rendered.job;
         loadImage();
         requestView();
+        raysLoadRendered();
       }
     }
   } catch (e) {
@@ -389,6 +392,7 @@ function layoutImage() {
 }
 function imageSrc() {
   if ($("show-heatmap").checked && st.heatmap) return st.heatmap;
+  if (raysShowTheirs()) return `/api/rays/image.png?v=${rays.imageVersion}`;
   return `/api/image.png?channel=${$("channel").value}&job=${st.renderedJob}`;
 }
 function loadImage() {
@@ -420,6 +424,7 @@ function drawOverlay() {
     g.fillStyle = "rgba(255,0,255,0.45)";
     for (const m of st.check.mismatches) { g.fillRect(m.x * z, m.y * z, z, z); }
   }
+  raysDrawOverlay(g, z);
   if (st.pixel) {
     g.strokeStyle = "#ffd21a"; g.lineWidth = Math.max(1.5, z / 5);
     g.strokeRect(st.pixel[0] * z + 0.5, st.pixel[1] * z + 0.5, Math.max(z - 1, 1), Math.max(z - 1, 1));
@@ -445,7 +450,7 @@ function setupImageInput() {
       const c = [d.data[i], d.data[i + 1], d.data[i + 2]];
       col = ` = rgb(${c.join(", ")}) = (${c.map((v) => (v / 255).toFixed(3)).join(", ")})`;
     }
-    $("pixel-readout").textContent = `pixel (${p[0]}, ${p[1]})${col}`;
+    $("pixel-readout").textContent = raysReadout(p) || `pixel (${p[0]}, ${p[1]})${col}`;
   });
   img.addEventListener("click", (e) => {
     const p = imagePixelAt(e);
@@ -456,6 +461,7 @@ function setupImageInput() {
   $("show-heatmap").addEventListener("change", loadImage);
   $("compare-file").addEventListener("change", compareUpload);
   $("check-btn").addEventListener("click", runCheck);
+  raysSetupInput();
 }
 
 function selectPixel(x, y, sample = 0) {
@@ -464,6 +470,7 @@ function selectPixel(x, y, sample = 0) {
   drawOverlay();
   tracePixel();
   requestView();
+  raysPixel();
 }
 
 // ---------- ray tree ----------
@@ -603,6 +610,309 @@ async function compareUpload() {
   $("compare-file").value = "";
 }
 
+// ---------- the student's ray log and image ----------
+// The server judges the log with rayscope check's verdict engine once (again when the settings
+// change); this section shows the verdict map, their image, and a pixel's two trees side by side.
+const rays = {
+  summary: null, file: null, mapJob: -1, mapCanvas: null, mapData: null,
+  imageVersion: 0, imageKey: "", theirData: null, rsData: null, pollTimer: null, resending: false, pixelSeq: 0,
+};
+const RAYS_STATUS = { "46,204,113": "agrees", "241,196,15": "only ties", "255,38,38": "disagrees", "70,70,76": "not logged" };
+function raysJudged() { return rays.summary && rays.summary.judged ? rays.summary.judged : null; }
+function raysShowTheirs() { return $("show-theirs").checked && rays.summary && rays.summary.image && rays.summary.image.matches; }
+function raysSizeMatches(w, h) { return st.settings && w === st.settings.width && h === st.settings.height; }
+function raysSetupInput() {
+  $("rays-file").addEventListener("change", () => { const f = $("rays-file").files[0]; if (f) raysUpload(f); $("rays-file").value = ""; });
+  $("rays-image-file").addEventListener("change", () => { const f = $("rays-image-file").files[0]; if (f) raysImageUpload(f); $("rays-image-file").value = ""; });
+  $("show-verdicts").addEventListener("change", () => { drawOverlay(); requestView(); });
+  $("show-theirs").addEventListener("change", () => { loadImage(); requestView(); });
+  // Drag and drop anywhere on the page: a .png is their image, anything else their log.
+  let depth = 0;
+  const hint = (on) => $("drop-hint").classList.toggle("hidden", !on);
+  document.addEventListener("dragenter", (e) => { if (e.dataTransfer && [...e.dataTransfer.types].includes("Files")) { depth++; hint(true); } });
+  document.addEventListener("dragleave", () => { depth = Math.max(0, depth - 1); if (!depth) hint(false); });
+  document.addEventListener("dragover", (e) => e.preventDefault());
+  document.addEventListener("drop", (e) => {
+    e.preventDefault(); depth = 0; hint(false);
+    for (const f of e.dataTransfer.files) {
+      if (/\.png$/i.test(f.name) || f.type === "image/png") raysImageUpload(f); else raysUpload(f);
+    }
+  });
+}
+function raysSummaryText(text, state, cls) {
+  const box = $("rays-summary");
+  box.textContent = text;
+  box.dataset.state = state;
+  box.className = cls || "dim";
+}
+async function raysUpload(file) {
+  rays.file = file;
+  showTab("rays-tab");
+  raysSummaryText(`reading and judging ${file.name} (${(file.size / 1048576).toFixed(1)} MiB)…`, "judging");
+  clearTimeout(rays.pollTimer);
+  rays.pollTimer = setTimeout(raysPoll, 400);
+  const type = /\.rays$/i.test(file.name) ? "application/octet-stream" : "application/x-ndjson";
+  try {
+    const s = await api(`/api/rays?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": type }, body: file });
+    raysOnSummary(s);
+  } catch (e) {
+    raysSummaryText(`${file.name}: ${e.message}`, "error", "error");
+  }
+}
+async function raysImageUpload(file) {
+  try {
+    const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
+    $("show-theirs").checked = false;
+    raysOnSummary(s);
+  } catch (e) {
+    $("compare-result").textContent = `${file.name}: ${e.message}`;
+  }
+}
+async function raysPoll() {
+  clearTimeout(rays.pollTimer);
+  try {
+    const s = await api("/api/rays/summary");
+    raysOnSummary(s);
+    if (s.state === "judging") rays.pollTimer = setTimeout(raysPoll, 300);
+  } catch (e) {
+    rays.pollTimer = setTimeout(raysPoll, 2000);
+  }
+}
+function raysOnSettings() {
+  // The server judges the log again under the new settings (or says it cannot: then send it).
+  clearTimeout(rays.pollTimer);
+  rays.pollTimer = setTimeout(raysPoll, 150);
+}
+function raysOnSummary(s) {
+  rays.summary = s;
+  const j = s.judged;
+  const box = $("rays-summary");
+  $("show-verdicts-label").classList.toggle("hidden", !j);
+  $("legend-yours").classList.toggle("hidden", !j);
+  // Their image.
+  $("show-theirs-label").classList.toggle("hidden", !s.image);
+  if (s.image) {
+    const key = `${s.image.name}:${s.image.width}x${s.image.height}:${s.image.matches}`;
+    if (key !== rays.imageKey) { rays.imageKey = key; rays.imageVersion++; raysLoadTheirs(); }
+    $("show-theirs-label").title = s.image.matches ? `${s.image.name}, ${s.image.width}×${s.image.height}` : `${s.image.name} is ${s.image.width}×${s.image.height}, the render ${st.settings.width}×${st.settings.height}: set the image size to compare`;
+  }
+  if (s.state === "none") { box.dataset.state = "none"; return; }
+  if (s.state === "judging") {
+    const p = s.progress || {};
+    const pct = p.total ? ` ${(100 * p.done / p.total).toFixed(0)}%` : p.done ? ` ${(p.done / 1048576).toFixed(1)} MiB` : "";
+    raysSummaryText(`judging ${s.name}…${pct}`, "judging");
+    return;
+  }
+  if (s.state === "error") {
+    raysSummaryText(`${s.source ? s.source.name + ": " : ""}${s.error}`, "error", "error");
+    return;
+  }
+  if (!j) return;
+  const px = j.pixels;
+  const pct = (n) => (j.rays ? (100 * n / j.rays).toFixed(1) : "0");
+  let text = `${j.name}: ${j.rays} rays, ${j.disagree} disagree (${pct(j.disagree)} %)` + (j.ties ? `, ${j.ties} genuine ties` : "") +
+    ` — pixels: ${px.disagrees} disagree, ${px.agrees} agree` + (px.tie ? `, ${px.tie} only ties` : "") + `, ${px["not-logged"]} not logged` +
+    ` — judged at ${j.width}×${j.height}` + (j.samples_per_pixel > 1 ? `, ${j.samples_per_pixel} samples per pixel` : "") + ` in ${j.millis.toFixed(0)} ms`;
+  if (j.capped) text += ` — rays kept for display: ${j.kept} of ${j.kept + j.dropped} (the first ${j.detail_cap}, and samples that disagree up to twice that); pixels past the cap show their verdict only`;
+  if (j.unplaced) text += ` — ${j.unplaced} rays name no pixel (judged, not on the map)`;
+  if (j.skipped_lines) text += ` — ${j.skipped_lines} malformed lines skipped`;
+  let cls = "";
+  if (s.state === "stale") {
+    const notKept = s.source && s.source.kind === "upload-not-kept";
+    text = `STALE: judged under other settings (${j.settings.width}×${j.settings.height}, -x ${j.settings.aa}, stage ${j.settings.stage}); ` +
+      (notKept ? (rays.file ? "sending the log again…" : "load the log again to judge it under these settings") : "judging again…") + " — " + text;
+    cls = "warn";
+    if (notKept && rays.file && !rays.resending) {
+      rays.resending = true;
+      raysUpload(rays.file).finally(() => { rays.resending = false; });
+    } else if (!notKept) {
+      clearTimeout(rays.pollTimer);
+      rays.pollTimer = setTimeout(raysPoll, 300);
+    }
+  }
+  raysSummaryText(text, s.state, cls);
+  box.dataset.disagree = String(px.disagrees);
+  box.dataset.job = String(j.job);
+  const codes = $("rays-codes");
+  codes.innerHTML = "";
+  for (const v of j.verdicts) codes.append(el("span", { title: v.summary }, el("b", {}, v.code), ` × ${v.count}`));
+  for (const v of j.tie_verdicts) codes.append(el("span", { title: v.summary + " (not counted against you)" }, v.code, ` × ${v.count}`));
+  if (j.job !== rays.mapJob) {
+    rays.mapJob = j.job;
+    raysLoadMap(j);
+    raysLoadRendered();
+    if (st.pixel) raysPixel(); else requestView();
+  }
+}
+function raysLoadMap(j) {
+  const img = new Image();
+  img.onload = () => {
+    const c = document.createElement("canvas");
+    c.width = img.naturalWidth; c.height = img.naturalHeight;
+    const g = c.getContext("2d");
+    g.drawImage(img, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height);
+    rays.mapData = { width: c.width, height: c.height, data: new Uint8ClampedArray(d.data) };
+    // The overlay: strong red where rays disagree, a light tint where they agree.
+    for (let i = 0; i < d.data.length; i += 4) {
+      const key = `${d.data[i]},${d.data[i + 1]},${d.data[i + 2]}`;
+      const s = RAYS_STATUS[key];
+      d.data[i + 3] = s === "disagrees" ? 175 : s === "only ties" ? 130 : s === "agrees" ? 60 : 0;
+    }
+    g.putImageData(d, 0, 0);
+    rays.mapCanvas = c;
+    drawOverlay();
+    requestView();
+  };
+  img.src = j.map;
+}
+function raysImageData(src, done) {
+  const img = new Image();
+  img.onload = () => {
+    const c = document.createElement("canvas");
+    c.width = img.naturalWidth; c.height = img.naturalHeight;
+    const g = c.getContext("2d");
+    g.drawImage(img, 0, 0);
+    done(g.getImageData(0, 0, c.width, c.height));
+  };
+  img.src = src;
+}
+function raysLoadTheirs() {
+  raysImageData(`/api/rays/image.png?v=${rays.imageVersion}`, (d) => { rays.theirData = d; });
+  raysLoadRendered();
+  if (raysShowTheirs()) loadImage();
+  requestView();
+}
+function raysLoadRendered() {
+  if (!raysJudged() && !(rays.summary && rays.summary.image)) return;
+  if (st.renderedJob < 0) return;
+  raysImageData(`/api/image.png?channel=color&job=${st.renderedJob}`, (d) => { rays.rsData = d; });
+}
+function raysDrawOverlay(g, z) {
+  const ov = $("image-overlay");
+  const j = raysJudged();
+  if (!j || !rays.mapCanvas || !$("show-verdicts").checked || !raysSizeMatches(rays.mapCanvas.width, rays.mapCanvas.height)) { delete ov.dataset.verdicts; return; }
+  g.imageSmoothingEnabled = false;
+  g.drawImage(rays.mapCanvas, 0, 0, rays.mapCanvas.width * z, rays.mapCanvas.height * z);
+  ov.dataset.verdicts = `${j.pixels.disagrees}`;
+}
+function raysRgbAt(d, p) {
+  if (!d || !raysSizeMatches(d.width, d.height)) return null;
+  const i = (p[1] * d.width + p[0]) * 4;
+  return [d.data[i], d.data[i + 1], d.data[i + 2]];
+}
+function raysReadout(p) {
+  if (!raysJudged() && !(rays.summary && rays.summary.image)) return "";
+  const f = (c) => (c ? `rgb(${c.join(", ")})` : "—");
+  let s = `pixel (${p[0]}, ${p[1]}) · rayscope ${f(raysRgbAt(rays.rsData, p))}`;
+  if (rays.summary && rays.summary.image) {
+    const t = raysRgbAt(rays.theirData, p), r = raysRgbAt(rays.rsData, p);
+    s += ` · yours ${f(t)}`;
+    if (t && r) s += ` (Δ ${t.map((v, i) => v - r[i]).map((v) => (v > 0 ? "+" : "") + v).join(", ")})`;
+  }
+  const m = rays.mapData && raysSizeMatches(rays.mapData.width, rays.mapData.height) ? rays.mapData : null;
+  if (m) {
+    const i = (p[1] * m.width + p[0]) * 4;
+    s += ` · rays: ${RAYS_STATUS[`${m.data[i]},${m.data[i + 1]},${m.data[i + 2]}`] || "?"}`;
+  }
+  return s;
+}
+function raysViewParams(p) {
+  $("view").dataset.student = raysJudged() && st.pixel ? "1" : "0";
+  if (raysJudged()) {
+    p.set("student", "1");
+    if ($("show-verdicts").checked) p.set("verdicts", "1");
+  }
+  if (raysShowTheirs()) p.set("grid", "student");
+}
+const rvec = (a) => (a ? "(" + a.map((x) => fmt(x, 4)).join(", ") + ")" : "—");
+async function raysPixel() {
+  const j = raysJudged();
+  if (!j || !st.pixel) return;
+  const [x, y] = st.pixel;
+  if (x >= j.width || y >= j.height) return;
+  const seq = ++rays.pixelSeq;
+  showTab("rays-tab");
+  try {
+    const q = new URLSearchParams({ x, y });
+    if (rays.pixelSample != null) q.set("sample", rays.pixelSample);
+    rays.pixelSample = null;
+    const r = await api("/api/rays/pixel?" + q);
+    if (seq !== rays.pixelSeq) return;
+    // The view and the ray tree follow the sample shown (the first one that disagrees).
+    if (r.sample != null && r.sample !== st.sample && r.sample < r.samples_per_pixel) {
+      st.sample = r.sample;
+      tracePixel().then(() => showTab("rays-tab"));
+    }
+    requestView();
+    raysShowPixel(r);
+  } catch (e) {
+    $("rays-pixel-head").textContent = e.message;
+  }
+}
+function raysShowPixel(r) {
+  const head = $("rays-pixel-head");
+  head.innerHTML = "";
+  const status = { "agrees": "agrees", "tie": "only genuine ties", "disagrees": "disagrees", "not-logged": "not in your log" }[r.status] || r.status;
+  head.append(`pixel (${r.x}, ${r.y}): ${status}` + (r.code ? ` (${r.code})` : ""));
+  if (r.samples.length > 1) {
+    const sel = el("select", { id: "rays-sample" });
+    for (const s of r.samples) sel.append(el("option", { value: s == null ? "" : s }, s == null ? "rays without a sample" : `sample ${s}`));
+    sel.value = r.sample == null ? "" : String(r.sample);
+    sel.addEventListener("change", () => { rays.pixelSample = sel.value === "" ? null : Number(sel.value); raysPixel(); });
+    head.append(" ", sel);
+  } else if (r.sample != null) head.append(`, sample ${r.sample}`);
+  if (r.their_rgb8) head.append(` — yours rgb(${r.their_rgb8.join(", ")}), rayscope ${r.rayscope_rgb8 ? `rgb(${r.rayscope_rgb8.join(", ")})` : "—"}`);
+  if (r.stale) head.append(el("span", { class: "warn" }, " — judged under other settings"));
+  if (r.dropped) head.append(el("span", { class: "warn" }, " — some of this pixel's rays were not kept (the display cap): its verdict stands, the table shows the rays kept"));
+  if (r.status === "not-logged") head.append(" — your log has no ray for this pixel");
+  // The first divergence, explained.
+  const dv = $("rays-divergence");
+  dv.innerHTML = "";
+  if (r.divergence) {
+    const d = r.divergence;
+    const box = el("div", { class: "divergence", id: "rays-divergence-box", "data-code": d.code || "" },
+      el("b", {}, "Where the trees part: "), d.code ? el("span", { class: "code" }, d.code) : "(shape only)", d.code ? " — " : " ", d.summary,
+      el("p", {}, d.detail), el("p", { class: "dim" }, d.explanation));
+    if (d.values.length) {
+      const t = el("table", {}, el("thead", {}, el("tr", {}, el("th", {}, ""), el("th", {}, "yours"), el("th", {}, "rayscope"))));
+      const tb = el("tbody");
+      const show = (v) => (Array.isArray(v) ? rvec(v) : v === null ? "—" : String(v));
+      for (const v of d.values) tb.append(el("tr", {}, el("td", {}, v.what), el("td", {}, show(v.yours)), el("td", {}, show(v.rayscope))));
+      t.append(tb); box.append(t);
+    }
+    dv.append(box);
+  } else if (r.yours.length) {
+    dv.append(el("div", { class: "dim", id: "rays-divergence-box", "data-code": "" }, "Your rays of this sample agree with rayscope's, ray for ray."));
+  }
+  // The two trees, row by row.
+  const tb = $("rays-table").querySelector("tbody");
+  tb.innerHTML = "";
+  const indent = (d) => "\u00a0\u00a0".repeat(d);
+  r.alignment.rows.forEach((row, k) => {
+    const y = row.yours != null ? r.yours[row.yours] : null;
+    const n = row.rayscope != null ? r.rayscope.nodes[row.rayscope] : null;
+    const verdict = y ? (y.findings.filter((f) => !f.code.startsWith("tie.")).map((f) => f.code).join(", ") || (y.findings.length ? y.findings.map((f) => f.code).join(", ") : "✓")) : "";
+    const vcls = !y ? "" : row.verdict === "disagrees" ? "bad" : row.verdict === "tie" ? "tie" : "ok";
+    const tr = el("tr", { class: (k === r.alignment.divergence ? "diverge " : "") + (row.shape !== "both" ? "only" : "") },
+      el("td", {}, y ? String(y.line) : ""),
+      el("td", { class: "k", style: y ? `color:${KIND_COLORS[y.kind] || "#ccc"}` : "" }, y ? indent(row.depth) + y.kind : "—"),
+      el("td", {}, y ? rvec(y.direction) : ""),
+      el("td", { class: y ? "" : "empty" }, y ? y.answer : "not in your log"),
+      el("td", { class: vcls, title: y ? y.findings.map((f) => `${f.code}: ${f.detail}`).join("\n") : "" }, verdict),
+      el("td", { class: "gap" }),
+      el("td", { class: "k", style: n ? `color:${KIND_COLORS[n.kind] || "#ccc"}` : "" }, n ? indent(row.depth) + n.kind : "—"),
+      el("td", {}, n ? rvec(n.direction) : ""),
+      el("td", { class: n ? "" : "empty" }, n ? r.rayscope_answers[n.id] : "rayscope casts none"),
+    );
+    tb.append(tr);
+  });
+  // The divergent row in view, scrolling the table only (not the page).
+  const dr = tb.querySelector("tr.diverge");
+  const wrap = tb.closest(".table-wrap");
+  if (dr && wrap) wrap.scrollTop = Math.max(0, dr.offsetTop - wrap.clientHeight / 2);
+}
+
 function showTab(id) {
   for (const t of document.querySelectorAll(".tab")) t.classList.toggle("active", t.dataset.tab === id);
   for (const b of document.querySelectorAll(".tab-body")) b.classList.toggle("hidden", b.id !== id);
@@ -628,6 +938,7 @@ async function main() {
     for (const t of document.querySelectorAll(".tab")) t.addEventListener("click", () => showTab(t.dataset.tab));
     document.body.dataset.ready = "1";
     pollStatus();
+    raysPoll();
   } catch (e) {
     $("status-text").textContent = "cannot load the scene: " + e.message;
   }

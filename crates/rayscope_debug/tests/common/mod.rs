@@ -178,6 +178,7 @@ pub fn start_server_with(scene: &str, width: u32, height: u32, limits: ServerLim
         port: 0,
         allow_hosts: Vec::new(),
         limits,
+        student: Default::default(),
     })
     .expect("debugger starts")
 }

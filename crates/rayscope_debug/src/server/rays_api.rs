@@ -1,0 +1,667 @@
+//! The debugger's API for a student's ray log and image (see [`crate::student`]).
+//!
+//! - `POST /api/rays?name=FILE` with the log as the body: `Content-Type: application/x-ndjson`
+//!   for JSON Lines, `application/octet-stream` for RayTracer.Debug's `.rays` (both types a page
+//!   on another origin cannot send without a preflight). At most [`MAX_LOG_BYTES`]; the body is
+//!   judged as it arrives (each part within the body timeout), so memory stays bounded; a log of
+//!   up to [`KEEP_LOG_BYTES`] is kept to judge again when the settings change. Runs in a heavy
+//!   slot. Answers the summary once judged.
+//! - `GET /api/rays/summary`: the judgement's state and counts; judges again when the settings
+//!   changed and the log can be read again (a file, or a kept upload), else says `stale`.
+//! - `GET /api/rays/map.png`: the verdict map, one pixel per image pixel.
+//! - `GET /api/rays/pixel?x=&y=&sample=`: the student's rays of a pixel sample beside rayscope's
+//!   tree, aligned, with the first divergence explained.
+//! - `POST /api/rays/image` (`image/png`, at most 32 MiB, at most 2048 pixels a side) and
+//!   `GET /api/rays/image.png`: the student's image.
+//! - `/api/view` takes `student=1` (the student's rays of the selected pixel), `verdicts=1` (the
+//!   verdict map on the grid) and `grid=student` (their image on the grid).
+
+use std::io::Read;
+use std::path::Path;
+
+use axum::extract::Query;
+use rayscope_check::log::IdRole;
+use rayscope_check::PixelLog;
+
+use super::*;
+use crate::student::{self, StudentInput};
+
+/// Largest ray log the debugger accepts as an upload.
+pub const MAX_LOG_BYTES: u64 = 4 << 30;
+/// Uploads up to this size are kept in memory to judge again after a settings change; larger
+/// ones are judged once and marked stale after a change (the page sends them again).
+pub const KEEP_LOG_BYTES: usize = 64 << 20;
+/// Largest uploaded student image in bytes.
+const IMAGE_BODY_LIMIT: usize = 32 * 1024 * 1024;
+/// Pixels that disagree listed in the summary (all are counted).
+const LIST: usize = 2000;
+
+enum Data {
+    File(PathBuf),
+    Bytes(Bytes),
+    /// An upload too large to keep.
+    Gone,
+}
+
+struct Source {
+    name: String,
+    binary: bool,
+    data: Data,
+    roles: Vec<IdRole>,
+    lenient: bool,
+}
+
+struct Judged {
+    settings: RenderSettings,
+    log: Arc<PixelLog>,
+    tint: Arc<Vec<[u8; 4]>>,
+    map_png: Arc<Vec<u8>>,
+    name: String,
+    millis: f64,
+    job: u64,
+}
+
+struct Running {
+    id: u64,
+    settings: RenderSettings,
+    cancel: Arc<AtomicBool>,
+    done: Arc<AtomicU64>,
+    total: Arc<AtomicU64>,
+    started: Instant,
+    name: String,
+}
+
+#[derive(Default)]
+struct RInner {
+    source: Option<Arc<Source>>,
+    judged: Option<Arc<Judged>>,
+    running: Option<Running>,
+    /// The last judgement's failure, with the settings it ran under.
+    error: Option<(RenderSettings, String)>,
+    image: Option<(String, Arc<RgbImage>)>,
+    next: u64,
+}
+
+/// The student's log and image, held by the server.
+#[derive(Default)]
+pub(super) struct RaysState {
+    inner: Mutex<RInner>,
+}
+
+impl RaysState {
+    fn lock(&self) -> std::sync::MutexGuard<'_, RInner> {
+        self.inner.lock().unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+/// Loads what `rayscope debug --rays … --image …` gave and starts judging the log.
+pub(super) fn start(st: &Arc<AppState>, input: StudentInput) {
+    if let Some(img) = input.image {
+        st.rays.lock().image = Some(("your image".into(), Arc::new(img)));
+    }
+    if let Some(path) = input.rays {
+        let source = Arc::new(Source {
+            name: path
+                .file_name()
+                .map_or("log".into(), |n| n.to_string_lossy().into_owned()),
+            binary: student::is_binary_log(&path),
+            data: Data::File(path),
+            roles: if input.ray_ids.is_empty() {
+                student::default_ray_ids()
+            } else {
+                input.ray_ids
+            },
+            lenient: input.lenient,
+        });
+        st.rays.lock().source = Some(source.clone());
+        let settings = st.lock().settings;
+        let _ = start_job(st, source, None, settings);
+    }
+}
+
+/// A `Read` over the parts of a request body as they arrive.
+struct ChannelReader {
+    rx: tokio::sync::mpsc::Receiver<Result<Bytes, String>>,
+    cur: Bytes,
+}
+
+impl Read for ChannelReader {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        while self.cur.is_empty() {
+            match self.rx.blocking_recv() {
+                None => return Ok(0),
+                Some(Ok(b)) => self.cur = b,
+                Some(Err(e)) => return Err(std::io::Error::other(e)),
+            }
+        }
+        let n = buf.len().min(self.cur.len());
+        buf[..n].copy_from_slice(&self.cur[..n]);
+        self.cur = self.cur.slice(n..);
+        Ok(n)
+    }
+}
+
+type JobResult = tokio::sync::oneshot::Receiver<Result<(), String>>;
+
+/// Starts judging `source` (read from `reader` when given) under `settings`, cancelling the
+/// judgement before it; returns the job id and where its outcome arrives.
+fn start_job(
+    st: &Arc<AppState>,
+    source: Arc<Source>,
+    reader: Option<(Box<dyn Read + Send>, u64)>,
+    settings: RenderSettings,
+) -> (u64, JobResult) {
+    let (tx, rx) = tokio::sync::oneshot::channel();
+    let cancel = Arc::new(AtomicBool::new(false));
+    let done = Arc::new(AtomicU64::new(0));
+    let total = Arc::new(AtomicU64::new(0));
+    let id = {
+        let mut g = st.rays.lock();
+        if let Some(r) = g.running.take() {
+            r.cancel.store(true, Ordering::Relaxed);
+        }
+        g.next += 1;
+        let id = g.next;
+        g.running = Some(Running {
+            id,
+            settings,
+            cancel: cancel.clone(),
+            done: done.clone(),
+            total: total.clone(),
+            started: Instant::now(),
+            name: source.name.clone(),
+        });
+        id
+    };
+    let st = st.clone();
+    std::thread::spawn(move || {
+        let start = Instant::now();
+        let progress = |d: u64, t: u64| {
+            done.store(d, Ordering::Relaxed);
+            total.store(t, Ordering::Relaxed);
+        };
+        let name = Path::new(&source.name);
+        let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            let (reader, len): (Box<dyn Read + Send>, u64) = match (reader, &source.data) {
+                (Some(r), _) => r,
+                (None, Data::File(p)) => {
+                    let f = std::fs::File::open(p).map_err(|e| format!("cannot read ray log {}: {e}", p.display()))?;
+                    let len = f.metadata().map(|m| m.len()).unwrap_or(0);
+                    (Box::new(std::io::BufReader::with_capacity(1 << 20, f)), len)
+                }
+                (None, Data::Bytes(b)) => (Box::new(std::io::Cursor::new(b.clone())), b.len() as u64),
+                (None, Data::Gone) => return Err("the log was not kept: send it again".to_string()),
+            };
+            total.store(len, Ordering::Relaxed);
+            student::judge_reader(
+                &st.scene,
+                &settings,
+                reader,
+                name,
+                len,
+                source.binary,
+                &source.roles,
+                source.lenient,
+                rayscope_check::PixelOptions::default(),
+                &progress,
+                &cancel,
+            )
+            .map_err(|e| e.to_string().trim_start_matches("error: ").to_string())
+        }))
+        .unwrap_or_else(|_| Err("judging the log failed (a bug in rayscope: please report it)".into()));
+        let result = match outcome {
+            Ok(Some(log)) => {
+                let map_png = encode::png(&student::verdict_map(&log));
+                let tint = student::verdict_tint(&log);
+                Ok(Judged {
+                    settings,
+                    log: Arc::new(log),
+                    tint: Arc::new(tint),
+                    map_png: Arc::new(map_png),
+                    name: source.name.clone(),
+                    millis: start.elapsed().as_secs_f64() * 1000.0,
+                    job: id,
+                })
+            }
+            Ok(None) => Err(None),
+            Err(e) => Err(Some(e)),
+        };
+        let mut g = st.rays.lock();
+        let current = g.running.as_ref().is_some_and(|r| r.id == id);
+        if current {
+            g.running = None;
+        }
+        let answer = match result {
+            Ok(j) if current => {
+                g.judged = Some(Arc::new(j));
+                g.error = None;
+                Ok(())
+            }
+            Ok(_) | Err(None) => Err("cancelled: another log (or the same one under new settings) replaced it".into()),
+            Err(Some(e)) => {
+                if current {
+                    g.error = Some((settings, e.clone()));
+                    g.judged = None;
+                }
+                Err(e)
+            }
+        };
+        drop(g);
+        let _ = tx.send(answer);
+    });
+    (id, rx)
+}
+
+/// Judges the log again when the settings changed since and it can be read again.
+fn refresh(st: &Arc<AppState>) {
+    let settings = st.lock().settings;
+    let source = {
+        let g = st.rays.lock();
+        let Some(source) = g.source.clone() else {
+            return;
+        };
+        if g.running.is_some() || matches!(source.data, Data::Gone) {
+            return;
+        }
+        let judged_now = g.judged.as_ref().is_some_and(|j| j.settings == settings);
+        let failed_now = g.error.as_ref().is_some_and(|(s, _)| *s == settings);
+        if judged_now || failed_now {
+            return;
+        }
+        source
+    };
+    let _ = start_job(st, source, None, settings);
+}
+
+fn summary(st: &Arc<AppState>) -> Value {
+    let settings = st.lock().settings;
+    let g = st.rays.lock();
+    let image = g.image.as_ref().map(|(name, img)| {
+        json!({
+            "name": name,
+            "width": img.width,
+            "height": img.height,
+            "matches": img.width == settings.width && img.height == settings.height,
+        })
+    });
+    let mut v = json!({
+        "state": "none",
+        "image": image,
+        "keep_bytes": KEEP_LOG_BYTES,
+        "max_bytes": MAX_LOG_BYTES,
+    });
+    if let Some(r) = &g.running {
+        v["state"] = json!("judging");
+        v["name"] = json!(r.name);
+        v["progress"] = json!({
+            "done": r.done.load(Ordering::Relaxed),
+            "total": r.total.load(Ordering::Relaxed),
+            "elapsed_ms": r.started.elapsed().as_secs_f64() * 1000.0,
+        });
+        v["for_current_settings"] = json!(r.settings == settings);
+    }
+    if let Some(j) = &g.judged {
+        let stale = j.settings != settings;
+        let mut s = student::summary_json(&j.log, LIST);
+        s["name"] = json!(j.name);
+        s["millis"] = json!(j.millis);
+        s["job"] = json!(j.job);
+        s["stale"] = json!(stale);
+        s["settings"] = settings_json(&j.settings);
+        s["map"] = json!(format!("/api/rays/map.png?job={}", j.job));
+        s["detail_cap"] = json!(rayscope_check::PixelOptions::default().detail_cap);
+        v["judged"] = s;
+        if g.running.is_none() {
+            v["state"] = json!(if stale { "stale" } else { "done" });
+        }
+    }
+    if let Some((s, e)) = &g.error {
+        v["error"] = json!(e);
+        v["error_stale"] = json!(*s != settings);
+        if g.running.is_none() && g.judged.is_none() {
+            v["state"] = json!("error");
+        }
+    }
+    if let Some(src) = &g.source {
+        v["source"] = json!({
+            "name": src.name,
+            "kind": match src.data { Data::File(_) => "file", Data::Bytes(_) => "upload", Data::Gone => "upload-not-kept" },
+            "format": if src.binary { "rays" } else { "jsonl" },
+        });
+    }
+    v
+}
+
+pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> {
+    refresh(&st);
+    Json(summary(&st))
+}
+
+fn clean_name(s: &str) -> String {
+    let s: String = s
+        .chars()
+        .filter(|c| !c.is_control())
+        .take(120)
+        .collect::<String>()
+        .rsplit(['/', '\\'])
+        .next()
+        .unwrap_or("")
+        .to_string();
+    if s.is_empty() {
+        "uploaded log".into()
+    } else {
+        s
+    }
+}
+
+pub(super) async fn api_upload(
+    State(st): State<Arc<AppState>>,
+    Query(q): Params,
+    headers: HeaderMap,
+    body: Body,
+) -> ApiResult<Json<Value>> {
+    let sent = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let essence = sent
+        .as_deref()
+        .and_then(|t| t.split(';').next())
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    let name = clean_name(q.get("name").map_or("", String::as_str));
+    let binary = match essence.as_str() {
+        "application/x-ndjson" | "application/jsonl" => false,
+        "application/octet-stream" => !name.to_ascii_lowercase().ends_with(".jsonl"),
+        _ => {
+            return Err(ApiError(
+                StatusCode::UNSUPPORTED_MEDIA_TYPE,
+                format!(
+                    "send a ray log with Content-Type: application/x-ndjson (JSON Lines) or application/octet-stream (a .rays file) (got {})",
+                    sent.map_or("none".to_string(), |t| format!("'{t}'"))
+                ),
+            ))
+        }
+    };
+    let roles = match q.get("ray_ids") {
+        Some(r) => IdRole::parse_list(r).map_err(|e| ApiError::bad(format!("ray_ids: {e}")))?,
+        None => student::default_ray_ids(),
+    };
+    let lenient = q.get("lenient").is_some_and(|v| v == "1" || v == "true");
+    let too_large = || {
+        ApiError(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("the ray log is too large (at most {MAX_LOG_BYTES} bytes); judge it with `rayscope debug SCENE --rays LOG` instead"),
+        )
+    };
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok());
+    if declared.is_some_and(|n| n > MAX_LOG_BYTES) {
+        return Err(too_large());
+    }
+    let slot = st.heavy.slot()?;
+    let settings = st.lock().settings;
+    let (tx, rx) = tokio::sync::mpsc::channel::<Result<Bytes, String>>(16);
+    let reader = ChannelReader { rx, cur: Bytes::new() };
+    let placeholder = Arc::new(Source {
+        name: name.clone(),
+        binary,
+        data: Data::Gone,
+        roles: roles.clone(),
+        lenient,
+    });
+    let (id, result) = start_job(
+        &st,
+        placeholder,
+        Some((Box::new(reader), declared.unwrap_or(0))),
+        settings,
+    );
+
+    use http_body_util::BodyExt;
+    let mut body = body;
+    let mut size = 0u64;
+    let mut kept: Option<Vec<u8>> = Some(Vec::new());
+    let mut failure: Option<ApiError> = None;
+    loop {
+        let frame = match tokio::time::timeout(st.limits.body_timeout, body.frame()).await {
+            Err(_) => {
+                failure = Some(ApiError(
+                    StatusCode::REQUEST_TIMEOUT,
+                    format!(
+                        "the ray log stopped arriving (nothing for {} s)",
+                        st.limits.body_timeout.as_secs_f64()
+                    ),
+                ));
+                break;
+            }
+            Ok(None) => break,
+            Ok(Some(Err(e))) => {
+                failure = Some(ApiError::bad(format!("could not read the ray log: {e}")));
+                break;
+            }
+            Ok(Some(Ok(f))) => f,
+        };
+        let Ok(data) = frame.into_data() else {
+            continue;
+        };
+        size += data.len() as u64;
+        if size > MAX_LOG_BYTES {
+            failure = Some(too_large());
+            break;
+        }
+        if let Some(k) = kept.as_mut() {
+            if k.len() + data.len() <= KEEP_LOG_BYTES {
+                k.extend_from_slice(&data);
+            } else {
+                kept = None;
+            }
+        }
+        if tx.send(Ok(data)).await.is_err() {
+            // The judge stopped reading: a malformed line, or a newer log replaced this one.
+            break;
+        }
+    }
+    if let Some(f) = failure {
+        let _ = tx.send(Err("the upload did not complete".into())).await;
+        drop(tx);
+        let _ = result.await;
+        drop(slot);
+        return Err(f);
+    }
+    drop(tx);
+    // The log as it can be read again, before the outcome, so that no refresh judges a stale
+    // source in between.
+    {
+        let mut g = st.rays.lock();
+        if g.running.as_ref().is_some_and(|r| r.id == id) || g.judged.as_ref().is_some_and(|j| j.job == id) {
+            g.source = Some(Arc::new(Source {
+                name,
+                binary,
+                data: kept.map_or(Data::Gone, |k| Data::Bytes(Bytes::from(k))),
+                roles,
+                lenient,
+            }));
+        }
+    }
+    let outcome = result
+        .await
+        .unwrap_or_else(|_| Err("judging the log failed".to_string()));
+    drop(slot);
+    match outcome {
+        Ok(()) => Ok(Json(summary(&st))),
+        Err(e) if e.starts_with("cancelled") => Err(ApiError(StatusCode::CONFLICT, e)),
+        Err(e) => Err(ApiError::bad(e)),
+    }
+}
+
+fn judged(st: &AppState) -> ApiResult<Arc<Judged>> {
+    st.rays.lock().judged.clone().ok_or_else(|| {
+        ApiError(
+            StatusCode::NOT_FOUND,
+            "no ray log judged yet: load one (POST /api/rays, or rayscope debug SCENE --rays LOG)".into(),
+        )
+    })
+}
+
+pub(super) async fn api_map(State(st): State<Arc<AppState>>) -> ApiResult<Response> {
+    let j = judged(&st)?;
+    Ok(png_response(j.map_png.to_vec()))
+}
+
+pub(super) async fn api_pixel(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Json<Value>> {
+    let j = judged(&st)?;
+    let (w, h) = (j.log.width, j.log.height);
+    let x = parse_num(&q, "x", u32::MAX, 0, w - 1)
+        .map_err(|_| ApiError::bad(format!("x must be a pixel column from 0 to {}", w - 1)))?;
+    let y = parse_num(&q, "y", u32::MAX, 0, h - 1)
+        .map_err(|_| ApiError::bad(format!("y must be a pixel row from 0 to {}", h - 1)))?;
+    if x == u32::MAX || y == u32::MAX {
+        return Err(ApiError::bad("x and y are required (0-based pixel from the top-left)"));
+    }
+    let sample = match q.get("sample") {
+        Some(_) => Some(parse_num(&q, "sample", 0u32, 0, u32::MAX)?),
+        None => None,
+    };
+    let slot = st.heavy.slot()?;
+    let st2 = st.clone();
+    let j2 = j.clone();
+    let cmp = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
+        student::compare_pixel(&st2.scene, &j2.settings, &j2.log, x, y, sample)
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("comparison failed: {e}")))?;
+    let mut v = serde_json::to_value(&cmp).map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    let settings = st.lock().settings;
+    v["stale"] = json!(j.settings != settings);
+    v["samples_per_pixel"] = json!(j.log.spp);
+    let px = |img: &RgbImage| {
+        (img.width == w && img.height == h).then(|| {
+            let i = (y * w + x) as usize * 3;
+            [img.rgb[i], img.rgb[i + 1], img.rgb[i + 2]]
+        })
+    };
+    v["their_rgb8"] = json!(st.rays.lock().image.as_ref().and_then(|(_, img)| px(img)));
+    v["rayscope_rgb8"] = json!(st
+        .lock()
+        .rendered
+        .as_ref()
+        .filter(|r| r.settings.width == w && r.settings.height == h)
+        .and_then(|r| px(&r.image)));
+    Ok(Json(v))
+}
+
+/// Decodes a PNG of at most [`MAX_IMAGE_SIDE`] pixels a side, the size read from its header
+/// first so that a small file cannot decode to a huge image.
+fn decode_png(png: &[u8]) -> Result<RgbImage, String> {
+    let reader = |limits: image::Limits| {
+        let mut r = image::ImageReader::with_format(std::io::Cursor::new(png), image::ImageFormat::Png);
+        r.limits(limits);
+        r
+    };
+    let mut header = image::Limits::default();
+    header.max_alloc = Some(REFERENCE_CHUNK_BYTES);
+    let (w, h) = reader(header)
+        .into_dimensions()
+        .map_err(|e| format!("not a readable PNG: {e}"))?;
+    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+        return Err(format!("the image is {w}×{h}; at most {MAX_IMAGE_SIDE} pixels a side"));
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(w);
+    limits.max_image_height = Some(h);
+    limits.max_alloc = Some(u64::from(w) * u64::from(h) * 8 + REFERENCE_CHUNK_BYTES);
+    let img = reader(limits)
+        .decode()
+        .map_err(|e| format!("not a readable PNG: {e}"))?
+        .into_rgb8();
+    Ok(RgbImage {
+        width: w,
+        height: h,
+        rgb: img.into_raw(),
+    })
+}
+
+pub(super) async fn api_image_upload(
+    State(st): State<Arc<AppState>>,
+    Query(q): Params,
+    headers: HeaderMap,
+    body: Body,
+) -> ApiResult<Json<Value>> {
+    let body = read_body(&st, &headers, body, "image/png", "your image", IMAGE_BODY_LIMIT).await?;
+    if body.is_empty() {
+        return Err(ApiError::bad("send your image (a PNG) as the request body"));
+    }
+    let name = clean_name(q.get("name").map_or("your image", String::as_str));
+    let slot = st.heavy.slot()?;
+    let img = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
+        decode_png(&body)
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
+    .map_err(ApiError::bad)?;
+    st.rays.lock().image = Some((name, Arc::new(img)));
+    Ok(Json(summary(&st)))
+}
+
+pub(super) async fn api_image(State(st): State<Arc<AppState>>) -> ApiResult<Response> {
+    let img = st
+        .rays
+        .lock()
+        .image
+        .as_ref()
+        .map(|(_, i)| i.clone())
+        .ok_or_else(|| ApiError(StatusCode::NOT_FOUND, "no image of yours loaded".into()))?;
+    let slot = st.heavy.slot()?;
+    let bytes = tokio::task::spawn_blocking(move || {
+        let _slot = slot;
+        encode::png(&img)
+    })
+    .await
+    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    Ok(png_response(bytes))
+}
+
+/// The view's student layers: `student=1` draws the student's rays of the selected pixel (its
+/// first divergent ray highlighted), `verdicts=1` tints the grid with the verdict map,
+/// `grid=student` paints their image on the grid.
+pub(super) fn view_hook(
+    st: &AppState,
+    q: &HashMap<String, String>,
+    settings: &RenderSettings,
+    sample: u32,
+    opts: &mut ViewOptions,
+    image: &mut Option<Arc<RgbImage>>,
+) -> ApiResult<()> {
+    let on = |name: &str| q.get(name).is_some_and(|v| v == "1" || v == "true");
+    match q.get("grid").map(String::as_str) {
+        None | Some("rayscope") => {}
+        Some("student") => {
+            let g = st.rays.lock();
+            if let Some((_, img)) = g.image.as_ref() {
+                if img.width == settings.width && img.height == settings.height && opts.image == ImageMode::Traced {
+                    *image = Some(img.clone());
+                }
+            }
+        }
+        Some(o) => return Err(ApiError::bad(format!("grid must be rayscope or student, not '{o}'"))),
+    }
+    let j = st.rays.lock().judged.clone();
+    let Some(j) = j.filter(|j| j.log.width == settings.width && j.log.height == settings.height) else {
+        return Ok(());
+    };
+    if on("verdicts") {
+        opts.cell_tint = Some(j.tint.clone());
+    }
+    if on("student") {
+        if let Some((x, y)) = opts.pixel {
+            let cmp = student::compare_pixel(&st.scene, &j.settings, &j.log, x, y, Some(sample));
+            let hl = cmp.alignment.divergence.and_then(|r| cmp.alignment.rows[r].yours);
+            opts.foreign_rays = student::foreign_rays(&cmp.yours, hl);
+        }
+    }
+    Ok(())
+}
