@@ -518,7 +518,7 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), Stri
         .map_err(e)?;
     let (x, y) = (v["x"].as_u64().ok_or("x")?, v["y"].as_u64().ok_or("y")?);
     let (iw, ih) = (v["w"].as_f64().ok_or("w")?, v["h"].as_f64().ok_or("h")?);
-    let (dx, dy) = (v["dx"].as_i64().ok_or("dx")?, v["dy"].as_i64().ok_or("dy")?);
+    let (dx, dy) = (v["dx"].as_f64().ok_or("dx")?, v["dy"].as_f64().ok_or("dy")?);
     let image = c.find(Locator::Css("#image")).await.map_err(e)?;
     let click = MouseActions::new("mouse".into())
         .then(PointerAction::MoveToElement {

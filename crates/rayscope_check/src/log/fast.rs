@@ -10,8 +10,9 @@ use std::borrow::Cow;
 
 use super::{RawHit, RawRay};
 
-/// A position in one record.
+/// A position in one record, checked to be UTF-8 once so that its pieces need no checks.
 struct Cursor<'a> {
+    s: &'a str,
     b: &'a [u8],
     i: usize,
 }
@@ -63,7 +64,8 @@ impl<'a> Cursor<'a> {
             return None;
         }
         self.i = start + len + 1;
-        std::str::from_utf8(s).ok()
+        // Both ends are at ASCII quotes, so they are character boundaries.
+        self.s.get(start..start + len)
     }
 
     /// A number in JSON's grammar, as text, and whether it has a fraction or an exponent.
@@ -106,8 +108,7 @@ impl<'a> Cursor<'a> {
             real = true;
         }
         self.i = i;
-        // The bytes are ASCII digits, signs, '.' and 'e' only.
-        std::str::from_utf8(&b[start..i]).ok().map(|s| (s, real))
+        self.s.get(start..i).map(|s| (s, real))
     }
 
     fn f64(&mut self) -> Option<f64> {
@@ -260,7 +261,12 @@ fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
 
 /// Reads one record of the common shape, or `None` to leave it to serde_json.
 pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
-    let mut c = Cursor { b: bytes, i: 0 };
+    let text = std::str::from_utf8(bytes).ok()?;
+    let mut c = Cursor {
+        s: text,
+        b: bytes,
+        i: 0,
+    };
     let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
     let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
     let (mut hit_, mut light, mut blocked_by) = (None, None, None);
