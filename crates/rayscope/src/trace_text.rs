@@ -40,17 +40,6 @@ impl Digits {
     }
 }
 
-fn kind_name(k: RayKind) -> &'static str {
-    match k {
-        RayKind::Camera => "camera",
-        RayKind::Shadow => "shadow",
-        RayKind::Reflection => "reflection",
-        RayKind::Refraction => "refraction",
-        RayKind::Emitter => "emitter",
-        RayKind::Bounce => "bounce",
-    }
-}
-
 /// What a node's `weight` is, by the kind of ray.
 fn weight_name(k: RayKind) -> &'static str {
     match k {
@@ -147,7 +136,7 @@ pub fn format_tree(t: &RayTree, digits: usize) -> String {
     );
     for n in &t.nodes {
         let indent = "  ".repeat(depth_of(t, n.id));
-        let _ = write!(out, "{indent}#{} {}, depth {}", n.id, kind_name(n.kind), n.depth);
+        let _ = write!(out, "{indent}#{} {}, depth {}", n.id, n.kind.name(), n.depth);
         if n.weight != 1.0 {
             let _ = write!(out, ", {} {}", weight_name(n.kind), d.num(n.weight.into()));
         }

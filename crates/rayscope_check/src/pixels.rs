@@ -398,18 +398,6 @@ pub struct Alignment {
     pub divergence: Option<usize>,
 }
 
-fn rs_kind(k: rayscope_core::RayKind) -> &'static str {
-    use rayscope_core::RayKind;
-    match k {
-        RayKind::Camera => "camera",
-        RayKind::Shadow => "shadow",
-        RayKind::Reflection => "reflection",
-        RayKind::Refraction => "refraction",
-        RayKind::Emitter => "emitter",
-        RayKind::Bounce => "bounce",
-    }
-}
-
 fn angle3(a: [f64; 3], b: [f32; 3]) -> f64 {
     let a = DVec3::from(a).normalize_or_zero();
     let b = DVec3::new(f64::from(b[0]), f64::from(b[1]), f64::from(b[2])).normalize_or_zero();
@@ -456,7 +444,7 @@ pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[S
         }
     }
     let same = |s: &ShownRay, n: &rayscope_core::RayNode| {
-        if s.kind != rs_kind(n.kind) {
+        if s.kind != n.kind.name() {
             return false;
         }
         match (s.light, &n.light) {

@@ -5,18 +5,7 @@ use std::io::{self, Write};
 
 use rayon::prelude::*;
 use rayscope_core::integrator::{Counters, Integrator};
-use rayscope_core::{RayKind, RayRecorder, RenderSettings, Scene};
-
-fn kind(k: RayKind) -> &'static str {
-    match k {
-        RayKind::Camera => "camera",
-        RayKind::Shadow => "shadow",
-        RayKind::Reflection => "reflection",
-        RayKind::Refraction => "refraction",
-        RayKind::Emitter => "emitter",
-        RayKind::Bounce => "bounce",
-    }
-}
+use rayscope_core::{RayRecorder, RenderSettings, Scene};
 
 fn json_str(s: &str) -> String {
     serde_json::to_string(s).unwrap_or_else(|_| "\"?\"".into())
@@ -35,7 +24,7 @@ fn sample_lines(integ: &Integrator<'_>, x: u32, y: u32, s: u32, out: &mut String
             "{{\"pixel\":[{x},{y}],\"sample\":{s},\"id\":{},\"parent\":{},\"kind\":\"{}\",\"origin\":{},\"direction\":{}",
             n.id,
             n.parent.map_or("null".to_string(), |p| p.to_string()),
-            kind(n.kind),
+            n.kind.name(),
             v(n.origin),
             v(n.direction)
         );

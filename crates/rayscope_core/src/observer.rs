@@ -26,6 +26,21 @@ pub enum RayKind {
     Bounce,
 }
 
+impl RayKind {
+    /// The kind's word, as in `trace --json` and ray logs.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            RayKind::Camera => "camera",
+            RayKind::Shadow => "shadow",
+            RayKind::Reflection => "reflection",
+            RayKind::Refraction => "refraction",
+            RayKind::Emitter => "emitter",
+            RayKind::Bounce => "bounce",
+        }
+    }
+}
+
 /// Receives the rays an integrator casts. All methods default to doing nothing.
 pub trait RayObserver {
     /// False for observers that record nothing, so integrators can skip bookkeeping.
