@@ -485,6 +485,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     let err = |col: usize, span: usize, msg: String| {
         Box::new(Diagnostic::error(path, line_no as usize, &shown(), col, span, msg).with_note(FORMAT_NOTE))
     };
+    // Records of the common shape take the fast reader; serde_json reads the rest and words errors.
     let raw: RawRay = match fast::parse(bytes).map_or_else(|| serde_json::from_slice(bytes), Ok) {
         Ok(r) => r,
         Err(e) => {
