@@ -12,15 +12,7 @@ use predicates::prelude::*;
 
 /// Renders `scene` with `flags` into `out` (quietly) and returns the file's bytes.
 fn full(scene: &Path, out: &Path, flags: &[&str]) -> Vec<u8> {
-    rayscope()
-        .arg("-f")
-        .arg(scene)
-        .arg("-o")
-        .arg(out)
-        .arg("--quiet")
-        .args(flags)
-        .assert()
-        .success();
+    common::render_to(scene, out, flags);
     fs::read(out).unwrap()
 }
 

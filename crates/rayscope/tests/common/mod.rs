@@ -15,8 +15,8 @@ pub fn rayscope() -> Command {
     Command::cargo_bin("rayscope").expect("binary built")
 }
 
-/// Renders with extra flags into `out` and returns the image.
-pub fn render(scene: &Path, out: &Path, flags: &[&str]) -> image::RgbImage {
+/// Renders with extra flags into `out`, asserting success.
+pub fn render_to(scene: &Path, out: &Path, flags: &[&str]) {
     rayscope()
         .arg("-f")
         .arg(scene)
@@ -26,6 +26,11 @@ pub fn render(scene: &Path, out: &Path, flags: &[&str]) -> image::RgbImage {
         .args(flags)
         .assert()
         .success();
+}
+
+/// Renders with extra flags into `out` and returns the image.
+pub fn render(scene: &Path, out: &Path, flags: &[&str]) -> image::RgbImage {
+    render_to(scene, out, flags);
     image::open(out).expect("output image").to_rgb8()
 }
 
