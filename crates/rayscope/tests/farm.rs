@@ -320,7 +320,7 @@ fn frames_are_numbered_and_a_merged_frame_is_that_frame() {
         "--key-n",
         "3:-6",
     ];
-    full_frames(&scene, &dir.path().join("turn_##.png"), &flags);
+    common::render_to(&scene, &dir.path().join("turn_##.png"), &flags);
     let names: Vec<String> = {
         let mut v: Vec<String> = fs::read_dir(dir.path())
             .unwrap()
@@ -377,18 +377,6 @@ fn frames_are_numbered_and_a_merged_frame_is_that_frame() {
         .assert()
         .code(2)
         .stderr(predicate::str::contains("the frames differ (frame 1 against frame 2)"));
-}
-
-fn full_frames(scene: &Path, out: &Path, flags: &[&str]) {
-    rayscope()
-        .arg("-f")
-        .arg(scene)
-        .arg("-o")
-        .arg(out)
-        .arg("--quiet")
-        .args(flags)
-        .assert()
-        .success();
 }
 
 #[test]

@@ -905,6 +905,29 @@ async fn finish_response(res: Response, method: &axum::http::Method, path: &str)
     res
 }
 
+/// The request's `Content-Type` as sent, and its essence (before any `;`), trimmed and lowercased.
+fn content_type(headers: &HeaderMap) -> (Option<String>, String) {
+    let sent = headers
+        .get(header::CONTENT_TYPE)
+        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
+    let essence = sent
+        .as_deref()
+        .and_then(|t| t.split(';').next())
+        .unwrap_or("")
+        .trim()
+        .to_ascii_lowercase();
+    (sent, essence)
+}
+
+/// The body length the request declares (`Content-Length`), so an oversized body is refused
+/// before any of it is read.
+fn declared_length(headers: &HeaderMap) -> Option<u64> {
+    headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<u64>().ok())
+}
+
 /// Reads a request body sent as `mime`, at most `limit` bytes, within the body timeout.
 ///
 /// The type is required, not guessed: `application/json` and `image/png` are types a page on
@@ -918,11 +941,8 @@ async fn read_body(
     what: &str,
     limit: usize,
 ) -> ApiResult<Bytes> {
-    let sent = headers
-        .get(header::CONTENT_TYPE)
-        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
-    let essence = sent.as_deref().and_then(|t| t.split(';').next()).unwrap_or("").trim();
-    if !essence.eq_ignore_ascii_case(mime) {
+    let (sent, essence) = content_type(headers);
+    if essence != mime {
         return Err(ApiError(
             StatusCode::UNSUPPORTED_MEDIA_TYPE,
             format!(
@@ -937,11 +957,7 @@ async fn read_body(
             format!("{what} is too large (at most {limit} bytes)"),
         )
     };
-    let declared = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
-    if declared.is_some_and(|n| n > limit as u64) {
+    if declared_length(headers).is_some_and(|n| n > limit as u64) {
         return Err(too_large());
     }
     use http_body_util::BodyExt;

@@ -360,15 +360,7 @@ pub(super) async fn api_upload(
     headers: HeaderMap,
     body: Body,
 ) -> ApiResult<Json<Value>> {
-    let sent = headers
-        .get(header::CONTENT_TYPE)
-        .map(|v| String::from_utf8_lossy(v.as_bytes()).into_owned());
-    let essence = sent
-        .as_deref()
-        .and_then(|t| t.split(';').next())
-        .unwrap_or("")
-        .trim()
-        .to_ascii_lowercase();
+    let (sent, essence) = content_type(&headers);
     let name = clean_name(q.get("name").map_or("", String::as_str));
     let binary = match essence.as_str() {
         "application/x-ndjson" | "application/jsonl" => false,
@@ -394,10 +386,7 @@ pub(super) async fn api_upload(
             format!("the ray log is too large (at most {MAX_LOG_BYTES} bytes); judge it with `rayscope debug SCENE --rays LOG` instead"),
         )
     };
-    let declared = headers
-        .get(header::CONTENT_LENGTH)
-        .and_then(|v| v.to_str().ok())
-        .and_then(|v| v.parse::<u64>().ok());
+    let declared = declared_length(&headers);
     if declared.is_some_and(|n| n > MAX_LOG_BYTES) {
         return Err(too_large());
     }
