@@ -6,13 +6,14 @@
 //! it happens, not a cascade below it: a wrong camera ray's children are judged from that ray, and
 //! the children of a ray whose hit is wrong are judged on their own answers only.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
 
 use glam::{DMat3, DVec3, Vec3A};
 use rayscope_core::integrator::Integrator;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{FovAxis, Ray, RenderSettings, Scene, Stage};
 use rayscope_scene::MaterialKind;
+use rustc_hash::FxHashMap;
 use serde::Serialize;
 use serde_json::json;
 
@@ -306,6 +307,11 @@ fn glass_fresnel(lv: &Leave, ior: f64) -> f64 {
 }
 
 /// The scale tolerances are multiplied by.
+/// Relative distance within which an origin computed in f32 lies on the surface it was computed
+/// on: f32's rounding of coordinates, with a margin. An origin offset as the course's 1e-5 is
+/// ten times farther.
+const SURFACE_ROUNDING: f64 = 1e-6;
+
 fn scale(points: &[DVec3]) -> f64 {
     points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max)
 }
@@ -417,16 +423,7 @@ impl<'a> Judge<'a> {
 
     fn judge_group_inner(&self, rays: &[LoggedRay], tally: &mut Tally, keep: bool) -> Vec<Vec<Finding>> {
         let n = rays.len();
-        let ids: HashMap<i64, usize> = rays
-            .iter()
-            .enumerate()
-            .filter_map(|(i, r)| r.id.map(|id| (id, i)))
-            .collect();
-        let parent: Vec<Option<usize>> = rays
-            .iter()
-            .enumerate()
-            .map(|(i, r)| r.parent.and_then(|p| ids.get(&p).copied()).filter(|&p| p != i))
-            .collect();
+        let parent = parents(rays, 32);
         tally.orphans += rays
             .iter()
             .zip(&parent)
@@ -478,7 +475,11 @@ impl<'a> Judge<'a> {
         kinds: &[Kind],
         findings: &mut [Vec<Finding>],
     ) {
-        let mut children: HashMap<usize, Vec<usize>> = HashMap::new();
+        // Only a reflection can be the invented half of a total internal reflection.
+        if !kinds.contains(&Kind::Reflection) {
+            return;
+        }
+        let mut children: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
         for (i, p) in parent.iter().enumerate() {
             if let Some(p) = p {
                 children.entry(*p).or_default().push(i);
@@ -1488,14 +1489,17 @@ impl<'a> Judge<'a> {
                 }
                 if let Some(lv) = leave {
                     if e == lv.entity && on_segment.is_none() {
-                        let t_self = self
-                            .geo
-                            .entity_intersect(e, r.origin, d, -pos, dist)
-                            .map_or(0.0, |x| x.0);
-                        f.push(self.finding(r, kind, Code::ShadowAcne, self.acne_detail(r, lv, t_self), v));
-                        return;
+                        let t_self = self.geo.entity_intersect(e, r.origin, d, -pos, dist).map(|x| x.0);
+                        // Acne only if the ray meets the surface it leaves at t ≈ 0 from its
+                        // origin (no offset, or one within rounding); from an offset origin the
+                        // name is wrong for another reason, judged below.
+                        if t_self.is_some_and(|t| t >= -SURFACE_ROUNDING * l) {
+                            let t_self = t_self.unwrap_or(0.0);
+                            f.push(self.finding(r, kind, Code::ShadowAcne, self.acne_detail(r, lv, t_self), v));
+                            return;
+                        }
                     }
-                } else if on_segment.is_none() && self.geo.entity_distance(e, r.origin).0 <= pos {
+                } else if on_segment.is_none() && self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l {
                     f.push(self.finding(
                         r,
                         kind,
@@ -1809,5 +1813,59 @@ impl<'a> Judge<'a> {
         };
         f.push(self.finding(r, kind, Code::RefractionSnell, detail, value(want)));
         want
+    }
+}
+
+/// Each ray's parent in `rays`: the last ray logged with its `parent` id, never itself. Groups
+/// of at most `scan` rays are searched directly, which for the handful of rays of a sample is
+/// sooner than building a map.
+fn parents(rays: &[LoggedRay], scan: usize) -> Vec<Option<usize>> {
+    let own = |i: usize, p: Option<usize>| p.filter(|&p| p != i);
+    if rays.len() <= scan {
+        rays.iter()
+            .enumerate()
+            .map(|(i, r)| own(i, r.parent.and_then(|p| rays.iter().rposition(|q| q.id == Some(p)))))
+            .collect()
+    } else {
+        let ids: FxHashMap<i64, usize> = rays
+            .iter()
+            .enumerate()
+            .filter_map(|(i, r)| r.id.map(|id| (id, i)))
+            .collect();
+        rays.iter()
+            .enumerate()
+            .map(|(i, r)| own(i, r.parent.and_then(|p| ids.get(&p).copied())))
+            .collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn ray(id: Option<i64>, parent: Option<i64>) -> LoggedRay {
+        LoggedRay {
+            id,
+            parent,
+            ..LoggedRay::for_tests([0, 0], 0, 1)
+        }
+    }
+
+    #[test]
+    fn parents_are_the_last_ray_with_the_id_whether_scanned_or_mapped() {
+        // Ids repeat (a tracer that numbers rays per bounce), a parent is missing, a ray names
+        // itself, and one has no id.
+        let rays = vec![
+            ray(Some(0), None),
+            ray(Some(1), Some(0)),
+            ray(Some(1), Some(0)),
+            ray(Some(2), Some(1)),
+            ray(Some(3), Some(9)),
+            ray(Some(4), Some(4)),
+            ray(None, Some(2)),
+        ];
+        let want = vec![None, Some(0), Some(0), Some(2), None, None, Some(3)];
+        assert_eq!(parents(&rays, 32), want);
+        assert_eq!(parents(&rays, 0), want);
     }
 }

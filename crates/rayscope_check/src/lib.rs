@@ -16,11 +16,11 @@ pub mod report;
 pub mod selflog;
 pub mod verdict;
 
-use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
 pub use judge::{Finding, Judge, Tally, Tolerances, Value};
 pub use log::{LogContext, LogError, LoggedRay, RaySource};
@@ -40,9 +40,15 @@ const WINDOW: u64 = 1 << 16;
 const MAX_GROUP: usize = 1 << 16;
 
 /// Collects rays into pixel samples, closing those that are complete.
+///
+/// Tracers write most of a sample's rays one after another, so the sample of the last record is
+/// kept out of the map: a record of the same sample costs a comparison, not a hash lookup.
 #[derive(Default)]
 struct Grouper {
-    open: HashMap<Key, (Vec<LoggedRay>, u64)>,
+    /// Open samples other than the current one, with the record count at their last ray.
+    open: FxHashMap<Key, (Vec<LoggedRay>, u64)>,
+    /// The sample of the last record, with the record count at its last ray.
+    current: Option<(Key, (Vec<LoggedRay>, u64))>,
     seen: u64,
 }
 
@@ -50,19 +56,36 @@ impl Grouper {
     fn push(&mut self, r: LoggedRay, ready: &mut Vec<Vec<LoggedRay>>) {
         self.seen += 1;
         let key = (r.pixel, r.sample);
-        let e = self.open.entry(key).or_default();
-        e.0.push(r);
-        e.1 = self.seen;
-        if e.0.len() >= MAX_GROUP {
-            if let Some((g, _)) = self.open.remove(&key) {
+        if !matches!(&self.current, Some((k, _)) if *k == key) {
+            self.park();
+            let e = self.open.remove(&key).unwrap_or_default();
+            self.current = Some((key, e));
+        }
+        let Some((_, entry)) = self.current.as_mut() else {
+            unreachable!("the current sample was set above")
+        };
+        entry.0.push(r);
+        entry.1 = self.seen;
+        if entry.0.len() >= MAX_GROUP {
+            if let Some((_, (g, _))) = self.current.take() {
                 ready.push(g);
             }
+        }
+    }
+
+    /// Moves the current sample into the map.
+    fn park(&mut self) {
+        if let Some((k, e)) = self.current.take() {
+            self.open.insert(k, e);
         }
     }
 
     /// Moves the samples that got no ray in the last [`WINDOW`] records (all, at the end) to
     /// `ready`, in the order of their last ray.
     fn close(&mut self, all: bool, ready: &mut Vec<Vec<LoggedRay>>) {
+        if all {
+            self.park();
+        }
         let limit = self.seen.saturating_sub(WINDOW);
         let mut done: Vec<(u64, Key)> = self
             .open
@@ -96,7 +119,7 @@ impl Default for CheckOptions {
 /// with bytes of the log after each batch.
 pub fn check(
     judge: &Judge<'_>,
-    source: &mut dyn RaySource,
+    source: &mut (dyn RaySource + Send),
     opts: CheckOptions,
     progress: &dyn Fn(u64, u64),
 ) -> Result<Report, LogError> {
@@ -107,12 +130,50 @@ pub fn check(
 /// What [`run`] hands each judged pixel sample to: its rays and their verdicts.
 pub(crate) type Sink<'s> = &'s mut dyn FnMut(Vec<LoggedRay>, Vec<Vec<Finding>>);
 
-/// The check's loop: reads batches, groups them into pixel samples, judges the complete ones in
-/// parallel. With a `sink`, every sample's rays and verdicts go to it, in the order the samples
-/// complete. `None` when `cancel` was set.
+/// Pixel samples judged in one step: the tally and, when a sink wants them, each ray's findings.
+type Judged = (Tally, Option<Vec<Vec<Vec<Finding>>>>);
+
+/// Judges `groups` in parallel.
+fn judge_groups(judge: &Judge<'_>, groups: &[Vec<LoggedRay>], keep: usize, findings: bool) -> Judged {
+    if findings {
+        let judged: Vec<(Tally, Vec<Vec<Finding>>)> = groups
+            .par_iter()
+            .with_min_len(16)
+            .map(|g| {
+                let mut t = Tally::new(keep);
+                let f = judge.judge_group_findings(g, &mut t);
+                (t, f)
+            })
+            .collect();
+        let mut tally = Tally::new(keep);
+        let mut all = Vec::with_capacity(judged.len());
+        for (t, f) in judged {
+            tally = tally.merge(t);
+            all.push(f);
+        }
+        (tally, Some(all))
+    } else {
+        let t = groups
+            .par_iter()
+            .with_min_len(16)
+            .fold(
+                || Tally::new(keep),
+                |mut t, g| {
+                    judge.judge_group(g, &mut t);
+                    t
+                },
+            )
+            .reduce(|| Tally::new(keep), Tally::merge);
+        (t, None)
+    }
+}
+
+/// The check's loop: reads batches, groups them into pixel samples, and judges the complete ones
+/// in parallel while the next batch is read. With a `sink`, every sample's rays and verdicts go
+/// to it, in the order the samples complete. `None` when `cancel` was set.
 pub(crate) fn run(
     judge: &Judge<'_>,
-    source: &mut dyn RaySource,
+    source: &mut (dyn RaySource + Send),
     opts: CheckOptions,
     progress: &dyn Fn(u64, u64),
     cancel: &AtomicBool,
@@ -122,60 +183,50 @@ pub(crate) fn run(
     let mut reading = Duration::ZERO;
     let mut judging = Duration::ZERO;
     let mut grouper = Grouper::default();
-    let mut tally = Tally::new(opts.examples);
+    let keep = opts.examples;
+    let mut tally = Tally::new(keep);
     let mut batch = Vec::with_capacity(log::BATCH);
-    let mut ready: Vec<Vec<LoggedRay>> = Vec::new();
-    loop {
+    // Samples completed by the previous batch, judged while the next batch is read.
+    let mut pending: Vec<Vec<LoggedRay>> = Vec::new();
+    let mut more = true;
+    let findings = sink.is_some();
+    while more || !pending.is_empty() {
         if cancel.load(Ordering::Relaxed) {
             return Ok(None);
         }
-        let t0 = Instant::now();
-        batch.clear();
-        let more = source.next_batch(&mut batch)?;
-        for r in batch.drain(..) {
-            grouper.push(r, &mut ready);
-        }
-        grouper.close(!more, &mut ready);
-        reading += t0.elapsed();
-        let t1 = Instant::now();
-        if !ready.is_empty() {
-            let keep = opts.examples;
-            if let Some(sink) = sink.as_mut() {
-                let judged: Vec<(Tally, Vec<Vec<Finding>>)> = ready
-                    .par_iter()
-                    .with_min_len(16)
-                    .map(|g| {
-                        let mut t = Tally::new(keep);
-                        let f = judge.judge_group_findings(g, &mut t);
-                        (t, f)
-                    })
-                    .collect();
-                for (g, (t, f)) in ready.drain(..).zip(judged) {
-                    tally = tally.merge(t);
-                    sink(g, f);
-                }
-            } else {
-                let t = ready
-                    .par_iter()
-                    .with_min_len(16)
-                    .fold(
-                        || Tally::new(keep),
-                        |mut t, g| {
-                            judge.judge_group(g, &mut t);
-                            t
-                        },
-                    )
-                    .reduce(|| Tally::new(keep), Tally::merge);
-                tally = tally.merge(t);
+        let read = || -> Result<(Vec<Vec<LoggedRay>>, bool, Duration), LogError> {
+            let t0 = Instant::now();
+            let mut ready = Vec::new();
+            if !more {
+                return Ok((ready, false, Duration::ZERO));
             }
-            ready.clear();
+            batch.clear();
+            let again = source.next_batch(&mut batch)?;
+            for r in batch.drain(..) {
+                grouper.push(r, &mut ready);
+            }
+            grouper.close(!again, &mut ready);
+            Ok((ready, again, t0.elapsed()))
+        };
+        let judged = || {
+            let t1 = Instant::now();
+            let j = judge_groups(judge, &pending, keep, findings);
+            (j, t1.elapsed())
+        };
+        let (next, ((t, f), dt)) = rayon::join(read, judged);
+        judging += dt;
+        tally = tally.merge(t);
+        if let (Some(sink), Some(f)) = (sink.as_mut(), f) {
+            for (g, f) in pending.drain(..).zip(f) {
+                sink(g, f);
+            }
         }
-        judging += t1.elapsed();
+        let (ready, again, dt) = next?;
+        reading += dt;
+        pending = ready;
+        more = again;
         let (done, total) = source.progress();
         progress(done, total);
-        if !more {
-            break;
-        }
     }
     tally.finish();
     let (skipped, first) = source.skipped();
@@ -190,4 +241,55 @@ pub(crate) fn run(
             total: start.elapsed(),
         },
     )))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The log lines of each group, in the order the groups are handed on.
+    fn lines(groups: &[Vec<LoggedRay>]) -> Vec<Vec<u64>> {
+        groups.iter().map(|g| g.iter().map(|r| r.line).collect()).collect()
+    }
+
+    #[test]
+    fn samples_gather_their_rays_whether_written_together_or_interleaved() {
+        let mut g = Grouper::default();
+        let mut ready = Vec::new();
+        // Sample (0,0)#0 written whole, then (1,0)#0 and (1,0)#1 interleaved as two threads
+        // write them, then (0,0)#0 again after a gap.
+        let log = [
+            ([0, 0], 0),
+            ([0, 0], 0),
+            ([1, 0], 0),
+            ([1, 0], 1),
+            ([1, 0], 0),
+            ([1, 0], 1),
+            ([2, 0], 3),
+        ];
+        for (line, (p, s)) in log.into_iter().enumerate() {
+            g.push(LoggedRay::for_tests(p, s, line as u64 + 1), &mut ready);
+        }
+        g.push(LoggedRay::for_tests([0, 0], 0, 8), &mut ready);
+        g.close(false, &mut ready);
+        assert!(ready.is_empty(), "no sample is older than the window");
+        g.close(true, &mut ready);
+        // In the order of each sample's last ray.
+        assert_eq!(lines(&ready), vec![vec![3, 5], vec![4, 6], vec![7], vec![1, 2, 8]]);
+    }
+
+    #[test]
+    fn a_sample_closes_once_the_window_has_passed_it() {
+        let mut g = Grouper::default();
+        let mut ready = Vec::new();
+        g.push(LoggedRay::for_tests([0, 0], 0, 1), &mut ready);
+        for i in 0..WINDOW {
+            g.push(LoggedRay::for_tests([1, 0], (i % 2) as u32, i + 2), &mut ready);
+        }
+        g.close(false, &mut ready);
+        assert_eq!(lines(&ready), vec![vec![1]]);
+        g.close(true, &mut ready);
+        assert_eq!(ready.len(), 3);
+        assert_eq!(ready.iter().map(Vec::len).sum::<usize>() as u64, WINDOW + 1);
+    }
 }

@@ -6,7 +6,6 @@
 //! record is a [`Diagnostic`] naming the file, line and column and what was expected.
 
 use std::borrow::Cow;
-use std::collections::HashMap;
 use std::fmt;
 use std::fs::File;
 use std::io::{BufReader, Read};
@@ -15,6 +14,7 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use rayon::prelude::*;
 use rayscope_scene::Diagnostic;
+use rustc_hash::FxHashMap;
 use serde::Deserialize;
 
 mod fast;
@@ -115,12 +115,35 @@ pub struct LoggedRay {
     pub blocked_by: Answer<u32>,
 }
 
+#[cfg(test)]
+impl LoggedRay {
+    /// A camera ray of `pixel` and `sample` on log line `line`, with nothing else logged.
+    pub(crate) fn for_tests(pixel: [u32; 2], sample: u32, line: u64) -> Self {
+        Self {
+            line,
+            pixel: Some(pixel),
+            sample: Some(sample),
+            id: None,
+            parent: None,
+            kind: None,
+            origin: DVec3::ZERO,
+            direction: DVec3::Z,
+            dir_len: 1.0,
+            end: None,
+            hit: Answer::NotLogged,
+            light: None,
+            blocked_by: Answer::NotLogged,
+        }
+    }
+}
+
 /// Names and ranges a record is validated against.
 #[derive(Debug, Clone)]
 pub struct LogContext {
-    entities: HashMap<String, u32>,
+    // Looked up for every hit and shadow ray read, so with a cheap hash.
+    entities: FxHashMap<String, u32>,
     entity_list: Vec<String>,
-    lights: HashMap<String, u32>,
+    lights: FxHashMap<String, u32>,
     light_list: Vec<String>,
     /// Image width.
     pub width: u32,
@@ -325,15 +348,18 @@ impl<R: Read> JsonlReader<R> {
     fn fill(&mut self) -> Result<(), LogError> {
         let mut want = CHUNK;
         loop {
-            while self.buf.len() < want && !self.eof {
-                let old = self.buf.len();
-                self.buf.resize(want, 0);
-                let n = self.src.read(&mut self.buf[old..]).map_err(|source| LogError::Io {
-                    path: self.path.clone(),
-                    source,
-                })?;
-                self.buf.truncate(old + n);
-                if n == 0 {
+            if self.buf.len() < want && !self.eof {
+                // `read_to_end` reads into the spare capacity without zeroing it first.
+                let need = want - self.buf.len();
+                self.buf.reserve(need);
+                let n = (&mut self.src)
+                    .take(need as u64)
+                    .read_to_end(&mut self.buf)
+                    .map_err(|source| LogError::Io {
+                        path: self.path.clone(),
+                        source,
+                    })?;
+                if n < need {
                     self.eof = true;
                 }
             }

@@ -279,7 +279,7 @@ impl PixelLog {
 /// verdicts per pixel of the `judge`'s image. `None` when `cancel` was set.
 pub fn check_pixels(
     judge: &Judge<'_>,
-    source: &mut dyn RaySource,
+    source: &mut (dyn RaySource + Send),
     opts: PixelOptions,
     progress: &dyn Fn(u64, u64),
     cancel: &AtomicBool,

@@ -285,3 +285,91 @@ fn rayscope_own_log_gets_no_verdict() {
         assert_eq!(r.camera_rays, u64::from(w * w * aa * aa));
     }
 }
+
+#[test]
+fn camera_mistakes_are_named_by_their_cause() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = || course.scene("sample_scene_1.txt");
+    for (bug, aa, code) in [
+        ("pixel-corner", 1, Code::CameraPixelCorner),
+        ("plane-distance", 1, Code::CameraPlaneDistance),
+        ("subpixel-grid", 2, Code::CameraSubpixelGrid),
+    ] {
+        assert_named(
+            Run {
+                bug,
+                aa,
+                ..Run::new(scene(), 40, 40)
+            },
+            code,
+            &[],
+        );
+    }
+}
+
+#[test]
+fn glass_mistakes_on_the_way_out_and_in_are_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for scene in [course.scene("sample_scene_2.txt"), root().join("scenes/whitted.txt")] {
+        assert_named(
+            Run {
+                bug: "indices-not-swapped",
+                ..Run::new(scene.clone(), 40, 40)
+            },
+            Code::RefractionIndicesNotSwapped,
+            &[],
+        );
+        assert_named(
+            Run {
+                bug: "tir-entering",
+                ..Run::new(scene, 40, 40)
+            },
+            Code::RefractionTirInvented,
+            &[],
+        );
+    }
+}
+
+#[test]
+fn a_shadow_ray_naming_the_shaded_surface_as_its_blocker_is_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_named(
+        Run {
+            bug: "blocker-name",
+            ..Run::new(course.scene("sample_scene_1.txt"), 40, 40)
+        },
+        Code::ShadowWrongBlocker,
+        &[],
+    );
+    // Scene 2 has shadow rays that graze a blocker: named right they are ties, named wrong they
+    // are blocked by nothing in rayscope's trace.
+    assert_named(
+        Run {
+            bug: "blocker-name",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::ShadowWrongBlocker,
+        &[Code::ShadowPhantomBlocker],
+    );
+}
+
+#[test]
+fn refracted_rays_leaving_a_mirror_are_named() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_named(
+        Run {
+            bug: "mirror-as-glass",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::SecondaryWrongMaterial,
+        &[],
+    );
+}

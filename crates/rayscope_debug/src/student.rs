@@ -46,7 +46,7 @@ pub fn default_ray_ids() -> Vec<IdRole> {
 /// # Errors
 /// A malformed log (the message names the line), or an unreadable one.
 #[allow(clippy::too_many_arguments)]
-pub fn judge_reader<R: Read>(
+pub fn judge_reader<R: Read + Send>(
     scene: &Scene,
     settings: &RenderSettings,
     src: R,

@@ -59,14 +59,19 @@ impl<'a> Cursor<'a> {
             return None;
         }
         let start = self.i;
-        let len = memchr::memchr2(b'"', b'\\', &self.b[start..])?;
-        let s = &self.b[start..start + len];
-        if self.b[start + len] != b'"' || s.iter().any(|&c| c < 0x20) {
-            return None;
+        // Keys and names are a few bytes long: a plain loop beats a vectorised search's set-up.
+        let mut end = start;
+        loop {
+            match *self.b.get(end)? {
+                b'"' => break,
+                b'\\' => return None,
+                c if c < 0x20 => return None,
+                _ => end += 1,
+            }
         }
-        self.i = start + len + 1;
+        self.i = end + 1;
         // Both ends are at ASCII quotes, so they are character boundaries.
-        self.s.get(start..start + len)
+        self.s.get(start..end)
     }
 
     /// A number in JSON's grammar, as text, and whether it has a fraction or an exponent.
@@ -112,7 +117,66 @@ impl<'a> Cursor<'a> {
         self.s.get(start..i).map(|s| (s, real))
     }
 
+    /// A decimal without an exponent whose digits, read as an integer, are at most 2^53, with at
+    /// most 22 after the point: both that integer and the power of ten are exact f64s, so one
+    /// division gives the correctly rounded value, which is what every exact reader returns.
+    /// Tracers print most coordinates this way. `None` for anything else, read by [`Self::f64`].
+    fn short_decimal(&mut self) -> Option<f64> {
+        const POW10: [f64; 23] = [
+            1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18,
+            1e19, 1e20, 1e21, 1e22,
+        ];
+        self.skip_ws();
+        let b = self.b;
+        let mut i = self.i;
+        let negative = b.get(i) == Some(&b'-');
+        if negative {
+            i += 1;
+        }
+        let mut m: u64 = 0;
+        let mut digits = 0usize;
+        let int_start = i;
+        while let Some(&c) = b.get(i) {
+            if !c.is_ascii_digit() {
+                break;
+            }
+            m = m.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
+            digits += 1;
+            i += 1;
+        }
+        let int_digits = i - int_start;
+        if int_digits == 0 || (int_digits > 1 && b[int_start] == b'0') {
+            return None;
+        }
+        let mut fraction = 0usize;
+        if b.get(i) == Some(&b'.') {
+            i += 1;
+            while let Some(&c) = b.get(i) {
+                if !c.is_ascii_digit() {
+                    break;
+                }
+                m = m.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
+                digits += 1;
+                fraction += 1;
+                i += 1;
+            }
+            if fraction == 0 {
+                return None;
+            }
+        }
+        // 19 digits cannot wrap a u64, so `m` is the exact integer they spell.
+        if digits > 19 || m > 1 << 53 || fraction > 22 || matches!(b.get(i), Some(b'e' | b'E')) {
+            return None;
+        }
+        let v = m as f64 / POW10[fraction];
+        self.i = i;
+        Some(if negative { -v } else { v })
+    }
+
     fn f64(&mut self) -> Option<f64> {
+        if let Some(v) = self.short_decimal() {
+            return Some(v);
+        }
         let (s, _) = self.number()?;
         let v: f64 = s.parse().ok()?;
         // serde_json refuses numbers too large for an f64.
@@ -341,6 +405,37 @@ mod tests {
         for line in lines {
             let fast = parse(line.as_bytes()).unwrap_or_else(|| panic!("the fast reader refused {line}"));
             assert_eq!(Some(fast), serde(line), "{line}");
+        }
+    }
+
+    #[test]
+    fn reads_decimals_bit_exactly_on_both_sides_of_the_short_path_limits() {
+        let numbers = [
+            "0.1",
+            "-0.30000000000000004",
+            "-0",
+            "-0.0",
+            "9007199254740992",
+            "9007199254740993",
+            "-900719925474099.3",
+            "0.9007199254740993",
+            "1234567890123456789",
+            "12345678901234567890",
+            "0.0000000000000000000001",
+            "0.00000000000000000000001",
+            "1.000000000000000000001",
+            "0.000000000000000000000000000000000000000000001401298",
+            "179769313486231570000000000000000000000000000000000000000000000",
+            "3.4028235e38",
+            "0.44704583",
+        ];
+        for n in numbers {
+            let line = format!(r#"{{"origin":[{n},0,0],"direction":[0,0,1]}}"#);
+            let fast = parse(line.as_bytes()).unwrap_or_else(|| panic!("the fast reader refused {n}"));
+            let want: f64 = n.parse().expect("a number");
+            assert_eq!(fast.origin.map(|o| o[0].to_bits()), Some(want.to_bits()), "{n}");
+            let slow = serde(&line).expect("serde_json reads it");
+            assert_eq!(slow.origin.map(|o| o[0].to_bits()), Some(want.to_bits()), "{n}");
         }
     }
 

@@ -12,6 +12,13 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   one-sided          triangles are one-sided (back faces culled)
   aspect             the aspect ratio is applied the wrong way round
   no-tir             refraction without total internal reflection
+  pixel-corner       rays through pixel corners instead of centres
+  plane-distance     the image plane at z = 2 with the half-width of the plane at z = 1
+  subpixel-grid      sub-pixel samples numbered column by column (i * N + j)
+  indices-not-swapped n1 = 1 and n2 = index on both sides of the glass (never swapped)
+  tir-entering       the critical-angle test applied when entering glass as well
+  blocker-name       shadow rays name the surface being shaded as their blocker
+  mirror-as-glass    Reflective materials fall through into the glass branch
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
        [--log rays.jsonl] [--image out.ppm]
@@ -190,15 +197,15 @@ class Tracer:
         self.emit(rec)
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
-            return self.diffuse(p, nf, m, rid)
+            return self.diffuse(p, nf, m, rid, e)
         if depth >= MAX_DEPTH:
             return (0.0, 0.0, 0.0)
-        if m["type"] == "Reflective":
+        if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
             return self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
         return self.glass(d, p, n, nf, front, m, depth, rid)
 
-    def diffuse(self, p, nf, m, rid):
+    def diffuse(self, p, nf, m, rid, shaded):
         col = (0.0, 0.0, 0.0)
         for light in self.lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
@@ -208,14 +215,14 @@ class Tracer:
             b = self.blocker(so, ldir, dist)
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
-                       "blocked_by": b.name if b else None})
+                       "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
             if b is None:
                 col = add(col, mul(hadamard(m["color"], light["color"]), max(0.0, dot(nf, ldir))))
         return col
 
     def glass(self, d, p, n, nf, front, m, depth, rid):
-        ior = m["value"]
-        n1, n2 = (1.0, ior) if front else (ior, 1.0)
+        ior = m["value"] if m["type"] == "Refractive" else 1.5
+        n1, n2 = (1.0, ior) if front or self.bug == "indices-not-swapped" else (ior, 1.0)
         nn = n if self.bug == "refraction-normal" else nf
         eta = n1 / n2
         cosi = -dot(d, nn)
@@ -232,6 +239,8 @@ class Tracer:
         r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
         col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
         if k < 0 and self.bug != "no-tir":
+            return col
+        if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
             return col
         k = max(k, 0.0)
         tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
@@ -251,7 +260,8 @@ def main():
     ap.add_argument("--image", default=None)
     args = ap.parse_args()
     if args.bug not in ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided",
-                        "aspect", "no-tir"):
+                        "aspect", "no-tir", "pixel-corner", "plane-distance", "subpixel-grid",
+                        "indices-not-swapped", "tir-entering", "blocker-name", "mirror-as-glass"):
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
     x0, y0, x1, y1 = 0, 0, w, h
@@ -271,10 +281,12 @@ def main():
             total = (0.0, 0.0, 0.0)
             for j in range(n):
                 for i in range(n):
-                    tr.pixel, tr.sample = (x, y), j * n + i
-                    u = (x + (i + 0.5) / n) / w
-                    v = (y + (j + 0.5) / n) / h
-                    d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, 1.0))
+                    tr.pixel, tr.sample = (x, y), (i * n + j if args.bug == "subpixel-grid" else j * n + i)
+                    c = 0.0 if args.bug == "pixel-corner" else 0.5
+                    u = (x + (i + c) / n) / w
+                    v = (y + (j + c) / n) / h
+                    z = 2.0 if args.bug == "plane-distance" else 1.0
+                    d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, z))
                     total = add(total, tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera"))
             image[(x, y)] = mul(total, 1 / (n * n))
     if log is not sys.stdout:
