@@ -83,7 +83,7 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
     if !a.opts.quiet {
         let t = report.timing;
         eprintln!(
-            "{} rays in {secs:.3} s ({:.2} M rays/s; reading {:.3} s, judging {:.3} s on {} threads)",
+            "{} rays in {secs:.3} s ({:.2} M rays/s; reading {:.3} s and judging {:.3} s, side by side, on {} threads)",
             report.rays,
             report.rays as f64 / 1e6 / secs.max(1e-9),
             t.reading.as_secs_f64(),

@@ -168,9 +168,10 @@ fn judge_groups(judge: &Judge<'_>, groups: &[Vec<LoggedRay>], keep: usize, findi
     }
 }
 
-/// The check's loop: reads batches, groups them into pixel samples, and judges the complete ones
-/// in parallel while the next batch is read. With a `sink`, every sample's rays and verdicts go
-/// to it, in the order the samples complete. `None` when `cancel` was set.
+/// The check's loop, a pipeline of two steps that run at once: reading and parsing the next
+/// batch, and grouping the batch read before into pixel samples and judging the complete ones in
+/// parallel. With a `sink`, every sample's rays and verdicts go to it, in the order the samples
+/// complete. `None` when `cancel` was set.
 pub(crate) fn run(
     judge: &Judge<'_>,
     source: &mut (dyn RaySource + Send),
@@ -185,45 +186,50 @@ pub(crate) fn run(
     let mut grouper = Grouper::default();
     let keep = opts.examples;
     let mut tally = Tally::new(keep);
-    let mut batch = Vec::with_capacity(log::BATCH);
-    // Samples completed by the previous batch, judged while the next batch is read.
-    let mut pending: Vec<Vec<LoggedRay>> = Vec::new();
-    let mut more = true;
     let findings = sink.is_some();
-    while more || !pending.is_empty() {
+    // The batch being read, and the one read before it with whether it was the log's last.
+    let mut next: Vec<LoggedRay> = Vec::with_capacity(log::BATCH);
+    let mut read: Option<(Vec<LoggedRay>, bool)> = None;
+    let mut more = true;
+    while more || read.is_some() {
         if cancel.load(Ordering::Relaxed) {
             return Ok(None);
         }
-        let read = || -> Result<(Vec<Vec<LoggedRay>>, bool, Duration), LogError> {
+        let reader = || -> Result<(bool, Duration), LogError> {
             let t0 = Instant::now();
-            let mut ready = Vec::new();
-            if !more {
-                return Ok((ready, false, Duration::ZERO));
-            }
-            batch.clear();
-            let again = source.next_batch(&mut batch)?;
-            for r in batch.drain(..) {
-                grouper.push(r, &mut ready);
-            }
-            grouper.close(!again, &mut ready);
-            Ok((ready, again, t0.elapsed()))
+            next.clear();
+            let again = more && source.next_batch(&mut next)?;
+            Ok((again, t0.elapsed()))
         };
-        let judged = || {
+        let judger = || {
             let t1 = Instant::now();
-            let j = judge_groups(judge, &pending, keep, findings);
-            (j, t1.elapsed())
+            let mut ready = Vec::new();
+            if let Some((batch, last)) = read.as_mut() {
+                for r in batch.drain(..) {
+                    grouper.push(r, &mut ready);
+                }
+                grouper.close(*last, &mut ready);
+            }
+            let judged = judge_groups(judge, &ready, keep, findings);
+            (ready, judged, t1.elapsed())
         };
-        let (next, ((t, f), dt)) = rayon::join(read, judged);
+        let (got, (ready, (t, f), dt)) = rayon::join(reader, judger);
         judging += dt;
         tally = tally.merge(t);
         if let (Some(sink), Some(f)) = (sink.as_mut(), f) {
-            for (g, f) in pending.drain(..).zip(f) {
+            for (g, f) in ready.into_iter().zip(f) {
                 sink(g, f);
             }
         }
-        let (ready, again, dt) = next?;
+        let (again, dt) = got?;
         reading += dt;
-        pending = ready;
+        // The buffers trade places, so neither is allocated again.
+        let spare = read.take().map(|(b, _)| b).unwrap_or_default();
+        if more {
+            read = Some((std::mem::replace(&mut next, spare), !again));
+        } else {
+            next = spare;
+        }
         more = again;
         let (done, total) = source.progress();
         progress(done, total);

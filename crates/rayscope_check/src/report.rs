@@ -12,9 +12,9 @@ use crate::verdict::Code;
 /// Where a check spent its time.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Timing {
-    /// Reading and parsing the log, and grouping its rays.
+    /// Reading and parsing the log.
     pub reading: Duration,
-    /// Judging the rays.
+    /// Grouping the rays into pixel samples and judging them, while the next batch is read.
     pub judging: Duration,
     /// Everything.
     pub total: Duration,
