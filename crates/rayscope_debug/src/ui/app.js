@@ -15,7 +15,6 @@ const st = {
   job: 0,
   renderedJob: -1,
   check: null,
-  heatmap: null,
   normals: false,                   // draw the selected entity's normals in the view
   zoom: 0,
   zooms: [],                        // [zoom, label] of the zoom list
