@@ -384,7 +384,6 @@ const ZOOMS = [[1 / 8, "⅛×"], [1 / 6, "⅙×"], [1 / 4, "¼×"], [1 / 3, "⅓
 function setupZoom() {
   const z = $("zoom");
   const s = st.settings;
-  z.innerHTML = "";
   const box = $("image-scroll");
   // Side by side, two images and the gap between them share the width.
   const side = compareMode() === "side";
@@ -396,6 +395,7 @@ function setupZoom() {
   st.zooms = ZOOMS.filter(([k]) => Math.abs(k - fit) > 0.01);
   if (fit < 1) st.zooms.push([fit, `fit (${Math.round(fit * 100)} %)`]);
   st.zooms.sort((a, b) => a[0] - b[0]);
+  z.innerHTML = "";
   st.zooms.forEach(([, label], i) => z.append(el("option", { value: String(i) }, label)));
   let best = 0;
   st.zooms.forEach(([k], i) => { if (k <= fit + 1e-9) best = i; });
