@@ -731,6 +731,19 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     assert!(scale.contains("levels or more (auto)"), "{scale}");
     tokio::time::sleep(Duration::from_millis(400)).await;
     shot(c, "09-compare-heatmap.png").await;
+    // A chosen range: small differences at full brightness, the scale says so.
+    choose(c, "#heat-range", "8").await?;
+    let scale = wait_for("the heat map at range 8", 30, || async {
+        let t = text(c, "#heat-scale").await.ok()?;
+        t.contains("8 levels or more").then_some(t)
+    })
+    .await;
+    assert!(
+        !scale.contains("(auto)") && scale.contains("pixels differ by more"),
+        "{scale}"
+    );
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    shot(c, "09b-compare-heatmap-range-8.png").await;
 
     // Flicker: the two images alternate.
     choose(c, "#compare-mode", "flicker").await?;

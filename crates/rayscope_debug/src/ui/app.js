@@ -649,7 +649,7 @@ async function runCheck() {
 // diagnoses it in the background. A settings change blanks the comparison until the new render
 // has been compared, so no PSNR, heat map or diagnosis of other settings is ever on screen.
 const cmp = {
-  loaded: false, data: null, seq: 0, timer: null, urls: {}, showing: "rayscope", flickerTimer: null,
+  loaded: false, data: null, seq: 0, timer: null, urls: {}, loading: null, showing: "rayscope", flickerTimer: null,
   hover: null, hoverBusy: false, sideShown: false,
 };
 function compareMode() { return cmp.data ? $("compare-mode").value : "rayscope"; }
@@ -671,6 +671,7 @@ async function theirImageUpload(file) {
     const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
     raysOnSummary(s);
     cmp.data = null;
+    compareDropImages();
     comparePoll();
   } catch (e) {
     compareSummary(`${file.name}: ${e.message}`, "error", "error");
@@ -713,7 +714,7 @@ function compareOnSettings() {
 }
 // Forgets the images of a comparison that no longer holds.
 function compareDropImages() {
-  for (const u of Object.values(cmp.urls)) if (typeof u === "string") URL.revokeObjectURL(u);
+  for (const u of Object.values(cmp.urls)) if (typeof u === "string" && u.startsWith("blob:")) URL.revokeObjectURL(u);
   cmp.urls = {};
 }
 function compareClearDetails() {
@@ -753,7 +754,8 @@ function compareOnAnswer(v) {
     cmp.timer = setTimeout(comparePoll, 300);
     return;
   }
-  const fresh = !cmp.data || cmp.data.heatmap !== v.heatmap;
+  // The images are fetched once per comparison (its heat map's URL names it).
+  const fresh = cmp.urls.key !== v.heatmap && cmp.loading !== v.heatmap;
   cmp.data = v;
   const psnr = v.psnr === "inf" ? "∞ (identical)" : `${Number(v.psnr).toFixed(2)} dB`;
   const pct = (100 * v.differing / v.total).toFixed(1);
@@ -853,7 +855,7 @@ async function applySettings(patch) {
 }
 // The three images of a comparison, fetched once each, so that flicker swaps them instantly.
 async function compareLoadImages(v) {
-  const seq = cmp.seq;
+  cmp.loading = v.heatmap;
   const blob = async (path) => URL.createObjectURL(await (await fetchRetry(path)).blob());
   try {
     const [rs, theirs, heat] = await Promise.all([
@@ -861,13 +863,17 @@ async function compareLoadImages(v) {
       blob(`/api/rays/image.png?v=${rays.imageVersion}&job=${v.render_job}`),
       blob(v.heatmap),
     ]);
-    if (seq !== cmp.seq || cmp.data !== v) { for (const u of [rs, theirs, heat]) URL.revokeObjectURL(u); return; }
+    // Kept while the comparison on screen is still the one they belong to (later answers of
+    // the same comparison, while the diagnosis runs, do not replace it).
+    if (!cmp.data || cmp.data.heatmap !== v.heatmap) { for (const u of [rs, theirs, heat]) URL.revokeObjectURL(u); return; }
     const old = cmp.urls;
-    cmp.urls = { rs, theirs, heat, job: v.render_job };
+    cmp.urls = { rs, theirs, heat, key: v.heatmap };
     compareShow();
-    setTimeout(() => { for (const u of Object.values(old)) if (typeof u === "string") URL.revokeObjectURL(u); }, 2000);
+    setTimeout(() => { for (const u of Object.values(old)) if (typeof u === "string" && u.startsWith("blob:")) URL.revokeObjectURL(u); }, 2000);
   } catch (e) {
     $("compare-result").textContent = `loading the images: ${e.message}`;
+  } finally {
+    if (cmp.loading === v.heatmap) cmp.loading = null;
   }
 }
 // Shows the image panel as the comparison mode says.
