@@ -525,4 +525,23 @@ fn debug_judges_the_log_it_is_given() {
     let p: Value = serde_json::from_str(body.trim()).unwrap();
     assert_eq!(p["divergence"]["code"], "camera.direction", "{p:#}");
     assert_eq!(p["their_rgb8"], serde_json::json!([10, 20, 30]));
+    // The image is compared with the render too, and read pixel by pixel.
+    let mut c = Value::Null;
+    for _ in 0..300 {
+        let (code, body) = http_get(port, "/api/compare");
+        assert_eq!(code, 200, "{body}");
+        c = serde_json::from_str(body.trim()).unwrap();
+        if c["state"] != "rendering" {
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(100));
+    }
+    assert_eq!(c["state"], "done", "{c:#}");
+    assert_eq!(c["image"]["width"], 9);
+    assert!(c["psnr"].is_number(), "{c:#}");
+    let (code, body) = http_get(port, "/api/compare/pixel?x=4&y=4");
+    assert_eq!(code, 200, "{body}");
+    let q: Value = serde_json::from_str(body.trim()).unwrap();
+    assert_eq!(q["yours"], serde_json::json!([10, 20, 30]));
+    assert_eq!(q["rayscope"], p["rayscope_rgb8"]);
 }

@@ -25,8 +25,10 @@
 //! - `/api/pick?eye=&target=&w=&h=&x=&y=`: what is under a view pixel.
 //! - `/api/trace?x=&y=&sample=&intersector=ours|reference`: a pixel sample's ray tree.
 //! - `/api/check`: pixels where rayscope's intersector and the parry3d reference disagree.
-//! - `/api/compare` (`POST`, PNG body, `Content-Type: image/png`): PSNR against the current
-//!   render and a heat map id; `/api/compare/heatmap.png?id=`.
+//! - `/api/compare` (`POST`, the student's PNG, `Content-Type: image/png`; `GET` again after a
+//!   settings change): PSNR against the current render, a heat map with its scale, the
+//!   differing pixels attributed to entities and the diagnosis; `/api/compare/pixel?x=&y=`,
+//!   `/api/compare/heatmap.png?id=`: see [`compare_api`].
 //! - `/api/rays` (`POST`, a student's ray log), `/api/rays/summary`, `/api/rays/map.png`,
 //!   `/api/rays/pixel`, `/api/rays/image` (`POST`) and `/api/rays/image.png`: see [`rays_api`].
 //!
@@ -65,6 +67,7 @@ use crate::guard::{cross_site_refusal, HostPolicy};
 use crate::net::MAX_URL_BYTES;
 use crate::view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewOptions};
 
+mod compare_api;
 mod rays_api;
 pub use rays_api::{KEEP_LOG_BYTES, MAX_LOG_BYTES};
 
@@ -446,12 +449,14 @@ struct Inner {
 
 struct AppState {
     scene: Arc<Scene>,
+    scene_file: Arc<SceneFile>,
     scene_json: Value,
     hosts: HostPolicy,
     limits: ServerLimits,
     heavy: HeavyPool,
     inner: Mutex<Inner>,
     rays: rays_api::RaysState,
+    compare: compare_api::CompareState,
 }
 
 /// The slots heavy requests take, so that a flood of them costs a bounded amount of memory.
@@ -486,11 +491,13 @@ impl AppState {
         let scene_json = scene_json(&cfg);
         Self {
             scene: Arc::new(cfg.scene),
+            scene_file: Arc::new(cfg.scene_file),
             scene_json,
             hosts,
             limits: cfg.limits,
             heavy: HeavyPool::new(cfg.limits.heavy_slots),
             rays: rays_api::RaysState::default(),
+            compare: compare_api::CompareState::default(),
             inner: Mutex::new(Inner {
                 settings: cfg.settings,
                 job: Job {
@@ -801,8 +808,9 @@ fn router(state: Arc<AppState>) -> Router {
         .route("/api/pick", get(api_pick))
         .route("/api/trace", get(api_trace))
         .route("/api/check", get(api_check))
-        .route("/api/compare", post(api_compare))
-        .route("/api/compare/heatmap.png", get(api_heatmap))
+        .route("/api/compare", get(compare_api::api_get).post(compare_api::api_post))
+        .route("/api/compare/pixel", get(compare_api::api_pixel))
+        .route("/api/compare/heatmap.png", get(compare_api::api_heatmap))
         .route("/api/rays", post(rays_api::api_upload))
         .route("/api/rays/summary", get(rays_api::api_summary))
         .route("/api/rays/map.png", get(rays_api::api_map))
@@ -1536,78 +1544,4 @@ fn decode_reference(png: &[u8], width: u32, height: u32) -> Result<image::RgbIma
         .decode()
         .map_err(|e| format!("not a readable PNG: {e}"))?
         .into_rgb8())
-}
-
-async fn api_compare(State(st): State<Arc<AppState>>, headers: HeaderMap, body: Body) -> ApiResult<Json<Value>> {
-    let rendered = st
-        .lock()
-        .rendered
-        .clone()
-        .ok_or_else(|| ApiError(StatusCode::CONFLICT, "no finished render to compare with yet".into()))?;
-    let body = read_body(
-        &st,
-        &headers,
-        body,
-        "image/png",
-        "the reference PNG",
-        COMPARE_BODY_LIMIT,
-    )
-    .await?;
-    if body.is_empty() {
-        return Err(ApiError::bad("send the reference PNG as the request body"));
-    }
-    let slot = st.heavy.slot()?;
-    let result = tokio::task::spawn_blocking(move || -> Result<(Value, Vec<u8>), String> {
-        let _slot = slot;
-        let r = &rendered.image;
-        let img = decode_reference(&body, r.width, r.height)?;
-        let c = rayscope_core::compare::compare_rgb8(&r.rgb, img.as_raw());
-        let heat = rayscope_core::compare::heatmap(&r.rgb, img.as_raw(), None);
-        let png = encode::png(&RgbImage {
-            width: r.width,
-            height: r.height,
-            rgb: heat.rgb,
-        });
-        Ok((
-            json!({
-                "psnr": if c.psnr.is_finite() { json!(c.psnr) } else { json!("inf") },
-                "differing": c.differing,
-                "total": c.total,
-                "max_diff": c.max_diff,
-                "heatmap_range": heat.range,
-                "heatmap_clipped": heat.clipped,
-                "render_job": rendered.job,
-            }),
-            png,
-        ))
-    })
-    .await
-    .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("compare failed: {e}")))?;
-    let (mut v, png) = result.map_err(ApiError::bad)?;
-    let mut g = st.lock();
-    let id = g.next_id;
-    g.next_id += 1;
-    g.heatmaps.push_back((id, Arc::new(png)));
-    while g.heatmaps.len() > 4 {
-        g.heatmaps.pop_front();
-    }
-    v["heatmap"] = json!(format!("/api/compare/heatmap.png?id={id}"));
-    Ok(Json(v))
-}
-
-async fn api_heatmap(State(st): State<Arc<AppState>>, Query(q): Params) -> ApiResult<Response> {
-    let id = parse_num(&q, "id", 0u64, 0, u64::MAX)?;
-    let g = st.lock();
-    let png = g
-        .heatmaps
-        .iter()
-        .find(|(i, _)| *i == id)
-        .map(|(_, p)| p.clone())
-        .ok_or_else(|| {
-            ApiError(
-                StatusCode::NOT_FOUND,
-                "no such heat map (only the last 4 are kept)".into(),
-            )
-        })?;
-    Ok(png_response(png.to_vec()))
 }

@@ -50,6 +50,7 @@ fn random_request(rng: &mut Rng) -> (&'static str, String, Vec<u8>) {
         "intersector",
         "image",
         "format",
+        "range",
     ];
     let paths = [
         "/api/view",
@@ -59,6 +60,8 @@ fn random_request(rng: &mut Rng) -> (&'static str, String, Vec<u8>) {
         "/api/render/status",
         "/api/scene",
         "/api/compare/heatmap.png",
+        "/api/compare",
+        "/api/compare/pixel",
         "/../../etc/passwd",
         "/api/%2e%2e/%2e%2e/etc/passwd",
         "/app.js",

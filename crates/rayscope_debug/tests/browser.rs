@@ -5,6 +5,10 @@
 //! not run (see `rayscope_testkit::not_run`).
 //! Screenshots go to `target/browser-screenshots/`.
 
+#[path = "../../rayscope_core/tests/student/mod.rs"]
+#[allow(dead_code)]
+mod student;
+
 use std::net::TcpListener;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
@@ -505,10 +509,10 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), Stri
               const p = list[Math.floor(list.length / 2)];
               const img = document.getElementById("image");
               const r = img.getBoundingClientRect();
-              const box = document.getElementById("image-scroll").getBoundingClientRect();
-              // WebDriver offsets count from the centre of the element's visible part.
-              const left = Math.max(r.left, box.left), right = Math.min(r.right, box.right);
-              const top = Math.max(r.top, box.top), bottom = Math.min(r.bottom, box.bottom);
+              // WebDriver offsets count from the element's in-view centre: the centre of the part
+              // of its box inside the viewport.
+              const left = Math.max(r.left, 0), right = Math.min(r.right, window.innerWidth);
+              const top = Math.max(r.top, 0), bottom = Math.min(r.bottom, window.innerHeight);
               const tx = r.left + (p[0] + 0.5) / 32 * r.width, ty = r.top + (p[1] + 0.5) / 24 * r.height;
               done({ x: p[0], y: p[1], dx: Math.round(tx - (left + right) / 2), dy: Math.round(ty - (top + bottom) / 2), w: r.width, h: r.height });
             });"#,
@@ -577,5 +581,325 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), Stri
     .await;
     tokio::time::sleep(Duration::from_millis(800)).await;
     shot(c, "06-student-divergence.png").await;
+    Ok(())
+}
+
+/// A student's wrong picture in the page, at the course's 400×400: it fits the panel below 1×,
+/// is loaded through the file picker, compared and diagnosed (the mistake named, the
+/// differences attributed to the glass ball), shown as a heat map with its scale, flickered
+/// against rayscope's render and side by side; hovering a pixel reads both values and the
+/// entity; their image goes on the grid in the view; a settings change compares again. The
+/// picture is the student-style tracer's of rayscope_core's tests, with its refraction mistake.
+#[test]
+fn compare_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let (w, h) = (400u32, 400u32);
+    let scene_path = rayscope_testkit::scene("whitted.txt");
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let theirs = student::Student::new(&file, &["refraction-no-normal-flip"], student::Options::new(w, h)).render();
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-compare-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("my_render.png");
+    image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
+
+    let scene = Scene::from_file(&file);
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path,
+        scene_file: file,
+        scene,
+        settings: RenderSettings {
+            width: w,
+            height: h,
+            stage: rayscope_core::Stage::Two,
+            ..RenderSettings::default()
+        },
+        host: "127.0.0.1".into(),
+        port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
+        student: Default::default(),
+    })
+    .expect("debugger starts");
+    let url = server.url.clone();
+    let _server = Server(Some(server));
+    let png2 = png.clone();
+    in_chromium(&chromium, &driver, &url, "compare-failure.png", |c, url| async move {
+        let r = drive_compare(&c, &url, &png2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn text(c: &Client, css: &str) -> Result<String, String> {
+    c.find(Locator::Css(css))
+        .await
+        .map_err(|e| format!("{css}: {e}"))?
+        .text()
+        .await
+        .map_err(|e| e.to_string())
+}
+
+async fn choose(c: &Client, css: &str, value: &str) -> Result<(), String> {
+    c.find(Locator::Css(css))
+        .await
+        .map_err(|e| format!("{css}: {e}"))?
+        .select_by_value(value)
+        .await
+        .map_err(|e| e.to_string())
+}
+
+/// Whether the element's box lies inside the image panel's scrolling box (nothing to scroll).
+async fn fits_panel(c: &Client, css: &str) -> Result<serde_json::Value, String> {
+    c.execute(
+        r#"const r = document.querySelector(arguments[0]).getBoundingClientRect();
+        const b = document.getElementById("image-scroll").getBoundingClientRect();
+        return { fits: r.left >= b.left && r.right <= b.right && r.top >= b.top && r.bottom <= b.bottom,
+                 image: [r.left, r.top, r.width, r.height], panel: [b.left, b.top, b.width, b.height] };"#,
+        vec![json!(css)],
+    )
+    .await
+    .map_err(|e| e.to_string())
+}
+
+async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    use fantoccini::actions::{InputSource, MouseActions, PointerAction};
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    c.goto(url).await.map_err(e)?;
+    wait_for("the page to load the scene", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+    wait_for("the rendered image", 60, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == "400x400")
+    })
+    .await;
+    shot(c, "07-compare-400-fits.png").await;
+    // The default window: 400×400 fits the panel at a zoom below 1×.
+    let zoom: f64 = attr(c, "#image", "data-zoom")
+        .await
+        .and_then(|z| z.parse().ok())
+        .ok_or("no zoom")?;
+    assert!(zoom < 1.0 && zoom > 0.3, "zoom {zoom}");
+    let fit = fits_panel(c, "#image").await?;
+    assert_eq!(fit["fits"], true, "{fit}");
+
+    // Load the picture through the file picker: compared, then diagnosed.
+    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    wait_for("the comparison", 60, || async {
+        attr(c, "#compare-result", "data-state").await.filter(|v| v == "done")
+    })
+    .await;
+    let result = text(c, "#compare-result").await?;
+    assert!(result.starts_with("my_render.png vs rayscope: PSNR "), "{result}");
+    let first_job = attr(c, "#compare-result", "data-job").await.ok_or("no job")?;
+    let attribution = text(c, "#attribution").await?;
+    assert!(attribution.contains("GlassBall"), "{attribution}");
+    let state = wait_for("the diagnosis", 300, || async {
+        attr(c, "#diagnosis", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let diagnosis = text(c, "#diagnosis").await?;
+    assert_eq!(state, "done", "{diagnosis}");
+    assert!(
+        diagnosis.starts_with("Your image differs from rayscope's."),
+        "{diagnosis}"
+    );
+    let named = attr(c, "#explanations li:first-child", "data-mistakes").await;
+    assert_eq!(named.as_deref(), Some("refraction-no-normal-flip"), "{diagnosis}");
+    assert!(
+        diagnosis.contains("see it: rayscope -f ") && diagnosis.contains("--mistake refraction-no-normal-flip"),
+        "{diagnosis}"
+    );
+    let fit = fits_panel(c, "#image").await?;
+    assert_eq!(fit["fits"], true, "comparing: {fit}");
+    shot(c, "08-compare-diagnosis.png").await;
+
+    // The heat map and its scale.
+    choose(c, "#compare-mode", "heat").await?;
+    wait_for("the heat map", 20, || async {
+        attr(c, "#image", "data-showing").await.filter(|v| v == "heat")
+    })
+    .await;
+    let scale = c.find(Locator::Css("#heat-scale")).await.map_err(e)?;
+    assert!(scale.is_displayed().await.map_err(e)?, "the scale is shown");
+    let scale = text(c, "#heat-scale").await?;
+    assert!(scale.contains("levels or more (auto)"), "{scale}");
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    shot(c, "09-compare-heatmap.png").await;
+    // A chosen range: small differences at full brightness, the scale says so.
+    choose(c, "#heat-range", "8").await?;
+    let scale = wait_for("the heat map at range 8", 30, || async {
+        let t = text(c, "#heat-scale").await.ok()?;
+        t.contains("8 levels or more").then_some(t)
+    })
+    .await;
+    assert!(
+        !scale.contains("(auto)") && scale.contains("pixels differ by more"),
+        "{scale}"
+    );
+    tokio::time::sleep(Duration::from_millis(400)).await;
+    shot(c, "09b-compare-heatmap-range-8.png").await;
+
+    // Flicker: the two images alternate.
+    choose(c, "#compare-mode", "flicker").await?;
+    let mut seen = std::collections::BTreeSet::new();
+    let end = Instant::now() + Duration::from_secs(5);
+    while seen.len() < 2 && Instant::now() < end {
+        if let Some(s) = attr(c, "#image", "data-showing").await {
+            seen.insert(s);
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    }
+    assert_eq!(seen.into_iter().collect::<Vec<_>>(), ["rayscope", "yours"], "flicker");
+    shot(c, "10-compare-flicker.png").await;
+
+    // Hover a pixel where the pictures differ (the pixels two around it too: below 1× a screen
+    // pixel spans more than one image pixel, so the pointer may land beside it): the readout has both values and the entity.
+    let v = c
+        .execute_async(
+            r#"const [done] = arguments;
+            const pixels = async (path) => {
+              const b = await createImageBitmap(await (await fetch(path)).blob());
+              const cv = document.createElement("canvas"); cv.width = b.width; cv.height = b.height;
+              const g = cv.getContext("2d"); g.drawImage(b, 0, 0);
+              return g.getImageData(0, 0, b.width, b.height).data;
+            };
+            Promise.all([pixels("/api/image.png"), pixels("/api/rays/image.png")]).then(([a, b]) => {
+              const W = 400, diff = (x, y) => { const i = (y * W + x) * 4; return Math.abs(a[i] - b[i]) + Math.abs(a[i + 1] - b[i + 1]) + Math.abs(a[i + 2] - b[i + 2]); };
+              let best = null;
+              for (let y = 2; y < 398; y++) for (let x = 2; x < 398; x++) {
+                let m = Infinity;
+                for (let dy = -2; dy <= 2; dy++) for (let dx = -2; dx <= 2; dx++) m = Math.min(m, diff(x + dx, y + dy));
+                if (!best || m > best.m) best = { x, y, m };
+              }
+              const img = document.getElementById("image");
+              const r = img.getBoundingClientRect();
+              const tx = r.left + (best.x + 0.5) / W * r.width, ty = r.top + (best.y + 0.5) / W * r.height;
+              const at = (x, y) => { const i = (y * W + x) * 4; return [[b[i], b[i + 1], b[i + 2]].join(","), [a[i], a[i + 1], a[i + 2]].join(",")]; };
+              const values = {};
+              for (let dy = -2; dy <= 2; dy++) for (let dx = -2; dx <= 2; dx++) values[`${best.x + dx},${best.y + dy}`] = at(best.x + dx, best.y + dy);
+              done({ x: best.x, y: best.y, m: best.m, dx: Math.round(tx - (r.left + r.width / 2)), dy: Math.round(ty - (r.top + r.height / 2)), values });
+            });"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert!(v["m"].as_f64().ok_or("m")? > 30.0, "{v}");
+    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
+    let hover = MouseActions::new("mouse".into()).then(PointerAction::MoveToElement {
+        element: image,
+        duration: None,
+        x: v["dx"].as_f64().ok_or("dx")?,
+        y: v["dy"].as_f64().ok_or("dy")?,
+    });
+    c.perform_actions(hover).await.map_err(e)?;
+    let end = Instant::now() + Duration::from_secs(20);
+    let pixel = loop {
+        let p = attr(c, "#pixel-readout", "data-pixel").await.unwrap_or_default();
+        if v["values"].get(&p).is_some() {
+            break p;
+        }
+        if Instant::now() > end {
+            let readout = text(c, "#pixel-readout").await?;
+            return Err(format!(
+                "no hover readout for the pixels around ({}, {}): {readout}",
+                v["x"], v["y"]
+            ));
+        }
+        tokio::time::sleep(Duration::from_millis(100)).await;
+    };
+    let (yours, ours) = (
+        attr(c, "#pixel-readout", "data-yours").await.ok_or("yours")?,
+        attr(c, "#pixel-readout", "data-rayscope").await.ok_or("rayscope")?,
+    );
+    assert_eq!(json!([yours, ours]), v["values"][&pixel], "pixel {pixel}");
+    assert_ne!(yours, ours);
+    let readout = text(c, "#pixel-readout").await?;
+    let entity = attr(c, "#pixel-readout", "data-entity").await.ok_or("entity")?;
+    assert!(
+        readout.starts_with(&format!("pixel ({})", pixel.replace(',', ", ")))
+            && readout.contains(&format!("yours rgb({})", yours.replace(',', ", ")))
+            && readout.contains(&format!("rayscope rgb({})", ours.replace(',', ", ")))
+            && readout.ends_with(&entity),
+        "{readout}"
+    );
+    assert!(entity.starts_with("GlassBall"), "{readout}");
+    shot(c, "11-compare-hover.png").await;
+
+    // Side by side: both fit the panel.
+    choose(c, "#compare-mode", "side").await?;
+    wait_for("their image on the right", 20, || async {
+        let b = c.find(Locator::Css("#image-b")).await.ok()?;
+        let loaded = c
+            .execute(r#"return document.getElementById("image-b").naturalWidth;"#, vec![])
+            .await
+            .ok()?;
+        (loaded == json!(400) && b.is_displayed().await.ok()?).then_some(())
+    })
+    .await;
+    for css in ["#image", "#image-b"] {
+        let fit = fits_panel(c, css).await?;
+        assert_eq!(fit["fits"], true, "{css}: {fit}");
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    shot(c, "12-compare-side-by-side.png").await;
+
+    // Their image on the pixel grid in the view.
+    choose(c, "#image-mode", "theirs").await?;
+    wait_for("their image on the grid", 30, || async {
+        attr(c, "#view", "data-plane").await.filter(|v| v == "yours")
+    })
+    .await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    shot(c, "13-compare-grid-yours.png").await;
+
+    // A settings change: the comparison is blanked, then made again with the new render.
+    c.find(Locator::Css("#hierarchy li.camera"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    let aa = c.find(Locator::Css("#set-aa")).await.map_err(e)?;
+    aa.clear().await.map_err(e)?;
+    aa.send_keys("2\u{e004}").await.map_err(e)?;
+    let stale_seen = std::cell::Cell::new(false);
+    let job = wait_for("the comparison with the -x 2 render", 120, || {
+        let (stale_seen, first_job) = (&stale_seen, &first_job);
+        async move {
+            let state = attr(c, "#compare-result", "data-state").await?;
+            if state != "done" {
+                stale_seen.set(true);
+                return None;
+            }
+            attr(c, "#compare-result", "data-job").await.filter(|j| j != first_job)
+        }
+    })
+    .await;
+    assert!(
+        stale_seen.get(),
+        "the old comparison stayed on screen while the new render ran"
+    );
+    let status: serde_json::Value = c
+        .execute_async(
+            r#"const [done] = arguments; fetch("/api/render/status").then((r) => r.json()).then(done);"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert_eq!(status["settings"]["aa"], 2);
+    assert_eq!(job, status["job"].to_string(), "compared with the current render");
+    let after = text(c, "#compare-result").await?;
+    assert!(after.contains("PSNR"), "{after}");
+    // The hover readout of the old render went with it.
+    assert_eq!(attr(c, "#pixel-readout", "data-pixel").await, None);
+    let fit = fits_panel(c, "#image-b").await?;
+    assert_eq!(fit["fits"], true, "{fit}");
+    shot(c, "14-compare-after-settings.png").await;
     Ok(())
 }

@@ -94,6 +94,16 @@ impl RaysState {
     }
 }
 
+/// The student's image and its name, if one is loaded.
+pub(super) fn their_image(st: &AppState) -> Option<(String, Arc<RgbImage>)> {
+    st.rays.lock().image.clone()
+}
+
+/// Keeps `img` as the student's image.
+pub(super) fn set_their_image(st: &AppState, name: String, img: RgbImage) {
+    st.rays.lock().image = Some((name, Arc::new(img)));
+}
+
 /// Loads what `rayscope debug --rays … --image …` gave and starts judging the log.
 pub(super) fn start(st: &Arc<AppState>, input: StudentInput) {
     if let Some(img) = input.image {
@@ -337,7 +347,8 @@ pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> 
     Json(summary(&st))
 }
 
-fn clean_name(s: &str) -> String {
+/// A file name as sent, without its folders and control characters, at most 120 characters.
+pub(super) fn clean_name(s: &str) -> String {
     let s: String = s
         .chars()
         .filter(|c| !c.is_control())

@@ -15,9 +15,10 @@ const st = {
   job: 0,
   renderedJob: -1,
   check: null,
-  heatmap: null,
   normals: false,                   // draw the selected entity's normals in the view
   zoom: 0,
+  zooms: [],                        // [zoom, label] of the zoom list
+  zoomChosen: false,                // the user picked a zoom: keep it when the panel changes size
   imageData: null,
 };
 
@@ -92,7 +93,10 @@ function viewParams(draft) {
   if (rays === "pixel") rays = st.pixel ? `pixel:${st.pixel[0]},${st.pixel[1]}` : "frustum";
   else if (rays === "row") rays = st.pixel ? `row:${st.pixel[1]}` : "frustum";
   p.set("rays", rays);
-  p.set("image", $("image-mode").value);
+  // "your image": the student's image on the pixel grid (the server's grid=student).
+  const plane = $("image-mode").value;
+  p.set("image", plane === "theirs" ? "traced" : plane);
+  if (plane === "theirs") p.set("grid", "student");
   p.set("channel", $("channel").value);
   if (st.selection && (st.selection.type === "entity" || st.selection.type === "light")) p.set("select", `${st.selection.type}:${st.selection.index}`);
   if (st.normals && st.selection && st.selection.type === "entity") p.set("normals", "1");
@@ -125,10 +129,13 @@ function requestView(draft = false) {
       img.onload = () => { if (viewUrl && viewUrl !== url) URL.revokeObjectURL(viewUrl); viewUrl = url; };
       img.src = url;
       img.dataset.gridX = info.grid_lines_x; img.dataset.gridY = info.grid_lines_y;
+      img.dataset.plane = p.get("grid") === "student" ? "yours" : p.get("image");
       img.dataset.frames = String(Number(img.dataset.frames || 0) + 1);
       const grid = info.grid_step > 1 ? `, every ${info.grid_step}th line` : "";
       const rays = info.ray_stride > 1 ? ` (every ${info.ray_stride}th pixel)` : "";
+      const toolbar = $("view-toolbar").offsetHeight;
       $("view-info").textContent = `grid ${info.grid_lines_x}×${info.grid_lines_y} lines${grid} · ${info.rays_drawn} rays${rays} · ${info.millis.toFixed(0)} ms`;
+      if ($("view-toolbar").offsetHeight !== toolbar) refitImage();
     })
     .catch((e) => { $("view-info").textContent = "view: " + e.message; })
     .finally(() => {
@@ -333,13 +340,14 @@ function onNewSettings(settings, job) {
   st.settings = settings;
   st.job = job;
   if (st.pixel && (st.pixel[0] >= settings.width || st.pixel[1] >= settings.height)) st.pixel = null;
-  if (sizeChanged) { st.check = null; $("check-summary").textContent = "not run yet"; setupZoom(); }
+  if (sizeChanged) { st.check = null; $("check-summary").textContent = "not run yet"; st.zoomChosen = false; setupZoom(); }
   st.sample = 0;
   fillSettingsForm();
   pollStatus();
   requestView();
   if (st.pixel) tracePixel();
   raysOnSettings();
+  compareOnSettings();
 }
 
 // ---------- render status ----------
@@ -359,6 +367,7 @@ async function pollStatus() {
         loadImage();
         requestView();
         raysLoadRendered();
+        if (cmp.loaded) comparePoll();
       }
     }
   } catch (e) {
@@ -368,35 +377,71 @@ async function pollStatus() {
 }
 
 // ---------- image panel ----------
+// Zooms below 1× let a large image fit the panel; at 1× and above every image pixel is a
+// square of screen pixels.
+const ZOOMS = [[1 / 8, "⅛×"], [1 / 6, "⅙×"], [1 / 4, "¼×"], [1 / 3, "⅓×"], [1 / 2, "½×"], [2 / 3, "⅔×"], [3 / 4, "¾×"],
+  [1, "1×"], [2, "2×"], [3, "3×"], [4, "4×"], [6, "6×"], [8, "8×"], [12, "12×"], [16, "16×"], [24, "24×"], [32, "32×"], [48, "48×"], [64, "64×"]];
 function setupZoom() {
   const z = $("zoom");
   const s = st.settings;
-  z.innerHTML = "";
   const box = $("image-scroll");
-  const room = Math.max(120, Math.min(box.clientWidth, box.clientHeight) - 24);
-  const fit = Math.max(1, Math.floor(room / Math.max(s.width, s.height)));
-  for (const k of [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64]) z.append(el("option", { value: k }, `${k}×`));
-  const best = [1, 2, 3, 4, 6, 8, 12, 16, 24, 32, 48, 64].filter((k) => k <= fit).pop() || 1;
+  // Side by side, two images and the gap between them share the width.
+  const side = compareMode() === "side";
+  const caption = side ? 18 : 0;
+  const fitW = (box.clientWidth - 20 - (side ? 12 : 0)) / (s.width * (side ? 2 : 1));
+  const fitH = (box.clientHeight - 20 - caption) / s.height;
+  const fit = Math.max(0, Math.min(fitW, fitH));
+  // An image larger than the panel starts at the zoom that fits it exactly.
+  st.zooms = ZOOMS.filter(([k]) => Math.abs(k - fit) > 0.01);
+  if (fit < 1) st.zooms.push([fit, `fit (${Math.round(fit * 100)} %)`]);
+  st.zooms.sort((a, b) => a[0] - b[0]);
+  z.innerHTML = "";
+  st.zooms.forEach(([, label], i) => z.append(el("option", { value: String(i) }, label)));
+  let best = 0;
+  st.zooms.forEach(([k], i) => { if (k <= fit + 1e-9) best = i; });
   z.value = String(best);
-  st.zoom = best;
+  st.zoom = st.zooms[best][0];
   layoutImage();
+}
+// The fitting zoom again after the panel changed size, unless the user picked one.
+function refitImage() {
+  if (!st.zoomChosen && st.settings) setupZoom();
 }
 function layoutImage() {
   const s = st.settings;
-  const img = $("image"), ov = $("image-overlay");
-  img.style.width = `${s.width * st.zoom}px`;
-  img.style.height = `${s.height * st.zoom}px`;
-  ov.width = s.width * st.zoom; ov.height = s.height * st.zoom;
-  ov.style.width = img.style.width; ov.style.height = img.style.height;
+  const w = Math.max(1, Math.round(s.width * st.zoom)), h = Math.max(1, Math.round(s.height * st.zoom));
+  for (const [i, o] of [["image", "image-overlay"], ["image-b", "image-overlay-b"]]) {
+    const img = $(i), ov = $(o);
+    img.style.width = `${w}px`;
+    img.style.height = `${h}px`;
+    img.classList.toggle("smooth", st.zoom < 1);
+    ov.width = w; ov.height = h;
+    ov.style.width = img.style.width; ov.style.height = img.style.height;
+  }
+  $("image").dataset.zoom = String(st.zoom);
   drawOverlay();
 }
+// What the image panel shows: rayscope's channel, or with a comparison your image, the two
+// alternating (flicker) or the heat map; side by side puts yours to the right.
+function imageShowing() {
+  const m = compareMode();
+  if (m === "heat" && cmp.urls.heat) return "heat";
+  if (m === "yours" && cmp.urls.theirs) return "yours";
+  if (m === "flicker" && cmp.urls.rs) return cmp.showing;
+  return "rayscope";
+}
 function imageSrc() {
-  if ($("show-heatmap").checked && st.heatmap) return st.heatmap;
-  if (raysShowTheirs()) return `/api/rays/image.png?v=${rays.imageVersion}`;
+  const showing = imageShowing();
+  if (showing === "heat") return cmp.urls.heat;
+  if (showing === "yours") return cmp.urls.theirs;
+  if (compareMode() === "flicker" && cmp.urls.rs) return cmp.urls.rs;
   return `/api/image.png?channel=${$("channel").value}&job=${st.renderedJob}`;
 }
 function loadImage() {
   const img = $("image");
+  img.dataset.showing = imageShowing();
+  const b = $("image-b");
+  if (compareMode() === "side" && cmp.urls.theirs) { if (b.src !== cmp.urls.theirs) b.src = cmp.urls.theirs; } else b.removeAttribute("src");
   img.onload = () => {
     const c = document.createElement("canvas");
     c.width = img.naturalWidth; c.height = img.naturalHeight;
@@ -409,7 +454,7 @@ function loadImage() {
   let tries = 0;
   img.onerror = () => {
     st.imageData = null;
-    if (++tries <= 4) setTimeout(() => { img.src = imageSrc() + `&try=${tries}`; }, 1000);
+    if (!imageSrc().startsWith("blob:") && ++tries <= 4) setTimeout(() => { img.src = imageSrc() + `&try=${tries}`; }, 1000);
   };
   img.src = imageSrc();
   layoutImage();
@@ -425,13 +470,17 @@ function drawOverlay() {
     for (const m of st.check.mismatches) { g.fillRect(m.x * z, m.y * z, z, z); }
   }
   raysDrawOverlay(g, z);
+  const gb = $("image-overlay-b").getContext("2d");
+  gb.clearRect(0, 0, ov.width, ov.height);
   if (st.pixel) {
-    g.strokeStyle = "#ffd21a"; g.lineWidth = Math.max(1.5, z / 5);
-    g.strokeRect(st.pixel[0] * z + 0.5, st.pixel[1] * z + 0.5, Math.max(z - 1, 1), Math.max(z - 1, 1));
+    for (const c of [g, gb]) {
+      c.strokeStyle = "#ffd21a"; c.lineWidth = Math.max(1.5, z / 5);
+      c.strokeRect(st.pixel[0] * z + 0.5, st.pixel[1] * z + 0.5, Math.max(z - 1, 1), Math.max(z - 1, 1));
+    }
   }
 }
 function imagePixelAt(e) {
-  const img = $("image");
+  const img = e.currentTarget && e.currentTarget.id === "image-b" ? $("image-b") : $("image");
   const rect = img.getBoundingClientRect();
   const x = Math.floor((e.clientX - rect.left) / rect.width * st.settings.width);
   const y = Math.floor((e.clientY - rect.top) / rect.height * st.settings.height);
@@ -439,27 +488,30 @@ function imagePixelAt(e) {
   return [x, y];
 }
 function setupImageInput() {
-  const img = $("image");
-  img.addEventListener("mousemove", (e) => {
-    const p = imagePixelAt(e);
-    if (!p) return;
-    let col = "";
-    const d = st.imageData;
-    if (d && d.width === st.settings.width && d.height === st.settings.height) {
-      const i = (p[1] * d.width + p[0]) * 4;
-      const c = [d.data[i], d.data[i + 1], d.data[i + 2]];
-      col = ` = rgb(${c.join(", ")}) = (${c.map((v) => (v / 255).toFixed(3)).join(", ")})`;
-    }
-    $("pixel-readout").textContent = raysReadout(p) || `pixel (${p[0]}, ${p[1]})${col}`;
-  });
-  img.addEventListener("click", (e) => {
-    const p = imagePixelAt(e);
-    if (p) selectPixel(p[0], p[1]);
-  });
-  $("zoom").addEventListener("change", () => { st.zoom = Number($("zoom").value); layoutImage(); });
+  for (const img of [$("image"), $("image-b")]) {
+    img.addEventListener("mousemove", (e) => {
+      const p = imagePixelAt(e);
+      if (!p) return;
+      let col = "";
+      const d = st.imageData;
+      if (imageShowing() === "rayscope" && d && d.width === st.settings.width && d.height === st.settings.height) {
+        const i = (p[1] * d.width + p[0]) * 4;
+        const c = [d.data[i], d.data[i + 1], d.data[i + 2]];
+        col = ` = rgb(${c.join(", ")}) = (${c.map((v) => (v / 255).toFixed(3)).join(", ")})`;
+      }
+      $("pixel-readout").textContent = raysReadout(p) || `pixel (${p[0]}, ${p[1]})${col}`;
+      compareHover(p);
+    });
+    img.addEventListener("click", (e) => {
+      const p = imagePixelAt(e);
+      if (p) selectPixel(p[0], p[1]);
+    });
+  }
+  $("zoom").addEventListener("change", () => { st.zoom = st.zooms[Number($("zoom").value)][0]; st.zoomChosen = true; layoutImage(); });
+  // The panel changes size with the window and the toolbars above it: the fitting zoom follows.
+  new ResizeObserver(refitImage).observe($("image-scroll"));
   $("channel").addEventListener("change", () => { loadImage(); requestView(); });
-  $("show-heatmap").addEventListener("change", loadImage);
-  $("compare-file").addEventListener("change", compareUpload);
+  compareSetupInput();
   $("check-btn").addEventListener("click", runCheck);
   raysSetupInput();
 }
@@ -592,22 +644,294 @@ async function runCheck() {
   }
 }
 
-// ---------- compare with a reference ----------
-async function compareUpload() {
-  const f = $("compare-file").files[0];
-  if (!f) return;
-  $("compare-result").textContent = "comparing…";
-  try {
-    const buf = await f.arrayBuffer();
-    const r = await api("/api/compare", { method: "POST", headers: { "content-type": "image/png" }, body: buf });
-    st.heatmap = r.heatmap;
-    $("show-heatmap").disabled = false;
-    const psnr = r.psnr === "inf" ? "∞ (identical)" : `${Number(r.psnr).toFixed(2)} dB`;
-    $("compare-result").textContent = `${f.name}: PSNR ${psnr}, ${r.differing} of ${r.total} pixels differ, largest channel difference ${r.max_diff}`;
-  } catch (e) {
-    $("compare-result").textContent = e.message;
+// ---------- comparing the student's image ----------
+// The server compares "your image" with the finished render of the current settings only and
+// diagnoses it in the background. A settings change blanks the comparison until the new render
+// has been compared, so no PSNR, heat map or diagnosis of other settings is ever on screen.
+const cmp = {
+  loaded: false, data: null, seq: 0, timer: null, urls: {}, loading: null, showing: "rayscope", flickerTimer: null,
+  hover: null, hoverBusy: false, sideShown: false,
+};
+function compareMode() { return cmp.data ? $("compare-mode").value : "rayscope"; }
+function compareSetupInput() {
+  for (const id of ["compare-file", "compare-file-2"]) {
+    $(id).addEventListener("change", () => { const f = $(id).files[0]; if (f) theirImageUpload(f); $(id).value = ""; });
   }
-  $("compare-file").value = "";
+  $("compare-mode").addEventListener("change", compareShow);
+  $("heat-range").addEventListener("change", comparePoll);
+  $("flicker-auto").addEventListener("change", compareFlicker);
+  $("flicker-swap").addEventListener("click", () => { $("flicker-auto").checked = false; compareFlicker(); flickerSwap(); });
+}
+// Their image goes to the server as "your image" (any size: the comparison says which size to
+// set when it is not the render's).
+async function theirImageUpload(file) {
+  showTab("compare-tab");
+  compareSummary(`reading ${file.name}…`, "loading");
+  try {
+    const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
+    raysOnSummary(s);
+    cmp.data = null;
+    compareDropImages();
+    comparePoll();
+  } catch (e) {
+    compareSummary(`${file.name}: ${e.message}`, "error", "error");
+    $("compare-result").textContent = `${file.name}: ${e.message}`;
+  }
+}
+function compareSummary(text, state, cls) {
+  const box = $("compare-summary");
+  box.textContent = text;
+  box.dataset.state = state;
+  box.className = cls || "dim";
+}
+async function comparePoll() {
+  clearTimeout(cmp.timer);
+  const seq = ++cmp.seq;
+  try {
+    const v = await api(`/api/compare?range=${$("heat-range").value}`);
+    if (seq === cmp.seq) compareOnAnswer(v);
+  } catch (e) {
+    if (seq !== cmp.seq) return;
+    compareSummary(e.message, "error", "error");
+    cmp.timer = setTimeout(comparePoll, 2000);
+  }
+}
+function compareOnSettings() {
+  if (!cmp.loaded) return;
+  cmp.seq++;
+  clearTimeout(cmp.timer);
+  const had = !!cmp.data;
+  cmp.data = null;
+  $("compare-result").textContent = "settings changed: your image will be compared with the new render when it is finished…";
+  const ro = $("pixel-readout");
+  ro.textContent = "hover the image";
+  for (const k of ["pixel", "yours", "rayscope", "entity"]) delete ro.dataset[k];
+  $("compare-result").dataset.state = "stale";
+  compareSummary("settings changed: comparing your image with the new render when it is finished…", "rendering", "warn");
+  compareClearDetails();
+  if (had) compareShow();
+  comparePoll();
+}
+// Forgets the images of a comparison that no longer holds.
+function compareDropImages() {
+  for (const u of Object.values(cmp.urls)) if (typeof u === "string" && u.startsWith("blob:")) URL.revokeObjectURL(u);
+  cmp.urls = {};
+}
+function compareClearDetails() {
+  compareDropImages();
+  $("diagnosis").innerHTML = "";
+  $("diagnosis").dataset.state = "none";
+  $("attribution-box").classList.add("hidden");
+  $("attribution").querySelector("tbody").innerHTML = "";
+}
+const db = (v) => (v == null ? "∞ dB (identical)" : `${Number(v).toFixed(1)} dB`);
+function compareOnAnswer(v) {
+  const res = $("compare-result");
+  cmp.loaded = v.state !== "none";
+  $("compare-mode-label").classList.toggle("hidden", !cmp.loaded);
+  // While comparing, the image panel takes more of the window.
+  if (document.body.classList.contains("comparing") !== cmp.loaded) {
+    document.body.classList.toggle("comparing", cmp.loaded);
+    $("compare-bars").classList.toggle("hidden", !cmp.loaded);
+    refitImage();
+  }
+  if (v.state !== "done") {
+    const had = !!cmp.data;
+    cmp.data = null;
+    compareClearDetails();
+    if (had) compareShow();
+    res.dataset.state = v.state;
+    if (v.state === "none") { res.textContent = ""; compareSummary("no image of yours loaded: choose “compare your image…” or drop your tracer's PNG on the page", "none"); return; }
+    if (v.state === "size") {
+      res.textContent = v.message;
+      compareSummary(`${v.image.name}: ${v.message}`, "size", "warn");
+      const w = v.image.width, h = v.image.height;
+      $("compare-summary").append(" ", el("button", { id: "compare-set-size", onclick: () => applySettings({ width: w, height: h }) }, `render at ${w}×${h}`));
+      return;
+    }
+    res.textContent = `${v.image.name}: waiting for the render at the current settings…`;
+    compareSummary(res.textContent, "rendering");
+    cmp.timer = setTimeout(comparePoll, 300);
+    return;
+  }
+  // The images are fetched once per comparison (its heat map's URL names it).
+  const fresh = cmp.urls.key !== v.heatmap && cmp.loading !== v.heatmap;
+  cmp.data = v;
+  const psnr = v.psnr === "inf" ? "∞ (identical)" : `${Number(v.psnr).toFixed(2)} dB`;
+  const pct = (100 * v.differing / v.total).toFixed(1);
+  const text = `${v.image.name} vs rayscope: PSNR ${psnr} · ${v.differing} of ${v.total} pixels differ (${pct} %) · largest difference ${v.max_diff} levels`;
+  res.textContent = text;
+  res.title = text;
+  res.dataset.state = "done";
+  res.dataset.job = String(v.render_job);
+  compareSummary(`${text} — rendered at ${v.settings.width}×${v.settings.height}, -x ${v.settings.aa}, stage ${v.settings.stage}`, "done");
+  $("compare-summary").dataset.job = String(v.render_job);
+  // The heat map's scale.
+  $("heat-max").textContent = `${v.heatmap_range} level${v.heatmap_range === 1 ? "" : "s"} or more` + (v.heatmap_auto ? " (auto)" : "");
+  $("heat-note").textContent = v.heatmap_clipped ? `${v.heatmap_clipped} pixels differ by more (shown at full brightness)` : "no pixel differs by more";
+  compareAttribution(v.attribution, v.differing_at_threshold, v.threshold);
+  compareDiagnosis(v.diagnosis);
+  if (fresh) compareLoadImages(v); else compareShow();
+  const d = v.diagnosis;
+  if (d && (d.state === "running" || d.state === "waiting")) cmp.timer = setTimeout(comparePoll, 700);
+}
+function compareAttribution(shares, n, threshold) {
+  const box = $("attribution-box");
+  const tb = $("attribution").querySelector("tbody");
+  tb.innerHTML = "";
+  box.classList.toggle("hidden", !shares.length);
+  for (const s of shares.slice(0, 12)) {
+    const where = s.seen_in.length ? el("span", { class: "dim" }, ` seen in ${s.seen_in.join(" in ")}`) : null;
+    tb.append(el("tr", {}, el("td", { class: "bar" }, el("span", { style: `width:${Math.max(2, s.percent)}%` })), el("td", {}, `${s.percent.toFixed(1)} %`), el("td", { class: "entity" }, s.entity, where)));
+  }
+  $("attribution-box").querySelector("h4 .dim").textContent = `(${n} pixels differ by ${threshold} or more levels: what rayscope's ray of each ends on; through mirrors, the thing reflected)`;
+}
+// A diagnosis's settings change ("-x 2", "--max-depth 3", "--fov-axis vertical") as a patch.
+function flagsPatch(flags) {
+  const patch = {};
+  for (const f of flags) {
+    const [k, v] = f.split(" ");
+    if (k === "-x") patch.aa = Number(v);
+    else if (k === "--max-depth") patch.max_depth = Number(v);
+    else if (k === "--fov-axis") patch.fov_axis = v;
+    else return null;
+  }
+  return patch;
+}
+function compareDiagnosis(d) {
+  const box = $("diagnosis");
+  box.innerHTML = "";
+  box.dataset.state = d ? d.state : "none";
+  if (!d) return;
+  if (d.state === "running" || d.state === "waiting") {
+    box.className = "diagnosis";
+    box.append(el("b", {}, `diagnosing… ${(d.elapsed_ms / 1000).toFixed(0)} s`),
+      el("p", { class: "dim" }, "rayscope renders the scene again with the settings students most often get wrong and with the catalogue of common mistakes, alone and in pairs, and looks for the render your image matches." + (d.why ? ` (${d.why})` : "")));
+    return;
+  }
+  if (d.state === "error") {
+    box.className = "diagnosis bad";
+    box.append(el("span", { class: "error" }, `the diagnosis failed: ${d.error}`));
+    return;
+  }
+  const r = d.result;
+  if (r.matches) {
+    box.className = "diagnosis ok";
+    box.append(el("b", {}, "Your image matches rayscope's render."),
+      el("p", {}, `PSNR ${db(r.psnr_db)}; ${db(r.robust_db)} leaving out the worst 1 % of pixels (two correct tracers differ there, where two surfaces meet at the same distance). ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels.`));
+    return;
+  }
+  box.className = "diagnosis bad";
+  box.append(el("b", {}, "Your image differs from rayscope's."),
+    el("p", {}, `PSNR ${db(r.psnr_db)} (${db(r.robust_db)} leaving out the worst 1 % of pixels); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
+      (r.region ? ` They lie in columns ${r.region.x0}–${r.region.x1 - 1}, rows ${r.region.y0}–${r.region.y1 - 1}.` : "")));
+  if (!r.explanations.length) {
+    box.append(el("p", {}, `No setting and no common mistake (alone or in pairs, ${r.candidates} renders tried) explains it better. Hover the image to compare pixels, and click one that differs for rayscope's ray tree.`));
+    return;
+  }
+  box.append(el("p", {}, "What explains it, best first:"));
+  const ol = el("ol", { id: "explanations" });
+  const scene = st.scene.path;
+  for (const e of r.explanations) {
+    const how = e.robust_db == null ? "exactly" : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
+    const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") },
+      `Your image ${e.matches ? "matches" : "comes closest to"} ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `,
+      el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
+    const patch = e.mistakes.length ? null : flagsPatch(e.settings);
+    if (patch) li.append(" ", el("button", { onclick: () => applySettings(patch) }, "render with this here"));
+    ol.append(li);
+  }
+  box.append(ol);
+  box.append(el("p", { class: "dim" }, `${r.candidates} renders tried in ${(d.millis / 1000).toFixed(1)} s; \`rayscope mistakes\` lists the catalogue.`));
+}
+// Sets some settings as the inspector would.
+async function applySettings(patch) {
+  try {
+    const r = await api("/api/settings", { method: "POST", headers: { "content-type": "application/json" }, body: JSON.stringify(patch) });
+    onNewSettings(r.settings, r.job);
+  } catch (e) {
+    compareSummary(e.message, "error", "error");
+  }
+}
+// The three images of a comparison, fetched once each, so that flicker swaps them instantly.
+async function compareLoadImages(v) {
+  cmp.loading = v.heatmap;
+  const blob = async (path) => URL.createObjectURL(await (await fetchRetry(path)).blob());
+  try {
+    const [rs, theirs, heat] = await Promise.all([
+      blob(`/api/image.png?channel=color&job=${v.render_job}`),
+      blob(`/api/rays/image.png?v=${rays.imageVersion}&job=${v.render_job}`),
+      blob(v.heatmap),
+    ]);
+    // Kept while the comparison on screen is still the one they belong to (later answers of
+    // the same comparison, while the diagnosis runs, do not replace it).
+    if (!cmp.data || cmp.data.heatmap !== v.heatmap) { for (const u of [rs, theirs, heat]) URL.revokeObjectURL(u); return; }
+    const old = cmp.urls;
+    cmp.urls = { rs, theirs, heat, key: v.heatmap };
+    compareShow();
+    setTimeout(() => { for (const u of Object.values(old)) if (typeof u === "string" && u.startsWith("blob:")) URL.revokeObjectURL(u); }, 2000);
+  } catch (e) {
+    $("compare-result").textContent = `loading the images: ${e.message}`;
+  } finally {
+    if (cmp.loading === v.heatmap) cmp.loading = null;
+  }
+}
+// Shows the image panel as the comparison mode says.
+function compareShow() {
+  const m = compareMode();
+  const side = m === "side" && !!cmp.urls.theirs;
+  $("cell-b").classList.toggle("hidden", !side);
+  $("caption-a").classList.toggle("hidden", !side);
+  $("compare-bars").classList.toggle("hidden", !cmp.loaded);
+  $("heat-scale").classList.toggle("hidden", m !== "heat");
+  $("compare-hint").classList.toggle("hidden", m === "heat" || m === "flicker");
+  if (side !== cmp.sideShown) { cmp.sideShown = side; setupZoom(); }
+  compareFlicker();
+  loadImage();
+}
+function compareFlicker() {
+  clearInterval(cmp.flickerTimer);
+  cmp.flickerTimer = null;
+  const on = compareMode() === "flicker";
+  $("flicker-bar").classList.toggle("hidden", !on);
+  if (!on) { cmp.showing = "rayscope"; return; }
+  $("flicker-label").textContent = cmp.showing;
+  if ($("flicker-auto").checked) cmp.flickerTimer = setInterval(flickerSwap, 700);
+}
+function flickerSwap() {
+  if (compareMode() !== "flicker") return;
+  cmp.showing = cmp.showing === "rayscope" ? "yours" : "rayscope";
+  $("flicker-label").textContent = cmp.showing;
+  loadImage();
+}
+// The hover readout: both values and the entity under the pixel, from the server (one request
+// at a time; the latest pixel wins).
+function compareHover(p) {
+  if (!cmp.data) return;
+  cmp.hover = p;
+  if (cmp.hoverBusy) return;
+  cmp.hoverBusy = true;
+  const job = cmp.data.render_job;
+  api(`/api/compare/pixel?x=${p[0]}&y=${p[1]}`)
+    .then((r) => {
+      const h = cmp.hover;
+      if (h && h[0] === r.x && h[1] === r.y && cmp.data && cmp.data.render_job === job && r.render_job === job) compareReadout(r);
+    })
+    .catch(() => {})
+    .finally(() => {
+      cmp.hoverBusy = false;
+      const h = cmp.hover;
+      if (h && (h[0] !== p[0] || h[1] !== p[1])) compareHover(h);
+    });
+}
+function compareReadout(r) {
+  const f = (c) => `rgb(${c.join(", ")})`;
+  const d = r.difference.map((v) => (v > 0 ? "+" : v < 0 ? "−" : "") + Math.abs(v)).join(", ");
+  const what = r.entity == null ? "—" : r.seen_in.length ? `${r.entity}, seen in ${r.seen_in.join(" in ")}` : r.entity;
+  const ro = $("pixel-readout");
+  ro.textContent = `pixel (${r.x}, ${r.y}) · yours ${f(r.yours)} · rayscope ${f(r.rayscope)} · difference (${d}) · ${what}`;
+  ro.title = ro.textContent;
+  Object.assign(ro.dataset, { pixel: `${r.x},${r.y}`, yours: r.yours.join(","), rayscope: r.rayscope.join(","), entity: what });
 }
 
 // ---------- the student's ray log and image ----------
@@ -619,13 +943,11 @@ const rays = {
 };
 const RAYS_STATUS = { "46,204,113": "agrees", "241,196,15": "only ties", "255,38,38": "disagrees", "70,70,76": "not logged" };
 function raysJudged() { return rays.summary && rays.summary.judged ? rays.summary.judged : null; }
-function raysShowTheirs() { return $("show-theirs").checked && rays.summary && rays.summary.image && rays.summary.image.matches; }
 function raysSizeMatches(w, h) { return st.settings && w === st.settings.width && h === st.settings.height; }
 function raysSetupInput() {
   $("rays-file").addEventListener("change", () => { const f = $("rays-file").files[0]; if (f) raysUpload(f); $("rays-file").value = ""; });
-  $("rays-image-file").addEventListener("change", () => { const f = $("rays-image-file").files[0]; if (f) raysImageUpload(f); $("rays-image-file").value = ""; });
+  $("rays-image-file").addEventListener("change", () => { const f = $("rays-image-file").files[0]; if (f) theirImageUpload(f); $("rays-image-file").value = ""; });
   $("show-verdicts").addEventListener("change", () => { drawOverlay(); requestView(); });
-  $("show-theirs").addEventListener("change", () => { loadImage(); requestView(); });
   // Drag and drop anywhere on the page: a .png is their image, anything else their log.
   let depth = 0;
   const hint = (on) => $("drop-hint").classList.toggle("hidden", !on);
@@ -635,7 +957,7 @@ function raysSetupInput() {
   document.addEventListener("drop", (e) => {
     e.preventDefault(); depth = 0; hint(false);
     for (const f of e.dataTransfer.files) {
-      if (/\.png$/i.test(f.name) || f.type === "image/png") raysImageUpload(f); else raysUpload(f);
+      if (/\.png$/i.test(f.name) || f.type === "image/png") theirImageUpload(f); else raysUpload(f);
     }
   });
 }
@@ -659,15 +981,6 @@ async function raysUpload(file) {
     raysSummaryText(`${file.name}: ${e.message}`, "error", "error");
   }
 }
-async function raysImageUpload(file) {
-  try {
-    const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
-    $("show-theirs").checked = false;
-    raysOnSummary(s);
-  } catch (e) {
-    $("compare-result").textContent = `${file.name}: ${e.message}`;
-  }
-}
 async function raysPoll() {
   clearTimeout(rays.pollTimer);
   try {
@@ -687,14 +1000,15 @@ function raysOnSummary(s) {
   rays.summary = s;
   const j = s.judged;
   const box = $("rays-summary");
-  $("show-verdicts-label").classList.toggle("hidden", !j);
+  if ($("show-verdicts-label").classList.contains("hidden") === !!j) {
+    $("show-verdicts-label").classList.toggle("hidden", !j);
+    refitImage();
+  }
   $("legend-yours").classList.toggle("hidden", !j);
-  // Their image.
-  $("show-theirs-label").classList.toggle("hidden", !s.image);
+  // Their image: compared with the render (see the comparison's section).
   if (s.image) {
     const key = `${s.image.name}:${s.image.width}x${s.image.height}:${s.image.matches}`;
-    if (key !== rays.imageKey) { rays.imageKey = key; rays.imageVersion++; raysLoadTheirs(); }
-    $("show-theirs-label").title = s.image.matches ? `${s.image.name}, ${s.image.width}×${s.image.height}` : `${s.image.name} is ${s.image.width}×${s.image.height}, the render ${st.settings.width}×${st.settings.height}: set the image size to compare`;
+    if (key !== rays.imageKey) { rays.imageKey = key; rays.imageVersion++; raysLoadTheirs(); comparePoll(); }
   }
   if (s.state === "none") { box.dataset.state = "none"; return; }
   if (s.state === "judging") {
@@ -780,7 +1094,6 @@ function raysImageData(src, done) {
 function raysLoadTheirs() {
   raysImageData(`/api/rays/image.png?v=${rays.imageVersion}`, (d) => { rays.theirData = d; });
   raysLoadRendered();
-  if (raysShowTheirs()) loadImage();
   requestView();
 }
 function raysLoadRendered() {
@@ -823,7 +1136,6 @@ function raysViewParams(p) {
     p.set("student", "1");
     if ($("show-verdicts").checked) p.set("verdicts", "1");
   }
-  if (raysShowTheirs()) p.set("grid", "student");
 }
 const rvec = (a) => (a ? "(" + a.map((x) => fmt(x, 4)).join(", ") + ")" : "—");
 async function raysPixel() {
