@@ -411,6 +411,25 @@ fn student_log_in_chromium() {
         .output()
         .expect("run the student tracer");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The fixed tracer's log of the top-left corner, dropped on the page afterwards.
+    let fixed = Command::new("python3")
+        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
+        .arg("-f")
+        .arg(&scene_path)
+        .args([
+            "-w",
+            &w.to_string(),
+            "-h",
+            &h.to_string(),
+            "--region",
+            "0,0,8,6",
+            "--log",
+            "-",
+        ])
+        .output()
+        .expect("run the student tracer");
+    assert!(fixed.status.success(), "{}", String::from_utf8_lossy(&fixed.stderr));
+    let fixed = String::from_utf8(fixed.stdout).expect("the log is text");
 
     let file = rayscope_scene::load(&scene_path).unwrap();
     let scene = Scene::from_file(&file);
@@ -435,13 +454,13 @@ fn student_log_in_chromium() {
     let _server = Server(Some(server));
     let log2 = log.clone();
     in_chromium(&chromium, &driver, &url, "student-failure.png", |c, url| async move {
-        let r = drive_student_log(&c, &url, &log2).await;
+        let r = drive_student_log(&c, &url, &log2, fixed).await;
         (c, r)
     });
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), String> {
+async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> Result<(), String> {
     use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
     let e = |e: fantoccini::error::CmdError| e.to_string();
     c.goto(url).await.map_err(|e| e.to_string())?;
@@ -581,6 +600,43 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path) -> Result<(), Stri
     .await;
     tokio::time::sleep(Duration::from_millis(800)).await;
     shot(c, "06-student-divergence.png").await;
+
+    // The fixed tracer's log dropped on the page: the drop hint shows while a file is dragged
+    // over, and the new log replaces the old one.
+    let hint = c
+        .execute(
+            r#"const [text] = arguments;
+            const dt = new DataTransfer();
+            dt.items.add(new File([text], "fixed_rays.jsonl", { type: "application/x-ndjson" }));
+            document.body.dispatchEvent(new DragEvent("dragenter", { dataTransfer: dt, bubbles: true }));
+            const shown = !document.getElementById("drop-hint").classList.contains("hidden");
+            document.body.dispatchEvent(new DragEvent("drop", { dataTransfer: dt, bubbles: true, cancelable: true }));
+            return shown;"#,
+            vec![serde_json::Value::String(fixed)],
+        )
+        .await
+        .map_err(e)?;
+    assert_eq!(
+        hint,
+        serde_json::Value::Bool(true),
+        "the drop hint did not show during the drag"
+    );
+    let summary = wait_for("the dropped log to be judged", 60, || async {
+        let t = c.find(Locator::Css("#rays-summary")).await.ok()?.text().await.ok()?;
+        let done = attr(c, "#rays-summary", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error");
+        (t.starts_with("fixed_rays.jsonl: ") && done.is_some()).then_some(t)
+    })
+    .await;
+    let red = attr(c, "#rays-summary", "data-disagree").await;
+    assert_eq!(red.as_deref(), Some("0"), "{summary}");
+    let hidden = attr(c, "#drop-hint", "class").await.unwrap_or_default();
+    assert!(
+        hidden.contains("hidden"),
+        "the drop hint stays after the drop: {hidden}"
+    );
+    shot(c, "06b-student-log-dropped.png").await;
     Ok(())
 }
 
