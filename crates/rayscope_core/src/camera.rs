@@ -4,6 +4,7 @@ use glam::{Mat3A, Vec2, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
 use crate::math::Ray;
+use crate::simd::{dispatched, LANES};
 
 /// Which field of view the `fov` angle spans.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -183,6 +184,28 @@ pub fn rodrigues(axis: Vec3, angle_deg: f32) -> Mat3A {
     }
     // glam's from_axis_angle is the same formula: R v = v cosθ + (k × v) sinθ + k (k·v)(1 − cosθ).
     Mat3A::from_axis_angle(k, angle_deg.to_radians())
+}
+
+dispatched!(
+    /// [`camera_dirs`] with the best instruction set the CPU has.
+    best_camera_dirs, camera_dirs_avx512, camera_dirs_avx2,
+    (camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3],
+    {
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            (u[i], v[i]) = (px[i] / w, py[i] / h);
+        }
+        camera.ray_dirs(&u, &v)
+    }
+);
+
+/// Directions of the pinhole camera rays through pixel positions (`px`, `py`) (pixels, not
+/// normalised) of a `w` × `h` image: [`Camera::ray_dirs`] of (`px`/`w`, `py`/`h`), sixteen lanes
+/// at once.
+// Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
+#[must_use]
+pub fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
+    best_camera_dirs(camera, px, py, w, h)
 }
 
 #[cfg(test)]

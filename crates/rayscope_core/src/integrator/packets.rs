@@ -20,14 +20,17 @@
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
+use crate::camera::camera_dirs;
+use crate::geometry::PrimRef;
 use crate::math::Ray;
+use crate::math::RayPacket;
 use crate::observer::NoObserver;
 use crate::rng::{Rng, RngLanes};
-use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
+use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, Stage};
+use crate::simd::{lane, put, LANES};
 use crate::wide::{
-    camera_dirs, lane, put, specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals,
-    SpecularRays, SurfaceFrames, LANES,
+    specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SpecularRays, SurfaceFrames,
 };
 use rayscope_scene::MaterialKind;
 

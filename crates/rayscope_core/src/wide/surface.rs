@@ -10,7 +10,8 @@
 //! side by side in one packet is the common case, and per-lane branches on it mispredict.
 //! [`specular_rays`] does the same for the rays mirrors and glass send on.
 
-use super::packet::{Mask, RayPacket, LANES};
+use crate::math::RayPacket;
+use crate::simd::{dispatched, Mask, LANES};
 
 /// One value per lane.
 type F = [f32; LANES];
@@ -222,11 +223,19 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
     out
 }
 
+dispatched!(
+    /// [`surface_frames`] with the best instruction set the CPU has.
+    best_surface_frames, surface_frames_avx512, surface_frames_avx2,
+    (rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames,
+    surface_frames_impl(rays, prims)
+);
+
 /// The geometry at the hits of `rays` on the primitives `prims`: per lane, the hit point, the
 /// normals and the offset origin that the single-ray code computes (see the module docs).
+// Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
 pub fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
-    super::dispatch::surface_frames(rays, prims)
+    best_surface_frames(rays, prims)
 }
 
 /// The rays mirrors and glass send on from a packet's hits: per lane, the arithmetic of the
@@ -295,8 +304,16 @@ pub(super) fn specular_rays_impl(rays: &RayPacket, f: &SurfaceFrames, ior: &F) -
     out
 }
 
+dispatched!(
+    /// [`specular_rays`] with the best instruction set the CPU has.
+    best_specular_rays, specular_rays_avx512, specular_rays_avx2,
+    (rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays,
+    specular_rays_impl(rays, frames, ior)
+);
+
 /// The rays mirrors and glass send on from the hits `frames` of `rays`; see [`SpecularRays`].
+// Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
 pub fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
-    super::dispatch::specular_rays(rays, frames, ior)
+    best_specular_rays(rays, frames, ior)
 }
