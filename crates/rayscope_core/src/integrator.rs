@@ -42,7 +42,7 @@ use crate::lights::Emitters;
 use crate::math::{basis, offset_eps, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
-use crate::optics::{fresnel, reflect, refract, schlick};
+use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
@@ -786,20 +786,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         if I::MISTAKEN {
             return self.mistaken_glass(ray, s, m, path);
         }
-        let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
-        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
-        let kr = fresnel(cos_i, n1, n2);
         let eps = offset_eps(s.point, ray.origin);
-        let refracted = if kr < 1.0 {
-            refract(ray.dir, s.normal, n1 / n2)
-        } else {
-            None
-        };
+        let (kr, reflected, refracted) = glass_rays(ray.dir, s.normal, s.point, eps, s.front_face, m.value);
         let (refl_medium, refr_medium) = self.glass_media(s, m, path);
         Glass {
             kr,
-            reflected: Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize()),
-            refracted: refracted.map(|t| Ray::new(s.point - s.normal * eps, t)),
+            reflected,
+            refracted,
             refl_medium,
             refr_medium,
         }
@@ -847,7 +840,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         Glass {
             // Without total internal reflection the ray that should reflect brings nothing.
             kr: if no_tir { 0.0 } else { kr },
-            reflected: Ray::new(s.point + n * eps, reflect(ray.dir, n).normalize()),
+            reflected: mirror_ray(ray.dir, n, s.point, eps),
             refracted: refracted.map(|t| Ray::new(s.point - n * eps, t)),
             refl_medium,
             refr_medium,
@@ -889,8 +882,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[inline]
     fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
         let eps = offset_eps(s.point, ray.origin);
-        let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-        (r, path.mirrored())
+        (mirror_ray(ray.dir, s.normal, s.point, eps), path.mirrored())
     }
 
     /// Beer's law over the segment of length `t` a ray travelled inside an absorbing medium.

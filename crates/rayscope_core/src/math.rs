@@ -3,7 +3,7 @@
 use glam::{Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
-use crate::simd::{lane, LANES};
+use crate::simd::{lane, max_element, maxps, LANES};
 
 /// A ray `origin + t * dir`; `dir` is expected to have unit length.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -104,6 +104,14 @@ impl Aabb {
 #[inline]
 pub fn offset_eps(p: Vec3A, from: Vec3A) -> f32 {
     let m = p.abs().max(from.abs()).max_element();
+    (1e-5 * m).max(1e-30)
+}
+
+/// [`offset_eps`] of lane `i` of points `p` and ray origins `o`: 1e-5 × the largest
+/// |coordinate| of either (glam's abs, max and max_element, in that order), at least 1e-30.
+#[inline(always)]
+pub(crate) fn offset_eps_lane(p: &[[f32; LANES]; 3], o: &[[f32; LANES]; 3], i: usize) -> f32 {
+    let m = max_element(std::array::from_fn(|a| maxps(p[a][i].abs(), o[a][i].abs())));
     (1e-5 * m).max(1e-30)
 }
 

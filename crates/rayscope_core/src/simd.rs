@@ -34,6 +34,32 @@ pub(crate) fn put(dst: &mut [[f32; LANES]; 3], i: usize, v: [f32; 3]) {
     }
 }
 
+/// `a` when `c`, else `b`.
+#[inline(always)]
+pub(crate) fn sel(c: bool, a: f32, b: f32) -> f32 {
+    if c {
+        a
+    } else {
+        b
+    }
+}
+
+/// glam's `max` of one lane (`maxps`: the second operand when either is NaN).
+#[inline(always)]
+pub(crate) fn maxps(a: f32, b: f32) -> f32 {
+    if a > b {
+        a
+    } else {
+        b
+    }
+}
+
+/// glam's `max_element` of one lane's (x, y, z), in glam's order.
+#[inline(always)]
+pub(crate) fn max_element(c: [f32; 3]) -> f32 {
+    maxps(maxps(c[0], c[2]), maxps(c[1], c[2]))
+}
+
 /// Asks the CPU to start loading the cache line at `p` (a hint: it never faults, whatever `p`).
 #[inline(always)]
 pub(crate) fn prefetch<T>(p: *const T) {

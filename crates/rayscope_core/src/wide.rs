@@ -29,8 +29,7 @@ pub use crate::simd::LANES;
 pub use beam::ApexCull;
 pub use packet::{LightRays, PacketHits};
 pub use stream::INTERLEAVE_BYTES;
-pub(crate) use surface::max_element;
-pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
+pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 
 /// Hit tag: a plane (the index is in the low bits).
 const TAG_PLANE: u32 = 1 << 30;

@@ -25,13 +25,12 @@ use crate::geometry::PrimRef;
 use crate::math::Ray;
 use crate::math::RayPacket;
 use crate::observer::NoObserver;
+use crate::optics::{specular_rays, SpecularRays};
 use crate::rng::{Rng, RngLanes};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::simd::{lane, put, LANES};
-use crate::wide::{
-    specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SpecularRays, SurfaceFrames,
-};
+use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
@@ -299,14 +298,12 @@ impl<I: Intersect> Integrator<'_, I> {
                     Next::Done
                 }
                 MaterialKind::Reflective => {
-                    // Self::mirror.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
                     child(&mut reflected).set(i, &r, path.mirrored(), reflected_in);
                     Next::Mirror
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
-                    // Self::glass.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let (refl_medium, refr_medium) = self.glass_media(&surf.get(i), m, path);
                     let g = Glass {

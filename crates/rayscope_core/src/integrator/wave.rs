@@ -43,8 +43,8 @@ use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect};
 use crate::settings::Stage;
-use crate::simd::{lane, put, LANES};
-use crate::wide::{max_element, Bvh4, PacketHits};
+use crate::simd::{lane, max_element, put, LANES};
+use crate::wide::{Bvh4, PacketHits};
 use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];

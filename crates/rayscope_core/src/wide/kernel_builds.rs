@@ -12,6 +12,7 @@ use super::surface::*;
 use super::PacketHits;
 use crate::camera::{camera_dirs, Camera};
 use crate::math::{Ray, RayPacket};
+use crate::optics::{specular_rays_avx2, specular_rays_avx512, specular_rays_impl, SpecularRays};
 use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::simd::LANES;
