@@ -36,7 +36,7 @@
 use glam::Vec3A;
 
 use crate::bsdf::Bsdf;
-use crate::camera::Camera;
+use crate::camera::{cell_centre, jittered, Camera};
 use crate::geometry::PrimRef;
 use crate::lights::Emitters;
 use crate::math::{basis, offset_eps, Ray};
@@ -369,7 +369,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         };
         self.grid = n;
         if n <= MAX_TABULATED_GRID {
-            self.cells = (0..n * n).map(|c| Self::cell_offset_of(c, n)).collect();
+            self.cells = (0..n * n).map(|c| cell_centre(c, n)).collect();
         }
         self
     }
@@ -381,13 +381,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         I::MISTAKEN && self.isect.mistakes().has(m)
     }
 
-    /// Offset of cell `cell` of an `n`×`n` grid inside its pixel.
-    #[inline]
-    fn cell_offset_of(cell: u32, n: u32) -> [f32; 2] {
-        let (i, j) = (cell % n, cell / n);
-        [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32]
-    }
-
     /// Offset inside its pixel of sample `s`: that of cell `s mod N²`.
     #[inline]
     pub(crate) fn cell_offset(&self, s: u32) -> [f32; 2] {
@@ -396,7 +389,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let cell = if s < nn { s } else { s % nn };
         match self.cells.get(cell as usize) {
             Some(&o) => o,
-            None => Self::cell_offset_of(cell, self.grid),
+            None => cell_centre(cell, self.grid),
         }
     }
 
@@ -452,8 +445,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             // Paths spread over their cell, so a pixel converges to the integral over its area
             // (edges antialiased as a box filter would) rather than to N×N point samples.
             let n = self.grid as f32;
-            ox += (rng.next_f32() - 0.5) / n;
-            oy += (rng.next_f32() - 0.5) / n;
+            ox = jittered(ox, rng.next_f32(), n);
+            oy = jittered(oy, rng.next_f32(), n);
         }
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;

@@ -191,3 +191,27 @@ impl RayPacket {
         Ray::new(lane(&self.o, i), lane(&self.d, i))
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn offset_eps_lane_is_offset_eps_bit_for_bit() {
+        let mut rng = crate::rng::Rng::for_sample(5, 6, 7);
+        let mut r = move || (rng.next_f32() - 0.5) * 10f32.powi((rng.next_f32() * 10.0) as i32 - 5);
+        let (mut p, mut o) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        for i in 0..LANES {
+            for a in 0..3 {
+                (p[a][i], o[a][i]) = (r(), r());
+            }
+        }
+        // A NaN coordinate and zero points, where glam's max picks a side.
+        p[1][3] = f32::NAN;
+        (p[0][5], p[1][5], p[2][5], o[0][5], o[1][5], o[2][5]) = (0.0, -0.0, 0.0, 0.0, 0.0, -0.0);
+        for i in 0..LANES {
+            let want = offset_eps(lane(&p, i), lane(&o, i));
+            assert_eq!(offset_eps_lane(&p, &o, i).to_bits(), want.to_bits(), "lane {i}");
+        }
+    }
+}

@@ -20,7 +20,7 @@
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
-use crate::camera::camera_dirs;
+use crate::camera::{camera_dirs, jittered};
 use crate::geometry::PrimRef;
 use crate::math::Ray;
 use crate::math::RayPacket;
@@ -100,8 +100,8 @@ impl<I: Intersect> Integrator<'_, I> {
                 b.rng.set(k, &rng);
             }
         } else {
-            // The same for a pinhole camera, all lanes at once: Self::sample_rng, then
-            // Self::position_in_cell's jitter, then the directions.
+            // The same for a pinhole camera, all lanes at once: the samples' streams, each lane's
+            // cell centre jittered by the stream's first two numbers, then the directions.
             let (mut pixel, mut sample, mut on) = ([0; LANES], [0; LANES], [false; LANES]);
             let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
             let width = u64::from(self.settings.width);
@@ -114,8 +114,8 @@ impl<I: Intersect> Integrator<'_, I> {
                 let n = self.grid as f32;
                 let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
                 for k in 0..LANES {
-                    px[k] += (jx[k] - 0.5) / n;
-                    py[k] += (jy[k] - 0.5) / n;
+                    px[k] = jittered(px[k], jx[k], n);
+                    py[k] = jittered(py[k], jy[k], n);
                 }
             }
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
