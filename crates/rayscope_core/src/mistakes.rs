@@ -3,10 +3,10 @@
 //! `diagnose` can search for the mistakes that explain a wrong picture.
 //!
 //! A render with any mistake goes through the one-ray-at-a-time recursive integrator: its
-//! intersector is a [`crate::render::Mistaken`] wrapper, which offers no wide BVH (so the packet and wave engines
-//! are never chosen) and whose [`Intersect::MISTAKEN`] turns on the integrator's few checks. Every
-//! other intersector leaves that constant false, so those checks compile away and correct renders
-//! run exactly the code they always did.
+//! intersector is a [`crate::render::Mistaken`] wrapper, which offers no wide BVH (so the packet
+//! and wave engines are never chosen) and whose [`crate::scene::Intersect::MISTAKEN`] turns on the
+//! integrator's few checks. Every other intersector leaves that constant false, so those checks
+//! compile away from correct renders.
 
 use std::fmt;
 

@@ -491,8 +491,9 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
     }
 }
 
-/// [`render_with`] (every tile, or only `only`) for settings with mistakes: the scene traced through a [`Mistaken`]
-/// intersector under [`Mistakes::settings`], its colours written as the student's code would.
+/// [`render_with`] (every tile, or only `only`) for settings with mistakes: the scene traced
+/// through a [`Mistaken`] intersector under [`RenderSettings::mistaken`], its colours written as
+/// the student's code would.
 fn render_mistaken<I: Intersect>(
     scene: &Scene,
     isect: &I,

@@ -2,7 +2,7 @@
 //! the run-time choice of instruction set and the cache prefetch hint.
 //!
 //! The kernels are plain loops over `[f32; LANES]` arrays that the compiler vectorises. A module
-//! with a kernel defines its entry point with [`dispatched!`], which also compiles the kernel with
+//! with a kernel defines its entry point with `dispatched!`, which also compiles the kernel with
 //! AVX-512 and with AVX2 enabled and runs the best build the CPU has. FMA is not enabled and Rust
 //! never fuses a multiply and an add on its own, so every build computes identical results (the
 //! tests in `wide/kernel_builds.rs` compare them). This file is the one place the core's product
