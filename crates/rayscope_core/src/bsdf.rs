@@ -18,7 +18,7 @@ use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3A;
 
-use crate::integrator::fresnel;
+use crate::optics::fresnel;
 use crate::sampling::{
     cosine_hemisphere, cosine_hemisphere_pdf, ggx_d, ggx_g2, ggx_reflect_pdf, ggx_sample_vndf, reflect_about,
 };

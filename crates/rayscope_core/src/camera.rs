@@ -4,6 +4,7 @@ use glam::{Mat3A, Vec2, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
 use crate::math::Ray;
+use crate::simd::{dispatched, LANES};
 
 /// Which field of view the `fov` angle spans.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -185,6 +186,46 @@ pub fn rodrigues(axis: Vec3, angle_deg: f32) -> Mat3A {
     Mat3A::from_axis_angle(k, angle_deg.to_radians())
 }
 
+/// The centre of cell `cell` of the `n` × `n` grid of `-x n` inside its pixel, as an offset in
+/// pixels from the pixel's top-left corner: cell (i, j) = (`cell` mod n, `cell` / n) is centred
+/// at ((i + 0.5)/n, (j + 0.5)/n).
+#[must_use]
+#[inline]
+pub fn cell_centre(cell: u32, n: u32) -> [f32; 2] {
+    let (i, j) = (cell % n, cell / n);
+    [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32]
+}
+
+/// A coordinate `centre` of a cell of an `n` × `n` grid moved across the cell by the uniform
+/// random number `r` ∈ [0, 1): stratified jitter, for one ray or lane by lane.
+#[must_use]
+#[inline(always)]
+pub fn jittered(centre: f32, r: f32, n: f32) -> f32 {
+    centre + (r - 0.5) / n
+}
+
+dispatched!(
+    /// [`camera_dirs`] with the best instruction set the CPU has.
+    best_camera_dirs, camera_dirs_avx512, camera_dirs_avx2,
+    (camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3],
+    {
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            (u[i], v[i]) = (px[i] / w, py[i] / h);
+        }
+        camera.ray_dirs(&u, &v)
+    }
+);
+
+/// Directions of the pinhole camera rays through pixel positions (`px`, `py`) (pixels, not
+/// normalised) of a `w` × `h` image: [`Camera::ray_dirs`] of (`px`/`w`, `py`/`h`), sixteen lanes
+/// at once.
+// Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
+#[must_use]
+pub fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
+    best_camera_dirs(camera, px, py, w, h)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -201,6 +242,24 @@ mod tests {
         // Top edge: half of the horizontal extent for a 2:1 image.
         assert!((cam.plane_point_camera(0.5, 0.0).y - (30f32.to_radians().tan() / 2.0)).abs() < 1e-6);
         assert!(cam.plane_point_camera(0.0, 0.0).y > 0.0, "row 0 is the top");
+    }
+
+    #[test]
+    fn jittered_cells_tile_the_pixel() {
+        for n in 1..5u32 {
+            let nf = n as f32;
+            for cell in 0..n * n {
+                let [cx, cy] = cell_centre(cell, n);
+                let (i, j) = ((cell % n) as f32, (cell / n) as f32);
+                assert_eq!([cx, cy], [(i + 0.5) / nf, (j + 0.5) / nf]);
+                for r in [0.0, 0.25, 0.5, 0.999_999] {
+                    let (x, y) = (jittered(cx, r, nf), jittered(cy, r, nf));
+                    assert!(x >= i / nf - 1e-6 && x < (i + 1.0) / nf + 1e-6, "{n} {cell} {r}: {x}");
+                    assert!(y >= j / nf - 1e-6 && y < (j + 1.0) / nf + 1e-6, "{n} {cell} {r}: {y}");
+                }
+                assert_eq!(jittered(cx, 0.5, nf), cx, "the middle of the range is the centre");
+            }
+        }
     }
 
     #[test]

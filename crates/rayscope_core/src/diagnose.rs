@@ -28,9 +28,9 @@ use crate::camera::FovAxis;
 use crate::compare::compare_rgb8;
 use crate::film::to_byte;
 use crate::integrator::{Counters, Integrator};
-use crate::mistakes::{Mistake, Mistaken, Mistakes};
+use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayTree};
-use crate::render::{render, trace_pixel};
+use crate::render::{render, trace_pixel, Mistaken};
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, RenderSettings};
 
@@ -481,7 +481,7 @@ fn render_pixels(scene: &Scene, settings: &RenderSettings, pixels: &[(u32, u32)]
             scene,
             mistakes: m,
         };
-        let s = m.settings(settings);
+        let s = settings.mistaken(m);
         pixel_bytes(&Integrator::with_intersector(scene, &wrapped, &s), m, pixels)
     }
 }

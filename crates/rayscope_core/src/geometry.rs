@@ -4,6 +4,7 @@
 //! Rays must have unit-length directions.
 
 use glam::{Vec3A, Vec4};
+use serde::Serialize;
 
 use crate::math::{Aabb, Ray};
 
@@ -261,6 +262,17 @@ impl Primitive for Triangle {
     fn normal(&self, _ray: &Ray, _hit: &PrimHit) -> Vec3A {
         self.geometric_normal()
     }
+}
+
+/// A primitive of a scene: its kind and its index in the scene's store of that kind.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+pub enum PrimRef {
+    /// Index into `Scene::planes`.
+    Plane(u32),
+    /// Index into `Scene::spheres`.
+    Sphere(u32),
+    /// Index into `Scene::triangles`.
+    Triangle(u32),
 }
 
 #[cfg(test)]

@@ -36,11 +36,13 @@
 use glam::Vec3A;
 
 use crate::bsdf::Bsdf;
-use crate::camera::Camera;
+use crate::camera::{cell_centre, jittered, Camera};
+use crate::geometry::PrimRef;
 use crate::lights::Emitters;
-use crate::math::{basis, offset_eps, reflect, Ray};
+use crate::math::{basis, offset_eps, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
+use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
@@ -265,36 +267,6 @@ fn absorbs(stage: Stage, m: &Material) -> bool {
     stage == Stage::Full && m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO
 }
 
-/// Exact unpolarised Fresnel reflectance for a ray meeting an interface with `cos_i` = cos of
-/// the incidence angle (≥ 0), going from index `n1` to `n2`; 1 under total internal reflection.
-#[must_use]
-#[inline]
-pub fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
-    let eta = n1 / n2;
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
-    let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
-    0.5 * (rs * rs + rp * rp)
-}
-
-/// Refracted direction of unit `d` through unit normal `n` (facing `d`'s origin side) with
-/// `eta = n1 / n2`; `None` under total internal reflection.
-#[must_use]
-#[inline]
-pub fn refract(d: Vec3A, n: Vec3A, eta: f32) -> Option<Vec3A> {
-    let cos_i = -d.dot(n);
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
-    if sin2_t >= 1.0 {
-        return None;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    Some((d * eta + n * (eta * cos_i - cos_t)).normalize())
-}
-
 impl<'a> Integrator<'a, Scene> {
     /// An integrator for `scene` with `settings`, tracing with the scene's BVH.
     #[must_use]
@@ -375,7 +347,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         // Glass spheres only: rays start inside a sphere where they refract into it, and the
         // check costs a pass over the scene's triangles per sphere.
         let glass = |k: usize| {
-            let (_, m) = self.scene.prim_info(crate::scene::PrimRef::Sphere(k as u32));
+            let (_, m) = self.scene.prim_info(PrimRef::Sphere(k as u32));
             self.scene.materials[m as usize].kind == MaterialKind::Refractive
         };
         self.lone_spheres = (0..self.scene.spheres.len())
@@ -397,7 +369,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         };
         self.grid = n;
         if n <= MAX_TABULATED_GRID {
-            self.cells = (0..n * n).map(|c| Self::cell_offset_of(c, n)).collect();
+            self.cells = (0..n * n).map(|c| cell_centre(c, n)).collect();
         }
         self
     }
@@ -409,13 +381,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         I::MISTAKEN && self.isect.mistakes().has(m)
     }
 
-    /// Offset of cell `cell` of an `n`×`n` grid inside its pixel.
-    #[inline]
-    fn cell_offset_of(cell: u32, n: u32) -> [f32; 2] {
-        let (i, j) = (cell % n, cell / n);
-        [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32]
-    }
-
     /// Offset inside its pixel of sample `s`: that of cell `s mod N²`.
     #[inline]
     pub(crate) fn cell_offset(&self, s: u32) -> [f32; 2] {
@@ -424,7 +389,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let cell = if s < nn { s } else { s % nn };
         match self.cells.get(cell as usize) {
             Some(&o) => o,
-            None => Self::cell_offset_of(cell, self.grid),
+            None => cell_centre(cell, self.grid),
         }
     }
 
@@ -480,8 +445,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             // Paths spread over their cell, so a pixel converges to the integral over its area
             // (edges antialiased as a box filter would) rather than to N×N point samples.
             let n = self.grid as f32;
-            ox += (rng.next_f32() - 0.5) / n;
-            oy += (rng.next_f32() - 0.5) / n;
+            ox = jittered(ox, rng.next_f32(), n);
+            oy = jittered(oy, rng.next_f32(), n);
         }
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;
@@ -669,8 +634,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// (v2 − v0) × (v1 − v0), not turned towards the ray.
     #[cold]
     fn reversed_normal(&self, hit: &Hit, s: &Surface) -> Surface {
-        let triangle = matches!(hit.prim, crate::scene::PrimRef::Triangle(_))
-            && self.scene.entities[s.entity as usize].kind == "Triangle";
+        let triangle =
+            matches!(hit.prim, PrimRef::Triangle(_)) && self.scene.entities[s.entity as usize].kind == "Triangle";
         if !triangle {
             return *s;
         }
@@ -814,20 +779,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         if I::MISTAKEN {
             return self.mistaken_glass(ray, s, m, path);
         }
-        let (n1, n2) = if s.front_face { (1.0, m.value) } else { (m.value, 1.0) };
-        let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
-        let kr = fresnel(cos_i, n1, n2);
         let eps = offset_eps(s.point, ray.origin);
-        let refracted = if kr < 1.0 {
-            refract(ray.dir, s.normal, n1 / n2)
-        } else {
-            None
-        };
+        let (kr, reflected, refracted) = glass_rays(ray.dir, s.normal, s.point, eps, s.front_face, m.value);
         let (refl_medium, refr_medium) = self.glass_media(s, m, path);
         Glass {
             kr,
-            reflected: Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize()),
-            refracted: refracted.map(|t| Ray::new(s.point - s.normal * eps, t)),
+            reflected,
+            refracted,
             refl_medium,
             refr_medium,
         }
@@ -850,7 +808,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         } else if self.mistake(Mistake::FresnelHalf) {
             0.5
         } else if self.mistake(Mistake::Schlick) {
-            mistakes::schlick(cos_i, n1, n2)
+            schlick(cos_i, n1, n2)
         } else {
             fresnel(cos_i, n1, n2)
         };
@@ -875,7 +833,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         Glass {
             // Without total internal reflection the ray that should reflect brings nothing.
             kr: if no_tir { 0.0 } else { kr },
-            reflected: Ray::new(s.point + n * eps, reflect(ray.dir, n).normalize()),
+            reflected: mirror_ray(ray.dir, n, s.point, eps),
             refracted: refracted.map(|t| Ray::new(s.point - n * eps, t)),
             refl_medium,
             refr_medium,
@@ -917,8 +875,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[inline]
     fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
         let eps = offset_eps(s.point, ray.origin);
-        let r = Ray::new(s.point + s.normal * eps, reflect(ray.dir, s.normal).normalize());
-        (r, path.mirrored())
+        (mirror_ray(ray.dir, s.normal, s.point, eps), path.mirrored())
     }
 
     /// Beer's law over the segment of length `t` a ray travelled inside an absorbing medium.
@@ -1240,31 +1197,6 @@ pub fn heat(t: f32) -> Vec3A {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn fresnel_limits() {
-        // Normal incidence air→glass 1.5: ((1−1.5)/(1+1.5))² = 0.04.
-        assert!((fresnel(1.0, 1.0, 1.5) - 0.04).abs() < 1e-6);
-        // Grazing: total reflection.
-        assert!((fresnel(0.0, 1.0, 1.5) - 1.0).abs() < 1e-6);
-        // Inside glass past the critical angle (41.8° for 1.5): TIR.
-        assert_eq!(fresnel(50f32.to_radians().cos(), 1.5, 1.0), 1.0);
-        assert!(fresnel(30f32.to_radians().cos(), 1.5, 1.0) < 1.0);
-    }
-
-    #[test]
-    fn refraction_obeys_snell() {
-        let d = Vec3A::new(1.0, -1.0, 0.0).normalize();
-        let n = Vec3A::Y;
-        let t = refract(d, n, 1.0 / 1.4).unwrap();
-        let sin_i = d.x;
-        let sin_t = t.x;
-        assert!((sin_i - 1.4 * sin_t).abs() < 1e-6);
-        assert!(
-            refract(Vec3A::new(0.9, -0.1, 0.0).normalize(), n, 1.4).is_none(),
-            "TIR from inside"
-        );
-    }
 
     #[test]
     fn disk_samples_inside() {

@@ -17,6 +17,7 @@ pub mod lights;
 pub mod math;
 pub mod mistakes;
 pub mod observer;
+pub mod optics;
 pub mod output;
 pub mod reference;
 pub mod render;
@@ -24,6 +25,7 @@ pub mod rng;
 pub mod sampling;
 pub mod scene;
 pub mod settings;
+pub mod simd;
 pub mod wide;
 
 pub use camera::{Camera, CameraSettings, FovAxis};

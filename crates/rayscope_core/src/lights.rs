@@ -9,11 +9,11 @@
 use glam::Vec3A;
 use rayscope_scene::MaterialKind;
 
-use crate::geometry::{Sphere, Triangle};
+use crate::geometry::{PrimRef, Sphere, Triangle};
 use crate::math::{basis, not_at_most};
 use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
-use crate::scene::{PrimRef, Scene};
-use crate::wide::{lane, LANES};
+use crate::scene::Scene;
+use crate::simd::{lane, LANES};
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;

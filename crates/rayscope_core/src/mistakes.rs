@@ -3,26 +3,19 @@
 //! `diagnose` can search for the mistakes that explain a wrong picture.
 //!
 //! A render with any mistake goes through the one-ray-at-a-time recursive integrator: its
-//! intersector is a [`Mistaken`] wrapper, which offers no wide BVH (so the packet and wave engines
-//! are never chosen) and whose [`Intersect::MISTAKEN`] turns on the integrator's few checks. Every
-//! other intersector leaves that constant false, so those checks compile away and correct renders
-//! run exactly the code they always did.
+//! intersector is a [`crate::render::Mistaken`] wrapper, which offers no wide BVH (so the packet
+//! and wave engines are never chosen) and whose [`crate::scene::Intersect::MISTAKEN`] turns on the
+//! integrator's few checks. Every other intersector leaves that constant false, so those checks
+//! compile away from correct renders.
 
 use std::fmt;
-use std::sync::atomic::AtomicBool;
 
 use glam::{Vec3, Vec3A};
 use rayscope_scene::{SceneFile, Shape};
 use serde::{Deserialize, Deserializer, Serialize, Serializer};
 
-use crate::camera::{Camera, FovAxis};
+use crate::camera::Camera;
 use crate::film::Film;
-use crate::integrator::Integrator;
-use crate::math::Ray;
-use crate::observer::RayTree;
-use crate::render::{record_pixel, render_tiles, Cancelled, RenderOutput};
-use crate::scene::{Hit, Intersect, PrimRef, Scene};
-use crate::settings::{Channel, RenderSettings};
 
 /// One of the course's common mistakes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -388,20 +381,6 @@ impl Mistakes {
         }
     }
 
-    /// The settings a render with these mistakes runs under: those mistakes that are settings
-    /// of rayscope's too (the field of view's axis, the recursion limit) applied.
-    #[must_use]
-    pub fn settings(self, s: &RenderSettings) -> RenderSettings {
-        let mut s = *s;
-        if self.has(Mistake::FovVertical) {
-            s.camera.fov_axis = FovAxis::Vertical;
-        }
-        if self.has(Mistake::RecursionLimit3) {
-            s.max_depth = 3;
-        }
-        s
-    }
-
     /// Makes the camera mistakes that change the image plane.
     pub(crate) fn adjust_camera(self, cam: &mut Camera) {
         if self.has(Mistake::AspectIgnored) {
@@ -491,109 +470,6 @@ pub fn catalogue_text() -> String {
     out
 }
 
-/// An intersector that traces rays as a tracer with `mistakes` would (one-sided triangles), and
-/// whose renders make the integrator's mistakes ([`Intersect::MISTAKEN`]). It offers no wide
-/// BVH, so its renders run one ray at a time.
-#[derive(Debug, Clone, Copy)]
-pub struct Mistaken<'a, I: Intersect> {
-    /// The intersector rays are really traced with.
-    pub inner: &'a I,
-    /// The scene (for the triangles' normals).
-    pub scene: &'a Scene,
-    /// The mistakes.
-    pub mistakes: Mistakes,
-}
-
-impl<I: Intersect> Mistaken<'_, I> {
-    /// True when the hit must be skipped: a triangle seen from the side the student's
-    /// one-sided test rejects.
-    #[inline]
-    fn culled(&self, ray: &Ray, hit: PrimRef) -> bool {
-        if !self.mistakes.has(Mistake::OneSidedTriangles) {
-            return false;
-        }
-        let PrimRef::Triangle(i) = hit else {
-            return false;
-        };
-        let front = self.scene.triangles[i as usize].geometric_normal().dot(ray.dir) < 0.0;
-        // With reversed normals the student's front is rayscope's back.
-        front == self.mistakes.has(Mistake::ReversedNormals)
-    }
-}
-
-/// Most culled hits one query steps past before it gives up (a ray grazing a mesh can meet many).
-const MAX_CULLED: usize = 1024;
-
-impl<I: Intersect> Intersect for Mistaken<'_, I> {
-    const MISTAKEN: bool = true;
-
-    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        let mut lo = t_min;
-        for _ in 0..MAX_CULLED {
-            let hit = self.inner.intersect(ray, lo, t_max)?;
-            if !self.culled(ray, hit.prim) {
-                return Some(hit);
-            }
-            lo = hit.t;
-        }
-        None
-    }
-
-    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
-        if !self.mistakes.has(Mistake::OneSidedTriangles) {
-            return self.inner.occluder(ray, t_min, t_max);
-        }
-        self.intersect(ray, t_min, t_max).map(|h| h.prim)
-    }
-
-    fn mistakes(&self) -> Mistakes {
-        self.mistakes
-    }
-}
-
-/// [`crate::render_with`] (every tile, or only `only`) for settings with mistakes: the scene traced through a [`Mistaken`]
-/// intersector under [`Mistakes::settings`], its colours written as the student's code would.
-pub(crate) fn render<I: Intersect>(
-    scene: &Scene,
-    isect: &I,
-    settings: &RenderSettings,
-    only: Option<&[u32]>,
-    progress: &(dyn Fn(u64, u64) + Sync),
-    cancel: &AtomicBool,
-) -> Result<RenderOutput, Cancelled> {
-    let m = settings.mistakes;
-    let wrapped = Mistaken {
-        inner: isect,
-        scene,
-        mistakes: m,
-    };
-    let s = m.settings(settings);
-    let mut out = render_tiles(scene, &wrapped, &s, only, progress, cancel)?;
-    if s.channel == Channel::Color {
-        m.apply_to_film(&mut out.film);
-    }
-    Ok(out)
-}
-
-/// [`crate::trace_pixel_with`] for settings with mistakes.
-pub(crate) fn trace_pixel<I: Intersect>(
-    scene: &Scene,
-    isect: &I,
-    settings: &RenderSettings,
-    x: u32,
-    y: u32,
-    sample: u32,
-) -> RayTree {
-    let m = settings.mistakes;
-    let wrapped = Mistaken {
-        inner: isect,
-        scene,
-        mistakes: m,
-    };
-    let s = m.settings(settings);
-    record_pixel(&Integrator::with_intersector(scene, &wrapped, &s), x, y, sample)
-}
-
 /// The shadow-ray origin a tracer with `mistakes` uses at `point` with normal `normal` (facing
 /// the ray), given rayscope's own offset `eps`.
 #[must_use]
@@ -606,22 +482,6 @@ pub(crate) fn shadow_origin(mistakes: Mistakes, point: Vec3A, normal: Vec3A, eps
     } else {
         point + normal * eps
     }
-}
-
-/// Schlick's approximation of the Fresnel reflectance, from `n1` into `n2` at `cos_i`; 1 under
-/// total internal reflection.
-#[must_use]
-pub fn schlick(cos_i: f32, n1: f32, n2: f32) -> f32 {
-    let r0 = ((n1 - n2) / (n1 + n2)).powi(2);
-    let eta = n1 / n2;
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    // Going into the denser medium the incident angle is the larger one; leaving it, the
-    // transmitted one is.
-    let c = if n1 <= n2 { cos_i } else { (1.0 - sin2_t).sqrt() };
-    r0 + (1.0 - r0) * (1.0 - c).powi(5)
 }
 
 #[cfg(test)]
@@ -658,17 +518,5 @@ mod tests {
             (0.5f32.powf(GAMMA) * 255.0) as u8
         );
         assert_eq!(g.output(Vec3::splat(-1.0)).x, 0.0);
-    }
-
-    #[test]
-    fn schlick_is_close_to_fresnel_but_not_equal() {
-        use crate::integrator::fresnel;
-        for k in 0..=20 {
-            let c = k as f32 / 20.0;
-            let (s, f) = (schlick(c, 1.0, 1.5), fresnel(c, 1.0, 1.5));
-            assert!((s - f).abs() < 0.06, "{c}: {s} vs {f}");
-        }
-        assert!((schlick(0.5, 1.0, 1.5) - fresnel(0.5, 1.0, 1.5)).abs() > 1e-4);
-        assert_eq!(schlick(0.1, 1.5, 1.0), 1.0, "TIR");
     }
 }

@@ -9,9 +9,9 @@ use parry3d::math::{Pose, Vector};
 use parry3d::query::{Ray as PRay, RayCast};
 use parry3d::shape::{Ball, HalfSpace, Triangle as PTriangle};
 
-use crate::geometry::{Plane, PrimHit, Sphere, Triangle};
+use crate::geometry::{Plane, PrimHit, PrimRef, Sphere, Triangle};
 use crate::math::Ray;
-use crate::scene::{Hit, Intersect, PrimRef, Scene};
+use crate::scene::{Hit, Intersect, Scene};
 
 fn pray(ray: &Ray, t_min: f32) -> PRay {
     let o = ray.at(t_min);

@@ -8,11 +8,14 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::Film;
+use crate::geometry::PrimRef;
 use crate::integrator::{Counters, Integrator, Job, WaveWork};
+use crate::math::Ray;
+use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
-use crate::scene::{Intersect, Scene};
-use crate::settings::RenderSettings;
-use crate::wide::LANES;
+use crate::scene::{Hit, Intersect, Scene};
+use crate::settings::{Channel, RenderSettings};
+use crate::simd::LANES;
 
 /// Tile edge in pixels: small enough to balance two cores on tiny images, large enough to
 /// keep scheduling overhead negligible. Tiles are also the unit a farm render deals out to its
@@ -85,7 +88,7 @@ pub fn render_with<I: Intersect>(
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
     if !settings.mistakes.is_empty() {
-        return crate::mistakes::render(scene, isect, settings, None, progress, cancel);
+        return render_mistaken(scene, isect, settings, None, progress, cancel);
     }
     render_tiles(scene, isect, settings, None, progress, cancel)
 }
@@ -108,7 +111,7 @@ pub fn render_tiles_of(
     let (tx, ty) = tile_grid(settings.width, settings.height);
     assert!(tiles.iter().all(|&t| t < tx * ty), "tile index outside the image");
     if !settings.mistakes.is_empty() {
-        return crate::mistakes::render(scene, scene, settings, Some(tiles), progress, cancel);
+        return render_mistaken(scene, scene, settings, Some(tiles), progress, cancel);
     }
     render_tiles(scene, scene, settings, Some(tiles), progress, cancel)
 }
@@ -409,7 +412,7 @@ pub fn trace_pixel_with<I: Intersect>(
     sample: u32,
 ) -> RayTree {
     if !settings.mistakes.is_empty() {
-        return crate::mistakes::trace_pixel(scene, isect, settings, x, y, sample);
+        return trace_pixel_mistaken(scene, isect, settings, x, y, sample);
     }
     record_pixel(&Integrator::with_intersector(scene, isect, settings), x, y, sample)
 }
@@ -426,6 +429,110 @@ pub(crate) fn record_pixel<I: Intersect>(integ: &Integrator<'_, I>, x: u32, y: u
         nodes: rec.nodes,
         color: v.to_array(),
     }
+}
+
+/// An intersector that traces rays as a tracer with `mistakes` would (one-sided triangles), and
+/// whose renders make the integrator's mistakes ([`Intersect::MISTAKEN`]). It offers no wide
+/// BVH, so its renders run one ray at a time.
+#[derive(Debug, Clone, Copy)]
+pub struct Mistaken<'a, I: Intersect> {
+    /// The intersector rays are really traced with.
+    pub inner: &'a I,
+    /// The scene (for the triangles' normals).
+    pub scene: &'a Scene,
+    /// The mistakes.
+    pub mistakes: Mistakes,
+}
+
+impl<I: Intersect> Mistaken<'_, I> {
+    /// True when the hit must be skipped: a triangle seen from the side the student's
+    /// one-sided test rejects.
+    #[inline]
+    fn culled(&self, ray: &Ray, hit: PrimRef) -> bool {
+        if !self.mistakes.has(Mistake::OneSidedTriangles) {
+            return false;
+        }
+        let PrimRef::Triangle(i) = hit else {
+            return false;
+        };
+        let front = self.scene.triangles[i as usize].geometric_normal().dot(ray.dir) < 0.0;
+        // With reversed normals the student's front is rayscope's back.
+        front == self.mistakes.has(Mistake::ReversedNormals)
+    }
+}
+
+/// Most culled hits one query steps past before it gives up (a ray grazing a mesh can meet many).
+const MAX_CULLED: usize = 1024;
+
+impl<I: Intersect> Intersect for Mistaken<'_, I> {
+    const MISTAKEN: bool = true;
+
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        let mut lo = t_min;
+        for _ in 0..MAX_CULLED {
+            let hit = self.inner.intersect(ray, lo, t_max)?;
+            if !self.culled(ray, hit.prim) {
+                return Some(hit);
+            }
+            lo = hit.t;
+        }
+        None
+    }
+
+    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        if !self.mistakes.has(Mistake::OneSidedTriangles) {
+            return self.inner.occluder(ray, t_min, t_max);
+        }
+        self.intersect(ray, t_min, t_max).map(|h| h.prim)
+    }
+
+    fn mistakes(&self) -> Mistakes {
+        self.mistakes
+    }
+}
+
+/// [`render_with`] (every tile, or only `only`) for settings with mistakes: the scene traced
+/// through a [`Mistaken`] intersector under [`RenderSettings::mistaken`], its colours written as
+/// the student's code would.
+fn render_mistaken<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    only: Option<&[u32]>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    cancel: &AtomicBool,
+) -> Result<RenderOutput, Cancelled> {
+    let m = settings.mistakes;
+    let wrapped = Mistaken {
+        inner: isect,
+        scene,
+        mistakes: m,
+    };
+    let s = settings.mistaken(m);
+    let mut out = render_tiles(scene, &wrapped, &s, only, progress, cancel)?;
+    if s.channel == Channel::Color {
+        m.apply_to_film(&mut out.film);
+    }
+    Ok(out)
+}
+
+/// [`trace_pixel_with`] for settings with mistakes.
+fn trace_pixel_mistaken<I: Intersect>(
+    scene: &Scene,
+    isect: &I,
+    settings: &RenderSettings,
+    x: u32,
+    y: u32,
+    sample: u32,
+) -> RayTree {
+    let m = settings.mistakes;
+    let wrapped = Mistaken {
+        inner: isect,
+        scene,
+        mistakes: m,
+    };
+    let s = settings.mistaken(m);
+    record_pixel(&Integrator::with_intersector(scene, &wrapped, &s), x, y, sample)
 }
 
 #[cfg(test)]

@@ -1,7 +1,7 @@
 //! Deterministic random streams keyed by (seed, pixel, sample), so images do not depend on the
 //! thread count or scheduling and any sample can be replayed.
 
-use crate::wide::LANES;
+use crate::simd::LANES;
 
 /// A PCG32 generator (O'Neill 2014): small state, good statistics, cheap to seed per sample.
 #[derive(Debug, Clone)]

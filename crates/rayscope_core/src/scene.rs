@@ -7,6 +7,7 @@ use rayscope_scene::{MaterialKind, SceneFile, Shape};
 use serde::Serialize;
 
 use crate::bvh::{BuildPrim, Bvh};
+pub use crate::geometry::PrimRef;
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::wide::{Bvh4, WideHit};
@@ -34,17 +35,6 @@ pub struct PointLight {
     pub position: Vec3,
     /// Colour.
     pub color: Vec3,
-}
-
-/// Which primitive store a hit came from.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
-pub enum PrimRef {
-    /// Index into [`Scene::planes`].
-    Plane(u32),
-    /// Index into [`Scene::spheres`].
-    Sphere(u32),
-    /// Index into [`Scene::triangles`].
-    Triangle(u32),
 }
 
 /// The closest intersection of a ray with the scene.
@@ -157,7 +147,7 @@ pub struct Scene {
 /// A closest-hit and any-hit query over a [`Scene`]: rayscope's BVH or the parry3d reference.
 pub trait Intersect: Sync {
     /// True for an intersector whose renders make the course's mistakes
-    /// ([`crate::mistakes::Mistaken`]); false everywhere else, so the integrator's checks for
+    /// ([`crate::render::Mistaken`]); false everywhere else, so the integrator's checks for
     /// them compile away.
     const MISTAKEN: bool = false;
     /// The mistakes this intersector's renders make.

@@ -2,8 +2,8 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::camera::CameraSettings;
-use crate::mistakes::Mistakes;
+use crate::camera::{CameraSettings, FovAxis};
+use crate::mistakes::{Mistake, Mistakes};
 
 /// Which of the course's stages to render.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
@@ -145,6 +145,20 @@ pub fn available_memory() -> Option<u64> {
 }
 
 impl RenderSettings {
+    /// These settings as a render with the mistakes `m` runs under: those mistakes that are
+    /// settings of rayscope's too (the field of view's axis, the recursion limit) applied.
+    #[must_use]
+    pub fn mistaken(&self, m: Mistakes) -> RenderSettings {
+        let mut s = *self;
+        if m.has(Mistake::FovVertical) {
+            s.camera.fov_axis = FovAxis::Vertical;
+        }
+        if m.has(Mistake::RecursionLimit3) {
+            s.max_depth = 3;
+        }
+        s
+    }
+
     /// Most samples a pixel can take with these settings, in any scene: N² grid positions, times
     /// 2^q paths when the scene turns out to have a stochastic effect.
     #[must_use]

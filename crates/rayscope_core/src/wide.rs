@@ -15,35 +15,30 @@ use glam::{BVec4A, Vec3A, Vec4};
 use rayon::prelude::*;
 
 use crate::bvh::{Bvh, BvhNode, MAX_LEAF_PRIMS};
-use crate::geometry::{Plane, Sphere, Triangle};
+use crate::geometry::{Plane, PrimRef, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
-use crate::scene::PrimRef;
 
 mod beam;
-mod dispatch;
-mod packet;
+#[cfg(test)]
+mod kernel_builds;
+pub(crate) mod packet;
 mod stream;
-mod surface;
+pub(crate) mod surface;
+pub use crate::math::RayPacket;
+pub use crate::simd::LANES;
 pub use beam::ApexCull;
-pub(crate) use packet::{lane, put};
-pub use packet::{LightRays, PacketHits, RayPacket, LANES};
-use packet::{TAG_PLANE, TAG_SPHERE, TAG_TRI};
+pub use packet::{LightRays, PacketHits};
 pub use stream::INTERLEAVE_BYTES;
-pub(crate) use surface::max_element;
-pub use surface::{specular_rays, surface_frames, HitPrims, SmoothNormals, SpecularRays, SurfaceFrames};
+pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 
-/// Directions of the camera rays through pixel positions (`px`, `py`) of a `w` × `h` image:
-/// [`crate::camera::Camera::ray_dirs`] of (`px`/`w`, `py`/`h`), sixteen lanes at once.
-#[must_use]
-pub fn camera_dirs(
-    camera: &crate::camera::Camera,
-    px: &[f32; LANES],
-    py: &[f32; LANES],
-    w: f32,
-    h: f32,
-) -> [[f32; LANES]; 3] {
-    dispatch::camera_dirs(camera, px, py, w, h)
-}
+/// Hit tag: a plane (the index is in the low bits).
+const TAG_PLANE: u32 = 1 << 30;
+/// Hit tag: a sphere.
+const TAG_SPHERE: u32 = 2 << 30;
+/// Hit tag: a triangle.
+const TAG_TRI: u32 = 3 << 30;
+/// The tag bits of a hit reference.
+const TAG_MASK: u32 = 3 << 30;
 
 /// Child reference flag: the child is a leaf packet, not a node.
 const LEAF: u32 = 1 << 31;
@@ -644,17 +639,17 @@ impl Bvh4 {
         }
         if r & LEAF == 0 {
             let p = std::ptr::from_ref(&self.nodes[r as usize]).cast::<u8>();
-            dispatch::prefetch(p);
-            dispatch::prefetch(p.wrapping_add(64));
+            crate::simd::prefetch(p);
+            crate::simd::prefetch(p.wrapping_add(64));
         } else if r & SPHERES == 0 {
             let p = std::ptr::from_ref(&self.tris[(r & !(LEAF | RUN)) as usize]).cast::<u8>();
             for k in 0..4 {
-                dispatch::prefetch(p.wrapping_add(64 * k));
+                crate::simd::prefetch(p.wrapping_add(64 * k));
             }
             if r & RUN != 0 {
                 let bytes = (1 + ((r & RUN) >> RUN_SHIFT) as usize) * std::mem::size_of::<TriPacket>();
                 for k in 4..bytes.div_ceil(64) {
-                    dispatch::prefetch(p.wrapping_add(64 * k));
+                    crate::simd::prefetch(p.wrapping_add(64 * k));
                 }
             }
         }

@@ -5,7 +5,8 @@
 use glam::Vec3A;
 use proptest::prelude::*;
 use rayscope_core::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
-use rayscope_core::math::{offset_eps, reflect, Ray};
+use rayscope_core::math::{offset_eps, Ray};
+use rayscope_core::optics::reflect;
 use rayscope_core::reference;
 
 fn v3() -> impl Strategy<Value = Vec3A> {

@@ -1,8 +1,8 @@
 //! The recorded ray tree states every decision, and states it truly: offsets, shadow blockers,
 //! glass decisions, pruned branches and shadow-ray depths, checked against the geometry.
 
-use rayscope_core::integrator::fresnel;
 use rayscope_core::math::offset_eps;
+use rayscope_core::optics::fresnel;
 use rayscope_core::{trace_pixel, BranchFate, RayKind, RayNode, RayTree, RenderSettings, Scene, Stage};
 
 fn load(path: &std::path::Path) -> Scene {

@@ -20,15 +20,17 @@
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
+use crate::camera::{camera_dirs, jittered};
+use crate::geometry::PrimRef;
 use crate::math::Ray;
+use crate::math::RayPacket;
 use crate::observer::NoObserver;
+use crate::optics::{specular_rays, SpecularRays};
 use crate::rng::{Rng, RngLanes};
-use crate::scene::{Hit, Intersect, Material, PrimRef, Scene, Surface};
+use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, Stage};
-use crate::wide::{
-    camera_dirs, lane, put, specular_rays, surface_frames, Bvh4, HitPrims, PacketHits, RayPacket, SmoothNormals,
-    SpecularRays, SurfaceFrames, LANES,
-};
+use crate::simd::{lane, put, LANES};
+use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
@@ -98,8 +100,8 @@ impl<I: Intersect> Integrator<'_, I> {
                 b.rng.set(k, &rng);
             }
         } else {
-            // The same for a pinhole camera, all lanes at once: Self::sample_rng, then
-            // Self::position_in_cell's jitter, then the directions.
+            // The same for a pinhole camera, all lanes at once: the samples' streams, each lane's
+            // cell centre jittered by the stream's first two numbers, then the directions.
             let (mut pixel, mut sample, mut on) = ([0; LANES], [0; LANES], [false; LANES]);
             let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
             let width = u64::from(self.settings.width);
@@ -112,8 +114,8 @@ impl<I: Intersect> Integrator<'_, I> {
                 let n = self.grid as f32;
                 let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
                 for k in 0..LANES {
-                    px[k] += (jx[k] - 0.5) / n;
-                    py[k] += (jy[k] - 0.5) / n;
+                    px[k] = jittered(px[k], jx[k], n);
+                    py[k] = jittered(py[k], jy[k], n);
                 }
             }
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
@@ -296,14 +298,12 @@ impl<I: Intersect> Integrator<'_, I> {
                     Next::Done
                 }
                 MaterialKind::Reflective => {
-                    // Self::mirror.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
                     child(&mut reflected).set(i, &r, path.mirrored(), reflected_in);
                     Next::Mirror
                 }
                 MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
-                    // Self::glass.
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let (refl_medium, refr_medium) = self.glass_media(&surf.get(i), m, path);
                     let g = Glass {

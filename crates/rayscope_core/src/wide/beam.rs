@@ -16,8 +16,9 @@
 
 use glam::{DVec3, Vec4};
 
-use super::packet::{Mask, RayPacket, LANES};
 use super::{Bvh4, PlanePacket, SpherePacket, TriPacket, NO_PRIM, SPHERES};
+use crate::math::RayPacket;
+use crate::simd::{Mask, LANES};
 
 /// Margin, as the sine of an angle, by which a primitive must lie outside a packet's cone.
 const SLACK: f32 = 1e-2;

@@ -9,17 +9,18 @@
 //! the order leaves are visited in differs, which matters only for exact ties).
 //!
 //! The kernels are plain loops over `[f32; LANES]` arrays that the compiler vectorises. The
-//! public entry points run an AVX-512 or AVX2 build of them when the CPU has it (`dispatch.rs`).
+//! entry points run an AVX-512 or AVX2 build of them when the CPU has it (`crate::simd::dispatched`).
 
 use arrayvec::ArrayVec;
 
 use super::beam::{ApexCull, Beam};
 use super::{
     beats, far, Bvh4, Node4, NodeConsts, PlanePacket, RayConsts, SpherePacket, TraversalStack, TriPacket, Walk, EMPTY,
-    LEAF, NO_PRIM, RUN, RUN_SHIFT, SLAB_SLACK, SPHERES, STACK,
+    LEAF, NO_PRIM, RUN, RUN_SHIFT, SLAB_SLACK, SPHERES, STACK, TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
-use crate::math::Ray;
-use crate::scene::PrimRef;
+use crate::geometry::PrimRef;
+use crate::math::RayPacket;
+use crate::simd::{dispatched, Mask, LANES};
 
 /// Every lane of a primitive packet.
 const ALL: u32 = 0xF;
@@ -31,79 +32,8 @@ const ALL: u32 = 0xF;
 /// same for shadow rays, a 4 M-triangle render's camera rays 6 % slower).
 const SOLO_LANES: u32 = 2;
 
-/// Rays in a packet.
-pub const LANES: usize = 16;
-
 /// One value per lane.
 type F = [f32; LANES];
-
-/// Hit tag: a plane (the index is in the low bits).
-pub(super) const TAG_PLANE: u32 = 1 << 30;
-/// Hit tag: a sphere.
-pub(super) const TAG_SPHERE: u32 = 2 << 30;
-/// Hit tag: a triangle.
-pub(super) const TAG_TRI: u32 = 3 << 30;
-/// The tag bits of a hit reference.
-const TAG_MASK: u32 = 3 << 30;
-
-/// Sixteen rays in structure-of-arrays layout. Unused lanes have `t_max = −∞` and never hit.
-#[derive(Debug, Clone)]
-// Aligned to a cache line, like the packet code's other sixteen-lane structs: the kernels load
-// each sixteen-lane array as 512-bit (or 256-bit) vectors, and a vector that straddles two lines
-// costs two loads. Left to the compiler, where such a struct lands on the stack depends on
-// unrelated code, and direct-lighting renders move by 4-7 % with it (`rayscope bench render -f
-// SCENE -x 4 --stage 2 --threads 1` on course scenes 1 and 2 and `scenes/whitted.txt`).
-#[repr(align(64))]
-pub struct RayPacket {
-    /// Origins, per axis.
-    pub o: [F; 3],
-    /// Unit directions, per axis.
-    pub d: [F; 3],
-    /// Far end of each ray's interval (the running closest distance during a closest-hit query).
-    pub t_max: F,
-}
-
-impl Default for RayPacket {
-    fn default() -> Self {
-        Self {
-            o: [[0.0; LANES]; 3],
-            d: [[0.0; LANES], [0.0; LANES], [1.0; LANES]],
-            t_max: [f32::NEG_INFINITY; LANES],
-        }
-    }
-}
-
-impl RayPacket {
-    /// Puts `ray` with interval end `t_max` in lane `i`.
-    #[inline]
-    pub fn set(&mut self, i: usize, ray: &Ray, t_max: f32) {
-        for a in 0..3 {
-            self.o[a][i] = ray.origin[a];
-            self.d[a][i] = ray.dir[a];
-        }
-        self.t_max[i] = t_max;
-    }
-
-    /// The ray in lane `i`.
-    #[inline]
-    pub fn ray(&self, i: usize) -> Ray {
-        Ray::new(lane(&self.o, i), lane(&self.d, i))
-    }
-}
-
-/// Lane `i` of a vector stored per axis.
-#[inline(always)]
-pub(crate) fn lane(v: &[F; 3], i: usize) -> glam::Vec3A {
-    glam::Vec3A::new(v[0][i], v[1][i], v[2][i])
-}
-
-/// Stores `v` as lane `i` of the per-axis vector `dst`.
-#[inline(always)]
-pub(crate) fn put(dst: &mut [F; 3], i: usize, v: [f32; 3]) {
-    for (ax, x) in v.into_iter().enumerate() {
-        dst[ax][i] = x;
-    }
-}
 
 /// What [`Bvh4::light_rays`] finds for each lane.
 #[derive(Debug, Clone)]
@@ -316,9 +246,6 @@ fn below<const TIES: bool>(x: f32, t_max: f32) -> bool {
         x < t_max
     }
 }
-
-/// Per-lane hit flags of a primitive-packet test against a packet of rays.
-pub(super) type Mask = [bool; LANES];
 
 #[inline(always)]
 fn any(m: &Mask) -> bool {
@@ -1025,7 +952,7 @@ impl Bvh4 {
         if self.deep {
             self.walk_closest_rays::<(u32, f32), Vec<_>>(rays, t_min, hits);
         } else if self.split_packets {
-            super::dispatch::closest_rays_split(self, rays, t_min, hits);
+            closest_rays_split(self, rays, t_min, hits);
         } else {
             self.walk_closest_rays::<(u32, f32), ArrayVec<_, STACK>>(rays, t_min, hits);
         }
@@ -1096,7 +1023,7 @@ impl Bvh4 {
         if self.deep {
             self.walk_occlude_rays::<u32, Vec<_>>(rays, t_min, &mut blocked);
         } else if self.split_shadows {
-            super::dispatch::occluded_rays_split(self, rays, t_min, &mut blocked);
+            occluded_rays_split(self, rays, t_min, &mut blocked);
         } else {
             self.walk_occlude_rays::<u32, ArrayVec<_, STACK>>(rays, t_min, &mut blocked);
         }
@@ -1162,14 +1089,14 @@ impl Bvh4 {
         light: [f32; 3],
         cull: Option<&ApexCull>,
     ) -> LightRays {
-        super::dispatch::light_rays(self, org, ns, lit, light, cull)
+        light_rays(self, org, ns, lit, light, cull)
     }
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
     /// `t_max`). The packet's `t_max` is left at each lane's hit distance.
     pub fn closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
-        super::dispatch::closest_rays(self, rays, t_min, &mut hits, None);
+        closest_rays(self, rays, t_min, &mut hits, None);
         hits.divide();
         hits
     }
@@ -1182,7 +1109,7 @@ impl Bvh4 {
     #[inline(always)]
     pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
         *hits = PacketHits::default();
-        super::dispatch::closest_rays(self, rays, t_min, hits, cull);
+        closest_rays(self, rays, t_min, hits, cull);
         hits.divide();
     }
 
@@ -1202,7 +1129,7 @@ impl Bvh4 {
     ) -> bool {
         let entry = rays.t_max;
         *hits = PacketHits::default();
-        super::dispatch::inside_closest_rays(self, rays, t_min, hits, packet, lane);
+        inside_closest_rays(self, rays, t_min, hits, packet, lane);
         hits.divide();
         let missed = (0..LANES).fold(false, |m, i| m | ((entry[i] > t_min) & (hits.prim[i] & TAG_MASK == 0)));
         if missed {
@@ -1215,19 +1142,85 @@ impl Bvh4 {
     /// as a wave of paths' bounce rays: the same hits, found by whichever walk suits such rays.
     pub fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
-        super::dispatch::scattered_closest_rays(self, rays, t_min, &mut hits);
+        scattered_closest_rays(self, rays, t_min, &mut hits);
         hits.divide();
         hits
     }
 
     /// [`Self::occluded_rays`] for rays that share little of their way through the scene.
     pub fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
-        super::dispatch::scattered_occluded_rays(self, rays, t_min)
+        scattered_occluded_rays(self, rays, t_min)
     }
 
     /// For every ray in the packet, whether anything lies on it with `t_min < t < t_max`.
     /// The packet's `t_max` is consumed (blocked lanes are closed).
     pub fn occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
-        super::dispatch::occluded_rays(self, rays, t_min)
+        occluded_rays(self, rays, t_min)
     }
 }
+
+dispatched!(
+    /// Closest hits of a ray packet.
+    closest_rays, closest_rays_avx512, closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, cull: Option<&ApexCull>) -> (),
+    bvh.closest_rays_impl(rays, t_min, hits, cull)
+);
+
+dispatched!(
+    /// Closest hits of a ray packet whose rays may part (see [`Bvh4::split_packets`]). Its builds
+    /// stay out of line: inlined into [`closest_rays`], they changed how that kernel compiled
+    /// for the scenes that never split.
+    closest_rays_split, closest_rays_split_avx512, closest_rays_split_avx2, #[inline(never)]
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
+    bvh.closest_rays_split_impl(rays, t_min, hits)
+);
+
+dispatched!(
+    /// Which rays of a shadow packet are blocked, in trees with [`Bvh4::split_shadows`] (out
+    /// of line, as [`closest_rays_split`]).
+    occluded_rays_split, occluded_rays_split_avx512, occluded_rays_split_avx2, #[inline(never)]
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) -> (),
+    bvh.occluded_rays_split_impl(rays, t_min, blocked)
+);
+
+dispatched!(
+    /// Closest hits of a ray packet on one sphere.
+    inside_closest_rays, inside_closest_rays_avx512, inside_closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits, packet: u32, lane: u32) -> (),
+    bvh.inside_closest_rays_impl(rays, t_min, hits, packet, lane)
+);
+
+dispatched!(
+    /// Which rays of a packet are blocked.
+    occluded_rays, occluded_rays_avx512, occluded_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
+    bvh.occluded_rays_impl(rays, t_min, None)
+);
+
+dispatched!(
+    /// Closest hits of a packet of scattered rays.
+    scattered_closest_rays, scattered_closest_rays_avx512, scattered_closest_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) -> (),
+    bvh.scattered_closest_rays_impl(rays, t_min, hits)
+);
+
+dispatched!(
+    /// Which rays of a packet of scattered rays are blocked.
+    scattered_occluded_rays, scattered_occluded_rays_avx512, scattered_occluded_rays_avx2,
+    (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
+    bvh.scattered_occluded_rays_impl(rays, t_min)
+);
+
+dispatched!(
+    /// Shadow rays toward a point light, built and traced.
+    light_rays, light_rays_avx512, light_rays_avx2,
+    (
+        bvh: &Bvh4,
+        org: &[[f32; LANES]; 3],
+        ns: &[[f32; LANES]; 3],
+        lit: &Mask,
+        light: [f32; 3],
+        cull: Option<&ApexCull>
+    ) -> LightRays,
+    bvh.light_rays_impl(org, ns, lit, light, cull)
+);

@@ -8,9 +8,10 @@
 //! three products are `(x + y) + z`, `normalize` divides by the length), without branching on
 //! the kind of primitive, so the compiler can vectorise it. A plane, a sphere and a triangle
 //! side by side in one packet is the common case, and per-lane branches on it mispredict.
-//! [`specular_rays`] does the same for the rays mirrors and glass send on.
+//! The rays mirrors and glass send on from these frames are `crate::optics::specular_rays`.
 
-use super::packet::{Mask, RayPacket, LANES};
+use crate::math::{offset_eps_lane, RayPacket};
+use crate::simd::{dispatched, sel, Mask, LANES};
 
 /// One value per lane.
 type F = [f32; LANES];
@@ -92,40 +93,6 @@ pub struct SurfaceFrames {
     /// Where rays leaving the surface on the ray's side start: the point moved off the surface
     /// by `offset_eps` along the facing normal.
     pub outside: [F; 3],
-}
-
-/// glam's `max` of one lane (`maxps`: the second operand when either is NaN).
-#[inline(always)]
-fn maxps(a: f32, b: f32) -> f32 {
-    if a > b {
-        a
-    } else {
-        b
-    }
-}
-
-/// glam's `max_element` of one lane's (x, y, z), in glam's order.
-#[inline(always)]
-pub(crate) fn max_element(c: [f32; 3]) -> f32 {
-    maxps(maxps(c[0], c[2]), maxps(c[1], c[2]))
-}
-
-/// `crate::math::offset_eps` of lane `i` of points `p` and ray origins `o`: 1e-5 × the largest
-/// |coordinate| of either (glam's abs, max and max_element, in that order), at least 1e-30.
-#[inline(always)]
-fn offset_eps(p: &[F; 3], o: &[F; 3], i: usize) -> f32 {
-    let m = max_element(std::array::from_fn(|a| maxps(p[a][i].abs(), o[a][i].abs())));
-    (1e-5 * m).max(1e-30)
-}
-
-/// `a` when `c`, else `b`.
-#[inline(always)]
-fn sel(c: bool, a: f32, b: f32) -> f32 {
-    if c {
-        a
-    } else {
-        b
-    }
 }
 
 /// The geometry at the hits of `rays` (the rays as traced, before their hits) on the
@@ -214,7 +181,7 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
         for ax in 0..3 {
             out.shading_normal[ax][i] = sel(flip, -ns[ax][i], ns[ax][i]);
         }
-        let eps = offset_eps(&point, &rays.o, i);
+        let eps = offset_eps_lane(&point, &rays.o, i);
         for ax in 0..3 {
             out.outside[ax][i] = point[ax][i] + out.normal[ax][i] * eps;
         }
@@ -222,81 +189,17 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
     out
 }
 
+dispatched!(
+    /// [`surface_frames`] with the best instruction set the CPU has.
+    best_surface_frames, surface_frames_avx512, surface_frames_avx2,
+    (rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames,
+    surface_frames_impl(rays, prims)
+);
+
 /// The geometry at the hits of `rays` on the primitives `prims`: per lane, the hit point, the
 /// normals and the offset origin that the single-ray code computes (see the module docs).
+// Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
 pub fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
-    super::dispatch::surface_frames(rays, prims)
-}
-
-/// The rays mirrors and glass send on from a packet's hits: per lane, the arithmetic of the
-/// single-ray code's `mirror`, `glass`, `fresnel` and `refract` (meaningless in other lanes).
-#[derive(Debug, Clone)]
-#[repr(align(64))]
-pub struct SpecularRays {
-    /// Unit mirror-reflection direction.
-    pub reflected: [F; 3],
-    /// Fresnel reflectance of glass with the lane's index of refraction.
-    pub kr: F,
-    /// Lanes where light also refracts (reflectance below 1, no total internal reflection).
-    pub has_refracted: Mask,
-    /// Unit refracted direction, in those lanes.
-    pub refracted: [F; 3],
-    /// Where refracted rays start: the hit point moved off the surface to the far side.
-    pub inside: [F; 3],
-}
-
-/// The mirror and glass rays of the hits `f` of `rays`, glass having index of refraction `ior`.
-#[inline(always)]
-pub(super) fn specular_rays_impl(rays: &RayPacket, f: &SurfaceFrames, ior: &F) -> SpecularRays {
-    let mut out = SpecularRays {
-        reflected: [[0.0; LANES]; 3],
-        kr: [0.0; LANES],
-        has_refracted: [false; LANES],
-        refracted: [[0.0; LANES]; 3],
-        inside: [[0.0; LANES]; 3],
-    };
-    let (d, n, p) = (&rays.d, &f.normal, &f.point);
-    for i in 0..LANES {
-        let dn = d[0][i] * n[0][i] + d[1][i] * n[1][i] + d[2][i] * n[2][i];
-        // reflect(d, n) = d − n·(2 d·n), normalised.
-        let r: [f32; 3] = std::array::from_fn(|a| d[a][i] - n[a][i] * (2.0 * dn));
-        let len = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
-        for a in 0..3 {
-            out.reflected[a][i] = r[a] / len;
-        }
-        // fresnel(cos_i, n1, n2) with cos_i = clamp(−d·n, 0, 1) (NaN passes through clamp).
-        let front = f.front_face[i];
-        let (n1, n2) = (sel(front, 1.0, ior[i]), sel(front, ior[i], 1.0));
-        let neg = -dn;
-        let cos_i = sel(neg < 0.0, 0.0, sel(neg > 1.0, 1.0, neg));
-        let eta = n1 / n2;
-        let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
-        let cos_t = (1.0 - sin2_t).sqrt();
-        let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
-        let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
-        let kr = sel(sin2_t >= 1.0, 1.0, 0.5 * (rs * rs + rp * rp));
-        out.kr[i] = kr;
-        // refract(d, n, n1 / n2), tried only when kr < 1; its cosine is not clamped.
-        let sin2_r = eta * eta * (1.0 - neg * neg).max(0.0);
-        let cos_r = (1.0 - sin2_r).sqrt();
-        out.has_refracted[i] = (kr < 1.0) & (sin2_r < 1.0);
-        let t: [f32; 3] = std::array::from_fn(|a| d[a][i] * eta + n[a][i] * (eta * neg - cos_r));
-        let len = (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt();
-        for a in 0..3 {
-            out.refracted[a][i] = t[a] / len;
-        }
-        // As for `SurfaceFrames::outside`, on the other side.
-        let eps = offset_eps(p, &rays.o, i);
-        for a in 0..3 {
-            out.inside[a][i] = p[a][i] - n[a][i] * eps;
-        }
-    }
-    out
-}
-
-/// The rays mirrors and glass send on from the hits `frames` of `rays`; see [`SpecularRays`].
-#[must_use]
-pub fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
-    super::dispatch::specular_rays(rays, frames, ior)
+    best_surface_frames(rays, prims)
 }
