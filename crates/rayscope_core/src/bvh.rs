@@ -6,7 +6,9 @@
 use glam::{Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 
-use crate::math::{Aabb, Ray};
+use crate::math::Aabb;
+#[cfg(any(test, feature = "test-support"))]
+use crate::math::Ray;
 
 /// One BVH node: bounds plus either two children or a run of primitive references.
 ///
@@ -128,13 +130,15 @@ impl Bvh {
 
     /// Visits leaves in near-to-far order along the ray; `leaf` gets the leaf's primitives and
     /// returns the new `t_max` (shrinking it prunes farther nodes). Returns early when `leaf`
-    /// returns a negative value (any-hit queries).
+    /// returns a negative value (any-hit queries). A cross-check of the wide BVH's walk, for tests.
+    #[cfg(any(test, feature = "test-support"))]
     #[inline]
     pub fn traverse(&self, ray: &Ray, t_min: f32, t_max: f32, leaf: impl FnMut(&[u32], f32) -> f32) -> f32 {
         self.traverse_counting::<false>(ray, t_min, t_max, leaf, &mut 0)
     }
 
     /// [`Bvh::traverse`] that also counts, when `COUNT`, the nodes whose bounds were tested.
+    #[cfg(any(test, feature = "test-support"))]
     #[inline]
     pub fn traverse_counting<const COUNT: bool>(
         &self,
@@ -199,6 +203,9 @@ impl Bvh {
     }
 }
 
+/// Whether `ray` (origin `o`, reciprocal direction `inv`) meets `node`'s bounds within
+/// `t_min..=t_max`.
+#[cfg(any(test, feature = "test-support"))]
 #[inline]
 fn slab(node: &BvhNode, o: Vec3A, inv: Vec3A, t_min: f32, t_max: f32) -> bool {
     let t0 = (Vec3A::from(node.min) - o) * inv;

@@ -12,6 +12,11 @@ use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
 use crate::wide::{Bvh4, WideHit};
 
+#[cfg(any(test, feature = "test-support"))]
+mod binary_reference;
+#[cfg(any(test, feature = "test-support"))]
+pub use binary_reference::BinaryReference;
+
 /// A material as the integrators use it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Material {
@@ -385,7 +390,9 @@ impl Scene {
 
     /// Calls `each(i, hit)` once for every ray `rays[i]` with what [`Self::intersect`] returns
     /// for it, in no particular order; faster than one call per ray for scattered rays in very
-    /// large scenes (see [`Bvh4::closest_many`]).
+    /// large scenes (see [`Bvh4::closest_many`]). Only `rayscope bench rays` uses it (feature
+    /// `bench-kernels`).
+    #[cfg(feature = "bench-kernels")]
     #[inline]
     pub fn intersect_many(&self, rays: &[Ray], t_min: f32, t_max: f32, mut each: impl FnMut(usize, Option<Hit>)) {
         self.wide
@@ -415,25 +422,6 @@ impl Scene {
     #[inline]
     pub fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
         self.wide.any(ray, t_min, t_max)
-    }
-
-    /// The nearest infinite plane with `t_min < t < t_max` (planes are kept out of the BVH).
-    #[inline]
-    fn nearest_plane(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        let mut best: Option<Hit> = None;
-        let mut t_max = t_max;
-        for (i, p) in self.planes.iter().enumerate() {
-            if let Some(h) = p.intersect(ray, t_min, t_max) {
-                t_max = h.t;
-                best = Some(Hit {
-                    t: h.t,
-                    u: 0.0,
-                    v: 0.0,
-                    prim: PrimRef::Plane(i as u32),
-                });
-            }
-        }
-        best
     }
 
     /// Node and packet tests (planes count one each) the closest-hit query of `ray` makes: the
@@ -542,58 +530,5 @@ impl Scene {
     #[must_use]
     pub fn primitive_count(&self) -> usize {
         self.planes.len() + self.spheres.len() + self.triangles.len()
-    }
-}
-
-/// The scene's closest hits by a binary BVH and the scalar primitive routines: slower than
-/// [`Scene::intersect`], kept as a cross-check of the wide traversal in tests.
-#[derive(Debug)]
-pub struct BinaryReference<'a> {
-    scene: &'a Scene,
-    bvh: Bvh,
-}
-
-impl<'a> BinaryReference<'a> {
-    /// Builds the binary BVH over `scene`'s triangles and spheres.
-    #[must_use]
-    pub fn new(scene: &'a Scene) -> Self {
-        BinaryReference {
-            scene,
-            bvh: Bvh::build(scene.build_prims()),
-        }
-    }
-
-    /// Closest hit with `t_min < t < t_max`.
-    #[must_use]
-    pub fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        let scene = self.scene;
-        let mut best = scene.nearest_plane(ray, t_min, t_max);
-        let t_max = best.map_or(t_max, |h| h.t);
-        self.bvh.traverse(ray, t_min, t_max, |prims, mut t_max| {
-            for &id in prims {
-                if id & SPHERE_BIT != 0 {
-                    let i = id & !SPHERE_BIT;
-                    if let Some(h) = scene.spheres[i as usize].intersect(ray, t_min, t_max) {
-                        t_max = h.t;
-                        best = Some(Hit {
-                            t: h.t,
-                            u: 0.0,
-                            v: 0.0,
-                            prim: PrimRef::Sphere(i),
-                        });
-                    }
-                } else if let Some(h) = scene.triangles[id as usize].intersect(ray, t_min, t_max) {
-                    t_max = h.t;
-                    best = Some(Hit {
-                        t: h.t,
-                        u: h.u,
-                        v: h.v,
-                        prim: PrimRef::Triangle(id),
-                    });
-                }
-            }
-            t_max
-        });
-        best
     }
 }

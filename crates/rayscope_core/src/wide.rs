@@ -22,12 +22,16 @@ mod beam;
 #[cfg(test)]
 mod kernel_builds;
 pub(crate) mod packet;
+// Interleaved walks serve `rayscope bench rays` alone; the binary enables `bench-kernels` so that
+// the shipped `bench` subcommand keeps its ray-throughput mode.
+#[cfg(feature = "bench-kernels")]
 mod stream;
 pub(crate) mod surface;
 pub use crate::math::RayPacket;
 pub use crate::simd::LANES;
 pub use beam::ApexCull;
 pub use packet::{LightRays, PacketHits};
+#[cfg(feature = "bench-kernels")]
 pub use stream::INTERLEAVE_BYTES;
 pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 
