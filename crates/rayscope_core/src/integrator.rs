@@ -38,7 +38,7 @@ use glam::Vec3A;
 use crate::bsdf::Bsdf;
 use crate::camera::{cell_centre, jittered, Camera};
 use crate::geometry::PrimRef;
-use crate::lights::Emitters;
+use crate::lights::{point_light_contribution, point_light_contribution_brdf, toward_point_light, Emitters};
 use crate::math::{basis, offset_eps, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
@@ -1111,13 +1111,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             } else {
                 origin
             };
-            let to = Vec3A::from(light.position) - from;
-            let dist = to.length();
-            if dist == 0.0 {
+            let Some((l, dist, cos)) = toward_point_light(from, s.shading_normal, Vec3A::from(light.position)) else {
                 continue;
-            }
-            let l = to / dist;
-            let cos = s.shading_normal.dot(l);
+            };
             let shadow = Ray::new(origin, l);
             c.shadow += 1;
             let reach = if self.mistake(Mistake::ShadowPastLight) {
@@ -1143,10 +1139,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             }
             let contrib = if blocker.is_none() && cos > 0.0 {
                 match brdf {
-                    None => albedo * Vec3A::from(light.color) * cos,
+                    None => point_light_contribution(albedo, Vec3A::from(light.color), cos),
                     Some((bsdf, (t, b, n, wo))) => {
                         let (f, _) = bsdf.eval(wo, to_local(l, t, b, n));
-                        f * Vec3A::from(light.color) * (std::f32::consts::PI * cos)
+                        point_light_contribution_brdf(f, Vec3A::from(light.color), cos)
                     }
                 }
             } else {

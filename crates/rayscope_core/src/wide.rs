@@ -30,7 +30,7 @@ pub(crate) mod surface;
 pub use crate::math::RayPacket;
 pub use crate::simd::LANES;
 pub use beam::ApexCull;
-pub use packet::{LightRays, PacketHits};
+pub use packet::PacketHits;
 #[cfg(feature = "bench-kernels")]
 pub use stream::INTERLEAVE_BYTES;
 pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};

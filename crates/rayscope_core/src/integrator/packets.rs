@@ -22,6 +22,7 @@ use glam::Vec3A;
 use super::{Counters, Glass, Integrator, Li, PathState};
 use crate::camera::{camera_dirs, jittered};
 use crate::geometry::PrimRef;
+use crate::lights::{add_point_light_lanes, point_light_rays};
 use crate::math::Ray;
 use crate::math::RayPacket;
 use crate::observer::NoObserver;
@@ -394,9 +395,8 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 
     /// Point-light shading of the `lit` lanes at surfaces `frames`, per axis, with their shadow
-    /// rays made and traced as one packet per light ([`Bvh4::light_rays`], which runs the
-    /// single-ray code's arithmetic per lane), so each lane's sum is what `direct_point_lights`
-    /// adds up, in the same order.
+    /// rays made and traced as one packet per light ([`point_light_rays`]), so each lane's sum
+    /// is what `direct_point_lights` adds up, in the same order.
     pub(super) fn point_lights_packet(
         &self,
         bvh: &Bvh4,
@@ -409,7 +409,8 @@ impl<I: Intersect> Integrator<'_, I> {
             return sums;
         }
         for (k, light) in self.scene.lights.iter().enumerate() {
-            let vis = bvh.light_rays(
+            let vis = point_light_rays(
+                bvh,
                 &frames.outside,
                 &frames.shading_normal,
                 &lit.on,
@@ -417,16 +418,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 self.beams.lights.get(k).and_then(Option::as_ref),
             );
             c.shadow += u64::from(vis.rays);
-            let col = light.color.to_array();
-            for a in 0..3 {
-                for i in 0..LANES {
-                    // albedo × colour × cosine, or zero when the light is hidden (glam's order).
-                    // Computed for every lane, then selected: with the products inside the
-                    // condition the loop compiled to a branch per lane.
-                    let lit_by = lit.alb[a][i] * col[a] * vis.cos[i];
-                    sums[a][i] += if vis.visible[i] { lit_by } else { 0.0 };
-                }
-            }
+            add_point_light_lanes(&mut sums, &lit.alb, light.color.to_array(), &vis);
         }
         sums
     }

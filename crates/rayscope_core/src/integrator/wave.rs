@@ -502,7 +502,7 @@ impl<I: Intersect> Integrator<'_, I> {
             put(&mut lit.alb, i, m.color.to_array());
             lit.on[i] = true;
         }
-        // Self::direct_point_lights with no BRDF (the course's formula), one packet per light.
+        // Point lights by the course's formula (no BRDF), one packet per light.
         let l = self.point_lights_packet(bvh, &lit, f_frames, c);
         // crate::math::basis.
         let (mut tb, mut bb) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);

@@ -35,18 +35,6 @@ const SOLO_LANES: u32 = 2;
 /// One value per lane.
 type F = [f32; LANES];
 
-/// What [`Bvh4::light_rays`] finds for each lane.
-#[derive(Debug, Clone)]
-#[repr(align(64))]
-pub struct LightRays {
-    /// N·L with the shading normal (0 for lanes without a ray).
-    pub cos: [f32; LANES],
-    /// The light is in front of the surface and nothing blocks it.
-    pub visible: [bool; LANES],
-    /// Shadow rays counted (lanes with a surface not at the light's position).
-    pub rays: u32,
-}
-
 /// The closest hits of a packet's rays (none by default).
 #[derive(Debug, Clone)]
 #[repr(align(64))]
@@ -1030,66 +1018,13 @@ impl Bvh4 {
         blocked
     }
 
-    /// Shadow rays from points `org` (one per lane in `lit`) toward a point light at `light`,
-    /// lane-parallel; see [`LightRays`].
+    /// Which of the `traced` rays of `shadow` are blocked before their `t_max`; with `cull` (the
+    /// view from the point every traced ray ends at, a point light's position), the flat list
+    /// skips the primitives no ray can meet. [`crate::lights::point_light_rays`] makes the rays.
     #[inline(always)]
-    pub(super) fn light_rays_impl(
-        &self,
-        org: &[F; 3],
-        ns: &[F; 3],
-        lit: &Mask,
-        light: [f32; 3],
-        cull: Option<&ApexCull>,
-    ) -> LightRays {
-        let mut shadow = RayPacket::default();
-        let mut cos = [0.0; LANES];
-        let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
-        // Only locals are written here: a running count in `LightRays` kept the loop scalar.
-        for i in 0..LANES {
-            let to = [light[0] - org[0][i], light[1] - org[1][i], light[2] - org[2][i]];
-            // glam's length and division by a scalar, per component.
-            let dist = (to[0] * to[0] + to[1] * to[1] + to[2] * to[2]).sqrt();
-            let dir = [to[0] / dist, to[1] / dist, to[2] / dist];
-            valid[i] = lit[i] & (dist != 0.0);
-            let c = ns[0][i] * dir[0] + ns[1][i] * dir[1] + ns[2][i] * dir[2];
-            cos[i] = sel(valid[i], c, 0.0);
-            // Rays behind the surface cannot contribute and are not traced.
-            traced[i] = valid[i] & (c > 0.0);
-            for a in 0..3 {
-                shadow.o[a][i] = org[a][i];
-                shadow.d[a][i] = dir[a];
-            }
-            shadow.t_max[i] = sel(traced[i], dist, f32::NEG_INFINITY);
-        }
-        let mut out = LightRays {
-            cos,
-            visible: [false; LANES],
-            rays: valid.iter().map(|&v| u32::from(v)).sum(),
-        };
-        if any(&traced) {
-            // Every shadow ray ends at the light, the apex of `cull`.
-            let beam = cull.and_then(|c| Some((c, Beam::reaching(&shadow, &traced, c)?)));
-            let blocked = self.occluded_rays_impl(&mut shadow, 0.0, beam);
-            for i in 0..LANES {
-                out.visible[i] = traced[i] & !blocked[i];
-            }
-        }
-        out
-    }
-
-    /// For each lane in `lit`, the shadow ray from `org` toward a point light at `light`: its
-    /// cosine with the shading normal `ns`, and whether the light is visible (in front of the
-    /// surface and unblocked). The arithmetic is the single-ray code's, per lane.
-    #[must_use]
-    pub fn light_rays(
-        &self,
-        org: &[[f32; LANES]; 3],
-        ns: &[[f32; LANES]; 3],
-        lit: &[bool; LANES],
-        light: [f32; 3],
-        cull: Option<&ApexCull>,
-    ) -> LightRays {
-        light_rays(self, org, ns, lit, light, cull)
+    pub(crate) fn occluded_toward_apex(&self, shadow: &mut RayPacket, traced: &Mask, cull: Option<&ApexCull>) -> Mask {
+        let beam = cull.and_then(|c| Some((c, Beam::reaching(shadow, traced, c)?)));
+        self.occluded_rays_impl(shadow, 0.0, beam)
     }
 
     /// The closest hit of every ray in the packet with `t_min < t < t_max` (the lane's own
@@ -1209,18 +1144,4 @@ dispatched!(
     scattered_occluded_rays, scattered_occluded_rays_avx512, scattered_occluded_rays_avx2,
     (bvh: &Bvh4, rays: &mut RayPacket, t_min: f32) -> Mask,
     bvh.scattered_occluded_rays_impl(rays, t_min)
-);
-
-dispatched!(
-    /// Shadow rays toward a point light, built and traced.
-    light_rays, light_rays_avx512, light_rays_avx2,
-    (
-        bvh: &Bvh4,
-        org: &[[f32; LANES]; 3],
-        ns: &[[f32; LANES]; 3],
-        lit: &Mask,
-        light: [f32; 3],
-        cull: Option<&ApexCull>
-    ) -> LightRays,
-    bvh.light_rays_impl(org, ns, lit, light, cull)
 );
