@@ -481,20 +481,24 @@ pub struct LightRays {
 }
 
 /// The shadow rays of [`toward_point_light`] from `org` (one per lane in `lit`) toward a point
-/// light at `light`, and their cosines with the shading normals `ns`: the packet (lanes not
-/// traced have `t_max` −∞), the cosines (0 without a ray), the lanes with a ray, and the lanes
-/// whose ray is traced (those in front of the surface).
+/// light at `light`, and their cosines with the shading normals `ns`, written to `shadow` (lanes
+/// not traced get `t_max` −∞), `cos` (0 without a ray), `valid` (the lanes with a ray) and
+/// `traced` (those whose ray is traced: in front of the surface).
+// Written through references to the caller's locals: returned as a tuple, the packet was copied.
+#[allow(clippy::too_many_arguments)]
 #[inline(always)]
 fn shadow_ray_lanes(
     org: &[[f32; LANES]; 3],
     ns: &[[f32; LANES]; 3],
     lit: &Mask,
     light: [f32; 3],
-) -> (RayPacket, [f32; LANES], Mask, Mask) {
-    let mut shadow = RayPacket::default();
-    let mut cos = [0.0; LANES];
-    let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
-    // Only locals are written here: a running count in `LightRays` kept the loop scalar.
+    shadow: &mut RayPacket,
+    cos: &mut [f32; LANES],
+    valid: &mut Mask,
+    traced: &mut Mask,
+) {
+    // Only the caller's locals are written here: a running count in `LightRays` kept the loop
+    // scalar.
     for i in 0..LANES {
         let to = [light[0] - org[0][i], light[1] - org[1][i], light[2] - org[2][i]];
         // glam's length and division by a scalar, per component.
@@ -511,7 +515,6 @@ fn shadow_ray_lanes(
         }
         shadow.t_max[i] = sel(traced[i], dist, f32::NEG_INFINITY);
     }
-    (shadow, cos, valid, traced)
 }
 
 /// [`point_light_rays`]: the rays made here, traced by the wide BVH.
@@ -524,7 +527,10 @@ fn point_light_rays_impl(
     light: [f32; 3],
     cull: Option<&ApexCull>,
 ) -> LightRays {
-    let (mut shadow, cos, valid, traced) = shadow_ray_lanes(org, ns, lit, light);
+    let mut shadow = RayPacket::default();
+    let mut cos = [0.0; LANES];
+    let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
+    shadow_ray_lanes(org, ns, lit, light, &mut shadow, &mut cos, &mut valid, &mut traced);
     let mut out = LightRays {
         cos,
         visible: [false; LANES],
@@ -708,7 +714,10 @@ mod tests {
                 }
                 lit[i] = i != 5;
             }
-            let (shadow, cos, valid, traced) = shadow_ray_lanes(&org, &ns, &lit, light);
+            let mut shadow = RayPacket::default();
+            let mut cos = [0.0; LANES];
+            let (mut valid, mut traced) = ([false; LANES], [false; LANES]);
+            shadow_ray_lanes(&org, &ns, &lit, light, &mut shadow, &mut cos, &mut valid, &mut traced);
             let color = [0.9, 0.5, lcg(&mut st).abs()];
             let vis = LightRays {
                 cos,
