@@ -57,6 +57,31 @@ impl Drop for Server {
     }
 }
 
+/// The debugger on `scene_path` at `w`×`h`, stage 2, on a free local port, and its URL.
+fn serve_stage_two(scene_path: PathBuf, w: u32, h: u32) -> (Server, String) {
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let scene = Scene::from_file(&file);
+    let server = rayscope_debug::start(ServeConfig {
+        scene_path,
+        scene_file: file,
+        scene,
+        settings: RenderSettings {
+            width: w,
+            height: h,
+            stage: rayscope_core::Stage::Two,
+            ..RenderSettings::default()
+        },
+        host: "127.0.0.1".into(),
+        port: 0,
+        allow_hosts: Vec::new(),
+        limits: ServerLimits::default(),
+        student: Default::default(),
+    })
+    .expect("debugger starts");
+    let url = server.url.clone();
+    (Server(Some(server)), url)
+}
+
 fn screenshots_dir() -> PathBuf {
     let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../target/browser-screenshots");
     std::fs::create_dir_all(&dir).unwrap();
@@ -431,27 +456,7 @@ fn student_log_in_chromium() {
     assert!(fixed.status.success(), "{}", String::from_utf8_lossy(&fixed.stderr));
     let fixed = String::from_utf8(fixed.stdout).expect("the log is text");
 
-    let file = rayscope_scene::load(&scene_path).unwrap();
-    let scene = Scene::from_file(&file);
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path,
-        scene_file: file,
-        scene,
-        settings: RenderSettings {
-            width: w,
-            height: h,
-            stage: rayscope_core::Stage::Two,
-            ..RenderSettings::default()
-        },
-        host: "127.0.0.1".into(),
-        port: 0,
-        allow_hosts: Vec::new(),
-        limits: ServerLimits::default(),
-        student: Default::default(),
-    })
-    .expect("debugger starts");
-    let url = server.url.clone();
-    let _server = Server(Some(server));
+    let (_server, url) = serve_stage_two(scene_path, w, h);
     let log2 = log.clone();
     in_chromium(&chromium, &driver, &url, "student-failure.png", |c, url| async move {
         let r = drive_student_log(&c, &url, &log2, fixed).await;
@@ -660,26 +665,7 @@ fn compare_in_chromium() {
     let png = dir.join("my_render.png");
     image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
 
-    let scene = Scene::from_file(&file);
-    let server = rayscope_debug::start(ServeConfig {
-        scene_path,
-        scene_file: file,
-        scene,
-        settings: RenderSettings {
-            width: w,
-            height: h,
-            stage: rayscope_core::Stage::Two,
-            ..RenderSettings::default()
-        },
-        host: "127.0.0.1".into(),
-        port: 0,
-        allow_hosts: Vec::new(),
-        limits: ServerLimits::default(),
-        student: Default::default(),
-    })
-    .expect("debugger starts");
-    let url = server.url.clone();
-    let _server = Server(Some(server));
+    let (_server, url) = serve_stage_two(scene_path, w, h);
     let png2 = png.clone();
     in_chromium(&chromium, &driver, &url, "compare-failure.png", |c, url| async move {
         let r = drive_compare(&c, &url, &png2).await;
