@@ -1517,10 +1517,24 @@ async fn api_check(State(st): State<Arc<AppState>>) -> ApiResult<Json<Value>> {
 }
 
 /// Decodes a reference PNG of exactly `width` × `height` pixels.
+fn decode_reference(png: &[u8], width: u32, height: u32) -> Result<image::RgbImage, String> {
+    decode_png_sized(png, |w, h| {
+        if (w, h) == (width, height) {
+            Ok(())
+        } else {
+            Err(format!("the reference is {w}×{h} but the render is {width}×{height}"))
+        }
+    })
+}
+
+/// Decodes a PNG whose size, read from its header, `accept` allows.
 ///
 /// The size is read from the header first and the decoder is limited to that size, so a small
 /// file that would decode to a huge image (a decompression bomb) costs no more than the header.
-fn decode_reference(png: &[u8], width: u32, height: u32) -> Result<image::RgbImage, String> {
+fn decode_png_sized(
+    png: &[u8],
+    accept: impl FnOnce(u32, u32) -> Result<(), String>,
+) -> Result<image::RgbImage, String> {
     let reader = |limits: image::Limits| {
         let mut r = image::ImageReader::with_format(std::io::Cursor::new(png), image::ImageFormat::Png);
         r.limits(limits);
@@ -1532,14 +1546,12 @@ fn decode_reference(png: &[u8], width: u32, height: u32) -> Result<image::RgbIma
     let (w, h) = reader(header)
         .into_dimensions()
         .map_err(|e| format!("not a readable PNG: {e}"))?;
-    if (w, h) != (width, height) {
-        return Err(format!("the reference is {w}×{h} but the render is {width}×{height}"));
-    }
+    accept(w, h)?;
     let mut limits = image::Limits::default();
-    limits.max_image_width = Some(width);
-    limits.max_image_height = Some(height);
+    limits.max_image_width = Some(w);
+    limits.max_image_height = Some(h);
     // The largest pixel format (16-bit RGBA) plus the decoder's own buffers.
-    limits.max_alloc = Some(u64::from(width) * u64::from(height) * 8 + REFERENCE_CHUNK_BYTES);
+    limits.max_alloc = Some(u64::from(w) * u64::from(h) * 8 + REFERENCE_CHUNK_BYTES);
     Ok(reader(limits)
         .decode()
         .map_err(|e| format!("not a readable PNG: {e}"))?

@@ -553,33 +553,18 @@ pub(super) async fn api_pixel(State(st): State<Arc<AppState>>, Query(q): Params)
     Ok(Json(v))
 }
 
-/// Decodes a PNG of at most [`MAX_IMAGE_SIDE`] pixels a side, the size read from its header
-/// first so that a small file cannot decode to a huge image.
+/// Decodes a PNG of at most [`MAX_IMAGE_SIDE`] pixels a side.
 fn decode_png(png: &[u8]) -> Result<RgbImage, String> {
-    let reader = |limits: image::Limits| {
-        let mut r = image::ImageReader::with_format(std::io::Cursor::new(png), image::ImageFormat::Png);
-        r.limits(limits);
-        r
-    };
-    let mut header = image::Limits::default();
-    header.max_alloc = Some(REFERENCE_CHUNK_BYTES);
-    let (w, h) = reader(header)
-        .into_dimensions()
-        .map_err(|e| format!("not a readable PNG: {e}"))?;
-    if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
-        return Err(format!("the image is {w}×{h}; at most {MAX_IMAGE_SIDE} pixels a side"));
-    }
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(w);
-    limits.max_image_height = Some(h);
-    limits.max_alloc = Some(u64::from(w) * u64::from(h) * 8 + REFERENCE_CHUNK_BYTES);
-    let img = reader(limits)
-        .decode()
-        .map_err(|e| format!("not a readable PNG: {e}"))?
-        .into_rgb8();
+    let img = decode_png_sized(png, |w, h| {
+        if w == 0 || h == 0 || w > MAX_IMAGE_SIDE || h > MAX_IMAGE_SIDE {
+            Err(format!("the image is {w}×{h}; at most {MAX_IMAGE_SIDE} pixels a side"))
+        } else {
+            Ok(())
+        }
+    })?;
     Ok(RgbImage {
-        width: w,
-        height: h,
+        width: img.width(),
+        height: img.height(),
         rgb: img.into_raw(),
     })
 }
