@@ -419,42 +419,13 @@ fn student_log_in_chromium() {
     let dir = std::env::temp_dir().join(format!("rayscope-chromium-log-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let log = dir.join("my_rays.jsonl");
-    let out = Command::new("python3")
-        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
-        .arg("-f")
-        .arg(&scene_path)
-        .args([
-            "-w",
-            &w.to_string(),
-            "-h",
-            &h.to_string(),
-            "--bug",
-            "refraction-normal",
-            "--log",
-        ])
-        .arg(&log)
-        .output()
-        .expect("run the student tracer");
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    std::fs::write(
+        &log,
+        student_tracer_log(&scene_path, w, h, &["--bug", "refraction-normal"]),
+    )
+    .unwrap();
     // The fixed tracer's log of the top-left corner, dropped on the page afterwards.
-    let fixed = Command::new("python3")
-        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
-        .arg("-f")
-        .arg(&scene_path)
-        .args([
-            "-w",
-            &w.to_string(),
-            "-h",
-            &h.to_string(),
-            "--region",
-            "0,0,8,6",
-            "--log",
-            "-",
-        ])
-        .output()
-        .expect("run the student tracer");
-    assert!(fixed.status.success(), "{}", String::from_utf8_lossy(&fixed.stderr));
-    let fixed = String::from_utf8(fixed.stdout).expect("the log is text");
+    let fixed = student_tracer_log(&scene_path, w, h, &["--region", "0,0,8,6"]);
 
     let (_server, url) = serve_stage_two(scene_path, w, h);
     let log2 = log.clone();
@@ -463,6 +434,20 @@ fn student_log_in_chromium() {
         (c, r)
     });
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The ray log of rayscope_check's student-style tracer on `scene` at `w`×`h`, run with `args`.
+fn student_tracer_log(scene: &Path, w: u32, h: u32, args: &[&str]) -> String {
+    let out = Command::new("python3")
+        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
+        .arg("-f")
+        .arg(scene)
+        .args(["-w", &w.to_string(), "-h", &h.to_string(), "--log", "-"])
+        .args(args)
+        .output()
+        .expect("run the student tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    String::from_utf8(out.stdout).expect("the log is text")
 }
 
 async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> Result<(), String> {
