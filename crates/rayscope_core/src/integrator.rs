@@ -56,6 +56,24 @@ mod wave;
 pub(crate) use packets::Job;
 pub(crate) use wave::WaveWork;
 
+/// How a render computes its samples. Every engine returns the same pixels, bit for bit, and
+/// the same ray counts; they differ in how much work sixteen samples share.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Engine {
+    /// Sixteen samples traced together, recursively, as ray packets, with their shadow rays,
+    /// mirror and glass rays as packets too (`integrator/packets.rs`, `sample_packet`).
+    Packets,
+    /// Sixteen paths advanced together a vertex a step, their rays and shadow rays traced as
+    /// packets and their Lambertian vertices shaded in lanes (`integrator/wave.rs`).
+    Waves,
+    /// The camera rays of sixteen samples traced as one packet, each path then traced one ray at
+    /// a time from its first hit (`integrator/packets.rs`, `sample_camera_packet`).
+    CameraPackets,
+    /// One path at a time, recursively (`integrator.rs`, [`Integrator::sample`]): the engine
+    /// every other one is checked against, and the one that records rays.
+    OnePath,
+}
+
 /// Ray counts gathered while rendering.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Counters {
@@ -262,11 +280,6 @@ impl Li {
     }
 }
 
-/// True when glass of material `m` absorbs light (Beer's law, from its colour) at `stage`.
-fn absorbs(stage: Stage, m: &Material) -> bool {
-    stage == Stage::Full && m.kind == MaterialKind::Refractive && m.color != glam::Vec3::ZERO
-}
-
 impl<'a> Integrator<'a, Scene> {
     /// An integrator for `scene` with `settings`, tracing with the scene's BVH.
     #[must_use]
@@ -288,7 +301,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let glossy = scene
             .entities
             .iter()
-            .any(|e| scene.materials[e.material as usize].kind == MaterialKind::Glossy);
+            .any(|e| scene.materials[e.material as usize].scatters_at_random());
         let stochastic =
             full && (settings.ambient || settings.camera.aperture_radius > 0.0 || emitters.any_emission || glossy);
         // Without stochastic effects every ray returns at most Σ lights × the largest albedo
@@ -321,39 +334,58 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             cells: Vec::new(),
             beams: Beams::default(),
             lone_spheres: Vec::new(),
-            media: scene.materials.iter().any(|m| absorbs(settings.stage, m)),
+            media: scene.materials.iter().any(|m| m.absorbs(settings.stage)),
         }
         .with_point_lit()
         .with_grid()
         .with_beams()
     }
 
+    /// The engine this render's samples take, by this rule: debug channels, and intersectors
+    /// whose packet queries are not faster than single rays ([`Intersect::PACKETS`]: the parry3d
+    /// reference, renders with mistakes), go [`Engine::OnePath`]; a render with nothing
+    /// stochastic goes [`Engine::Packets`]; a stochastic one (only the full stage has stochastic
+    /// effects) goes [`Engine::Waves`]. The render loop turns `Waves` into
+    /// [`Engine::CameraPackets`] for the remaining tiles when the first tiles' waves shaded too
+    /// few lanes a step to pay (`render.rs`, `WaveStats`); the pixels are the same either way.
+    /// Recorded samples ([`crate::render::trace_pixel`]) always go one path at a time.
+    #[must_use]
+    pub fn engine(&self) -> Engine {
+        if !I::PACKETS || self.settings.channel != Channel::Color {
+            Engine::OnePath
+        } else if self.stochastic {
+            Engine::Waves
+        } else {
+            Engine::Packets
+        }
+    }
+
     /// Fills in [`Self::beams`], for renders that trace ray packets through a flat list, and
     /// [`Self::lone_spheres`].
     fn with_beams(mut self) -> Self {
-        let Some(bvh) = self.isect.wide() else {
+        if !I::PACKETS {
             return self;
-        };
-        let camera = (!self.thin_lens()).then(|| ApexCull::new(bvh, self.camera.origin.to_array()));
+        }
+        let camera = (!self.thin_lens()).then(|| self.isect.apex_cull(self.camera.origin.to_array()));
         self.beams = Beams {
             camera: camera.flatten(),
             lights: self
                 .scene
                 .lights
                 .iter()
-                .map(|l| ApexCull::new(bvh, l.position.to_array()))
+                .map(|l| self.isect.apex_cull(l.position.to_array()))
                 .collect(),
         };
         // Glass spheres only: rays start inside a sphere where they refract into it, and the
         // check costs a pass over the scene's triangles per sphere.
         let glass = |k: usize| {
             let (_, m) = self.scene.prim_info(PrimRef::Sphere(k as u32));
-            self.scene.materials[m as usize].kind == MaterialKind::Refractive
+            self.scene.materials[m as usize].is_glass()
         };
         self.lone_spheres = (0..self.scene.spheres.len())
             .map(|k| {
                 (glass(k) && self.scene.sphere_alone(k))
-                    .then(|| bvh.sphere_slot(k as u32))
+                    .then(|| self.isect.sphere_slot(k as u32))
                     .flatten()
             })
             .collect();
@@ -843,7 +875,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// The media a glass hit's reflected and refracted rays travel in.
     #[inline]
     fn glass_media(&self, s: &Surface, m: &Material, path: PathState) -> (Option<u32>, Option<u32>) {
-        let absorbing = absorbs(self.settings.stage, m);
+        let absorbing = m.absorbs(self.settings.stage);
         let this = absorbing.then_some(s.material);
         // Reflected rays stay on the incoming side; refracted rays cross into the other medium
         // (the outside of every object is air).

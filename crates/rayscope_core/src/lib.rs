@@ -14,6 +14,7 @@ pub mod film;
 pub mod geometry;
 pub mod integrator;
 pub mod lights;
+pub mod material;
 pub mod math;
 pub mod mistakes;
 pub mod observer;

@@ -14,14 +14,14 @@
 //! planes are infinite, so they cannot be sampled; they are found by BSDF sampling only.
 
 use glam::Vec3A;
-use rayscope_scene::MaterialKind;
 
 use crate::geometry::{PrimRef, Sphere, Triangle};
+use crate::material::Material;
 use crate::math::{basis, not_at_most, RayPacket};
 use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
-use crate::scene::Scene;
+use crate::scene::{Intersect, Scene};
 use crate::simd::{dispatched, lane, sel, Mask, LANES};
-use crate::wide::{ApexCull, Bvh4};
+use crate::wide::ApexCull;
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;
@@ -72,8 +72,7 @@ pub struct Emitters {
 }
 
 fn is_emitting(scene: &Scene, material: u32) -> Option<Vec3A> {
-    let m = &scene.materials[material as usize];
-    (m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0).then(|| m.color.into())
+    scene.materials[material as usize].emission()
 }
 
 impl Emitters {
@@ -81,7 +80,7 @@ impl Emitters {
     #[must_use]
     pub fn from_scene(scene: &Scene) -> Emitters {
         let mut e = Emitters::default();
-        if !scene.materials.iter().any(|m| m.kind == MaterialKind::Emissive) {
+        if !scene.materials.iter().any(Material::is_emitter) {
             return e;
         }
         e.any_emission = scene.plane_info.iter().any(|&(_, m)| is_emitting(scene, m).is_some());
@@ -517,10 +516,10 @@ fn shadow_ray_lanes(
     }
 }
 
-/// [`point_light_rays`]: the rays made here, traced by the wide BVH.
+/// [`point_light_rays`]: the rays made here, traced by `isect`'s packet query.
 #[inline(always)]
-fn point_light_rays_impl(
-    bvh: &Bvh4,
+fn point_light_rays_impl<I: Intersect>(
+    isect: &I,
     org: &[[f32; LANES]; 3],
     ns: &[[f32; LANES]; 3],
     lit: &Mask,
@@ -537,7 +536,7 @@ fn point_light_rays_impl(
         rays: valid.iter().map(|&v| u32::from(v)).sum(),
     };
     if traced.iter().fold(false, |a, &b| a | b) {
-        let blocked = bvh.occluded_toward_apex(&mut shadow, &traced, cull);
+        let blocked = isect.occluded_packet_toward(&mut shadow, &traced, cull);
         for i in 0..LANES {
             out.visible[i] = traced[i] & !blocked[i];
         }
@@ -547,33 +546,33 @@ fn point_light_rays_impl(
 
 dispatched!(
     /// [`point_light_rays`] with the best instruction set the CPU has.
-    best_point_light_rays, point_light_rays_avx512, point_light_rays_avx2,
+    best_point_light_rays, point_light_rays_avx512, point_light_rays_avx2, <I: Intersect>
     (
-        bvh: &Bvh4,
+        isect: &I,
         org: &[[f32; LANES]; 3],
         ns: &[[f32; LANES]; 3],
         lit: &Mask,
         light: [f32; 3],
         cull: Option<&ApexCull>
     ) -> LightRays,
-    point_light_rays_impl(bvh, org, ns, lit, light, cull)
+    point_light_rays_impl(isect, org, ns, lit, light, cull)
 );
 
-/// For each lane in `lit`, the shadow ray from `org` toward a point light at `light`, traced in
-/// `bvh`: its cosine with the shading normal `ns`, and whether the light is visible (in front
+/// For each lane in `lit`, the shadow ray from `org` toward a point light at `light`, traced by
+/// `isect`: its cosine with the shading normal `ns`, and whether the light is visible (in front
 /// of the surface and unblocked). `cull`, when given, is the view from the light's position
-/// (see [`ApexCull`]).
+/// ([`Intersect::apex_cull`]).
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub fn point_light_rays(
-    bvh: &Bvh4,
+pub fn point_light_rays<I: Intersect>(
+    isect: &I,
     org: &[[f32; LANES]; 3],
     ns: &[[f32; LANES]; 3],
     lit: &[bool; LANES],
     light: [f32; 3],
     cull: Option<&ApexCull>,
 ) -> LightRays {
-    best_point_light_rays(bvh, org, ns, lit, light, cull)
+    best_point_light_rays(isect, org, ns, lit, light, cull)
 }
 
 /// Adds to `sums` (per axis) what a point light of colour `color` found by `vis` adds at

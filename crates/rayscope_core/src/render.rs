@@ -9,7 +9,7 @@ use rayon::prelude::*;
 
 use crate::film::Film;
 use crate::geometry::PrimRef;
-use crate::integrator::{Counters, Integrator, Job, WaveWork};
+use crate::integrator::{Counters, Engine, Integrator, Job, WaveWork};
 use crate::math::Ray;
 use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayRecorder, RayTree};
@@ -294,42 +294,47 @@ fn render_tile<I: Intersect>(
         nonfinite: 0,
         first_nonfinite: None,
     };
-    if let Some(bvh) = integ.packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
-            integ.sample_packet(bvh, jobs, vals, c)
-        })?;
-        return Some(r);
-    }
-    if let Some(bvh) = integ.wave_bvh().filter(|_| waves.worthwhile()) {
-        // As many samples at once as the bound allows: a wave's lanes drain only at the end of its
-        // jobs. Counted in 64 bits: pixels × samples can pass 2^32.
-        let jobs = (x1 - x0) as u64 * (y1 - y0) as u64 * spp as u64;
-        let batch = jobs.min(WAVE_BATCH as u64) as usize;
-        let mut work = WaveWork::default();
-        render_tile_packets(&mut r, y1, spp, batch, cancel, |jobs, vals, c| {
-            work.add(integ.sample_wave(bvh, jobs, vals, c));
-        })?;
-        waves.add(jobs, work);
-        return Some(r);
-    }
-    if let Some(bvh) = integ.camera_packet_bvh() {
-        render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
-            integ.sample_camera_packet(bvh, jobs, vals, c)
-        })?;
-        return Some(r);
-    }
-    let inv = 1.0 / spp as f32;
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let mut sum = Vec3A::ZERO;
-            for s in 0..spp {
-                if s % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed) {
-                    return None;
+    let engine = match integ.engine() {
+        Engine::Waves if !waves.worthwhile() => Engine::CameraPackets,
+        e => e,
+    };
+    match engine {
+        Engine::Packets => {
+            render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
+                integ.sample_packet(jobs, vals, c)
+            })?;
+        }
+        Engine::Waves => {
+            // As many samples at once as the bound allows: a wave's lanes drain only at the end
+            // of its jobs. Counted in 64 bits: pixels × samples can pass 2^32.
+            let jobs = (x1 - x0) as u64 * (y1 - y0) as u64 * spp as u64;
+            let batch = jobs.min(WAVE_BATCH as u64) as usize;
+            let mut work = WaveWork::default();
+            render_tile_packets(&mut r, y1, spp, batch, cancel, |jobs, vals, c| {
+                work.add(integ.sample_wave(jobs, vals, c));
+            })?;
+            waves.add(jobs, work);
+        }
+        Engine::CameraPackets => {
+            render_tile_packets(&mut r, y1, spp, LANES, cancel, |jobs, vals, c| {
+                integ.sample_camera_packet(jobs, vals, c)
+            })?;
+        }
+        Engine::OnePath => {
+            let inv = 1.0 / spp as f32;
+            for y in y0..y1 {
+                for x in x0..x1 {
+                    let mut sum = Vec3A::ZERO;
+                    for s in 0..spp {
+                        if s % CANCEL_EVERY == 0 && cancel.load(Ordering::Relaxed) {
+                            return None;
+                        }
+                        let v = integ.sample(x, y, s, &mut NoObserver, &mut r.counters);
+                        r.add_sample(&mut sum, (x, y, s), v);
+                    }
+                    r.pixels.push((sum * inv).into());
                 }
-                let v = integ.sample(x, y, s, &mut NoObserver, &mut r.counters);
-                r.add_sample(&mut sum, (x, y, s), v);
             }
-            r.pixels.push((sum * inv).into());
         }
     }
     Some(r)

@@ -3,35 +3,21 @@
 
 use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
-use rayscope_scene::{MaterialKind, SceneFile, Shape};
+use rayscope_scene::{SceneFile, Shape};
 use serde::Serialize;
 
 use crate::bvh::{BuildPrim, Bvh};
 pub use crate::geometry::PrimRef;
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
-use crate::math::{Aabb, Ray};
-use crate::wide::{Bvh4, WideHit};
+pub use crate::material::Material;
+use crate::math::{Aabb, Ray, RayPacket};
+use crate::simd::{Mask, LANES};
+use crate::wide::{ApexCull, Bvh4, PacketHits, WideHit};
 
 #[cfg(any(test, feature = "test-support"))]
 mod binary_reference;
 #[cfg(any(test, feature = "test-support"))]
 pub use binary_reference::BinaryReference;
-
-/// A material as the integrators use it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct Material {
-    /// The material's type.
-    #[serde(serialize_with = "ser_kind")]
-    pub kind: MaterialKind,
-    /// Albedo, emitted radiance or absorbance, by kind.
-    pub color: Vec3,
-    /// Refractive index (Refractive) or roughness control (Glossy).
-    pub value: f32,
-}
-
-fn ser_kind<S: serde::Serializer>(k: &MaterialKind, s: S) -> Result<S::Ok, S::Error> {
-    s.serialize_str(k.name())
-}
 
 /// A point light with the course's unattenuated model.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -178,10 +164,82 @@ pub trait Intersect: Sync {
         let blocked = self.occluded(shadow, 0.0, shadow_t_max);
         (self.intersect(ray, 0.0, f32::INFINITY), blocked)
     }
-    /// The wide BVH these queries run on, when ray packets may be traced through it instead.
+    /// True when this intersector answers the packet queries below faster than it answers
+    /// their rays one at a time, so the engines that trace sixteen rays together
+    /// ([`crate::integrator::Engine`]) pay for it. The queries' defaults ask one ray at a time.
+    const PACKETS: bool = false;
+
+    /// The closest hit of each ray of `rays` with `t_min < t < t_max` (the lane's own `t_max`,
+    /// −∞ in lanes not in use), into `hits`; each hit lane's `t_max` is left at its hit.
+    /// `cull`, when given, is the view from a point every ray starts at
+    /// ([`Self::apex_cull`]), which an implementation may use to skip what no ray can meet.
     #[inline]
-    fn wide(&self) -> Option<&Bvh4> {
+    fn closest_packet(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
+        let _ = cull;
+        *hits = PacketHits::default();
+        for i in 0..LANES {
+            let hit = self.intersect(&rays.ray(i), t_min, rays.t_max[i]);
+            if let Some(h) = hit {
+                rays.t_max[i] = h.t;
+            }
+            hits.set(i, hit.map(|h| (h.t, h.u, h.v, h.prim)));
+        }
+    }
+
+    /// [`Self::closest_packet`] for rays that all start inside the sphere at `slot`
+    /// ([`Self::sphere_slot`]), which nothing else comes near: returns false, with `rays` as
+    /// they were, when it cannot answer that way (the caller then asks [`Self::closest_packet`]).
+    #[inline]
+    fn closest_packet_inside(&self, rays: &mut RayPacket, t_min: f32, slot: (u32, u32), hits: &mut PacketHits) -> bool {
+        let _ = (rays, t_min, slot, hits);
+        false
+    }
+
+    /// [`Self::closest_packet`] for rays that share little of their way through the scene (a
+    /// wave of paths' bounce rays).
+    #[inline]
+    fn scattered_closest_packet(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+        let mut hits = PacketHits::default();
+        self.closest_packet(rays, t_min, None, &mut hits);
+        hits
+    }
+
+    /// For each ray of `rays` that share little of their way, whether anything lies on it with
+    /// `t_min < t < t_max`.
+    #[inline]
+    fn scattered_occluded_packet(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+        std::array::from_fn(|i| self.occluded(&rays.ray(i), t_min, rays.t_max[i]))
+    }
+
+    /// For each lane of `shadow` in `traced` (the others are not in use), whether anything lies
+    /// on its ray with `0 < t < t_max`: shadow rays that all end at one point, whose view
+    /// ([`Self::apex_cull`]) `cull` is when given.
+    #[inline]
+    fn occluded_packet_toward(&self, shadow: &mut RayPacket, traced: &Mask, cull: Option<&ApexCull>) -> Mask {
+        let _ = cull;
+        std::array::from_fn(|i| traced[i] && self.occluded(&shadow.ray(i), 0.0, shadow.t_max[i]))
+    }
+
+    /// The view from `apex` that packet queries of rays sharing that end point may use; `None`
+    /// when there is nothing to gain.
+    #[inline]
+    fn apex_cull(&self, apex: [f32; 3]) -> Option<ApexCull> {
+        let _ = apex;
         None
+    }
+
+    /// Where sphere `k` sits for [`Self::closest_packet_inside`], when that query can use it.
+    #[inline]
+    fn sphere_slot(&self, k: u32) -> Option<(u32, u32)> {
+        let _ = k;
+        None
+    }
+
+    /// True when a packet's rays meet every primitive whatever their origins (the queries test
+    /// one list, not a tree), so a wave loses nothing by mixing camera rays with bounce rays.
+    #[inline]
+    fn packets_test_everything(&self) -> bool {
+        false
     }
 }
 
@@ -199,9 +257,38 @@ impl Intersect for Scene {
         let (hit, blocked) = self.wide.closest_and_occluded(ray, shadow, shadow_t_max);
         (hit.map(Hit::from), blocked)
     }
+    const PACKETS: bool = true;
+    #[inline(always)]
+    fn closest_packet(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
+        self.wide.closest_rays_from(rays, t_min, cull, hits);
+    }
+    #[inline(always)]
+    fn closest_packet_inside(&self, rays: &mut RayPacket, t_min: f32, slot: (u32, u32), hits: &mut PacketHits) -> bool {
+        self.wide.closest_rays_inside(rays, t_min, slot, hits)
+    }
     #[inline]
-    fn wide(&self) -> Option<&Bvh4> {
-        Some(&self.wide)
+    fn scattered_closest_packet(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+        self.wide.scattered_closest_rays(rays, t_min)
+    }
+    #[inline]
+    fn scattered_occluded_packet(&self, rays: &mut RayPacket, t_min: f32) -> Mask {
+        self.wide.scattered_occluded_rays(rays, t_min)
+    }
+    #[inline(always)]
+    fn occluded_packet_toward(&self, shadow: &mut RayPacket, traced: &Mask, cull: Option<&ApexCull>) -> Mask {
+        self.wide.occluded_toward_apex(shadow, traced, cull)
+    }
+    #[inline]
+    fn apex_cull(&self, apex: [f32; 3]) -> Option<ApexCull> {
+        ApexCull::new(&self.wide, apex)
+    }
+    #[inline]
+    fn sphere_slot(&self, k: u32) -> Option<(u32, u32)> {
+        self.wide.sphere_slot(k)
+    }
+    #[inline]
+    fn packets_test_everything(&self) -> bool {
+        !self.wide.single.is_empty()
     }
 }
 

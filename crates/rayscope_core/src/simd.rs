@@ -73,27 +73,28 @@ pub(crate) fn prefetch<T>(p: *const T) {
 
 /// Defines `$name` (with visibility `$vis`), which runs `$body` (an expression over the
 /// arguments) with the best instruction set the CPU has, and its AVX-512 and AVX2 builds
-/// `$avx512`, `$avx2` (visible to the crate, for the tests that compare the builds).
+/// `$avx512`, `$avx2` (visible to the crate, for the tests that compare the builds). An
+/// optional `<T: Trait>` after the names makes all three generic over one type.
 ///
 /// A kernel returning a large struct keeps a public entry point that calls `$name` rather than
 /// making `$name` the entry point: made the entry point, the dispatcher was inlined into the
 /// packet code and its result copied with `memcpy` (course scene 2 at `-x 4 --stage 2`: 2.7 %
 /// more instructions under callgrind).
 macro_rules! dispatched {
-    ($(#[$doc:meta])* $vis:vis $name:ident, $avx512:ident, $avx2:ident, $(#[$build:meta])* ($($arg:ident: $ty:ty),*) -> $ret:ty, $body:expr) => {
+    ($(#[$doc:meta])* $vis:vis $name:ident, $avx512:ident, $avx2:ident, $(<$g:ident: $bound:path>)? $(#[$build:meta])* ($($arg:ident: $ty:ty),*) -> $ret:ty, $body:expr) => {
         $(#[$doc])*
         #[inline]
         #[allow(unsafe_code)]
-        $vis fn $name($($arg: $ty),*) -> $ret {
+        $vis fn $name$(<$g: $bound>)?($($arg: $ty),*) -> $ret {
             #[cfg(target_arch = "x86_64")]
             {
                 if std::arch::is_x86_feature_detected!("avx512f") {
                     // SAFETY: the CPU supports AVX-512F, checked on the line above.
-                    return unsafe { $avx512($($arg),*) };
+                    return unsafe { $avx512$(::<$g>)?($($arg),*) };
                 }
                 if std::arch::is_x86_feature_detected!("avx2") {
                     // SAFETY: the CPU supports AVX2, checked on the line above.
-                    return unsafe { $avx2($($arg),*) };
+                    return unsafe { $avx2$(::<$g>)?($($arg),*) };
                 }
             }
             $body
@@ -102,14 +103,14 @@ macro_rules! dispatched {
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx512f")]
         $(#[$build])*
-        pub(crate) fn $avx512($($arg: $ty),*) -> $ret {
+        pub(crate) fn $avx512$(<$g: $bound>)?($($arg: $ty),*) -> $ret {
             $body
         }
 
         #[cfg(target_arch = "x86_64")]
         #[target_feature(enable = "avx2")]
         $(#[$build])*
-        pub(crate) fn $avx2($($arg: $ty),*) -> $ret {
+        pub(crate) fn $avx2$(<$g: $bound>)?($($arg: $ty),*) -> $ret {
             $body
         }
     };

@@ -5,6 +5,7 @@ use std::path::Path;
 use std::sync::atomic::AtomicBool;
 
 use rayscope_core::geometry::Triangle;
+use rayscope_core::integrator::Engine;
 use rayscope_core::math::Ray;
 use rayscope_core::scene::{Hit, Intersect, PrimRef};
 use rayscope_core::settings::Channel;
@@ -16,6 +17,21 @@ use rayscope_core::{render, render_with, RenderOutput, RenderSettings, Scene, St
 struct SingleRays<'a>(&'a Scene);
 
 impl Intersect for SingleRays<'_> {
+    fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
+        self.0.intersect(ray, t_min, t_max)
+    }
+    fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        self.0.occluder(ray, t_min, t_max)
+    }
+}
+
+/// The scene's single-ray queries, offering packets through the trait's default packet
+/// queries, which ask one ray at a time: the packet engines on an intersector that has no packet
+/// code of its own.
+struct DefaultPackets<'a>(&'a Scene);
+
+impl Intersect for DefaultPackets<'_> {
+    const PACKETS: bool = true;
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
         self.0.intersect(ray, t_min, t_max)
     }
@@ -208,12 +224,46 @@ fn lanes_that_continue_one_ray_at_a_time_match_too() {
         aa: 2,
         ..RenderSettings::default()
     };
-    assert!(rayscope_core::integrator::Integrator::new(&scene, &s)
-        .packet_bvh()
-        .is_some());
+    assert_eq!(
+        rayscope_core::integrator::Integrator::new(&scene, &s).engine(),
+        Engine::Packets
+    );
     let (p, one) = both(&scene, &s);
     assert_eq!(p.counters, one.counters);
     assert_eq!(p.film.pixels, one.film.pixels);
+}
+
+#[test]
+fn the_engines_run_on_any_intersector_through_the_default_packet_queries() {
+    // Stage 2 (ray packets) and path tracing (waves, with camera packets after the pilot) on
+    // an intersector whose packet queries are the trait's defaults: the scene's own images, bit
+    // for bit, with the same ray counts.
+    let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes");
+    for (name, stage, ambient) in [
+        ("whitted.txt", Stage::Two, false),
+        ("room.txt", Stage::Two, false),
+        ("beer.txt", Stage::Full, false),
+        ("emissive.txt", Stage::Full, true),
+    ] {
+        let scene = load(&root.join(name));
+        let s = RenderSettings {
+            width: 40,
+            height: 30,
+            aa: 2,
+            ambient,
+            stage,
+            ..RenderSettings::default()
+        };
+        let default_packets = DefaultPackets(&scene);
+        let integ = rayscope_core::integrator::Integrator::with_intersector(&scene, &default_packets, &s);
+        assert_ne!(integ.engine(), Engine::OnePath, "{name}");
+        let cancel = AtomicBool::new(false);
+        let own = render(&scene, &s, &|_, _| {}, &cancel).expect("not cancelled");
+        let default = render_with(&scene, &default_packets, &s, &|_, _| {}, &cancel).expect("not cancelled");
+        assert_eq!(default.counters, own.counters, "{name}: ray counts");
+        let diff = differing(&default, &own);
+        assert_eq!(diff, 0, "{name}: {diff} pixels differ");
+    }
 }
 
 #[test]
@@ -221,23 +271,41 @@ fn packets_are_used_only_where_they_apply() {
     use rayscope_core::integrator::Integrator;
     let scene = load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../../scenes/whitted.txt"));
     let base = RenderSettings::default();
-    assert!(Integrator::new(&scene, &base).packet_bvh().is_some());
+    assert_eq!(Integrator::new(&scene, &base).engine(), Engine::Packets);
     let normals = RenderSettings {
         channel: Channel::Normal,
         ..base
     };
-    assert!(
-        Integrator::new(&scene, &normals).packet_bvh().is_none(),
+    assert_eq!(
+        Integrator::new(&scene, &normals).engine(),
+        Engine::OnePath,
         "debug channels"
     );
     let mut dof = base;
     dof.camera.aperture_radius = 0.1;
-    assert!(Integrator::new(&scene, &dof).packet_bvh().is_none(), "lens rays");
+    assert_eq!(Integrator::new(&scene, &dof).engine(), Engine::Waves, "lens rays");
     let ambient = RenderSettings { ambient: true, ..base };
-    assert!(Integrator::new(&scene, &ambient).packet_bvh().is_none(), "path tracing");
-    assert!(Integrator::with_intersector(&scene, &SingleRays(&scene), &base)
-        .packet_bvh()
-        .is_none());
+    assert_eq!(
+        Integrator::new(&scene, &ambient).engine(),
+        Engine::Waves,
+        "path tracing"
+    );
+    let stage_two_dof = RenderSettings {
+        stage: Stage::Two,
+        ..dof
+    };
+    assert_eq!(
+        Integrator::new(&scene, &stage_two_dof).engine(),
+        Engine::Packets,
+        "stage 2 has no depth of field"
+    );
+    let single_rays = SingleRays(&scene);
+    let single = Integrator::with_intersector(&scene, &single_rays, &base);
+    assert_eq!(
+        single.engine(),
+        Engine::OnePath,
+        "an intersector without fast packet queries"
+    );
 }
 
 #[test]

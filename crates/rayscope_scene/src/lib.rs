@@ -14,12 +14,17 @@ mod lexer;
 mod obj;
 mod parser;
 
+pub use strum::VariantArray;
+
 pub use diagnostic::{Diagnostic, Severity};
 pub use obj::{load_obj, parse_obj, ObjOptions};
 pub use parser::{load, parse_str};
 
 /// The kind of surface a material describes, as named in the scene file.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+///
+/// `MaterialKind::VARIANTS` (from [`strum::VariantArray`]) lists every kind in this order: the
+/// parser accepts exactly these names, so a new kind is parsed as soon as it is declared here.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, strum::VariantArray)]
 pub enum MaterialKind {
     /// Lambertian surface; colour is the albedo.
     Diffuse,
@@ -43,6 +48,17 @@ impl MaterialKind {
             MaterialKind::Refractive => "Refractive",
             MaterialKind::Emissive => "Emissive",
             MaterialKind::Glossy => "Glossy",
+        }
+    }
+
+    /// What the number at the end of a `Material` line means for this kind, when it means
+    /// anything (the format requires one for every kind).
+    #[must_use]
+    pub fn number_meaning(self) -> Option<&'static str> {
+        match self {
+            MaterialKind::Refractive => Some("refractive index"),
+            MaterialKind::Glossy => Some("roughness"),
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive => None,
         }
     }
 }

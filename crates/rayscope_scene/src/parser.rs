@@ -8,19 +8,10 @@ use glam::DVec3;
 use crate::diagnostic::{decode_utf8, suggest, Diagnostic, Severity};
 use crate::lexer::{char_len, column, lex_line, lines, parse_number, Line, NumberError, Token};
 use crate::obj::{parse_obj_with_warnings, ObjOptions};
-use crate::{EntityDef, MaterialDef, MaterialKind, PointLightDef, SceneError, SceneFile, Shape};
+use crate::{EntityDef, MaterialDef, MaterialKind, PointLightDef, SceneError, SceneFile, Shape, VariantArray};
 
 /// The commands of the format, in the order they are listed in messages.
 const COMMANDS: [&str; 6] = ["Material", "PointLight", "Plane", "Sphere", "Triangle", "ObjModel"];
-
-/// The material types, in the order they are listed in messages.
-const MATERIAL_KINDS: [MaterialKind; 5] = [
-    MaterialKind::Diffuse,
-    MaterialKind::Reflective,
-    MaterialKind::Refractive,
-    MaterialKind::Emissive,
-    MaterialKind::Glossy,
-];
 
 /// Parses scene text as if it had been read from `path`.
 ///
@@ -402,12 +393,11 @@ impl<'a> Parser<'a> {
             ));
         }
         let kind_tok = cur.next("the material's type")?;
-        let kind = MATERIAL_KINDS
-            .into_iter()
+        let kind = (MaterialKind::VARIANTS.iter().copied())
             .find(|k| k.name() == kind_tok.text)
             .ok_or_else(|| {
-                let names = MATERIAL_KINDS.map(MaterialKind::name);
-                let label = suggest(kind_tok.text, names).map_or_else(
+                let names: Vec<_> = MaterialKind::VARIANTS.iter().map(|k| k.name()).collect();
+                let label = suggest(kind_tok.text, names.iter().copied()).map_or_else(
                     || "unknown material type".to_string(),
                     |s| format!("did you mean '{s}'?"),
                 );
@@ -438,13 +428,9 @@ impl<'a> Parser<'a> {
                 .with_note("a Refractive material's colour is its absorbance per channel (Beer's law); (0, 0, 0) is clear glass"),
             ));
         }
-        let what = match kind {
-            MaterialKind::Refractive => "the material's refractive index".to_string(),
-            MaterialKind::Glossy => "the material's roughness".to_string(),
-            _ => "the material's number".to_string(),
-        };
+        let what = format!("the material's {}", kind.number_meaning().unwrap_or("number"));
         let (value, tok) = cur.number(&what, &what).map_err(|mut e| {
-            if !matches!(kind, MaterialKind::Refractive | MaterialKind::Glossy) {
+            if kind.number_meaning().is_none() {
                 e.add_note(format!(
                     "a {} material ignores the number, but the format requires one (1 is customary)",
                     kind.name()

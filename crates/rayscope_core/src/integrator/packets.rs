@@ -31,40 +31,20 @@ use crate::rng::{Rng, RngLanes};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::simd::{lane, put, LANES};
-use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
+use crate::wide::{surface_frames, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
 pub(crate) type Job = (u32, u32, u32);
 
 impl<I: Intersect> Integrator<'_, I> {
-    /// The BVH to trace packets through, when this render's samples may be traced as packets:
-    /// colour renders without stochastic effects, on rayscope's own BVH.
-    #[must_use]
-    pub fn packet_bvh(&self) -> Option<&Bvh4> {
-        if self.settings.channel != Channel::Color || self.stochastic {
-            return None;
-        }
-        self.isect.wide()
-    }
-
-    /// The BVH to trace camera rays through [`LANES`] at a time, when this render's samples are
-    /// stochastic paths (so not whole packets): colour renders on rayscope's own BVH.
-    #[must_use]
-    pub fn camera_packet_bvh(&self) -> Option<&Bvh4> {
-        if self.settings.channel != Channel::Color || !self.stochastic {
-            return None;
-        }
-        self.isect.wide()
-    }
-
     /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with
     /// the rays counted in `c`: the camera rays traced as one packet, each path then one ray at
     /// a time from its camera ray's hit. A pixel's camera rays stay together even where its
     /// paths scatter after the first bounce.
-    pub(crate) fn sample_camera_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
+    pub(crate) fn sample_camera_packet(&self, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let cams = self.camera_batch(Some(bvh), 0, jobs, c);
+        let cams = self.camera_batch(true, 0, jobs, c);
         for k in 0..jobs.len() {
             // Self::radiance from the hit found with the batch.
             let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
@@ -85,8 +65,8 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 
     /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`), traced as one
-    /// packet when `bvh` is given: a pixel's samples stay together until their first hit.
-    pub(super) fn camera_batch(&self, bvh: Option<&Bvh4>, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
+    /// packet when `trace`: a pixel's samples stay together until their first hit.
+    pub(super) fn camera_batch(&self, trace: bool, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
         let mut b = CameraBatch {
             job0,
             len: jobs.len(),
@@ -125,9 +105,10 @@ impl<I: Intersect> Integrator<'_, I> {
             self.pinhole_rays(&mut b.rays, jobs.len(), &px, &py);
         }
         c.camera += jobs.len() as u64;
-        if let Some(bvh) = bvh {
+        if trace {
             // Traced in place (users of the batch read only origins and directions).
-            bvh.closest_rays_from(&mut b.rays, 0.0, self.beams.camera.as_ref(), &mut b.hits);
+            self.isect
+                .closest_packet(&mut b.rays, 0.0, self.beams.camera.as_ref(), &mut b.hits);
         }
         b
     }
@@ -156,21 +137,14 @@ impl<I: Intersect> Integrator<'_, I> {
     /// True when a hit on `m` is shaded by point lights alone with the course's formula, so its
     /// shadow rays can be traced as packets.
     fn point_lit_only(&self, m: &Material) -> bool {
-        match self.settings.stage {
-            Stage::One => false,
-            Stage::Two => matches!(
-                m.kind,
-                MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive
-            ),
-            // The full renderer shades a Lambertian hit with point lights alone when there are
-            // no emitters and no indirect light.
-            Stage::Full => m.kind == MaterialKind::Diffuse && self.emitters.is_empty() && !self.settings.ambient,
-        }
+        // The full renderer shades a Lambertian hit with point lights alone when there are no
+        // emitters and no indirect light.
+        m.point_lit_only(self.settings.stage, self.emitters.is_empty() && !self.settings.ambient)
     }
 
     /// The colours of `jobs` (at most [`LANES`]) into `out`: what [`Self::sample`] returns for
-    /// each, with the rays counted in `c`. Only for renders where [`Self::packet_bvh`] is `Some`.
-    pub(crate) fn sample_packet(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
+    /// each, with the rays counted in `c`. Only for renders whose [`Self::engine`] is [`Engine::Packets`].
+    pub(crate) fn sample_packet(&self, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
         // Self::sample_position, its divisions done for all lanes at once with the directions.
         // Unused lanes aim at the image's corner; they are never switched on.
@@ -185,10 +159,10 @@ impl<I: Intersect> Integrator<'_, I> {
         c.camera += jobs.len() as u64;
         // Straight into `out` when it has room for every lane (the render loop's batches do).
         match out.first_chunk_mut::<LANES>() {
-            Some(vals) => self.trace_packet(bvh, &mut lanes, jobs, c, vals),
+            Some(vals) => self.trace_packet(&mut lanes, jobs, c, vals),
             None => {
                 let mut vals = [Vec3A::ZERO; LANES];
-                self.trace_packet(bvh, &mut lanes, jobs, c, &mut vals);
+                self.trace_packet(&mut lanes, jobs, c, &mut vals);
                 out[..jobs.len()].copy_from_slice(&vals[..jobs.len()]);
             }
         }
@@ -199,14 +173,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// light), then the reflected rays of mirrors and glass (one packet) and glass's refracted
     /// rays (another), recursively. `jobs[i]` is the sample lane `i` belongs to. The rays'
     /// `t_max` is left at their hits: traced in place, as a copy of the packet cost a `memcpy`.
-    fn trace_packet(
-        &self,
-        bvh: &Bvh4,
-        lanes: &mut PathPacket,
-        jobs: &[Job],
-        c: &mut Counters,
-        vals: &mut [Vec3A; LANES],
-    ) {
+    fn trace_packet(&self, lanes: &mut PathPacket, jobs: &[Job], c: &mut Counters, vals: &mut [Vec3A; LANES]) {
         *vals = [Vec3A::ZERO; LANES];
         if lanes.depth >= MAX_PACKET_DEPTH {
             // Deep recursion continues one ray at a time, whose stack frames are smaller.
@@ -226,8 +193,9 @@ impl<I: Intersect> Integrator<'_, I> {
             Inside::Sphere(k) => self.lone_spheres.get(k as usize).copied().flatten(),
             _ => None,
         };
-        if !alone.is_some_and(|slot| bvh.closest_rays_inside(&mut lanes.rays, 0.0, slot, &mut hits)) {
-            bvh.closest_rays_from(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
+        if !alone.is_some_and(|slot| self.isect.closest_packet_inside(&mut lanes.rays, 0.0, slot, &mut hits)) {
+            self.isect
+                .closest_packet(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
         }
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
@@ -322,7 +290,9 @@ impl<I: Intersect> Integrator<'_, I> {
                     }
                     Next::Glass
                 }
-                _ => {
+                // Glass after a sampled bounce picks one ray at random; the other kinds here are
+                // lit by more than point lights. Their lanes go on one path at a time.
+                MaterialKind::Refractive | MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
                     let mut rng = self.lane_rng(jobs[i]);
                     let Some((t, u, v, prim)) = hits.get(i) else {
                         unreachable!("lane {i} has a surface, so it has a hit")
@@ -337,12 +307,12 @@ impl<I: Intersect> Integrator<'_, I> {
             };
         }
 
-        let lights = self.point_lights_packet(bvh, &lit, &surf.frames, c);
+        let lights = self.point_lights_packet(&lit, &surf.frames, c);
         // Children in the order the one-ray recursion traces them: each lane's reflected ray
         // before its refracted one (lanes are independent, so only the per-lane order matters).
         let (mut from_reflected, mut from_refracted) = ([Vec3A::ZERO; LANES], [Vec3A::ZERO; LANES]);
-        self.children(bvh, reflected.as_mut(), jobs, c, &mut from_reflected);
-        self.children(bvh, refracted.as_mut(), jobs, c, &mut from_refracted);
+        self.children(reflected.as_mut(), jobs, c, &mut from_reflected);
+        self.children(refracted.as_mut(), jobs, c, &mut from_refracted);
         let on = |p: &Option<PathPacket>, i: usize| p.as_ref().is_some_and(|p| p.on[i]);
         // Beer's law, for packets with a path in an absorbing medium.
         let absorb = |i: usize, li: Li| {
@@ -378,20 +348,13 @@ impl<I: Intersect> Integrator<'_, I> {
 
     /// The child rays `lanes` traced as a packet (and counted) into `vals`, which stays zero
     /// when there are none.
-    fn children(
-        &self,
-        bvh: &Bvh4,
-        lanes: Option<&mut PathPacket>,
-        jobs: &[Job],
-        c: &mut Counters,
-        vals: &mut [Vec3A; LANES],
-    ) {
+    fn children(&self, lanes: Option<&mut PathPacket>, jobs: &[Job], c: &mut Counters, vals: &mut [Vec3A; LANES]) {
         let Some(lanes) = lanes else {
             return;
         };
         let n = lanes.on.iter().filter(|&&on| on).count();
         c.secondary += n as u64;
-        self.trace_packet(bvh, lanes, jobs, c, vals);
+        self.trace_packet(lanes, jobs, c, vals);
     }
 
     /// Point-light shading of the `lit` lanes at surfaces `frames`, per axis, with their shadow
@@ -399,7 +362,6 @@ impl<I: Intersect> Integrator<'_, I> {
     /// is what `direct_point_lights` adds up, in the same order.
     pub(super) fn point_lights_packet(
         &self,
-        bvh: &Bvh4,
         lit: &LitLanes,
         frames: &SurfaceFrames,
         c: &mut Counters,
@@ -410,7 +372,7 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         for (k, light) in self.scene.lights.iter().enumerate() {
             let vis = point_light_rays(
-                bvh,
+                self.isect,
                 &frames.outside,
                 &frames.shading_normal,
                 &lit.on,

@@ -42,9 +42,8 @@ use crate::observer::NoObserver;
 use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect};
-use crate::settings::Stage;
 use crate::simd::{lane, max_element, put, LANES};
-use crate::wide::{Bvh4, PacketHits};
+use crate::wide::PacketHits;
 use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];
@@ -251,29 +250,19 @@ impl Wave {
 }
 
 impl<I: Intersect> Integrator<'_, I> {
-    /// The BVH to trace waves of paths through, when this render's samples are full-renderer
-    /// paths (see the module documentation): stochastic colour renders on rayscope's own BVH.
-    #[must_use]
-    pub fn wave_bvh(&self) -> Option<&Bvh4> {
-        if self.settings.stage != Stage::Full {
-            return None;
-        }
-        self.camera_packet_bvh()
-    }
-
     /// What [`Self::sample`] returns for each of `jobs`, into `out`, with the rays counted in
-    /// `c`: the samples' paths traced as waves of [`LANES`]. Only for renders where
-    /// [`Self::wave_bvh`] is `Some`. Returns the steps the wave took and the vertices it shaded.
-    pub(crate) fn sample_wave(&self, bvh: &Bvh4, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) -> WaveWork {
+    /// `c`: the samples' paths traced as waves of [`LANES`]. Only for renders whose
+    /// [`Self::engine`] is [`Engine::Waves`]. Returns the steps the wave took and the vertices it shaded.
+    pub(crate) fn sample_wave(&self, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) -> WaveWork {
         debug_assert!(out.len() >= jobs.len());
         let mut w = Wave::new();
         let mut cams = CameraBatch::default();
         let mut next = 0;
-        // Where the wave's packets test a room's list (`Bvh4::single`) every ray meets every
+        // Where the wave's packets test every primitive (a room's list) every ray meets every
         // primitive wherever it starts, so a camera ray goes in the wave's next packet, in the
         // lane it would otherwise leave idle. In a tree, camera rays are traced ahead, a pixel's
         // samples together, whose walks share their nodes.
-        let ahead = bvh.single.is_empty();
+        let ahead = !self.isect.packets_test_everything();
         loop {
             for i in 0..LANES {
                 if w.on[i] {
@@ -284,7 +273,7 @@ impl<I: Intersect> Integrator<'_, I> {
                         break;
                     }
                     let batch = &jobs[next..jobs.len().min(next + LANES)];
-                    cams = self.camera_batch(ahead.then_some(bvh), next, batch, c);
+                    cams = self.camera_batch(ahead, next, batch, c);
                     next += batch.len();
                 }
                 // The lane's first step starts from its camera ray, or from its hit.
@@ -300,21 +289,21 @@ impl<I: Intersect> Integrator<'_, I> {
             if !w.on.contains(&true) {
                 break;
             }
-            self.wave_step(bvh, &mut w, out, c);
+            self.wave_step(&mut w, out, c);
             w.work.steps += 1;
         }
         w.work
     }
 
     /// Traces the wave's rays and shadow rays and takes every path one vertex on.
-    fn wave_step(&self, bvh: &Bvh4, w: &mut Wave, out: &mut [Vec3A], c: &mut Counters) {
+    fn wave_step(&self, w: &mut Wave, out: &mut [Vec3A], c: &mut Counters) {
         let blocked = if w.shadow_on.contains(&true) {
-            bvh.scattered_occluded_rays(&mut w.shadow, 0.0)
+            self.isect.scattered_occluded_packet(&mut w.shadow, 0.0)
         } else {
             [false; LANES]
         };
         let mut hits = if (0..LANES).any(|i| w.ray_on[i] & w.found[i].is_none()) {
-            bvh.scattered_closest_rays(&mut w.rays, 0.0)
+            self.isect.scattered_closest_packet(&mut w.rays, 0.0)
         } else {
             PacketHits::default()
         };
@@ -402,7 +391,7 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         if diffuse.contains(&true) {
             w.work.shaded += diffuse.iter().map(|&d| u64::from(d)).sum::<u64>();
-            self.shade_wave(bvh, w, &surf, &diffuse, &dist, out, c);
+            self.shade_wave(w, &surf, &diffuse, &dist, out, c);
         }
     }
 
@@ -476,16 +465,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave). `dist` is
     /// each hit's distance along its ray.
     #[allow(clippy::too_many_arguments)]
-    fn shade_wave(
-        &self,
-        bvh: &Bvh4,
-        w: &mut Wave,
-        surf: &PacketSurfaces,
-        d: &M,
-        dist: &F,
-        out: &mut [Vec3A],
-        c: &mut Counters,
-    ) {
+    fn shade_wave(&self, w: &mut Wave, surf: &PacketSurfaces, d: &M, dist: &F, out: &mut [Vec3A], c: &mut Counters) {
         let ambient = self.settings.ambient;
         let f_frames = &surf.frames;
         let (n, ng, org) = (&f_frames.shading_normal, &f_frames.normal, &f_frames.outside);
@@ -503,7 +483,7 @@ impl<I: Intersect> Integrator<'_, I> {
             lit.on[i] = true;
         }
         // Point lights by the course's formula (no BRDF), one packet per light.
-        let l = self.point_lights_packet(bvh, &lit, f_frames, c);
+        let l = self.point_lights_packet(&lit, f_frames, c);
         // crate::math::basis.
         let (mut tb, mut bb) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
         for i in 0..LANES {
@@ -659,8 +639,9 @@ impl<I: Intersect> Integrator<'_, I> {
 mod tests {
 
     use super::*;
+    use crate::integrator::Engine;
     use crate::scene::Scene;
-    use crate::settings::RenderSettings;
+    use crate::settings::{RenderSettings, Stage};
 
     #[test]
     fn waves_return_what_one_path_at_a_time_returns() {
@@ -695,17 +676,17 @@ mod tests {
                     ..RenderSettings::default()
                 };
                 let integ = Integrator::new(&scene, &settings);
-                let Some(bvh) = integ.wave_bvh() else {
+                if integ.engine() != Engine::Waves {
                     assert!(!integ.stochastic, "{}: stochastic renders go in waves", path.display());
                     continue;
-                };
+                }
                 let spp = integ.samples_per_pixel();
                 let jobs: Vec<Job> = (0..30)
                     .flat_map(|y| (0..40).flat_map(move |x| (0..spp).map(move |s| (x, y, s))))
                     .collect();
                 let mut got = vec![Vec3A::ZERO; jobs.len()];
                 let mut counted = Counters::default();
-                let shaded = integ.sample_wave(bvh, &jobs, &mut got, &mut counted).shaded;
+                let shaded = integ.sample_wave(&jobs, &mut got, &mut counted).shaded;
                 let mut want = Counters::default();
                 for (k, &(x, y, s)) in jobs.iter().enumerate() {
                     let v = integ.sample(x, y, s, &mut NoObserver, &mut want);
@@ -721,7 +702,7 @@ mod tests {
                 assert!(shaded > 0 || !ambient, "{}: the wave shaded nothing", path.display());
                 waves += 1;
                 // Camera rays go in the wave's packets in a room with a list, else ahead.
-                in_list += usize::from(!bvh.single.is_empty());
+                in_list += usize::from(scene.packets_test_everything());
             }
         }
         assert!(waves >= 15, "only {waves} of the renders went in waves");

@@ -484,8 +484,8 @@ mod tests {
                     shadow.set(i, &Ray::new(o, (light - o).normalize_or_zero()), (light - o).length());
                 }
                 shadow_beams += u64::from(Beam::reaching(&shadow, &lit, &cull).is_some());
-                let plain = crate::lights::point_light_rays(bvh, &org, &ns, &lit, light.to_array(), None);
-                let culled = crate::lights::point_light_rays(bvh, &org, &ns, &lit, light.to_array(), Some(&cull));
+                let plain = crate::lights::point_light_rays(&scene, &org, &ns, &lit, light.to_array(), None);
+                let culled = crate::lights::point_light_rays(&scene, &org, &ns, &lit, light.to_array(), Some(&cull));
                 assert_eq!(culled.visible, plain.visible, "seed {seed} round {round} shadows");
                 assert_eq!(culled.cos, plain.cos);
             }

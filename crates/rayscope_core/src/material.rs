@@ -1,0 +1,149 @@
+//! Materials as the renderer uses them, and every decision the renderer takes on a material's
+//! kind outside the engines' own dispatch.
+//!
+//! Each decision is an exhaustive `match` on [`MaterialKind`] without a wildcard arm, so a new
+//! kind is a compile error here (and in the engines' dispatch, `integrator.rs`'s `trace_hit`,
+//! `integrator/packets.rs`'s `trace_packet` and `integrator/wave.rs`'s `wave_step`, and in
+//! [`crate::bsdf::Bsdf::of`]) until it is decided.
+
+use glam::{Vec3, Vec3A};
+use rayscope_scene::MaterialKind;
+use serde::Serialize;
+
+use crate::settings::Stage;
+
+/// A material as the integrators use it.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Material {
+    /// The material's type.
+    #[serde(serialize_with = "ser_kind")]
+    pub kind: MaterialKind,
+    /// Albedo, emitted radiance or absorbance, by kind.
+    pub color: Vec3,
+    /// Refractive index (Refractive) or roughness control (Glossy).
+    pub value: f32,
+}
+
+fn ser_kind<S: serde::Serializer>(k: &MaterialKind, s: S) -> Result<S::Ok, S::Error> {
+    s.serialize_str(k.name())
+}
+
+impl Material {
+    /// The radiance a surface of this material emits, when it emits any (the full renderer's
+    /// area lights).
+    #[must_use]
+    pub fn emission(&self) -> Option<Vec3A> {
+        match self.kind {
+            MaterialKind::Emissive => (self.color.max_element() > 0.0).then(|| self.color.into()),
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Glossy => None,
+        }
+    }
+
+    /// True when this kind can emit at all, whatever its colour.
+    #[must_use]
+    pub fn is_emitter(&self) -> bool {
+        match self.kind {
+            MaterialKind::Emissive => true,
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Glossy => false,
+        }
+    }
+
+    /// True when light leaves a surface of this material in a randomly sampled direction, so a
+    /// render that shows it is stochastic (`-q` multiplies its paths).
+    #[must_use]
+    pub fn scatters_at_random(&self) -> bool {
+        match self.kind {
+            MaterialKind::Glossy => true,
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Emissive => {
+                false
+            }
+        }
+    }
+
+    /// True when light passing through this material is absorbed along the way (Beer's law,
+    /// from the colour) at `stage`: coloured glass in the full renderer.
+    #[must_use]
+    pub fn absorbs(&self, stage: Stage) -> bool {
+        match self.kind {
+            MaterialKind::Refractive => stage == Stage::Full && self.color != Vec3::ZERO,
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive | MaterialKind::Glossy => false,
+        }
+    }
+
+    /// True when this is glass: a ray that refracts into it starts inside the primitive it hit.
+    #[must_use]
+    pub fn is_glass(&self) -> bool {
+        match self.kind {
+            MaterialKind::Refractive => true,
+            MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive | MaterialKind::Glossy => false,
+        }
+    }
+
+    /// True when a hit on this material is shaded at `stage` by point lights alone, with the
+    /// course's formula, so its shadow rays can be traced as packets. `lambert_point_lit` says
+    /// whether the full renderer's Lambertian vertices are (no emitters, no ambient light).
+    #[must_use]
+    pub fn point_lit_only(&self, stage: Stage, lambert_point_lit: bool) -> bool {
+        match (stage, self.kind) {
+            (Stage::One, _) => false,
+            (Stage::Two, MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive) => true,
+            (Stage::Two, MaterialKind::Reflective | MaterialKind::Refractive) => false,
+            (Stage::Full, MaterialKind::Diffuse) => lambert_point_lit,
+            (
+                Stage::Full,
+                MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Emissive | MaterialKind::Glossy,
+            ) => false,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use rayscope_scene::VariantArray;
+
+    use super::*;
+
+    fn material(kind: MaterialKind, color: Vec3) -> Material {
+        Material {
+            kind,
+            color,
+            value: 1.5,
+        }
+    }
+
+    #[test]
+    fn only_lit_emissive_materials_emit() {
+        for kind in MaterialKind::VARIANTS.iter().copied() {
+            let lit = material(kind, Vec3::new(0.0, 2.0, 0.0)).emission();
+            assert_eq!(lit.is_some(), kind == MaterialKind::Emissive, "{kind:?}");
+            assert_eq!(
+                material(kind, Vec3::ZERO).emission(),
+                None,
+                "{kind:?} in black emits nothing"
+            );
+        }
+    }
+
+    #[test]
+    fn only_coloured_glass_absorbs_and_only_in_the_full_renderer() {
+        let tinted = material(MaterialKind::Refractive, Vec3::new(0.5, 0.0, 0.0));
+        assert!(tinted.absorbs(Stage::Full));
+        assert!(!tinted.absorbs(Stage::Two), "stage 2 glass is the course's, clear");
+        assert!(!material(MaterialKind::Refractive, Vec3::ZERO).absorbs(Stage::Full));
+        assert!(!material(MaterialKind::Diffuse, Vec3::ONE).absorbs(Stage::Full));
+    }
+
+    #[test]
+    fn stage_two_shades_every_non_specular_kind_with_point_lights() {
+        let lit: Vec<_> = (MaterialKind::VARIANTS.iter().copied())
+            .filter(|&k| material(k, Vec3::ONE).point_lit_only(Stage::Two, false))
+            .collect();
+        assert_eq!(
+            lit,
+            [MaterialKind::Diffuse, MaterialKind::Emissive, MaterialKind::Glossy]
+        );
+        assert!(material(MaterialKind::Diffuse, Vec3::ONE).point_lit_only(Stage::Full, true));
+        assert!(!material(MaterialKind::Diffuse, Vec3::ONE).point_lit_only(Stage::Full, false));
+        assert!(!material(MaterialKind::Glossy, Vec3::ONE).point_lit_only(Stage::Full, true));
+    }
+}
