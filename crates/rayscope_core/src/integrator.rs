@@ -152,6 +152,15 @@ const MAX_TABULATED_GRID: u32 = 128;
 /// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
 type Frame = (Vec3A, Vec3A, Vec3A, Vec3A);
 
+/// How a surface reflects a point light's light.
+#[derive(Clone, Copy)]
+struct PointLit<'b> {
+    /// The albedo, for the course's formula: albedo × light colour × max(0, N·L).
+    albedo: Vec3A,
+    /// When given, a BSDF and its local frame, for π · f · light colour · max(0, N·L).
+    brdf: Option<(&'b Bsdf, Frame)>,
+}
+
 /// Most non-specular bounces of a path under `-l` (Russian roulette ends nearly all before).
 const MAX_BOUNCES: u32 = 64;
 /// Bounces before Russian roulette starts.
@@ -162,6 +171,17 @@ const RR_START: u32 = 3;
 /// brightest radiance any ray can return) is not traced: the ≤ 2·depth branches a sample can
 /// drop then add up to less than one 8-bit level.
 const MIN_BRANCH_RADIANCE: f32 = 1.0 / 4096.0;
+
+/// What one sample carries down every vertex of its path, besides the path's state: its random
+/// stream, the observer recording its rays and the ray counters.
+pub(crate) struct PathCx<'p, O> {
+    /// The sample's random stream.
+    pub(crate) rng: &'p mut Rng,
+    /// Where the path's rays are recorded ([`crate::observer::NoObserver`] when they are not).
+    pub(crate) obs: &'p mut O,
+    /// Ray counts.
+    pub(crate) c: &'p mut Counters,
+}
 
 /// State carried down a path.
 #[derive(Debug, Clone, Copy)]
@@ -531,7 +551,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Radiance along `ray` (a camera ray, reported to `obs` as `id`) with a fresh path state.
     #[inline]
     pub fn radiance<O: RayObserver>(&self, ray: &Ray, id: u32, rng: &mut Rng, obs: &mut O, c: &mut Counters) -> Vec3A {
-        self.trace(ray, PathState::CAMERA, true, id, rng, obs, c).total()
+        self.trace(ray, PathState::CAMERA, true, id, &mut PathCx { rng, obs, c })
+            .total()
     }
 
     fn channel<O: RayObserver>(&self, ray: &Ray, obs: &mut O) -> Vec3A {
@@ -564,23 +585,19 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// Radiance along `ray`, which has already been reported to `obs` as `id`. With
     /// `want_reflected` false only the hit surface's own emission is computed.
-    #[allow(clippy::too_many_arguments)]
     fn trace<O: RayObserver>(
         &self,
         ray: &Ray,
         path: PathState,
         want_reflected: bool,
         id: u32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Li {
         let hit = self.isect.intersect(ray, 0.0, f32::INFINITY);
-        self.trace_found(ray, hit, path, want_reflected, id, rng, obs, c)
+        self.trace_found(ray, hit, path, want_reflected, id, cx)
     }
 
     /// [`Self::trace`] once the ray's closest hit has been found: `hit`, or none.
-    #[allow(clippy::too_many_arguments)]
     #[inline]
     fn trace_found<O: RayObserver>(
         &self,
@@ -589,30 +606,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         path: PathState,
         want_reflected: bool,
         id: u32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Li {
         let Some(hit) = hit else {
             return Li::default();
         };
         let s = self.scene.surface(ray, &hit);
-        self.trace_hit(ray, &hit, &s, path, want_reflected, id, rng, obs, c)
+        self.trace_hit(ray, (&hit, &s), path, want_reflected, id, cx)
     }
 
     /// [`Self::trace`] from the ray's closest hit `hit`, whose surface is `s`.
-    #[allow(clippy::too_many_arguments)]
     fn trace_hit<O: RayObserver>(
         &self,
         ray: &Ray,
-        hit: &Hit,
-        s: &Surface,
+        (hit, s): (&Hit, &Surface),
         path: PathState,
         want_reflected: bool,
         id: u32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Li {
         let reversed;
         let s = if self.mistake(Mistake::ReversedNormals) {
@@ -622,7 +633,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             s
         };
         if O::ENABLED {
-            obs.hit(id, self.scene, hit.t, s);
+            cx.obs.hit(id, self.scene, hit.t, s);
         }
         let m = &self.scene.materials[s.material as usize];
         let stage = self.settings.stage;
@@ -641,22 +652,32 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 },
             },
             _ if !want_reflected => return Li::default(),
-            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, s, m, path, id, rng, obs, c),
+            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, s, m, path, id, cx),
             MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
-                Li::reflected(self.direct_point_lights(s, ray, None, Vec3A::from(m.color), id, path.depth, obs, c))
+                Li::reflected(self.direct_point_lights(
+                    s,
+                    ray,
+                    PointLit {
+                        albedo: m.color.into(),
+                        brdf: None,
+                    },
+                    id,
+                    path.depth,
+                    cx,
+                ))
             }
             MaterialKind::Reflective => {
                 if path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
                 let (r, child) = Self::mirror(ray, s, path);
-                Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, rng, obs, c))
+                Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, cx))
             }
             MaterialKind::Refractive => {
                 if path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
-                Li::reflected(self.refractive(ray, s, m, path, id, rng, obs, c))
+                Li::reflected(self.refractive(ray, s, m, path, id, cx))
             }
         };
         self.absorb(path, hit.t, out)
@@ -685,7 +706,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// Fresnel glass: both rays while the path is still deterministic, one chosen by its
     /// Fresnel weight after a sampled bounce.
-    #[allow(clippy::too_many_arguments)]
     fn refractive<O: RayObserver>(
         &self,
         ray: &Ray,
@@ -693,9 +713,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         m: &Material,
         path: PathState,
         id: u32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Vec3A {
         let g = self.glass(ray, s, m, path);
         if path.branch || self.settings.stage != Stage::Full {
@@ -712,24 +730,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                     fate(reflected.is_some(), g.kr > 0.0),
                     fate(refracted.is_some(), g.refracted.is_some()),
                 );
-                obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
+                cx.obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
             }
             if let Some((r, p)) = reflected {
-                out += self.secondary(&r, p, id, RayKind::Reflection, g.kr, rng, obs, c) * g.kr;
+                out += self.secondary(&r, p, id, RayKind::Reflection, g.kr, cx) * g.kr;
             }
             if let Some((r, p)) = refracted {
-                out += self.secondary(&r, p, id, RayKind::Refraction, 1.0 - g.kr, rng, obs, c) * (1.0 - g.kr);
+                out += self.secondary(&r, p, id, RayKind::Refraction, 1.0 - g.kr, cx) * (1.0 - g.kr);
             }
             out
         } else {
             let child = |medium| path.specular(medium, path.beta);
             match g.refracted {
-                Some(r) if rng.next_f32() >= g.kr => {
+                Some(r) if cx.rng.next_f32() >= g.kr => {
                     if O::ENABLED {
                         let fates = (BranchFate::NotChosen, BranchFate::Traced);
-                        obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
+                        cx.obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
                     }
-                    self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, rng, obs, c)
+                    self.secondary(&r, child(g.refr_medium), id, RayKind::Refraction, 1.0, cx)
                 }
                 _ => {
                     if O::ENABLED {
@@ -738,21 +756,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                         } else {
                             BranchFate::Absent
                         };
-                        obs.glass(
+                        cx.obs.glass(
                             id,
                             &self.glass_decision(ray, s, m, &g, path, (BranchFate::Traced, refr)),
                         );
                     }
-                    self.secondary(
-                        &g.reflected,
-                        child(g.refl_medium),
-                        id,
-                        RayKind::Reflection,
-                        1.0,
-                        rng,
-                        obs,
-                        c,
-                    )
+                    self.secondary(&g.reflected, child(g.refl_medium), id, RayKind::Reflection, 1.0, cx)
                 }
             }
         }
@@ -761,7 +770,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// What the recorder shows of a glass hit: the indices and angles Snell's law and Fresnel
     /// used (as this render's mistakes, if any, chose them) and the fates of both rays.
     #[cold]
-    #[allow(clippy::too_many_arguments)]
     fn glass_decision(
         &self,
         ray: &Ray,
@@ -928,7 +936,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// A Diffuse or Glossy hit in the full renderer: point lights, one emitter sample and one
     /// BRDF sample (MIS), and the bounce's indirect light where the rules carry it.
-    #[allow(clippy::too_many_arguments)]
     fn shade<O: RayObserver>(
         &self,
         ray: &Ray,
@@ -936,9 +943,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         m: &Material,
         path: PathState,
         id: u32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Li {
         let ambient = self.settings.ambient;
         let coat_only = !ambient && !self.emitters.any_emission;
@@ -955,16 +960,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let frame = (t, b, n, wo);
         let lambert = matches!(bsdf, Bsdf::Lambert { .. });
         let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
-        let mut l = self.direct_point_lights(
-            s,
-            ray,
-            (!lambert).then_some((&bsdf, frame)),
-            Vec3A::from(m.color),
-            id,
-            path.depth,
-            obs,
-            c,
-        );
+        let lit = PointLit {
+            albedo: m.color.into(),
+            brdf: (!lambert).then_some((&bsdf, frame)),
+        };
+        let mut l = self.direct_point_lights(s, ray, lit, id, path.depth, cx);
 
         // Emitter sampling, weighted against BRDF sampling. With no observer recording the
         // rays, the shadow ray waits and is traced together with the bounce ray below, whose
@@ -972,15 +972,15 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         // added before the bounce's, so the sum is the same.
         let mut pending: Option<ShadowRay> = None;
         if !self.emitters.is_empty() {
-            let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+            let (u0, u1, u2) = (cx.rng.next_f32(), cx.rng.next_f32(), cx.rng.next_f32());
             if let Some(ls) = self.emitters.sample(self.scene, origin, u0, u1, u2) {
                 let wi = to_local(ls.dir, t, b, n);
                 let (f, _) = bsdf.eval(wo, wi);
                 if wi.z > 0.0 && ls.dir.dot(s.normal) > 0.0 && f != Vec3A::ZERO {
                     let shadow = Ray::new(origin, ls.dir);
                     let t_max = ls.dist * (1.0 - 1e-4);
-                    c.shadow += 1;
-                    let sid = obs.ray(Some(id), RayKind::Emitter, path.depth, &shadow, t_max);
+                    cx.c.shadow += 1;
+                    let sid = cx.obs.ray(Some(id), RayKind::Emitter, path.depth, &shadow, t_max);
                     let w = power_heuristic(ls.pdf, bsdf.pdf(wo, wi));
                     let sr = ShadowRay {
                         ray: shadow,
@@ -997,9 +997,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                         let e = &self.emitters.list[ls.emitter as usize];
                         let nearest = self.nearest_blocker(&shadow, t_max, blocker);
                         let name = &self.scene.entities[e.entity as usize].name;
-                        obs.shadow(sid, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
+                        cx.obs
+                            .shadow(sid, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
                         let contrib = sr.contrib(blocker.is_some());
-                        obs.result(sid, w, contrib);
+                        cx.obs.result(sid, w, contrib);
                         l += contrib;
                     } else {
                         pending = Some(sr);
@@ -1018,7 +1019,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         if !(self.emitters.any_emission || ambient || coated) {
             return Li::reflected(alone(l, pending));
         }
-        let (u0, u1, u2) = (rng.next_f32(), rng.next_f32(), rng.next_f32());
+        let (u0, u1, u2) = (cx.rng.next_f32(), cx.rng.next_f32(), cx.rng.next_f32());
         let Some(bs) = bsdf.sample(wo, u0, u1, u2) else {
             return Li::reflected(alone(l, pending));
         };
@@ -1044,7 +1045,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
                 let p = child.beta.max_element().min(0.95);
-                if rng.next_f32() < p {
+                if cx.rng.next_f32() < p {
                     carry /= p;
                     child.beta /= p;
                 } else {
@@ -1060,8 +1061,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             return Li::reflected(alone(l, pending));
         }
         let r = Ray::new(origin, wi_w);
-        c.secondary += 1;
-        let cid = obs.ray(Some(id), RayKind::Bounce, child.depth, &r, f32::INFINITY);
+        cx.c.secondary += 1;
+        let cid = cx.obs.ray(Some(id), RayKind::Bounce, child.depth, &r, f32::INFINITY);
         let hit = match pending {
             Some(sr) => {
                 let (hit, blocked) = self.isect.intersect_and_occluded(&r, &sr.ray, sr.t_max);
@@ -1070,19 +1071,18 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             }
             None => self.isect.intersect(&r, 0.0, f32::INFINITY),
         };
-        let li = self.trace_found(&r, hit, child, want, cid, rng, obs, c);
+        let li = self.trace_found(&r, hit, child, want, cid, cx);
         let mis = if li.light_pdf > 0.0 {
             power_heuristic(bs.pdf, li.light_pdf)
         } else {
             1.0
         };
         let contrib = w_total * li.emitted * mis + carry * li.reflected;
-        obs.result(cid, mis, contrib);
+        cx.obs.result(cid, mis, contrib);
         l += contrib;
         Li::reflected(l)
     }
 
-    #[allow(clippy::too_many_arguments)]
     fn secondary<O: RayObserver>(
         &self,
         r: &Ray,
@@ -1090,14 +1090,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         parent: u32,
         kind: RayKind,
         weight: f32,
-        rng: &mut Rng,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Vec3A {
-        c.secondary += 1;
-        let id = obs.ray(Some(parent), kind, path.depth, r, f32::INFINITY);
-        let v = self.trace(r, path, true, id, rng, obs, c).total();
-        obs.result(id, weight, v);
+        cx.c.secondary += 1;
+        let id = cx.obs.ray(Some(parent), kind, path.depth, r, f32::INFINITY);
+        let v = self.trace(r, path, true, id, cx).total();
+        cx.obs.result(id, weight, v);
         v
     }
 
@@ -1113,17 +1111,14 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Point lights: the course's Σ max(0, N·L) · albedo · light colour over visible lights, or
     /// with a BRDF, Σ π · f · light colour · max(0, N·L). The shadow rays are recorded at
     /// `depth`, that of the ray whose hit they light.
-    #[allow(clippy::too_many_arguments)]
     fn direct_point_lights<O: RayObserver>(
         &self,
         s: &Surface,
         ray: &Ray,
-        brdf: Option<(&Bsdf, Frame)>,
-        albedo: Vec3A,
+        lit: PointLit<'_>,
         parent: u32,
         depth: u32,
-        obs: &mut O,
-        c: &mut Counters,
+        cx: &mut PathCx<'_, O>,
     ) -> Vec3A {
         let mut sum = Vec3A::ZERO;
         let eps = offset_eps(s.point, ray.origin);
@@ -1147,13 +1142,13 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 continue;
             };
             let shadow = Ray::new(origin, l);
-            c.shadow += 1;
+            cx.c.shadow += 1;
             let reach = if self.mistake(Mistake::ShadowPastLight) {
                 f32::INFINITY
             } else {
                 dist
             };
-            let id = obs.ray(Some(parent), RayKind::Shadow, depth, &shadow, reach);
+            let id = cx.obs.ray(Some(parent), RayKind::Shadow, depth, &shadow, reach);
             let blocker = if O::ENABLED {
                 self.isect
                     .occluder(&shadow, 0.0, reach)
@@ -1167,11 +1162,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             if O::ENABLED {
                 let nearest = self.nearest_blocker(&shadow, reach, blocker);
                 let name = &self.scene.light_names[li];
-                obs.shadow(id, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
+                cx.obs
+                    .shadow(id, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
             }
             let contrib = if blocker.is_none() && cos > 0.0 {
-                match brdf {
-                    None => point_light_contribution(albedo, Vec3A::from(light.color), cos),
+                match lit.brdf {
+                    None => point_light_contribution(lit.albedo, Vec3A::from(light.color), cos),
                     Some((bsdf, (t, b, n, wo))) => {
                         let (f, _) = bsdf.eval(wo, to_local(l, t, b, n));
                         point_light_contribution_brdf(f, Vec3A::from(light.color), cos)
@@ -1185,11 +1181,11 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             } else {
                 contrib
             };
-            obs.result(id, cos.max(0.0), contrib);
+            cx.obs.result(id, cos.max(0.0), contrib);
             sum += contrib;
         }
         if self.mistake(Mistake::AmbientTerm) {
-            sum += albedo * mistakes::AMBIENT;
+            sum += lit.albedo * mistakes::AMBIENT;
         }
         sum
     }

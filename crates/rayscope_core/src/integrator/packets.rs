@@ -19,7 +19,7 @@
 
 use glam::Vec3A;
 
-use super::{Counters, Glass, Integrator, Li, PathState};
+use super::{Counters, Glass, Integrator, Li, PathCx, PathState};
 use crate::camera::{camera_dirs, jittered};
 use crate::geometry::PrimRef;
 use crate::lights::{add_point_light_lanes, point_light_rays};
@@ -56,9 +56,11 @@ impl<I: Intersect> Integrator<'_, I> {
                     PathState::CAMERA,
                     true,
                     0,
-                    &mut rng,
-                    &mut NoObserver,
-                    c,
+                    &mut PathCx {
+                        rng: &mut rng,
+                        obs: &mut NoObserver,
+                        c,
+                    },
                 )
                 .total();
         }
@@ -181,7 +183,17 @@ impl<I: Intersect> Integrator<'_, I> {
                 let mut rng = self.lane_rng(jobs[i]);
                 let ray = lanes.ray(i);
                 vals[i] = self
-                    .trace(&ray, lanes.paths[i], true, 0, &mut rng, &mut NoObserver, c)
+                    .trace(
+                        &ray,
+                        lanes.paths[i],
+                        true,
+                        0,
+                        &mut PathCx {
+                            rng: &mut rng,
+                            obs: &mut NoObserver,
+                            c,
+                        },
+                    )
                     .total();
             }
             return;
@@ -300,7 +312,18 @@ impl<I: Intersect> Integrator<'_, I> {
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (lanes.ray(i), surf.get(i));
                     vals[i] = self
-                        .trace_hit(&ray, &hit, &s, path, true, 0, &mut rng, &mut NoObserver, c)
+                        .trace_hit(
+                            &ray,
+                            (&hit, &s),
+                            path,
+                            true,
+                            0,
+                            &mut PathCx {
+                                rng: &mut rng,
+                                obs: &mut NoObserver,
+                                c,
+                            },
+                        )
                         .total();
                     Next::Done
                 }

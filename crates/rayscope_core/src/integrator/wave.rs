@@ -34,7 +34,7 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 use glam::Vec3A;
 
 use super::packets::{CameraBatch, Job, LitLanes, PacketSurfaces};
-use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
+use super::{Counters, Integrator, Li, PathCx, PathState, MAX_BOUNCES, RR_START};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::math::{not_at_most, Ray};
@@ -379,7 +379,18 @@ impl<I: Intersect> Integrator<'_, I> {
                     let mut rng = w.rng.get(i);
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (w.ray(i), surf.get(i));
-                    let li = self.trace_hit(&ray, &hit, &s, path, true, 0, &mut rng, &mut NoObserver, c);
+                    let li = self.trace_hit(
+                        &ray,
+                        (&hit, &s),
+                        path,
+                        true,
+                        0,
+                        &mut PathCx {
+                            rng: &mut rng,
+                            obs: &mut NoObserver,
+                            c,
+                        },
+                    );
                     // A glass split below may still trace its second ray, from where the stream
                     // now stands.
                     w.rng.set(i, &rng);
@@ -464,7 +475,6 @@ impl<I: Intersect> Integrator<'_, I> {
     /// Self::shade for the Lambertian hits in `d`: point lights, one emitter sample (its
     /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave). `dist` is
     /// each hit's distance along its ray.
-    #[allow(clippy::too_many_arguments)]
     fn shade_wave(&self, w: &mut Wave, surf: &PacketSurfaces, d: &M, dist: &F, out: &mut [Vec3A], c: &mut Counters) {
         let ambient = self.settings.ambient;
         let f_frames = &surf.frames;
