@@ -160,7 +160,7 @@ pub(crate) fn render_tiles<I: Intersect>(
                 return None;
             }
             let (x0, y0, x1, y1) = tile_rect(w, h, t);
-            let r = render_tile(&integ, &waves, x0, y0, x1, y1, spp, cancel)?;
+            let r = render_tile(&integ, &waves, (x0, y0, x1, y1), spp, cancel)?;
             let n = done.fetch_add(r.pixels.len() as u64, Ordering::Relaxed) + r.pixels.len() as u64;
             progress(n, total);
             Some(r)
@@ -273,15 +273,12 @@ impl WaveStats {
     }
 }
 
-/// Renders one tile, or returns `None` once `cancel` is set.
-#[allow(clippy::too_many_arguments)]
+/// Renders the tile of pixels `x0..x1` × `y0..y1` ([`tile_rect`]), or returns `None` once
+/// `cancel` is set.
 fn render_tile<I: Intersect>(
     integ: &Integrator<'_, I>,
     waves: &WaveStats,
-    x0: u32,
-    y0: u32,
-    x1: u32,
-    y1: u32,
+    (x0, y0, x1, y1): (u32, u32, u32, u32),
     spp: u32,
     cancel: &AtomicBool,
 ) -> Option<TileResult> {

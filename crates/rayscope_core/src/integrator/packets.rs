@@ -46,7 +46,7 @@ impl<I: Intersect> Integrator<'_, I> {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
         let cams = self.camera_batch(true, 0, jobs, c);
         for k in 0..jobs.len() {
-            // Self::radiance from the hit found with the batch.
+            // Each path goes on one ray at a time from its camera ray's hit, found with the batch.
             let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
             let mut rng = cams.rng.get(k);
             out[k] = self
@@ -76,7 +76,7 @@ impl<I: Intersect> Integrator<'_, I> {
         };
         if self.thin_lens() {
             for (k, &(x, y, s)) in jobs.iter().enumerate() {
-                // Self::sample's start: the sample's stream and camera ray.
+                // Each sample's own stream, and its lens ray drawn from it.
                 let mut rng = self.sample_rng(x, y, s);
                 let ray = self.camera_ray(x, y, s, &mut rng);
                 b.rays.set(k, &ray, f32::INFINITY);
@@ -148,7 +148,8 @@ impl<I: Intersect> Integrator<'_, I> {
     /// each, with the rays counted in `c`. Only for renders whose [`Self::engine`] is [`Engine::Packets`].
     pub(crate) fn sample_packet(&self, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
         debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        // Self::sample_position, its divisions done for all lanes at once with the directions.
+        // Each lane's image position in pixels; `pinhole_rays` divides by the image size for all
+        // lanes at once as it makes the directions.
         // Unused lanes aim at the image's corner; they are never switched on.
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         for (i, &(x, y, s)) in jobs.iter().enumerate() {
