@@ -7,11 +7,6 @@
 //! mirrors and glass send on form the next packets, recursively. Each lane runs exactly the
 //! arithmetic [`Integrator::sample`] runs, in the same order, so the colours and ray counts are
 //! the same (the test `packet_render` renders both ways).
-//!
-//! Stochastic renders (path tracing, glossy coats, depth of field) hand over samples the same
-//! way, but only their camera rays go as a packet: a pixel's camera rays stay together while
-//! its paths scatter after the first hit, so each path goes on one ray at a time from its
-//! camera ray's hit, with its own random stream, exactly as [`Integrator::sample`] would.
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
@@ -19,17 +14,18 @@
 
 use glam::Vec3A;
 
-use super::{Counters, Glass, Integrator, Li, PathCx, PathState};
-use crate::camera::{camera_dirs, jittered};
+use super::one_path::PathCx;
+use super::rules::{Glass, Li, PathState};
+use super::{Counters, Integrator};
 use crate::geometry::PrimRef;
 use crate::lights::{add_point_light_lanes, point_light_rays};
 use crate::math::Ray;
 use crate::math::RayPacket;
 use crate::observer::NoObserver;
 use crate::optics::{specular_rays, SpecularRays};
-use crate::rng::{Rng, RngLanes};
+use crate::rng::Rng;
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
-use crate::settings::{Channel, Stage};
+use crate::settings::Stage;
 use crate::simd::{lane, put, LANES};
 use crate::wide::{surface_frames, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
 use rayscope_scene::MaterialKind;
@@ -38,98 +34,6 @@ use rayscope_scene::MaterialKind;
 pub(crate) type Job = (u32, u32, u32);
 
 impl<I: Intersect> Integrator<'_, I> {
-    /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with
-    /// the rays counted in `c`: the camera rays traced as one packet, each path then one ray at
-    /// a time from its camera ray's hit. A pixel's camera rays stay together even where its
-    /// paths scatter after the first bounce.
-    pub(crate) fn sample_camera_packet(&self, jobs: &[Job], out: &mut [Vec3A], c: &mut Counters) {
-        debug_assert!(jobs.len() <= LANES && out.len() >= jobs.len());
-        let cams = self.camera_batch(true, 0, jobs, c);
-        for k in 0..jobs.len() {
-            // Each path goes on one ray at a time from its camera ray's hit, found with the batch.
-            let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
-            let mut rng = cams.rng.get(k);
-            out[k] = self
-                .trace_found(
-                    &cams.rays.ray(k),
-                    hit,
-                    PathState::CAMERA,
-                    true,
-                    0,
-                    &mut PathCx {
-                        rng: &mut rng,
-                        obs: &mut NoObserver,
-                        c,
-                    },
-                )
-                .total();
-        }
-    }
-
-    /// The camera rays of `jobs` (at most [`LANES`], starting at job `job0`), traced as one
-    /// packet when `trace`: a pixel's samples stay together until their first hit.
-    pub(super) fn camera_batch(&self, trace: bool, job0: usize, jobs: &[Job], c: &mut Counters) -> CameraBatch {
-        let mut b = CameraBatch {
-            job0,
-            len: jobs.len(),
-            ..CameraBatch::default()
-        };
-        if self.thin_lens() {
-            for (k, &(x, y, s)) in jobs.iter().enumerate() {
-                // Each sample's own stream, and its lens ray drawn from it.
-                let mut rng = self.sample_rng(x, y, s);
-                let ray = self.camera_ray(x, y, s, &mut rng);
-                b.rays.set(k, &ray, f32::INFINITY);
-                b.rng.set(k, &rng);
-            }
-        } else {
-            // The same for a pinhole camera, all lanes at once: the samples' streams, each lane's
-            // cell centre jittered by the stream's first two numbers, then the directions.
-            let (mut pixel, mut sample, mut on) = ([0; LANES], [0; LANES], [false; LANES]);
-            let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
-            let width = u64::from(self.settings.width);
-            for (k, &(x, y, s)) in jobs.iter().enumerate() {
-                (pixel[k], sample[k], on[k]) = (u64::from(y) * width + u64::from(x), u64::from(s), true);
-                [px[k], py[k]] = self.cell_offset(s);
-            }
-            b.rng = RngLanes::for_samples(self.settings.seed, &pixel, &sample);
-            if self.stochastic && self.settings.channel == Channel::Color {
-                let n = self.grid as f32;
-                let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
-                for k in 0..LANES {
-                    px[k] = jittered(px[k], jx[k], n);
-                    py[k] = jittered(py[k], jy[k], n);
-                }
-            }
-            for (k, &(x, y, _)) in jobs.iter().enumerate() {
-                (px[k], py[k]) = (x as f32 + px[k], y as f32 + py[k]);
-            }
-            self.pinhole_rays(&mut b.rays, jobs.len(), &px, &py);
-        }
-        c.camera += jobs.len() as u64;
-        if trace {
-            // Traced in place (users of the batch read only origins and directions).
-            self.isect
-                .closest_packet(&mut b.rays, 0.0, self.beams.camera.as_ref(), &mut b.hits);
-        }
-        b
-    }
-
-    /// Sets `rays` (unused in every lane) to the pinhole camera's rays through pixel positions
-    /// (`px`, `py`) in the first `n` lanes, as [`Camera::ray`](crate::camera::Camera::ray)
-    /// makes them. Written in place: a packet returned by value was copied with `memcpy`.
-    fn pinhole_rays(&self, rays: &mut RayPacket, n: usize, px: &[f32; LANES], py: &[f32; LANES]) {
-        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
-        rays.d = camera_dirs(&self.camera, px, py, w, h);
-        let o = self.camera.origin.to_array();
-        for k in 0..n {
-            for a in 0..3 {
-                rays.o[a][k] = o[a];
-            }
-            rays.t_max[k] = f32::INFINITY;
-        }
-    }
-
     /// Fills in [`Self::point_lit`].
     pub(super) fn with_point_lit(mut self) -> Self {
         self.point_lit = self.scene.materials.iter().map(|m| self.point_lit_only(m)).collect();
@@ -509,24 +413,6 @@ impl PathPacket {
     fn ray(&self, i: usize) -> Ray {
         self.rays.ray(i)
     }
-}
-
-/// Camera rays traced ahead, one packet of consecutive samples, with their hits and the
-/// samples' random streams after them.
-#[derive(Default)]
-pub(super) struct CameraBatch {
-    /// Index of the first sample in the jobs.
-    pub(super) job0: usize,
-    /// Samples in the batch.
-    pub(super) len: usize,
-    /// Samples taken so far (by a wave's lanes).
-    pub(super) taken: usize,
-    /// The camera rays (`t_max` at their hits once traced).
-    pub(super) rays: RayPacket,
-    /// Their closest hits, when traced.
-    pub(super) hits: PacketHits,
-    /// Each sample's random stream after its camera ray.
-    pub(super) rng: RngLanes,
 }
 
 /// Packet recursion deeper than this continues one ray at a time (each level holds a few

@@ -33,8 +33,11 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 use glam::Vec3A;
 
-use super::packets::{CameraBatch, Job, LitLanes, PacketSurfaces};
-use super::{Counters, Integrator, Li, PathCx, PathState, MAX_BOUNCES, RR_START};
+use super::camera_packets::CameraBatch;
+use super::one_path::PathCx;
+use super::packets::{Job, LitLanes, PacketSurfaces};
+use super::rules::{Li, PathState};
+use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::math::{not_at_most, Ray};
