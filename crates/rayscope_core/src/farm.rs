@@ -9,7 +9,7 @@
 //! tiles it holds and rayscope's version. The merge checks those before it reads any pixel.
 //!
 //! Tiles are dealt so that parts take about the same time even where a few tiles hold most of the
-//! cost (see [`owner`]).
+//! cost (see [`owners`]).
 
 use std::collections::BTreeMap;
 use std::io::{self, Read};
