@@ -12,7 +12,6 @@ use glam::{DMat3, DVec3, Vec3A};
 use rayscope_core::integrator::Integrator;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{FovAxis, Ray, RenderSettings, Scene, Stage};
-use rayscope_scene::MaterialKind;
 use rustc_hash::FxHashMap;
 use serde::Serialize;
 use serde_json::json;
@@ -490,7 +489,7 @@ impl<'a> Judge<'a> {
                 continue;
             };
             let m = &self.scene.materials[lv.material as usize];
-            if m.kind != MaterialKind::Refractive {
+            if !m.is_glass() {
                 continue;
             }
             let refl = kids.iter().find(|&&k| kinds[k] == Kind::Reflection);
@@ -537,7 +536,7 @@ impl<'a> Judge<'a> {
             };
             if let Some(lv) = evals[p].and_then(|e| e.leave()) {
                 let m = &self.scene.materials[lv.material as usize];
-                if m.kind == MaterialKind::Refractive {
+                if m.is_glass() {
                     let kr = glass_fresnel(&lv, f64::from(m.value));
                     w *= match kinds[k] {
                         Kind::Reflection => kr,
@@ -1603,13 +1602,9 @@ impl<'a> Judge<'a> {
             return;
         }
         let m = &self.scene.materials[lv.material as usize];
-        let stage2 = self.settings.stage != Stage::Full;
         let material_mismatch = match kind {
-            Kind::Refraction => m.kind != MaterialKind::Refractive,
-            Kind::Reflection => {
-                m.kind == MaterialKind::Diffuse
-                    || (stage2 && !matches!(m.kind, MaterialKind::Reflective | MaterialKind::Refractive))
-            }
+            Kind::Refraction => !m.is_glass(),
+            Kind::Reflection => !m.sends_reflection_rays(self.settings.stage),
             _ => false,
         };
         if material_mismatch {

@@ -79,6 +79,18 @@ impl Material {
         }
     }
 
+    /// True when a ray that hits this material may go on as a reflection ray at `stage`: mirrors
+    /// and glass at every stage, and in the full renderer a glossy coat's (and an emitter's,
+    /// which a tracer may treat as a coated surface).
+    #[must_use]
+    pub fn sends_reflection_rays(&self, stage: Stage) -> bool {
+        match self.kind {
+            MaterialKind::Reflective | MaterialKind::Refractive => true,
+            MaterialKind::Glossy | MaterialKind::Emissive => stage == Stage::Full,
+            MaterialKind::Diffuse => false,
+        }
+    }
+
     /// True when a hit on this material is shaded at `stage` by point lights alone, with the
     /// course's formula, so its shadow rays can be traced as packets. `lambert_point_lit` says
     /// whether the full renderer's Lambertian vertices are (no emitters, no ambient light).

@@ -407,7 +407,7 @@ fn material_color(kind: MaterialKind, c: Vec3) -> Vec3 {
         MaterialKind::Reflective => Vec3::new(0.80, 0.82, 0.86),
         MaterialKind::Refractive => Vec3::new(0.62, 0.82, 0.92),
         MaterialKind::Emissive => c / c.max_element().max(1.0),
-        _ => c.clamp(Vec3::ZERO, Vec3::ONE),
+        MaterialKind::Diffuse | MaterialKind::Glossy => c.clamp(Vec3::ZERO, Vec3::ONE),
     }
 }
 
