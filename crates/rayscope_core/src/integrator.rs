@@ -46,8 +46,9 @@ use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
-use crate::scene::{Hit, Intersect, Material, Scene, Surface};
+use crate::scene::{Hit, Intersect, Material, Scene};
 use crate::settings::{Channel, RenderSettings, Stage};
+use crate::surface::Surface;
 use crate::wide::ApexCull;
 use rayscope_scene::MaterialKind;
 

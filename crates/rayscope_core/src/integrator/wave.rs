@@ -33,7 +33,7 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
 
 use glam::Vec3A;
 
-use super::packets::{CameraBatch, Job, LitLanes, PacketSurfaces};
+use super::packets::{CameraBatch, Job, LitLanes};
 use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
@@ -44,6 +44,7 @@ use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect};
 use crate::settings::Stage;
 use crate::simd::{lane, max_element, put, LANES};
+use crate::surface::PacketSurfaces;
 use crate::wide::{Bvh4, PacketHits};
 use rayscope_scene::MaterialKind;
 
