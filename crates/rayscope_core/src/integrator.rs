@@ -923,7 +923,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
         let frame = (t, b, n, wo);
         let lambert = matches!(bsdf, Bsdf::Lambert { .. });
-        let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
+        let origin = s.outside(ray);
         let mut l = self.direct_point_lights(
             s,
             ray,
@@ -1095,11 +1095,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         c: &mut Counters,
     ) -> Vec3A {
         let mut sum = Vec3A::ZERO;
-        let eps = offset_eps(s.point, ray.origin);
         let origin = if I::MISTAKEN {
-            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, eps)
+            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, s.offset(ray))
         } else {
-            s.point + s.normal * eps
+            s.outside(ray)
         };
         for (li, light) in self.scene.lights.iter().enumerate() {
             if li > 0 && self.mistake(Mistake::FirstLightOnly) {

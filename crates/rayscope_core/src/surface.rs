@@ -1,10 +1,12 @@
-//! The surface at a hit: the point, the geometric normal flipped to face the ray, and the
-//! shading normal (interpolated on smooth triangles) on the same side.
+//! The surface at a hit: the point, the geometric normal flipped to face the ray, the shading
+//! normal (interpolated on smooth triangles) on the same side, and where rays leaving the surface
+//! on the ray's side start.
 //!
-//! One ray's surface is [`Scene::surface`]. The sixteen-lane form is [`surface_frames`], over
-//! the lanes' primitive data ([`HitPrims`]); the packet engines get it through `PacketSurfaces`,
-//! which gathers that data from the scene and hands each lane's [`Surface`] back. The tests below
-//! check that every lane's surface is the single ray's, bit for bit.
+//! One ray's surface is [`Scene::surface`]; [`Surface::outside`] is its shadow-ray origin. The
+//! sixteen-lane form is [`surface_frames`], over the lanes' primitive data ([`HitPrims`]); the
+//! packet engines get it through `PacketSurfaces`, which gathers that data from the scene and
+//! hands each lane's [`Surface`] back. The tests below check that every lane's surface is the
+//! single ray's, bit for bit.
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
@@ -13,7 +15,7 @@
 use glam::Vec3A;
 
 use crate::geometry::{PrimHit, PrimRef, Primitive};
-use crate::math::{Ray, RayPacket};
+use crate::math::{offset_eps, Ray, RayPacket};
 use crate::scene::{Hit, Scene};
 use crate::simd::{lane, put, LANES};
 use crate::wide::PacketHits;
@@ -38,6 +40,24 @@ pub struct Surface {
     pub entity: u32,
     /// Material index.
     pub material: u32,
+}
+
+impl Surface {
+    /// How far rays leaving this surface, hit by `ray`, start off it: [`offset_eps`] of the
+    /// point and the ray's origin.
+    #[must_use]
+    #[inline]
+    pub fn offset(&self, ray: &Ray) -> f32 {
+        offset_eps(self.point, ray.origin)
+    }
+
+    /// Where shadow rays leaving this surface, hit by `ray`, start: the point moved
+    /// [`Self::offset`] along the facing normal, on the ray's side.
+    #[must_use]
+    #[inline]
+    pub fn outside(&self, ray: &Ray) -> Vec3A {
+        self.point + self.normal * self.offset(ray)
+    }
 }
 
 impl Scene {
@@ -201,7 +221,6 @@ mod tests {
     use std::path::Path;
 
     use super::*;
-    use crate::math::offset_eps;
     use crate::rng::Rng;
 
     /// Random packets from points inside and outside `scene`'s objects: with `narrow`, every
@@ -245,7 +264,7 @@ mod tests {
     }
 
     /// Each lane's surface is what `Scene::surface` returns for its ray and hit, bit for bit,
-    /// and its offset origin is the single-ray code's: on planes, spheres (from inside and out),
+    /// and its offset origin is `Surface::outside`: on planes, spheres (from inside and out),
     /// flat triangles and the smooth ones of meshes (our torus, the course's bunny), in packets
     /// of mixed primitives and in packets whose lanes all hit one.
     #[test]
@@ -288,9 +307,8 @@ mod tests {
                         (got.front_face, got.entity, got.material),
                         (want.front_face, want.entity, want.material)
                     );
-                    let outside = want.point + want.normal * offset_eps(want.point, ray.origin);
                     let f = &surf.frames.outside;
-                    assert_eq!([f[0][i], f[1][i], f[2][i]].map(f32::to_bits), bits(outside));
+                    assert_eq!([f[0][i], f[1][i], f[2][i]].map(f32::to_bits), bits(want.outside(&ray)));
                 });
             }
             assert!(
