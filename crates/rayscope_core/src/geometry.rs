@@ -131,7 +131,7 @@ impl Triangle {
         let (e1, e2) = (b - a, c - a);
         // `normalize` divides (`normalize_or_zero` multiplies by a reciprocal, which rounds
         // differently), so the normal is bit for bit the one the packet kernels compute from the
-        // edges (`wide/surface.rs`). A degenerate triangle, never hit, stores zero, not NaN.
+        // edges (`surface/lanes.rs`). A degenerate triangle, never hit, stores zero, not NaN.
         let n = e1.cross(e2).normalize();
         let n = if n.is_finite() { n } else { Vec3A::ZERO };
         Self {

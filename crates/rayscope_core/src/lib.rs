@@ -27,6 +27,7 @@ pub mod sampling;
 pub mod scene;
 pub mod settings;
 pub mod simd;
+pub mod surface;
 pub mod wide;
 
 pub use camera::{Camera, CameraSettings, FovAxis};

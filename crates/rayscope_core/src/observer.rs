@@ -6,7 +6,8 @@ use glam::Vec3A;
 use serde::{Deserialize, Serialize};
 
 use crate::math::Ray;
-use crate::scene::{Scene, Surface};
+use crate::scene::Scene;
+use crate::surface::Surface;
 
 /// Why a ray was cast.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -13,7 +13,7 @@ use glam::Vec3A;
 
 use crate::math::{offset_eps_lane, Ray, RayPacket};
 use crate::simd::{dispatched, sel, Mask, LANES};
-use crate::wide::SurfaceFrames;
+use crate::surface::SurfaceFrames;
 
 /// One value per lane.
 type F = [f32; LANES];

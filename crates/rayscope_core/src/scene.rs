@@ -8,7 +8,7 @@ use serde::Serialize;
 
 use crate::bvh::{BuildPrim, Bvh};
 pub use crate::geometry::PrimRef;
-use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
+use crate::geometry::{Plane, Sphere, Triangle};
 pub use crate::material::Material;
 use crate::math::{Aabb, Ray, RayPacket};
 use crate::simd::{Mask, LANES};
@@ -52,23 +52,6 @@ impl From<WideHit> for Hit {
             prim: h.prim,
         }
     }
-}
-
-/// Local geometry at a hit, ready for shading.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Surface {
-    /// Hit point.
-    pub point: Vec3A,
-    /// Unit geometric normal, flipped to face the incoming ray.
-    pub normal: Vec3A,
-    /// Unit shading normal (interpolated for meshes), on the same side as `normal`.
-    pub shading_normal: Vec3A,
-    /// True when the ray hit the side the primitive's own normal points to.
-    pub front_face: bool,
-    /// Entity index.
-    pub entity: u32,
-    /// Material index.
-    pub material: u32,
 }
 
 /// What an entity is, for names in the debugger and `trace`.
@@ -537,57 +520,6 @@ impl Scene {
                 let t = &self.triangle_info[i as usize];
                 (t.entity, t.material)
             }
-        }
-    }
-
-    /// Shading geometry at a hit of `ray`.
-    #[must_use]
-    #[inline]
-    pub fn surface(&self, ray: &Ray, hit: &Hit) -> Surface {
-        let ph = PrimHit {
-            t: hit.t,
-            u: hit.u,
-            v: hit.v,
-        };
-        let (n, ns) = match hit.prim {
-            PrimRef::Plane(i) => {
-                let n = self.planes[i as usize].normal(ray, &ph);
-                (n, n)
-            }
-            PrimRef::Sphere(i) => {
-                let n = self.spheres[i as usize].normal(ray, &ph);
-                (n, n)
-            }
-            PrimRef::Triangle(i) => {
-                let n = self.triangles[i as usize].geometric_normal();
-                let ns = match self.vertex_normals(i) {
-                    Some([a, b, c]) => {
-                        let w = 1.0 - hit.u - hit.v;
-                        let s = Vec3A::from(a) * w + Vec3A::from(b) * hit.u + Vec3A::from(c) * hit.v;
-                        let s = s.normalize_or_zero();
-                        if s == Vec3A::ZERO {
-                            n
-                        } else {
-                            s
-                        }
-                    }
-                    None => n,
-                };
-                (n, ns)
-            }
-        };
-        let (entity, material) = self.prim_info(hit.prim);
-        let front_face = n.dot(ray.dir) < 0.0;
-        let normal = if front_face { n } else { -n };
-        // Interpolated normals are flipped with the geometric one so both face the ray.
-        let shading_normal = if ns.dot(normal) < 0.0 { -ns } else { ns };
-        Surface {
-            point: ray.at(hit.t),
-            normal,
-            shading_normal,
-            front_face,
-            entity,
-            material,
         }
     }
 

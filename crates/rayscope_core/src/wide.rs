@@ -26,14 +26,12 @@ pub(crate) mod packet;
 // the shipped `bench` subcommand keeps its ray-throughput mode.
 #[cfg(feature = "bench-kernels")]
 mod stream;
-pub(crate) mod surface;
 pub use crate::math::RayPacket;
 pub use crate::simd::LANES;
 pub use beam::ApexCull;
 pub use packet::PacketHits;
 #[cfg(feature = "bench-kernels")]
 pub use stream::INTERLEAVE_BYTES;
-pub use surface::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 
 /// Hit tag: a plane (the index is in the low bits).
 const TAG_PLANE: u32 = 1 << 30;

@@ -7,13 +7,14 @@ use glam::Vec3A;
 use crate::bsdf::Bsdf;
 use crate::geometry::PrimRef;
 use crate::lights::{point_light_contribution, point_light_contribution_brdf, toward_point_light};
-use crate::math::{basis, offset_eps, Ray};
+use crate::math::{basis, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
 use crate::rng::Rng;
 use crate::sampling::{power_heuristic, to_local, to_world};
-use crate::scene::{Hit, Intersect, Material, Surface};
+use crate::scene::{Hit, Intersect, Material};
 use crate::settings::{Channel, Stage};
+use crate::surface::Surface;
 use rayscope_scene::MaterialKind;
 
 use super::rules::{Glass, Li, PathState, ShadowRay};
@@ -353,7 +354,7 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         let frame = (t, b, n, wo);
         let lambert = matches!(bsdf, Bsdf::Lambert { .. });
-        let origin = s.point + s.normal * offset_eps(s.point, ray.origin);
+        let origin = s.outside(ray);
         let lit = PointLit {
             albedo: m.color.into(),
             brdf: (!lambert).then_some((&bsdf, frame)),
@@ -515,11 +516,10 @@ impl<I: Intersect> Integrator<'_, I> {
         cx: &mut PathCx<'_, O>,
     ) -> Vec3A {
         let mut sum = Vec3A::ZERO;
-        let eps = offset_eps(s.point, ray.origin);
         let origin = if I::MISTAKEN {
-            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, eps)
+            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, s.offset(ray))
         } else {
-            s.point + s.normal * eps
+            s.outside(ray)
         };
         for (li, light) in self.scene.lights.iter().enumerate() {
             if li > 0 && self.mistake(Mistake::FirstLightOnly) {

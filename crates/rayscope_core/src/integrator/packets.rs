@@ -24,10 +24,11 @@ use crate::math::RayPacket;
 use crate::observer::NoObserver;
 use crate::optics::{specular_rays, SpecularRays};
 use crate::rng::Rng;
-use crate::scene::{Hit, Intersect, Material, Scene, Surface};
+use crate::scene::{Hit, Intersect, Material};
 use crate::settings::Stage;
-use crate::simd::{lane, put, LANES};
-use crate::wide::{surface_frames, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
+use crate::simd::{lane, LANES};
+use crate::surface::{PacketSurfaces, SurfaceFrames};
+use crate::wide::PacketHits;
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.
@@ -335,12 +336,6 @@ fn child(slot: &mut Option<PathPacket>) -> &mut PathPacket {
     }
 }
 
-/// Copies lane 0 of `v` to every lane.
-#[inline]
-fn broadcast<T: Copy>(v: &mut [T; LANES]) {
-    *v = [v[0]; LANES];
-}
-
 /// A packet of rays to trace with each lane's path state.
 #[derive(Clone)]
 struct PathPacket {
@@ -430,103 +425,6 @@ pub(super) struct LitLanes {
     pub(super) alb: [[f32; LANES]; 3],
 }
 
-/// The surfaces a packet's rays hit, in structure-of-arrays form: per lane, what
-/// [`Scene::surface`] returns ([`surface_frames`] computes the geometry).
-#[repr(align(64))]
-pub(super) struct PacketSurfaces {
-    /// Every lane hit the same primitive.
-    one_prim: bool,
-    /// Lanes whose ray hit something.
-    hit: [bool; LANES],
-    /// Hit distance.
-    t: [f32; LANES],
-    /// Hit points, normals and offset origins.
-    pub(super) frames: SurfaceFrames,
-    /// Entity index.
-    entity: [u32; LANES],
-    /// Material index.
-    pub(super) material: [u32; LANES],
-}
-
-impl PacketSurfaces {
-    /// The surfaces of `hits`, found by tracing `rays`.
-    pub(super) fn new(scene: &Scene, rays: &RayPacket, hits: &PacketHits) -> Self {
-        let mut g = HitPrims::default();
-        (g.hit, g.t) = hits.distances();
-        let (mut entity, mut material) = ([0; LANES], [0; LANES]);
-        // One pixel's samples mostly meet one primitive: its data is then looked up for the
-        // first lane and copied to the others (the same values a lookup per lane finds).
-        let one_prim = hits.one_prim();
-        let lanes = if one_prim { 1 } else { LANES };
-        for i in 0..lanes {
-            let Some((_, _, _, prim)) = hits.get(i) else {
-                continue;
-            };
-            (entity[i], material[i]) = scene.prim_info(prim);
-            match prim {
-                PrimRef::Plane(k) => put(&mut g.a, i, scene.planes[k as usize].normal.to_array()),
-                PrimRef::Sphere(k) => {
-                    let sp = &scene.spheres[k as usize];
-                    g.sphere[i] = true;
-                    put(&mut g.a, i, sp.center.to_array());
-                    g.radius[i] = sp.radius;
-                }
-                PrimRef::Triangle(k) => {
-                    let tri = &scene.triangles[k as usize];
-                    g.triangle[i] = true;
-                    put(&mut g.a, i, tri.e1().to_array());
-                    put(&mut g.b, i, tri.e2().to_array());
-                    if let Some(ns) = scene.vertex_normals(k) {
-                        let sm = g.smooth.get_or_insert_with(SmoothNormals::default);
-                        sm.on[i] = true;
-                        for (c, n) in ns.iter().enumerate() {
-                            put(&mut sm.vn[c], i, n.to_array());
-                        }
-                    }
-                }
-            }
-        }
-        if let Some(sm) = &mut g.smooth {
-            // Every lane's: those without vertex normals ignore theirs.
-            (sm.bu, sm.bv) = hits.barycentrics();
-        }
-        if one_prim {
-            broadcast(&mut g.sphere);
-            broadcast(&mut g.triangle);
-            g.a.iter_mut().chain(g.b.iter_mut()).for_each(broadcast);
-            broadcast(&mut g.radius);
-            broadcast(&mut entity);
-            broadcast(&mut material);
-            if let Some(sm) = &mut g.smooth {
-                broadcast(&mut sm.on);
-                sm.vn.iter_mut().flatten().for_each(broadcast);
-            }
-        }
-        Self {
-            frames: surface_frames(rays, &g),
-            one_prim,
-            hit: g.hit,
-            t: g.t,
-            entity,
-            material,
-        }
-    }
-
-    /// Lane `i`'s surface as [`Scene::surface`] returns it.
-    #[inline]
-    pub(super) fn get(&self, i: usize) -> Surface {
-        let f = &self.frames;
-        Surface {
-            point: lane(&f.point, i),
-            normal: lane(&f.normal, i),
-            shading_normal: lane(&f.shading_normal, i),
-            front_face: f.front_face[i],
-            entity: self.entity[i],
-            material: self.material[i],
-        }
-    }
-}
-
 /// What a lane still needs once its packet's closest hits are known.
 #[derive(Debug, Clone, Copy)]
 enum Next {
@@ -536,91 +434,4 @@ enum Next {
     Mirror,
     /// Glass: its reflected and refracted rays' radiance, weighted by the Fresnel reflectance.
     Glass,
-}
-
-#[cfg(test)]
-mod tests {
-    use std::path::Path;
-
-    use super::*;
-    use crate::math::offset_eps;
-    use crate::rng::Rng;
-
-    /// Random packets from points inside and outside `scene`'s objects, in random directions.
-    fn packets(scene: &Scene, seed: u64, mut check: impl FnMut(&RayPacket, &PacketSurfaces, usize)) {
-        let bvh = &scene.wide;
-        let mut rng = Rng::for_sample(seed, 0, 0);
-        let mut r = move || rng.next_f32() * 2.0 - 1.0;
-        let mut hits = 0;
-        for _ in 0..300 {
-            let mut rays = RayPacket::default();
-            let o = Vec3A::new(r() * 0.9, r() * 0.9, 1.5 + r() * 1.4);
-            for i in 0..LANES {
-                // Some lanes off, so unused lanes are covered too.
-                if i % 7 != 3 {
-                    let d = Vec3A::new(r(), r(), r()).normalize();
-                    rays.set(i, &Ray::new(o, d), f32::INFINITY);
-                }
-            }
-            let mut traced = rays.clone();
-            let h = bvh.closest_rays(&mut traced, 0.0);
-            let surf = PacketSurfaces::new(scene, &rays, &h);
-            for i in 0..LANES {
-                assert_eq!(surf.hit[i], h.get(i).is_some(), "lane {i}");
-                if surf.hit[i] {
-                    hits += 1;
-                    check(&rays, &surf, i);
-                }
-            }
-        }
-        assert!(hits > 1000, "only {hits} hits");
-    }
-
-    fn load(path: &Path) -> Scene {
-        Scene::from_file(&rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display())))
-    }
-
-    /// Each lane's surface is what `Scene::surface` returns for its ray and hit, bit for bit,
-    /// and its offset origin is the single-ray code's: on planes, spheres (from inside and out),
-    /// flat triangles and the smooth ones of meshes (our torus, the course's bunny).
-    #[test]
-    fn packet_surfaces_are_scene_surfaces() {
-        let mut scenes = vec![
-            (rayscope_testkit::scene("room.txt"), 1),
-            (rayscope_testkit::scene("obj.txt"), 2),
-        ];
-        if let Some(course) = rayscope_testkit::course_part() {
-            scenes.push((course.scene("sample_scene_2.txt"), 1));
-            scenes.push((course.scene("sample_scene_obj.txt"), 2));
-        }
-        for (path, seed) in scenes {
-            let name = path.display();
-            let scene = load(&path);
-            let mut kinds = [0; 3];
-            packets(&scene, seed, |rays, surf, i| {
-                let ray = Ray::new(lane(&rays.o, i), lane(&rays.d, i));
-                let mut traced = rays.clone();
-                let (t, u, v, prim) = scene.wide.closest_rays(&mut traced, 0.0).get(i).unwrap();
-                kinds[match prim {
-                    PrimRef::Plane(_) => 0,
-                    PrimRef::Sphere(_) => 1,
-                    PrimRef::Triangle(_) => 2,
-                }] += 1;
-                let want = scene.surface(&ray, &Hit { t, u, v, prim });
-                let got = surf.get(i);
-                let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
-                assert_eq!(bits(got.point), bits(want.point), "{name} lane {i} point");
-                assert_eq!(bits(got.normal), bits(want.normal), "{name} lane {i} normal");
-                assert_eq!(bits(got.shading_normal), bits(want.shading_normal), "{name} lane {i}");
-                assert_eq!(
-                    (got.front_face, got.entity, got.material),
-                    (want.front_face, want.entity, want.material)
-                );
-                let outside = want.point + want.normal * offset_eps(want.point, ray.origin);
-                let f = &surf.frames.outside;
-                assert_eq!([f[0][i], f[1][i], f[2][i]].map(f32::to_bits), bits(outside));
-            });
-            assert!(kinds.iter().filter(|&&k| k > 0).count() >= 2, "{name}: {kinds:?}");
-        }
-    }
 }

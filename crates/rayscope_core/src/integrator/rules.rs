@@ -6,10 +6,11 @@
 
 use glam::Vec3A;
 
-use crate::math::{offset_eps, Ray};
+use crate::math::Ray;
 use crate::mistakes::Mistake;
 use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
-use crate::scene::{Intersect, Material, Surface};
+use crate::scene::{Intersect, Material};
+use crate::surface::Surface;
 
 use super::Integrator;
 
@@ -137,7 +138,7 @@ impl<I: Intersect> Integrator<'_, I> {
         if I::MISTAKEN {
             return self.mistaken_glass(ray, s, m, path);
         }
-        let eps = offset_eps(s.point, ray.origin);
+        let eps = s.offset(ray);
         let (kr, reflected, refracted) = glass_rays(ray.dir, s.normal, s.point, eps, s.front_face, m.value);
         let (refl_medium, refr_medium) = self.glass_media(s, m, path);
         Glass {
@@ -177,7 +178,7 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             s.normal
         };
-        let eps = offset_eps(s.point, ray.origin);
+        let eps = s.offset(ray);
         let refracted = if tir {
             None
         } else {
@@ -232,7 +233,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// A mirror's reflected ray and its path.
     #[inline]
     pub(super) fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
-        let eps = offset_eps(s.point, ray.origin);
+        let eps = s.offset(ray);
         (mirror_ray(ray.dir, s.normal, s.point, eps), path.mirrored())
     }
 

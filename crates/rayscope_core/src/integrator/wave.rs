@@ -35,7 +35,7 @@ use glam::Vec3A;
 
 use super::camera_packets::CameraBatch;
 use super::one_path::PathCx;
-use super::packets::{Job, LitLanes, PacketSurfaces};
+use super::packets::{Job, LitLanes};
 use super::rules::{Li, PathState};
 use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
 use crate::geometry::PrimRef;
@@ -46,6 +46,7 @@ use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect};
 use crate::simd::{lane, max_element, put, LANES};
+use crate::surface::PacketSurfaces;
 use crate::wide::PacketHits;
 use rayscope_scene::MaterialKind;
 

@@ -1,14 +1,14 @@
-//! The geometry at a packet's hits and the mirror and glass rays leaving them, sixteen lanes
-//! at once.
+//! The surface at a packet's hits, sixteen lanes at once.
 //!
 //! After a packet's closest hits are found, each lane's hit point, normals and shadow-ray origin
-//! are what [`crate::scene::Scene::surface`] and the single-ray shading code compute. The
-//! primitives' data is gathered lane by lane (by the caller, which knows the scene); this
-//! kernel then computes every lane with the same arithmetic in the same order (glam's: sums of
-//! three products are `(x + y) + z`, `normalize` divides by the length), without branching on
-//! the kind of primitive, so the compiler can vectorise it. A plane, a sphere and a triangle
-//! side by side in one packet is the common case, and per-lane branches on it mispredict.
-//! The rays mirrors and glass send on from these frames are `crate::optics::specular_rays`.
+//! are what [`Scene::surface`](crate::scene::Scene::surface) and
+//! [`Surface::outside`](super::Surface::outside) compute for one ray. The primitives' data is
+//! gathered lane by lane (by `PacketSurfaces`, which knows the scene); this kernel then computes
+//! every lane with the same arithmetic in the same order (glam's: sums of three products are
+//! `(x + y) + z`, `normalize` divides by the length), without branching on the kind of
+//! primitive, so the compiler can vectorise it. A plane, a sphere and a triangle side by side in
+//! one packet is the common case, and per-lane branches on it mispredict. The rays mirrors and
+//! glass send on from these frames are `crate::optics::specular_rays`.
 
 use crate::math::{offset_eps_lane, RayPacket};
 use crate::simd::{dispatched, sel, Mask, LANES};
@@ -90,15 +90,15 @@ pub struct SurfaceFrames {
     pub shading_normal: [F; 3],
     /// The ray hit the side the primitive's own normal points to.
     pub front_face: Mask,
-    /// Where rays leaving the surface on the ray's side start: the point moved off the surface
-    /// by `offset_eps` along the facing normal.
+    /// Where rays leaving the surface on the ray's side start:
+    /// [`Surface::outside`](super::Surface::outside) of each lane.
     pub outside: [F; 3],
 }
 
 /// The geometry at the hits of `rays` (the rays as traced, before their hits) on the
 /// primitives `g`. See the module documentation.
 #[inline(always)]
-pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFrames {
+pub(crate) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFrames {
     let dot = |x: &[F; 3], y: &[F; 3], i: usize| x[0][i] * y[0][i] + x[1][i] * y[1][i] + x[2][i] * y[2][i];
     // Ray::at.
     let mut point = [[0.0; LANES]; 3];
@@ -181,6 +181,7 @@ pub(super) fn surface_frames_impl(rays: &RayPacket, g: &HitPrims) -> SurfaceFram
         for ax in 0..3 {
             out.shading_normal[ax][i] = sel(flip, -ns[ax][i], ns[ax][i]);
         }
+        // The shadow-ray origin: the point moved off the surface along the facing normal.
         let eps = offset_eps_lane(&point, &rays.o, i);
         for ax in 0..3 {
             out.outside[ax][i] = point[ax][i] + out.normal[ax][i] * eps;
