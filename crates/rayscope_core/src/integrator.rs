@@ -45,7 +45,7 @@ use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserv
 use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
 use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
-use crate::sampling::{power_heuristic, to_local, to_world};
+use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, RenderSettings, Stage};
 use crate::wide::ApexCull;
@@ -1044,7 +1044,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         if ambient {
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
-                let p = child.beta.max_element().min(0.95);
+                let p = russian_roulette_survival(child.beta);
                 if cx.rng.next_f32() < p {
                     carry /= p;
                     child.beta /= p;
