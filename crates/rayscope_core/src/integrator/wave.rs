@@ -339,7 +339,8 @@ impl<I: Intersect> Integrator<'_, I> {
             return;
         }
         let surf = PacketSurfaces::new(self.scene, &w.rays, &hits);
-        // Self::trace_hit for each lane, up to the Lambertian shading done for all below.
+        // Each lane's hit: an emitter's light, a mirror's or glass's next ray, a glossy coat's
+        // path traced on one ray at a time; Lambertian hits are marked and shaded together below.
         let mut diffuse = [false; LANES];
         let mut dist = [0.0; LANES];
         for i in 0..LANES {
@@ -420,9 +421,9 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
-    /// Self::trace_hit for lane `i`'s hit, at distance `t`, on a mirror or on glass: gives the
-    /// lane the ray the vertex sends on and returns `None`, or returns what the vertex returns
-    /// where it sends none. Out of line, so the wave's Lambertian steps stay compact.
+    /// Lane `i`'s hit, at distance `t`, on a mirror or on glass: gives the lane the ray the
+    /// vertex sends on and returns `None`, or returns what the vertex returns where it sends
+    /// none. Out of line, so the wave's Lambertian steps stay compact.
     #[inline(never)]
     fn specular_hit(&self, w: &mut Wave, i: usize, t: f32, surf: &PacketSurfaces, c: &mut Counters) -> Option<Li> {
         let path = w.path[i];
@@ -437,7 +438,8 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             let g = self.glass(&ray, &s, m, path);
             if path.branch {
-                // Self::refractive's Whitted split: the reflected ray first, then the refracted.
+                // Whitted's split (the path has not yet bounced off a Lambertian surface): both
+                // rays, each with its Fresnel weight, the reflected one first.
                 let refl = self.glass_reflected(&g, path).map(|(r, p)| (r, p, g.kr));
                 let refr = self.glass_refracted(&g, path).map(|(r, p)| (r, p, 1.0 - g.kr));
                 let (first, next) = match (refl, refr) {
