@@ -13,16 +13,24 @@
 //! transmits both ways, albedo/π · (1 − F(cosθo)) (1 − F(cosθi)), so the sum never reflects
 //! more than it receives and nothing is transmitted. The coat lobe is sampled with the GGX
 //! distribution of visible normals, the base with cosine sampling, mixed by one-sample MIS.
+//!
+//! **Lambert in lanes.** The path-tracing wave shades sixteen Lambertian vertices at once with
+//! `lambert_sample_lanes`, the Lambert model's sample in lane form (tested below to return
+//! [`Bsdf::sample`]'s bits), and with [`lambert_f`] and [`lambert_pdf`], the value and density
+//! [`Bsdf::Lambert`] itself is evaluated with.
 
 use std::f32::consts::FRAC_1_PI;
 
 use glam::Vec3A;
 
+use crate::math::not_at_most;
 use crate::optics::fresnel;
 use crate::sampling::{
-    cosine_hemisphere, cosine_hemisphere_pdf, ggx_d, ggx_g2, ggx_reflect_pdf, ggx_sample_vndf, reflect_about,
+    cosine_hemisphere, cosine_hemisphere_lane, cosine_hemisphere_pdf, ggx_d, ggx_g2, ggx_reflect_pdf, ggx_sample_vndf,
+    reflect_about,
 };
 use crate::scene::Material;
+use crate::simd::LANES;
 use rayscope_scene::MaterialKind;
 
 /// Refractive index of the Glossy material's clear coat.
@@ -34,6 +42,64 @@ pub fn glossy_alpha(n: f32) -> f32 {
     let n = if n.is_nan() { 0.0 } else { n.max(0.0) };
     let r = 1.0 / (1.0 + n);
     (r * r).max(1e-3)
+}
+
+/// The albedo of material `m` in light transport: its colour clamped to [0, 1].
+///
+/// A surface cannot reflect more light than it receives: colours above 1 (which the course's
+/// point-light formula allows as "brightness") are clamped for light transport, or paths
+/// between such surfaces would gain energy at every bounce and diverge.
+#[must_use]
+#[inline(always)]
+pub fn transport_albedo(m: &Material) -> Vec3A {
+    Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE)
+}
+
+/// The Lambert BRDF of albedo `albedo` above the surface: albedo / π.
+#[must_use]
+#[inline(always)]
+pub fn lambert_f(albedo: Vec3A) -> Vec3A {
+    albedo * FRAC_1_PI
+}
+
+/// The density with which Lambert sampling draws a direction above the surface whose cosine
+/// to the normal is `cos_i`: the cosine hemisphere's, cosθ / π.
+#[must_use]
+#[inline(always)]
+pub fn lambert_pdf(cos_i: f32) -> f32 {
+    cosine_hemisphere_pdf(cos_i)
+}
+
+/// Lambert samples of sixteen lanes ([`lambert_sample_lanes`]).
+#[derive(Debug, Clone)]
+pub(crate) struct LambertLanes {
+    /// Local directions towards the light, per axis.
+    pub(crate) wi: [[f32; LANES]; 3],
+    /// Density of each direction ([`lambert_pdf`] of its cosine).
+    pub(crate) pdf: [f32; LANES],
+    /// Lanes where [`Bsdf::sample`] returns the sample rather than `None`.
+    pub(crate) ok: [bool; LANES],
+}
+
+/// [`Bsdf::sample`] of a [`Bsdf::Lambert`] for each lane's `(u1, u2)`, with an outgoing
+/// direction above the surface (which the integrator's shading ensures): the cosine-weighted
+/// direction, its density, and whether the sample passes `sample`'s checks (direction above
+/// the surface, density positive and finite). The BRDF value is [`lambert_f`].
+#[must_use]
+#[inline(always)]
+pub(crate) fn lambert_sample_lanes(u1: &[f32; LANES], u2: &[f32; LANES]) -> LambertLanes {
+    let mut s = LambertLanes {
+        wi: [[0.0; LANES]; 3],
+        pdf: [0.0; LANES],
+        ok: [false; LANES],
+    };
+    for i in 0..LANES {
+        let [x, y, z] = cosine_hemisphere_lane(u1[i], u2[i]);
+        let p = lambert_pdf(z);
+        (s.wi[0][i], s.wi[1][i], s.wi[2][i], s.pdf[i]) = (x, y, z, p);
+        s.ok[i] = not_at_most(z, 0.0) & not_at_most(p, 0.0) & p.is_finite();
+    }
+    s
 }
 
 /// A non-specular reflection model.
@@ -72,10 +138,7 @@ impl Bsdf {
     /// The model of a Diffuse or Glossy material; `None` for the other kinds.
     #[must_use]
     pub fn of(m: &Material, coat_only: bool) -> Option<Bsdf> {
-        // A surface cannot reflect more light than it receives: colours above 1 (which the
-        // course's point-light formula allows as "brightness") are clamped for light transport,
-        // or paths between such surfaces would gain energy at every bounce and diverge.
-        let albedo = Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE);
+        let albedo = transport_albedo(m);
         match m.kind {
             MaterialKind::Diffuse => Some(Bsdf::Lambert { albedo }),
             MaterialKind::Glossy => Some(Bsdf::Coated {
@@ -110,7 +173,7 @@ impl Bsdf {
             return (Vec3A::ZERO, Vec3A::ZERO);
         }
         match *self {
-            Bsdf::Lambert { albedo } => (albedo * FRAC_1_PI, Vec3A::ZERO),
+            Bsdf::Lambert { albedo } => (lambert_f(albedo), Vec3A::ZERO),
             Bsdf::Coated { base, alpha, .. } => {
                 let h = (wo + wi).normalize();
                 let f = fresnel(wo.dot(h).clamp(0.0, 1.0), 1.0, COAT_IOR);
@@ -130,7 +193,7 @@ impl Bsdf {
             return 0.0;
         }
         match *self {
-            Bsdf::Lambert { .. } => cosine_hemisphere_pdf(wi.z),
+            Bsdf::Lambert { .. } => lambert_pdf(wi.z),
             Bsdf::Coated { alpha, .. } => {
                 let p = self.coat_prob(wo);
                 let mut pdf = p * ggx_reflect_pdf(wo, wi, alpha);
@@ -194,6 +257,66 @@ mod tests {
         };
         let a = albedo(&b, Vec3A::new(0.3, 0.1, 0.9).normalize(), 1000);
         assert!((a - Vec3A::new(0.2, 0.5, 0.9)).abs().max_element() < 1e-5, "{a}");
+    }
+
+    #[test]
+    fn lambert_lanes_are_bsdf_sample_bit_for_bit() {
+        let mut rng = Rng::for_sample(11, 12, 13);
+        let albedo = Vec3A::new(0.3, 0.0, 1.0);
+        let b = Bsdf::Lambert { albedo };
+        for round in 0..64 {
+            let mut u1: [f32; LANES] = std::array::from_fn(|_| rng.next_f32());
+            let mut u2: [f32; LANES] = std::array::from_fn(|_| rng.next_f32());
+            if round == 0 {
+                // The disk's centre, its rim (a direction in the plane: rejected), points next
+                // to the rim (tiny densities) and a corner.
+                let edges = [
+                    (0.5, 0.5),
+                    (0.0, 0.5),
+                    (0.5, 1.0),
+                    (0.999_999_94, 0.5),
+                    (0.5, 6e-8),
+                    (0.0, 0.0),
+                ];
+                for (i, (a, c)) in edges.into_iter().enumerate() {
+                    (u1[i], u2[i]) = (a, c);
+                }
+            }
+            let s = lambert_sample_lanes(&u1, &u2);
+            assert!(
+                round > 0 || (s.ok[0] && !s.ok[1]),
+                "the centre is kept and the rim rejected"
+            );
+            for i in 0..LANES {
+                // Outgoing directions from grazing (shade's 1e-4 floor) to the normal.
+                let wo = Vec3A::new(rng.next_f32() - 0.5, 0.3, [1e-4, 1.0, rng.next_f32()][i % 3]).normalize();
+                let want = b.sample(wo, rng.next_f32(), u1[i], u2[i]);
+                assert_eq!(s.ok[i], want.is_some(), "u = ({}, {})", u1[i], u2[i]);
+                let Some(want) = want else { continue };
+                let wi = Vec3A::new(s.wi[0][i], s.wi[1][i], s.wi[2][i]);
+                let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+                assert_eq!(bits(wi), bits(want.wi), "u = ({}, {})", u1[i], u2[i]);
+                assert_eq!(s.pdf[i].to_bits(), want.pdf.to_bits(), "u = ({}, {})", u1[i], u2[i]);
+                assert_eq!(bits(lambert_f(albedo)), bits(want.f));
+                assert_eq!(lambert_pdf(wi.z).to_bits(), b.pdf(wo, wi).to_bits());
+            }
+        }
+    }
+
+    #[test]
+    fn transport_albedo_is_the_lambert_models() {
+        let m = Material {
+            kind: MaterialKind::Diffuse,
+            color: glam::Vec3::new(2.0, 0.5, -1.0),
+            value: 0.0,
+        };
+        assert_eq!(
+            Bsdf::of(&m, false),
+            Some(Bsdf::Lambert {
+                albedo: transport_albedo(&m)
+            })
+        );
+        assert_eq!(transport_albedo(&m), Vec3A::new(1.0, 0.5, 0.0));
     }
 
     #[test]

@@ -137,6 +137,23 @@ pub fn basis(n: Vec3A) -> (Vec3A, Vec3A) {
     )
 }
 
+/// [`basis`] of each lane's normal `n` (per axis): the tangents t and b, per axis, in the same
+/// operations and order as the one-vector form.
+#[must_use]
+#[inline(always)]
+pub(crate) fn basis_lanes(n: &[[f32; LANES]; 3]) -> ([[f32; LANES]; 3], [[f32; LANES]; 3]) {
+    let (mut t, mut b) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+    for i in 0..LANES {
+        let (nx, ny, nz) = (n[0][i], n[1][i], n[2][i]);
+        let sign = 1.0_f32.copysign(nz);
+        let a = -1.0 / (sign + nz);
+        let bxy = nx * ny * a;
+        (t[0][i], t[1][i], t[2][i]) = (1.0 + sign * nx * nx * a, sign * bxy, -sign * nx);
+        (b[0][i], b[1][i], b[2][i]) = (bxy, sign + ny * ny * a, -ny);
+    }
+    (t, b)
+}
+
 /// A plain RGB triple for files and JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, Default)]
 pub struct Rgb(pub [f32; 3]);
@@ -195,6 +212,7 @@ impl RayPacket {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::simd::put;
 
     #[test]
     fn offset_eps_lane_is_offset_eps_bit_for_bit() {
@@ -212,6 +230,36 @@ mod tests {
         for i in 0..LANES {
             let want = offset_eps(lane(&p, i), lane(&o, i));
             assert_eq!(offset_eps_lane(&p, &o, i).to_bits(), want.to_bits(), "lane {i}");
+        }
+    }
+
+    #[test]
+    fn basis_lanes_is_basis_bit_for_bit() {
+        let mut rng = crate::rng::Rng::for_sample(8, 9, 10);
+        let mut n = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            let v = Vec3A::new(rng.next_f32() - 0.5, rng.next_f32() - 0.5, rng.next_f32() - 0.5);
+            put(&mut n, i, v.normalize().to_array());
+        }
+        // The poles, the pole the frame is singular next to, and signed zeros in z.
+        let edges = [
+            [0.0, 0.0, 1.0],
+            [0.0, 0.0, -1.0],
+            [1e-4, -2e-4, -0.999_999_94],
+            [3e-4, 1e-4, -0.999_999_9],
+            [1.0, 0.0, 0.0],
+            [0.0, 1.0, -0.0],
+            [-0.6, 0.8, 0.0],
+        ];
+        for (i, e) in edges.into_iter().enumerate() {
+            put(&mut n, i, e);
+        }
+        let (t, b) = basis_lanes(&n);
+        for i in 0..LANES {
+            let (want_t, want_b) = basis(lane(&n, i));
+            let bits = |v: Vec3A| v.to_array().map(f32::to_bits);
+            assert_eq!(bits(lane(&t, i)), bits(want_t), "lane {i}: t");
+            assert_eq!(bits(lane(&b, i)), bits(want_b), "lane {i}: b");
         }
     }
 }

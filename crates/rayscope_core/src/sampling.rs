@@ -1,12 +1,17 @@
 //! Sampling routines for the stage-3 integrator: disk, cosine hemisphere, cones, spheres,
-//! triangles and the GGX distribution of visible normals, each with the density it draws from.
+//! triangles and the GGX distribution of visible normals, each with the density it draws from;
+//! the frame change to world space, the power heuristic and Russian roulette.
 //!
 //! Densities are in solid angle (directions) or area (points). Every routine here has a χ²
-//! goodness-of-fit test in `tests/stage3_sampling.rs`.
+//! goodness-of-fit test in `tests/stage3_sampling.rs`. The cosine warp and the frame change
+//! also have lane forms for the path-tracing wave, tested below to return the one-vector
+//! forms' bits.
 
 use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
 
-use glam::{Vec2, Vec3A};
+use glam::{Vec2, Vec3, Vec3A};
+
+use crate::simd::LANES;
 
 /// Uniform point on the unit disk from two uniform numbers (Shirley–Chiu concentric mapping).
 #[must_use]
@@ -52,6 +57,22 @@ pub fn cosine_hemisphere(u1: f32, u2: f32) -> Vec3A {
     let d = concentric_disk(u1, u2);
     let z = (1.0 - d.length_squared()).max(0.0).sqrt();
     Vec3A::new(d.x, d.y, z)
+}
+
+/// [`cosine_hemisphere`] in lane form: the same direction with no branch, so that a loop over
+/// sixteen lanes calling it vectorises (both of the disk's quotients are warped and one kept,
+/// and the centre, where the quotient is 0/0, is set apart). Its loop is
+/// [`crate::bsdf::lambert_sample_lanes`], whose body it is most of: a loop of the warp alone
+/// is small enough for the compiler to unroll it before vectorising, and then it does not.
+#[must_use]
+#[inline(always)]
+pub(crate) fn cosine_hemisphere_lane(u1: f32, u2: f32) -> [f32; 3] {
+    let (a, b) = (2.0 * u1 - 1.0, 2.0 * u2 - 1.0);
+    let wide = a.abs() > b.abs();
+    let (sin, cos) = sin_cos_eighth(FRAC_PI_4 * if wide { b / a } else { a / b });
+    let (x, y) = if wide { (a * cos, a * sin) } else { (b * sin, b * cos) };
+    let (x, y) = if (a == 0.0) & (b == 0.0) { (0.0, 0.0) } else { (x, y) };
+    [x, y, (1.0 - (x * x + y * y)).max(0.0).sqrt()]
 }
 
 /// Density of [`cosine_hemisphere`] for a direction with cosine `cos_theta` to +z.
@@ -114,6 +135,37 @@ pub fn power_heuristic(a: f32, b: f32) -> f32 {
 #[inline]
 pub fn to_world(v: Vec3A, t: Vec3A, b: Vec3A, n: Vec3A) -> Vec3A {
     t * v.x + b * v.y + n * v.z
+}
+
+/// `to_world(v, t, b, n).normalize()` of each lane: the unit world directions, per axis, of the
+/// local directions `v` in the frames (t, b, n), all per axis.
+#[must_use]
+#[inline(always)]
+pub(crate) fn to_world_unit_lanes(
+    v: &[[f32; LANES]; 3],
+    t: &[[f32; LANES]; 3],
+    b: &[[f32; LANES]; 3],
+    n: &[[f32; LANES]; 3],
+) -> [[f32; LANES]; 3] {
+    let mut w = [[0.0; LANES]; 3];
+    for i in 0..LANES {
+        let d: [f32; 3] = std::array::from_fn(|a| t[a][i] * v[0][i] + b[a][i] * v[1][i] + n[a][i] * v[2][i]);
+        // glam's length: (x² + y²) + z², then its square root, which each axis is divided by.
+        let len = (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]).sqrt();
+        for a in 0..3 {
+            w[a][i] = d[a] / len;
+        }
+    }
+    w
+}
+
+/// Russian roulette's survival probability for a path whose throughput is `beta`: its largest
+/// channel, at most 0.95. The path goes on when a uniform number falls below it, and then
+/// divides what it carries by it, which keeps the estimate unbiased.
+#[must_use]
+#[inline(always)]
+pub fn russian_roulette_survival(beta: Vec3) -> f32 {
+    beta.max_element().min(0.95)
 }
 
 /// Local coordinates of the world direction `v` in the frame (t, b, n).
@@ -244,6 +296,82 @@ mod tests {
             let r = (2.0 * u1 - 1.0f32).abs().max((2.0 * u2 - 1.0f32).abs());
             assert!((p.length() - r).abs() < 1e-6, "{u1} {u2}: {p}");
         }
+    }
+
+    /// Sixteen lanes of uniform numbers from `rng`, the first lanes replaced by `edges`.
+    fn lanes_with(rng: &mut crate::rng::Rng, edges: &[f32]) -> [f32; LANES] {
+        let mut u: [f32; LANES] = std::array::from_fn(|_| rng.next_f32());
+        u[..edges.len()].copy_from_slice(edges);
+        u
+    }
+
+    #[test]
+    fn cosine_hemisphere_lane_is_cosine_hemisphere_bit_for_bit() {
+        let mut rng = crate::rng::Rng::for_sample(3, 1, 4);
+        // The disk's centre, its edges (z = 0), its diagonals and the axes through the centre.
+        let u1 = lanes_with(&mut rng, &[0.5, 0.5, 0.2, 0.0, 1.0, 0.0, 0.999_999_94, 0.75, 0.5, 0.25]);
+        let u2 = lanes_with(&mut rng, &[0.5, 0.9, 0.5, 0.5, 1.0, 0.0, 0.5, 0.75, 0.0, 0.75]);
+        for round in 0..64 {
+            let (u1, u2) = if round == 0 {
+                (u1, u2)
+            } else {
+                (lanes_with(&mut rng, &[]), lanes_with(&mut rng, &[]))
+            };
+            for i in 0..LANES {
+                let want = cosine_hemisphere(u1[i], u2[i]).to_array().map(f32::to_bits);
+                let got = cosine_hemisphere_lane(u1[i], u2[i]).map(f32::to_bits);
+                assert_eq!(got, want, "u = ({}, {})", u1[i], u2[i]);
+            }
+        }
+    }
+
+    #[test]
+    fn to_world_unit_lanes_is_to_world_normalised_bit_for_bit() {
+        let mut rng = crate::rng::Rng::for_sample(2, 7, 1);
+        let mut r = move || rng.next_f32() - 0.5;
+        let (mut v, mut t, mut b, mut n) = (
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+            [[0.0; LANES]; 3],
+        );
+        for i in 0..LANES {
+            // Frames of random normals and of the poles, and a local direction near the plane.
+            let normal = match i {
+                0 => Vec3A::Z,
+                1 => Vec3A::NEG_Z,
+                2 => Vec3A::new(1e-4, -2e-4, -0.999_999_94),
+                _ => Vec3A::new(r(), r(), r()).normalize(),
+            };
+            let (tt, bb) = crate::math::basis(normal);
+            let local = if i == 3 {
+                Vec3A::new(0.6, 0.8, 1e-7)
+            } else {
+                cosine_hemisphere(r() + 0.5, r() + 0.5)
+            };
+            for (dst, x) in [(&mut v, local), (&mut t, tt), (&mut b, bb), (&mut n, normal)] {
+                for a in 0..3 {
+                    dst[a][i] = x[a];
+                }
+            }
+        }
+        let w = to_world_unit_lanes(&v, &t, &b, &n);
+        for i in 0..LANES {
+            let at = |x: &[[f32; LANES]; 3]| Vec3A::new(x[0][i], x[1][i], x[2][i]);
+            let want = to_world(at(&v), at(&t), at(&b), at(&n)).normalize();
+            assert_eq!(
+                at(&w).to_array().map(f32::to_bits),
+                want.to_array().map(f32::to_bits),
+                "lane {i}"
+            );
+        }
+    }
+
+    #[test]
+    fn russian_roulette_keeps_the_brightest_channel_up_to_095() {
+        assert_eq!(russian_roulette_survival(Vec3::new(0.2, 0.5, 0.1)), 0.5);
+        assert_eq!(russian_roulette_survival(Vec3::new(0.2, 0.5, 3.0)), 0.95);
+        assert_eq!(russian_roulette_survival(Vec3::ZERO), 0.0);
     }
 
     #[test]

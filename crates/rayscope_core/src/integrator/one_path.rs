@@ -11,7 +11,7 @@ use crate::math::{basis, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
 use crate::rng::Rng;
-use crate::sampling::{power_heuristic, to_local, to_world};
+use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material};
 use crate::settings::{Channel, Stage};
 use crate::surface::Surface;
@@ -439,7 +439,7 @@ impl<I: Intersect> Integrator<'_, I> {
         if ambient {
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
-                let p = child.beta.max_element().min(0.95);
+                let p = russian_roulette_survival(child.beta);
                 if cx.rng.next_f32() < p {
                     carry /= p;
                     child.beta /= p;

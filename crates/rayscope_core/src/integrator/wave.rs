@@ -4,10 +4,12 @@
 //! samples, next ray, next hit), so the core runs it at the speed of its latencies. A wave keeps
 //! [`LANES`] independent paths in structure-of-arrays form and runs each step for all of them
 //! at once: their rays go through the BVH as one packet and their emitter rays as another,
-//! and the arithmetic of a Lambertian vertex (shading frame, emitter sample, BRDF sample,
-//! multiple importance weights, Russian roulette, random numbers) runs as loops over the lanes
-//! without branches, which the compiler vectorises. A lane whose path ends takes the next
-//! sample at once.
+//! and a Lambertian vertex is shaded by the sixteen-lane forms of the rules the one-path code
+//! calls (the shading frame, `math::basis_lanes`; the Lambert BRDF and its sample,
+//! `bsdf::lambert_sample_lanes`; the frame change, `sampling::to_world_unit_lanes`), loops over
+//! the lanes without branches that the compiler vectorises, with the same multiple importance
+//! weights, Russian roulette and random numbers. A lane whose path ends takes the next sample
+//! at once.
 //!
 //! Each lane computes exactly what [`Integrator::sample`] computes, in the same order and
 //! with the same random numbers:
@@ -29,21 +31,20 @@
 // clearly as index loops than as zipped iterators.
 #![allow(clippy::needless_range_loop)]
 
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_4};
-
-use glam::Vec3A;
+use glam::{Vec3, Vec3A};
 
 use super::camera_packets::CameraBatch;
 use super::one_path::PathCx;
 use super::packets::{Job, LitLanes};
 use super::rules::{Li, PathState};
 use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
+use crate::bsdf::{lambert_f, lambert_pdf, lambert_sample_lanes, transport_albedo};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
-use crate::math::{not_at_most, Ray};
+use crate::math::{basis_lanes, not_at_most, Ray};
 use crate::observer::NoObserver;
 use crate::rng::RngLanes;
-use crate::sampling::{power_heuristic, sin_cos_eighth};
+use crate::sampling::{power_heuristic, russian_roulette_survival, to_world_unit_lanes};
 use crate::scene::{Hit, Intersect};
 use crate::simd::{lane, max_element, put, LANES};
 use crate::surface::PacketSurfaces;
@@ -342,7 +343,8 @@ impl<I: Intersect> Integrator<'_, I> {
             return;
         }
         let surf = PacketSurfaces::new(self.scene, &w.rays, &hits);
-        // Self::trace_hit for each lane, up to the Lambertian shading done for all below.
+        // Each lane's hit: an emitter's light, a mirror's or glass's next ray, a glossy coat's
+        // path traced on one ray at a time; Lambertian hits are marked and shaded together below.
         let mut diffuse = [false; LANES];
         let mut dist = [0.0; LANES];
         for i in 0..LANES {
@@ -423,9 +425,9 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
-    /// Self::trace_hit for lane `i`'s hit, at distance `t`, on a mirror or on glass: gives the
-    /// lane the ray the vertex sends on and returns `None`, or returns what the vertex returns
-    /// where it sends none. Out of line, so the wave's Lambertian steps stay compact.
+    /// Lane `i`'s hit, at distance `t`, on a mirror or on glass: gives the lane the ray the
+    /// vertex sends on and returns `None`, or returns what the vertex returns where it sends
+    /// none. Out of line, so the wave's Lambertian steps stay compact.
     #[inline(never)]
     fn specular_hit(&self, w: &mut Wave, i: usize, t: f32, surf: &PacketSurfaces, c: &mut Counters) -> Option<Li> {
         let path = w.path[i];
@@ -440,7 +442,8 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             let g = self.glass(&ray, &s, m, path);
             if path.branch {
-                // Self::refractive's Whitted split: the reflected ray first, then the refracted.
+                // Whitted's split (the path has not yet bounced off a Lambertian surface): both
+                // rays, each with its Fresnel weight, the reflected one first.
                 let refl = self.glass_reflected(&g, path).map(|(r, p)| (r, p, g.kr));
                 let refr = self.glass_refracted(&g, path).map(|(r, p)| (r, p, 1.0 - g.kr));
                 let (first, next) = match (refl, refr) {
@@ -476,14 +479,14 @@ impl<I: Intersect> Integrator<'_, I> {
         None
     }
 
-    /// Self::shade for the Lambertian hits in `d`: point lights, one emitter sample (its
-    /// shadow ray left in the wave) and one BRDF sample (its ray left in the wave). `dist` is
-    /// each hit's distance along its ray.
+    /// Shades the Lambertian hits in `d`, the shading the one-path code does at a Lambertian
+    /// vertex: point lights, one emitter sample (its shadow ray left in the wave) and one BRDF
+    /// sample (its ray left in the wave). `dist` is each hit's distance along its ray.
     fn shade_wave(&self, w: &mut Wave, surf: &PacketSurfaces, d: &M, dist: &F, out: &mut [Vec3A], c: &mut Counters) {
         let ambient = self.settings.ambient;
         let f_frames = &surf.frames;
         let (n, ng, org) = (&f_frames.shading_normal, &f_frames.normal, &f_frames.outside);
-        // The Lambert BRDF (Bsdf::of clamps the albedo; point lights take the colour as is).
+        // The Lambert BRDF of each lane's material; point lights take the colour as is.
         let mut f = [[0.0; LANES]; 3];
         let mut lit = LitLanes::default();
         for i in 0..LANES {
@@ -491,23 +494,14 @@ impl<I: Intersect> Integrator<'_, I> {
                 continue;
             }
             let m = &self.scene.materials[surf.material[i] as usize];
-            let albedo = Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE);
-            put(&mut f, i, (albedo * FRAC_1_PI).to_array());
+            put(&mut f, i, lambert_f(transport_albedo(m)).to_array());
             put(&mut lit.alb, i, m.color.to_array());
             lit.on[i] = true;
         }
         // Point lights by the course's formula (no BRDF), one packet per light.
         let l = self.point_lights_packet(&lit, f_frames, c);
-        // crate::math::basis.
-        let (mut tb, mut bb) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
-        for i in 0..LANES {
-            let (nx, ny, nz) = (n[0][i], n[1][i], n[2][i]);
-            let sign = 1.0_f32.copysign(nz);
-            let a = -1.0 / (sign + nz);
-            let b = nx * ny * a;
-            (tb[0][i], tb[1][i], tb[2][i]) = (1.0 + sign * nx * nx * a, sign * b, -sign * nx);
-            (bb[0][i], bb[1][i], bb[2][i]) = (b, sign + ny * ny * a, -ny);
-        }
+        let (tb, bb) = basis_lanes(n);
+        // glam's dot: (x·x' + y·y') + z·z'.
         let dot = |x: &[F; 3], y: &[F; 3], i: usize| x[0][i] * y[0][i] + x[1][i] * y[1][i] + x[2][i] * y[2][i];
         // A Lambert BRDF's outgoing direction only decides whether it reflects at all, and
         // shade's correction keeps it above the surface, so it is not computed here.
@@ -522,7 +516,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 let front = dot(&ls.dir, ng, i) > 0.0;
                 let fz = (f[0][i] != 0.0) | (f[1][i] != 0.0) | (f[2][i] != 0.0);
                 let go = ls.ok[i] & (wiz > 0.0) & front & fz;
-                let wgt = power_heuristic(ls.pdf[i], wiz.max(0.0) * FRAC_1_PI);
+                let wgt = power_heuristic(ls.pdf[i], lambert_pdf(wiz));
                 let k = wiz * wgt / ls.pdf[i];
                 for a in 0..3 {
                     w.unblocked[a][i] = f[a][i] * ls.radiance[a][i] * k;
@@ -551,33 +545,16 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             ([0.0; LANES], [0.0; LANES])
         };
-        let (mut wi, mut ok) = ([[0.0; LANES]; 3], [false; LANES]);
-        let (mut cz, mut pdf) = ([0.0; LANES], [0.0; LANES]);
-        for i in 0..LANES {
-            // cosine_hemisphere(u1, u2) through concentric_disk.
-            let (a, b) = (2.0 * u1[i] - 1.0, 2.0 * u2[i] - 1.0);
-            let wide = a.abs() > b.abs();
-            let (sin, cos) = sin_cos_eighth(FRAC_PI_4 * if wide { b / a } else { a / b });
-            let (x, y) = if wide { (a * cos, a * sin) } else { (b * sin, b * cos) };
-            let (x, y) = if (a == 0.0) & (b == 0.0) { (0.0, 0.0) } else { (x, y) };
-            let z = (1.0 - (x * x + y * y)).max(0.0).sqrt();
-            // Bsdf::sample's checks and density.
-            let p = z.max(0.0) * FRAC_1_PI;
-            let good = bounce & d[i] & not_at_most(z, 0.0) & not_at_most(p, 0.0) & p.is_finite();
-            // to_world(wi, t, b, n).normalize(), then the side check.
-            let v: [f32; 3] = std::array::from_fn(|ax| tb[ax][i] * x + bb[ax][i] * y + n[ax][i] * z);
-            let len = (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt();
-            for ax in 0..3 {
-                wi[ax][i] = v[ax] / len;
-            }
-            ok[i] = good & not_at_most(dot(&wi, ng, i), 0.0);
-            (cz[i], pdf[i]) = (z, p);
-        }
+        let bs = lambert_sample_lanes(&u1, &u2);
+        let wi = to_world_unit_lanes(&bs.wi, &tb, &bb, n);
+        let pdf = &bs.pdf;
+        // The sample is kept where it is drawn, valid, and leaves on the outer side.
+        let ok: M = std::array::from_fn(|i| bounce & d[i] & bs.ok[i] & not_at_most(dot(&wi, ng, i), 0.0));
         // The bounce's weights, Russian roulette, and whether its hit's reflected light counts.
         let (mut wt, mut carry) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
         let (mut beta, mut want, mut rr) = ([[0.0; LANES]; 3], [false; LANES], [false; LANES]);
         for i in 0..LANES {
-            let ratio = cz[i] / pdf[i];
+            let ratio = bs.wi[2][i] / pdf[i];
             let path = &w.path[i];
             for a in 0..3 {
                 wt[a][i] = f[a][i] * ratio;
@@ -597,7 +574,7 @@ impl<I: Intersect> Integrator<'_, I> {
         if rr.contains(&true) {
             let u = w.rng.next_f32(&rr);
             for i in 0..LANES {
-                let p = max_element([beta[0][i], beta[1][i], beta[2][i]]).min(0.95);
+                let p = russian_roulette_survival(Vec3::new(beta[0][i], beta[1][i], beta[2][i]));
                 let keep = u[i] < p;
                 let scale = rr[i] & keep;
                 for a in 0..3 {
