@@ -35,6 +35,7 @@
 
 use glam::Vec3A;
 
+use crate::accel::ApexCull;
 use crate::bsdf::Bsdf;
 use crate::camera::{cell_centre, jittered, Camera};
 use crate::geometry::PrimRef;
@@ -48,7 +49,6 @@ pub use crate::sampling::concentric_disk;
 use crate::sampling::{power_heuristic, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, RenderSettings, Stage};
-use crate::wide::ApexCull;
 use rayscope_scene::MaterialKind;
 
 mod packets;

@@ -3,9 +3,9 @@
 //! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
 //! [`render()`] turns into a [`Film`] under [`RenderSettings`].
 
+pub mod accel;
 pub mod animation;
 pub mod bsdf;
-pub mod bvh;
 pub mod camera;
 pub mod compare;
 pub mod diagnose;

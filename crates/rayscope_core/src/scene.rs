@@ -6,11 +6,10 @@ use rayon::prelude::*;
 use rayscope_scene::{MaterialKind, SceneFile, Shape};
 use serde::Serialize;
 
-use crate::bvh::{BuildPrim, Bvh};
+use crate::accel::{BuildPrim, Bvh, Bvh4, WideHit};
 pub use crate::geometry::PrimRef;
 use crate::geometry::{Plane, PrimHit, Primitive, Sphere, Triangle};
 use crate::math::{Aabb, Ray};
-use crate::wide::{Bvh4, WideHit};
 
 #[cfg(any(test, feature = "test-support"))]
 mod binary_reference;

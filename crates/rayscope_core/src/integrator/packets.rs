@@ -20,6 +20,7 @@
 use glam::Vec3A;
 
 use super::{Counters, Glass, Integrator, Li, PathState};
+use crate::accel::{Bvh4, PacketHits};
 use crate::camera::{camera_dirs, jittered};
 use crate::geometry::PrimRef;
 use crate::lights::{add_point_light_lanes, point_light_rays};
@@ -31,7 +32,7 @@ use crate::rng::{Rng, RngLanes};
 use crate::scene::{Hit, Intersect, Material, Scene, Surface};
 use crate::settings::{Channel, Stage};
 use crate::simd::{lane, put, LANES};
-use crate::wide::{surface_frames, Bvh4, HitPrims, PacketHits, SmoothNormals, SurfaceFrames};
+use crate::wide::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.

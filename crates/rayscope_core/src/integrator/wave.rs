@@ -35,6 +35,7 @@ use glam::Vec3A;
 
 use super::packets::{CameraBatch, Job, LitLanes, PacketSurfaces};
 use super::{Counters, Integrator, Li, PathState, MAX_BOUNCES, RR_START};
+use crate::accel::{Bvh4, PacketHits};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::math::{not_at_most, Ray};
@@ -44,7 +45,6 @@ use crate::sampling::{power_heuristic, sin_cos_eighth};
 use crate::scene::{Hit, Intersect};
 use crate::settings::Stage;
 use crate::simd::{lane, max_element, put, LANES};
-use crate::wide::{Bvh4, PacketHits};
 use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];

@@ -7,15 +7,15 @@ use std::path::Path;
 
 use glam::Vec3A;
 
-use super::packet::*;
-use super::surface::*;
-use super::PacketHits;
+use crate::accel::packet::*;
+use crate::accel::PacketHits;
 use crate::camera::{camera_dirs, Camera};
 use crate::math::{Ray, RayPacket};
 use crate::optics::{specular_rays_avx2, specular_rays_avx512, specular_rays_impl, SpecularRays};
 use crate::rng::Rng;
 use crate::scene::Scene;
 use crate::simd::LANES;
+use crate::wide::*;
 
 fn scene(triangles: usize, spheres: usize, seed: u64) -> Scene {
     let mut rng = Rng::for_sample(seed, 0, 0);
