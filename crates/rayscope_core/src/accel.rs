@@ -18,8 +18,9 @@
 //! - `stream.rs`: many independent rays' walks interleaved, for `rayscope bench rays` (feature
 //!   `bench-kernels`).
 //!
-//! None of them knows the scene, the camera, the integrators or the lights: they see primitives
-//! (`crate::geometry`), rays (`crate::math`) and lanes (`crate::simd`) only.
+//! None of them knows the scene, the camera, the integrators, the render loop or the lights: they
+//! see primitives (`crate::geometry`), rays (`crate::math`) and lanes (`crate::simd`) only, which
+//! `tests/module_graph.rs` checks.
 
 // Structure-of-arrays code indexes several arrays by the same lane or axis, which reads more
 // clearly as index loops than as zipped iterators.
