@@ -461,7 +461,7 @@ fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
 
 fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     use rayon::prelude::*;
-    use rayscope_core::wide::{RayPacket, LANES};
+    use rayscope_core::{math::RayPacket, simd::LANES};
     use rayscope_core::{Camera, CameraSettings, Ray};
 
     if let Some(n) = a.threads {

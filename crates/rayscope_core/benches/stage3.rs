@@ -12,7 +12,7 @@ use std::sync::atomic::AtomicBool;
 
 use criterion::{criterion_group, criterion_main, BatchSize, Criterion, Throughput};
 use glam::Vec3;
-use rayscope_core::bvh::{BuildPrim, Bvh};
+use rayscope_core::accel::{BuildPrim, Bvh};
 use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::TriangleInfo;
 use rayscope_core::{render, RenderSettings, Scene, Stage};

@@ -41,6 +41,7 @@
 
 use glam::Vec3A;
 
+use crate::accel::ApexCull;
 use crate::camera::{cell_centre, jittered, Camera};
 use crate::geometry::PrimRef;
 use crate::lights::Emitters;
@@ -50,7 +51,6 @@ use crate::rng::Rng;
 pub use crate::sampling::concentric_disk;
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, RenderSettings, Stage};
-use crate::wide::ApexCull;
 
 mod camera_packets;
 mod one_path;

@@ -3,9 +3,9 @@
 //! Data flows one way: a parsed [`rayscope_scene::SceneFile`] becomes a [`Scene`], which
 //! [`render()`] turns into a [`Film`] under [`RenderSettings`].
 
+pub mod accel;
 pub mod animation;
 pub mod bsdf;
-pub mod bvh;
 pub mod camera;
 pub mod compare;
 pub mod diagnose;
@@ -28,7 +28,6 @@ pub mod scene;
 pub mod settings;
 pub mod simd;
 pub mod surface;
-pub mod wide;
 
 pub use camera::{Camera, CameraSettings, FovAxis};
 pub use film::Film;

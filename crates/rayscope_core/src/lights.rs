@@ -15,13 +15,13 @@
 
 use glam::Vec3A;
 
+use crate::accel::ApexCull;
 use crate::geometry::{PrimRef, Sphere, Triangle};
 use crate::material::Material;
 use crate::math::{basis, not_at_most, RayPacket};
 use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
 use crate::scene::{Intersect, Scene};
 use crate::simd::{dispatched, lane, sel, Mask, LANES};
-use crate::wide::ApexCull;
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;

@@ -2,7 +2,7 @@
 //! and the debugger's per-pixel self-test of the intersector).
 //!
 //! It tests every primitive for every ray (no BVH), so it is slow but shares no code with
-//! [`crate::geometry`] or [`crate::bvh`].
+//! [`crate::geometry`] or [`crate::accel`].
 
 use glam::Vec3A;
 use parry3d::math::{Pose, Vector};

@@ -6,13 +6,13 @@ use rayon::prelude::*;
 use rayscope_scene::{SceneFile, Shape};
 use serde::Serialize;
 
-use crate::bvh::{BuildPrim, Bvh};
+use crate::accel::{ApexCull, PacketHits};
+use crate::accel::{BuildPrim, Bvh, Bvh4, WideHit};
 pub use crate::geometry::PrimRef;
 use crate::geometry::{Plane, Sphere, Triangle};
 pub use crate::material::Material;
 use crate::math::{Aabb, Ray, RayPacket};
 use crate::simd::{Mask, LANES};
-use crate::wide::{ApexCull, Bvh4, PacketHits, WideHit};
 
 #[cfg(any(test, feature = "test-support"))]
 mod binary_reference;

@@ -5,7 +5,7 @@
 //! with a kernel defines its entry point with `dispatched!`, which also compiles the kernel with
 //! AVX-512 and with AVX2 enabled and runs the best build the CPU has. FMA is not enabled and Rust
 //! never fuses a multiply and an add on its own, so every build computes identical results (the
-//! tests in `wide/kernel_builds.rs` compare them). This file is the one place the core's product
+//! tests in `simd/kernel_builds.rs` compare them). This file is the one place the core's product
 //! code writes `unsafe`: a function compiled for an instruction set may only be called on a CPU
 //! that has it, which the macro checks immediately before each call (the check is a cached load),
 //! and the prefetch intrinsic is `unsafe` to call as well. On an AVX-512 CPU the AVX-512 builds
@@ -13,6 +13,9 @@
 //! (`rayscope bench render -f SCENE -x 4 --stage 2`); the prefetch makes scattered rays in a
 //! 1 M-triangle tree 25 % faster (`rayscope bench rays --rays-file FILE`).
 #![allow(unsafe_code)]
+
+#[cfg(test)]
+mod kernel_builds;
 
 /// Rays in a packet.
 pub const LANES: usize = 16;

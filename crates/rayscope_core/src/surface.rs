@@ -14,11 +14,11 @@
 
 use glam::Vec3A;
 
+use crate::accel::PacketHits;
 use crate::geometry::{PrimHit, PrimRef, Primitive};
 use crate::math::{offset_eps, Ray, RayPacket};
 use crate::scene::{Hit, Scene};
 use crate::simd::{lane, put, LANES};
-use crate::wide::PacketHits;
 
 mod lanes;
 pub use lanes::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};

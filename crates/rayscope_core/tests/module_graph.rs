@@ -1,4 +1,5 @@
-//! The core's module graph has no cycle.
+//! The core's module graph has no cycle, and the acceleration structures depend on no part of a
+//! render.
 //!
 //! Reads `src/**/*.rs`, resolves every `use crate::…`, `use super::…`, `use self::…`, `crate::x::…`
 //! path in code and path through a child module declared in the file to the file that defines the
@@ -9,6 +10,11 @@
 //! node. Code in `#[cfg(test)]` modules (inline or in their own files) is left out, since tests
 //! may look at any module. Self-contained (std only) so the check cannot depend on the
 //! code it checks.
+//!
+//! The same references show what `accel` (the BVHs and their walks) reaches: primitives, rays and
+//! lanes, never the scene, the camera, the integrators, the render loop or the lights, which all
+//! build on it; a reference to one of those from outside `accel`'s test modules fails the check,
+//! naming the file, the line and the import.
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -578,6 +584,51 @@ fn describe(cycle: &[String], edges: &BTreeSet<Edge>) -> String {
     s
 }
 
+/// Modules the acceleration structures must not reach (nor any module inside them).
+const ACCEL_MUST_NOT_USE: [&str; 5] = ["scene", "camera", "integrator", "render", "lights"];
+
+/// Whether module `m` is `root` or inside it.
+fn within(m: &str, root: &str) -> bool {
+    m == root || m.strip_prefix(root).is_some_and(|rest| rest.starts_with("::"))
+}
+
+/// Every reference from `accel`'s code outside its test modules to a module of
+/// [`ACCEL_MUST_NOT_USE`], as a line naming the file, the line, the source text and the module
+/// reached (the module that defines the item, when the path goes through a re-export).
+fn accel_forbidden_refs(files: &[(String, String)], edges: &BTreeSet<Edge>) -> Vec<String> {
+    let file_of: BTreeMap<String, &(String, String)> = files.iter().map(|f| (module_of(&f.0), f)).collect();
+    edges
+        .iter()
+        .filter(|e| within(&e.from, "accel") && ACCEL_MUST_NOT_USE.iter().any(|f| within(&e.to, f)))
+        .map(|e| {
+            let (rel, src) = file_of[&e.from];
+            let text = src.lines().nth(e.line - 1).unwrap_or("").trim();
+            format!("  src/{rel} line {}: `{text}` reaches crate::{}", e.line, e.to)
+        })
+        .collect()
+}
+
+#[test]
+fn accel_depends_on_no_part_of_a_render() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    read_sources(&src, &src, &mut files);
+    let (_, edges) = graph(&files);
+    assert!(
+        edges
+            .iter()
+            .any(|e| within(&e.from, "accel") && within(&e.to, "geometry")),
+        "the graph reader found no reference from accel to geometry: {edges:?}"
+    );
+    let bad = accel_forbidden_refs(&files, &edges);
+    assert!(
+        bad.is_empty(),
+        "the acceleration structures (src/accel) must not use crate::{{{}}} outside their test modules:\n{}",
+        ACCEL_MUST_NOT_USE.join(", "),
+        bad.join("\n")
+    );
+}
+
 #[test]
 fn core_module_graph_is_acyclic() {
     let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
@@ -656,4 +707,38 @@ fn source_references_become_edges() {
     fixed[3].1 = "use crate::c::Z;".into();
     let (nodes, edges) = graph(&fixed);
     assert_eq!(find_cycle(&nodes, &edges), None);
+}
+
+#[test]
+fn accel_references_to_a_render_are_named() {
+    let src = files(&[
+        (
+            "lib.rs",
+            "pub mod accel; pub mod geometry; pub mod lights; pub mod scene;\npub use scene::Scene;",
+        ),
+        ("accel.rs", "mod checks;\nmod walk;\nuse crate::geometry::Tri;"),
+        (
+            "accel/walk.rs",
+            "use crate::geometry::Tri;\nfn f(_: &crate::Scene) {}\n#[cfg(test)]\nmod tests { use crate::lights::L; }",
+        ),
+        ("accel/checks.rs", "use crate::lights::L;"),
+        ("geometry.rs", "pub struct Tri;"),
+        ("lights.rs", "use crate::accel::Bvh;"),
+        ("scene.rs", "pub struct Scene;\nuse crate::lights::L;"),
+    ]);
+    let (_, edges) = graph(&src);
+    let bad = accel_forbidden_refs(&src, &edges);
+    assert_eq!(
+        bad,
+        [
+            "  src/accel/checks.rs line 1: `use crate::lights::L;` reaches crate::lights",
+            "  src/accel/walk.rs line 2: `fn f(_: &crate::Scene) {}` reaches crate::scene",
+        ]
+    );
+    // Without those two references (the test module's may stay), nothing is reported.
+    let mut fixed = src.clone();
+    fixed[2].1 = fixed[2].1.replace("&crate::Scene", "&()");
+    fixed.remove(3);
+    let (_, edges) = graph(&fixed);
+    assert!(accel_forbidden_refs(&fixed, &edges).is_empty());
 }

@@ -3,13 +3,13 @@
 //! plane packets) and on rays from inside and outside.
 
 use glam::{DVec3, Vec3A};
-use rayscope_core::bvh::{Bvh, BvhNode};
+use rayscope_core::accel::{Bvh, Bvh4, BvhNode, WideHit, INTERLEAVE_BYTES};
 use rayscope_core::geometry::{Primitive, Triangle};
-use rayscope_core::math::Ray;
+use rayscope_core::math::{Ray, RayPacket};
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::rng::Rng;
 use rayscope_core::scene::{BinaryReference, Intersect, PrimRef, Scene};
-use rayscope_core::wide::{Bvh4, RayPacket, WideHit, INTERLEAVE_BYTES, LANES};
+use rayscope_core::simd::LANES;
 use rayscope_scene::{EntityDef, Shape};
 
 mod common;

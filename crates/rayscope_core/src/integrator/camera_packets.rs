@@ -17,6 +17,7 @@ use super::one_path::PathCx;
 use super::packets::Job;
 use super::rules::PathState;
 use super::{Counters, Integrator};
+use crate::accel::PacketHits;
 use crate::camera::{camera_dirs, jittered};
 use crate::math::RayPacket;
 use crate::observer::NoObserver;
@@ -24,7 +25,6 @@ use crate::rng::RngLanes;
 use crate::scene::{Hit, Intersect};
 use crate::settings::Channel;
 use crate::simd::LANES;
-use crate::wide::PacketHits;
 
 impl<I: Intersect> Integrator<'_, I> {
     /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with

@@ -17,6 +17,7 @@ use glam::Vec3A;
 use super::one_path::PathCx;
 use super::rules::{Glass, Li, PathState};
 use super::{Counters, Integrator};
+use crate::accel::PacketHits;
 use crate::geometry::PrimRef;
 use crate::lights::{add_point_light_lanes, point_light_rays};
 use crate::math::Ray;
@@ -28,7 +29,6 @@ use crate::scene::{Hit, Intersect, Material};
 use crate::settings::Stage;
 use crate::simd::{lane, LANES};
 use crate::surface::{PacketSurfaces, SurfaceFrames};
-use crate::wide::PacketHits;
 use rayscope_scene::MaterialKind;
 
 /// A sample to trace: pixel (x, y) and sample index.

@@ -38,6 +38,7 @@ use super::one_path::PathCx;
 use super::packets::{Job, LitLanes};
 use super::rules::{Li, PathState};
 use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
+use crate::accel::PacketHits;
 use crate::bsdf::{lambert_f, lambert_pdf, lambert_sample_lanes, transport_albedo};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
@@ -48,7 +49,6 @@ use crate::sampling::{power_heuristic, russian_roulette_survival, to_world_unit_
 use crate::scene::{Hit, Intersect};
 use crate::simd::{lane, max_element, put, LANES};
 use crate::surface::PacketSurfaces;
-use crate::wide::PacketHits;
 use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];

@@ -3,7 +3,7 @@
 //! product.
 
 use super::{Hit, PrimRef, Scene, SPHERE_BIT};
-use crate::bvh::Bvh;
+use crate::accel::Bvh;
 use crate::geometry::Primitive;
 use crate::math::Ray;
 

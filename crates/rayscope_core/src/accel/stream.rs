@@ -17,7 +17,8 @@
 
 use arrayvec::ArrayVec;
 
-use super::{node_test, Bvh4, NodeConsts, RayConsts, Walk, WideHit, EMPTY, LEAF, SLAB_SLACK, STACK};
+use super::layout::{Bvh4, WideHit, EMPTY, LEAF, STACK};
+use super::single::{node_test, NodeConsts, RayConsts, Walk, SLAB_SLACK};
 use crate::math::Ray;
 
 /// Walks in flight at once on one thread: enough to cover a miss to memory with the other

@@ -13,11 +13,12 @@
 
 use arrayvec::ArrayVec;
 
-use super::beam::{ApexCull, Beam};
-use super::{
-    beats, far, Bvh4, Node4, NodeConsts, PlanePacket, RayConsts, SpherePacket, TraversalStack, TriPacket, Walk, EMPTY,
-    LEAF, NO_PRIM, RUN, RUN_SHIFT, SLAB_SLACK, SPHERES, STACK, TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
+use super::frustum::{ApexCull, Beam};
+use super::layout::{
+    beats, Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, EMPTY, LEAF, NO_PRIM, RUN, RUN_SHIFT, SPHERES, STACK,
+    TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
+use super::single::{far, NodeConsts, RayConsts, TraversalStack, Walk, SLAB_SLACK};
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::simd::{dispatched, Mask, LANES};
@@ -104,7 +105,7 @@ impl PacketHits {
 
     /// Divides the barycentrics by what the kernels left them scaled by.
     #[inline(always)]
-    pub(super) fn divide(&mut self) {
+    pub(crate) fn divide(&mut self) {
         for i in 0..LANES {
             self.u[i] /= self.a[i];
             self.v[i] /= self.a[i];
@@ -694,7 +695,7 @@ fn all_closed(rays: &RayPacket) -> bool {
 }
 
 impl Bvh4 {
-    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
+    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`] of packets.
     /// `live` (bit per lane) says which primitives of a single packet to test (see [`Beam`]).
     #[inline(always)]
     fn leaf_closest_rays<const RUNS: bool>(
@@ -720,7 +721,7 @@ impl Bvh4 {
         }
     }
 
-    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`](super::RUN) of packets.
+    /// Tests leaf `r`; only tree leaves (`RUNS`) can be a [`RUN`] of packets.
     /// `live` (bit per lane) says which primitives of a single packet to test (see [`Beam`]).
     #[inline(always)]
     fn leaf_occlude_rays<const RUNS: bool>(
@@ -802,14 +803,14 @@ impl Bvh4 {
     /// The closest-hit walk that splits packets, on the fixed stack (the caller has checked that
     /// there is a tree and that it is not [`Bvh4::deep`]).
     #[inline(always)]
-    pub(super) fn closest_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
+    pub(crate) fn closest_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, hits: &mut PacketHits) {
         self.walk_closest_rays::<Split<(u32, f32)>, ArrayVec<_, STACK>>(rays, t_min, hits);
     }
 
     /// The shadow walk that splits packets, on the fixed stack (the caller has checked that
     /// there is a tree and that it is not [`Bvh4::deep`]).
     #[inline(always)]
-    pub(super) fn occluded_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
+    pub(crate) fn occluded_rays_split_impl(&self, rays: &mut RayPacket, t_min: f32, blocked: &mut Mask) {
         self.walk_occlude_rays::<Split<u32>, ArrayVec<_, STACK>>(rays, t_min, blocked);
     }
 
@@ -917,7 +918,7 @@ impl Bvh4 {
     /// With `cull` (the view from the rays' common origin), the list skips the primitives no
     /// ray can meet.
     #[inline(always)]
-    pub(super) fn closest_rays_impl(
+    pub(crate) fn closest_rays_impl(
         &self,
         rays: &mut RayPacket,
         t_min: f32,
@@ -984,7 +985,7 @@ impl Bvh4 {
 
     /// With `beam` (and the view from its apex), the list skips the primitives no ray can meet.
     #[inline(always)]
-    pub(super) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32, beam: Option<(&ApexCull, Beam)>) -> Mask {
+    pub(crate) fn occluded_rays_impl(&self, rays: &mut RayPacket, t_min: f32, beam: Option<(&ApexCull, Beam)>) -> Mask {
         let mut blocked = [false; LANES];
         for (k, p) in self.planes.iter().enumerate() {
             let live = beam.map_or(ALL, |(c, b)| c.plane_lanes(k, &b));

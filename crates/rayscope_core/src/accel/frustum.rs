@@ -16,7 +16,7 @@
 
 use glam::{DVec3, Vec4};
 
-use super::{Bvh4, PlanePacket, SpherePacket, TriPacket, NO_PRIM, SPHERES};
+use super::layout::{Bvh4, PlanePacket, SpherePacket, TriPacket, LEAF, NO_PRIM, SPHERES};
 use crate::math::RayPacket;
 use crate::simd::{Mask, LANES};
 
@@ -91,13 +91,9 @@ impl ApexCull {
             .iter()
             .map(|&r| {
                 if r & SPHERES != 0 {
-                    Cull::Spheres(sphere_cones(
-                        &bvh.spheres[(r & !(super::LEAF | SPHERES)) as usize],
-                        a,
-                        near,
-                    ))
+                    Cull::Spheres(sphere_cones(&bvh.spheres[(r & !(LEAF | SPHERES)) as usize], a, near))
                 } else {
-                    Cull::Tris(tri_bounds(&bvh.tris[(r & !super::LEAF) as usize], a, near))
+                    Cull::Tris(tri_bounds(&bvh.tris[(r & !LEAF) as usize], a, near))
                 }
             })
             .collect();
@@ -128,7 +124,7 @@ impl ApexCull {
 /// The cone of a packet's rays seen from an apex: a unit axis and the sine and cosine of the
 /// half-angle, [`SLACK`] included.
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Beam {
+pub(crate) struct Beam {
     axis: [Vec4; 3],
     sin: Vec4,
     /// 1 − sin², which is at most the cosine (√(1 − sin²)): a smaller cosine only makes the
@@ -367,10 +363,10 @@ mod tests {
     use glam::Vec3A;
 
     use super::*;
+    use crate::accel::PacketHits;
     use crate::math::Ray;
     use crate::rng::Rng;
     use crate::scene::Scene;
-    use crate::wide::PacketHits;
 
     /// Course scene 2's room (floor, roof, eight wall triangles) with four random triangles and
     /// three spheres inside: a flat list of four packets.

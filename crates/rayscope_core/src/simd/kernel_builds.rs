@@ -7,8 +7,8 @@ use std::path::Path;
 
 use glam::Vec3A;
 
-use super::packet::*;
-use super::PacketHits;
+use crate::accel::packet::*;
+use crate::accel::PacketHits;
 use crate::camera::{camera_dirs, Camera};
 use crate::math::{Ray, RayPacket};
 use crate::optics::{specular_rays_avx2, specular_rays_avx512, specular_rays_impl, SpecularRays};

@@ -90,7 +90,7 @@ const BINS: usize = 16;
 const MAX_LEAF: usize = 4;
 /// The most primitives a leaf holds: up to [`MAX_LEAF`] always, and up to twice that where the
 /// SAH finds no split worth a node.
-pub(crate) const MAX_LEAF_PRIMS: usize = 2 * MAX_LEAF;
+pub(super) const MAX_LEAF_PRIMS: usize = 2 * MAX_LEAF;
 /// Below this many primitives a subtree is built on the current thread.
 const PARALLEL_CUTOFF: usize = 4096;
 /// From this many primitives a node's passes over them are shared among the threads, in chunks
