@@ -146,7 +146,8 @@ impl Bsdf {
                 alpha: glossy_alpha(m.value),
                 coat_only,
             }),
-            _ => None,
+            // Mirrors and glass send rays on (`crate::optics`); emitters are not shaded.
+            MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Emissive => None,
         }
     }
 
