@@ -9,7 +9,7 @@ use crate::geometry::PrimRef;
 use crate::lights::{point_light_contribution, point_light_contribution_brdf, toward_point_light};
 use crate::math::{basis, Ray};
 use crate::mistakes::{self, Mistake};
-use crate::observer::{BranchFate, GlassBranch, GlassDecision, RayKind, RayObserver};
+use crate::observer::{BranchFate, GlassBranch, GlassDecision, NoObserver, RayKind, RayObserver};
 use crate::rng::Rng;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material};
@@ -197,6 +197,26 @@ impl<I: Intersect> Integrator<'_, I> {
             }
         };
         self.absorb(path, hit.t, out)
+    }
+
+    /// [`Self::trace_hit`] for a lane that a packet engine hands to this one at its hit `hit`,
+    /// whose surface is `s`: the rest of its path one ray at a time, with `rng` its stream,
+    /// unrecorded.
+    #[inline]
+    pub(super) fn continue_lane(
+        &self,
+        ray: &Ray,
+        hit: (&Hit, &Surface),
+        path: PathState,
+        rng: &mut Rng,
+        c: &mut Counters,
+    ) -> Li {
+        let cx = &mut PathCx {
+            rng,
+            obs: &mut NoObserver,
+            c,
+        };
+        self.trace_hit(ray, hit, path, true, 0, cx)
     }
 
     /// The surface as a tracer with [`Mistake::ReversedNormals`] sees it: a triangle's normal

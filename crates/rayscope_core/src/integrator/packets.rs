@@ -217,20 +217,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     };
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (lanes.ray(i), surf.get(i));
-                    vals[i] = self
-                        .trace_hit(
-                            &ray,
-                            (&hit, &s),
-                            path,
-                            true,
-                            0,
-                            &mut PathCx {
-                                rng: &mut rng,
-                                obs: &mut NoObserver,
-                                c,
-                            },
-                        )
-                        .total();
+                    vals[i] = self.continue_lane(&ray, (&hit, &s), path, &mut rng, c).total();
                     Next::Done
                 }
             };

@@ -34,7 +34,6 @@
 use glam::{Vec3, Vec3A};
 
 use super::camera_packets::CameraBatch;
-use super::one_path::PathCx;
 use super::packets::{Job, LitLanes};
 use super::rules::{Li, PathState};
 use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
@@ -43,7 +42,6 @@ use crate::bsdf::{lambert_f, lambert_pdf, lambert_sample_lanes, transport_albedo
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::math::{basis_lanes, not_at_most, Ray};
-use crate::observer::NoObserver;
 use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_world_unit_lanes};
 use crate::scene::{Hit, Intersect};
@@ -385,18 +383,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     let mut rng = w.rng.get(i);
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (w.ray(i), surf.get(i));
-                    let li = self.trace_hit(
-                        &ray,
-                        (&hit, &s),
-                        path,
-                        true,
-                        0,
-                        &mut PathCx {
-                            rng: &mut rng,
-                            obs: &mut NoObserver,
-                            c,
-                        },
-                    );
+                    let li = self.continue_lane(&ray, (&hit, &s), path, &mut rng, c);
                     // A glass split below may still trace its second ray, from where the stream
                     // now stands.
                     w.rng.set(i, &rng);
@@ -631,6 +618,7 @@ mod tests {
 
     use super::*;
     use crate::integrator::Engine;
+    use crate::observer::NoObserver;
     use crate::scene::Scene;
     use crate::settings::{RenderSettings, Stage};
 
