@@ -785,8 +785,10 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     assert_eq!(seen.into_iter().collect::<Vec<_>>(), ["rayscope", "yours"], "flicker");
     shot(c, "10-compare-flicker.png").await;
 
-    // Hover a pixel where the pictures differ (the pixels two around it too: below 1× a screen
-    // pixel spans more than one image pixel, so the pointer may land beside it): the readout has both values and the entity.
+    // Hover a pixel where the pictures differ, and so do the pixels four around it: below 1× a
+    // screen pixel spans two or more image pixels, and the pointer lands within a screen pixel
+    // or two of the asked point (WebDriver offsets are whole pixels from the element's centre),
+    // so it may land beside the pixel. The readout has both values and the entity.
     let v = c
         .execute_async(
             r#"const [done] = arguments;
@@ -799,9 +801,9 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
             Promise.all([pixels("/api/image.png"), pixels("/api/rays/image.png")]).then(([a, b]) => {
               const W = 400, diff = (x, y) => { const i = (y * W + x) * 4; return Math.abs(a[i] - b[i]) + Math.abs(a[i + 1] - b[i + 1]) + Math.abs(a[i + 2] - b[i + 2]); };
               let best = null;
-              for (let y = 2; y < 398; y++) for (let x = 2; x < 398; x++) {
+              for (let y = 4; y < 396; y++) for (let x = 4; x < 396; x++) {
                 let m = Infinity;
-                for (let dy = -2; dy <= 2; dy++) for (let dx = -2; dx <= 2; dx++) m = Math.min(m, diff(x + dx, y + dy));
+                for (let dy = -4; dy <= 4; dy++) for (let dx = -4; dx <= 4; dx++) m = Math.min(m, diff(x + dx, y + dy));
                 if (!best || m > best.m) best = { x, y, m };
               }
               const img = document.getElementById("image");
@@ -809,7 +811,7 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
               const tx = r.left + (best.x + 0.5) / W * r.width, ty = r.top + (best.y + 0.5) / W * r.height;
               const at = (x, y) => { const i = (y * W + x) * 4; return [[b[i], b[i + 1], b[i + 2]].join(","), [a[i], a[i + 1], a[i + 2]].join(",")]; };
               const values = {};
-              for (let dy = -2; dy <= 2; dy++) for (let dx = -2; dx <= 2; dx++) values[`${best.x + dx},${best.y + dy}`] = at(best.x + dx, best.y + dy);
+              for (let dy = -4; dy <= 4; dy++) for (let dx = -4; dx <= 4; dx++) values[`${best.x + dx},${best.y + dy}`] = at(best.x + dx, best.y + dy);
               done({ x: best.x, y: best.y, m: best.m, dx: Math.round(tx - (r.left + r.width / 2)), dy: Math.round(ty - (r.top + r.height / 2)), values });
             });"#,
             vec![],
