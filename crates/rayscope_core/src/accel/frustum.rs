@@ -62,7 +62,7 @@ enum Cull {
 }
 
 /// What the primitives of a [`Bvh4`]'s flat list and planes look like from one apex (a pinhole
-/// camera's centre or a point light), for [`Beam`] tests.
+/// camera's centre or a point light), for `Beam` tests.
 #[derive(Debug, Clone)]
 pub struct ApexCull {
     apex: [f32; 3],

@@ -37,7 +37,7 @@ pub(super) const NO_PRIM: u32 = u32::MAX;
 pub struct Node4 {
     /// `bounds[axis][0]` = min of the four children on that axis, `[1]` = max.
     pub bounds: [[Vec4; 2]; 3],
-    /// Node index, `LEAF | packet` (with a [`RUN`] of more packets), `LEAF | SPHERES | packet`,
+    /// Node index, `LEAF | packet` (with a `RUN` of more packets), `LEAF | SPHERES | packet`,
     /// or `EMPTY`.
     pub children: [u32; 4],
     /// Bit i set when `children[i]` is used (sits in the padding of the 128-byte node).
@@ -134,7 +134,7 @@ pub struct Bvh4 {
     /// packets, where every ray would open every node anyway.
     pub flat: Vec<u32>,
     /// Full packets that single rays test one after another instead of walking the tree, when
-    /// that is cheaper (see [`Bvh4::walk_cost`]): in a small room every wall's box overlaps every
+    /// that is cheaper (see `Bvh4::walk_cost`): in a small room every wall's box overlaps every
     /// other, so a ray opens most of the tree anyway. Ray packets still walk the tree, whose node
     /// tests they share among sixteen rays. Empty otherwise.
     pub single: Vec<u32>,
@@ -144,7 +144,7 @@ pub struct Bvh4 {
     /// a binned SAH can build for pathological inputs: queries then use a heap stack, so no
     /// branch is ever lost, and ordinary trees pay nothing for the check.
     pub deep: bool,
-    /// True when the nodes and packets outgrow the per-core cache (see [`PREFETCH_BYTES`]), so
+    /// True when the nodes and packets outgrow the per-core cache (see `PREFETCH_BYTES`), so
     /// the walks prefetch the children they will visit.
     pub prefetch: bool,
     /// True when the tree is larger than [`SPLIT_BYTES`]: a pixel then usually covers several
