@@ -21,18 +21,19 @@ use std::time::Instant;
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
-use rayscope_scene::{MaterialKind, SceneFile, Shape};
+use rayscope_scene::{SceneFile, Shape};
 use serde::{Serialize, Serializer};
 
 use crate::camera::FovAxis;
 use crate::compare::compare_rgb8;
 use crate::film::to_byte;
 use crate::integrator::{Counters, Integrator};
+use crate::material::Material;
 use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayTree};
 use crate::render::{render, trace_pixel, Mistaken};
 use crate::scene::{Intersect, Scene};
-use crate::settings::{Channel, RenderSettings};
+use crate::settings::{Channel, RenderSettings, Stage};
 
 /// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
 /// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
@@ -360,15 +361,18 @@ struct Contents {
 
 impl Contents {
     fn of(file: &SceneFile) -> Contents {
-        let used = |k: MaterialKind| file.entities.iter().any(|e| file.materials[e.material].kind == k);
+        let used = |f: fn(&Material) -> bool| {
+            (file.entities.iter()).any(|e| f(&Material::from_def(&file.materials[e.material])))
+        };
         let mesh = |f: &dyn Fn(&rayscope_scene::Mesh) -> bool| {
             file.entities
                 .iter()
                 .any(|e| matches!(&e.shape, Shape::Mesh { mesh, .. } if f(mesh)))
         };
         Contents {
-            glass: used(MaterialKind::Refractive),
-            specular: used(MaterialKind::Refractive) || used(MaterialKind::Reflective),
+            glass: used(Material::is_glass),
+            // Mirrors and glass: what sends reflection rays at stage 2.
+            specular: used(|m| m.sends_reflection_rays(Stage::Two)),
             single_triangles: file.entities.iter().any(|e| matches!(e.shape, Shape::Triangle { .. })),
             triangles: file
                 .entities

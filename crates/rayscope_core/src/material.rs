@@ -7,7 +7,7 @@
 //! [`crate::bsdf::Bsdf::of`]) until it is decided.
 
 use glam::{Vec3, Vec3A};
-use rayscope_scene::MaterialKind;
+use rayscope_scene::{MaterialDef, MaterialKind};
 use serde::Serialize;
 
 use crate::settings::Stage;
@@ -29,6 +29,16 @@ fn ser_kind<S: serde::Serializer>(k: &MaterialKind, s: S) -> Result<S::Ok, S::Er
 }
 
 impl Material {
+    /// The renderer's form of a scene file's material: its colour and number in f32.
+    #[must_use]
+    pub fn from_def(m: &MaterialDef) -> Material {
+        Material {
+            kind: m.kind,
+            color: m.color.as_vec3(),
+            value: m.value as f32,
+        }
+    }
+
     /// The radiance a surface of this material emits, when it emits any (the full renderer's
     /// area lights).
     #[must_use]

@@ -307,15 +307,7 @@ impl Scene {
     /// The scene's geometry and materials, without the BVH.
     fn convert(file: &SceneFile) -> Scene {
         let mut s = Scene {
-            materials: file
-                .materials
-                .iter()
-                .map(|m| Material {
-                    kind: m.kind,
-                    color: v3(m.color).into(),
-                    value: m.value as f32,
-                })
-                .collect(),
+            materials: file.materials.iter().map(Material::from_def).collect(),
             material_names: file.materials.iter().map(|m| m.name.clone()).collect(),
             lights: file
                 .lights
