@@ -2,11 +2,162 @@
 //!
 //! Every routine is two-sided and returns the nearest `t` in the open interval `(t_min, t_max)`.
 //! Rays must have unit-length directions.
+//!
+//! Each test's arithmetic is written once, generic over the SIMD module's `Lanes`: the one-ray
+//! tests here run it on `f32`, the BVH's 1×4 tests (one ray, four primitives) on `Vec4`, and its
+//! 16×1 tests (one primitive, sixteen rays) on `f32` in a loop the compiler vectorises. All of
+//! them therefore return the same bits for the same ray and primitive.
 
 use glam::{Vec3A, Vec4};
 use serde::Serialize;
 
 use crate::math::{Aabb, Ray};
+use crate::simd::Lanes;
+
+/// A vector stored per axis: x, y and z, each a [`Lanes`] value.
+pub(crate) type Axes<L> = [L; 3];
+
+#[inline(always)]
+fn sub<L: Lanes>(a: &Axes<L>, b: &Axes<L>) -> Axes<L> {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline(always)]
+fn dot<L: Lanes>(a: &Axes<L>, b: &Axes<L>) -> L {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// a × b.
+#[inline(always)]
+pub(crate) fn cross<L: Lanes>(a: &Axes<L>, b: &Axes<L>) -> Axes<L> {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// `x < t_max`, or with `TIES` `x <= t_max`: a closest-hit query through the BVH keeps hits at
+/// exactly the best distance so far for its tie rule to decide; every other bound is strict.
+#[inline(always)]
+fn below<L: Lanes, const TIES: bool>(x: L, t_max: L) -> L::Mask {
+    if TIES {
+        x.cmple(t_max)
+    } else {
+        x.cmplt(t_max)
+    }
+}
+
+/// The plane test: where the ray meets the plane through `p` with normal `n`, and whether that
+/// is inside `(t_min, t_max)`.
+#[inline(always)]
+pub(crate) fn plane_hit<L: Lanes, const TIES: bool>(
+    p: &Axes<L>,
+    n: &Axes<L>,
+    o: &Axes<L>,
+    d: &Axes<L>,
+    t_min: L,
+    t_max: L,
+) -> (L::Mask, L) {
+    // A ray parallel to the plane never meets it (one lying in it is treated as a miss too).
+    let den = dot(n, d);
+    let t = dot(&sub(p, o), n) / den;
+    let hit = den.cmpne(L::splat(0.0)) & t.cmpgt(t_min) & below::<L, TIES>(t, t_max);
+    (hit, t)
+}
+
+/// The first half of the sphere test: the ray's offset from the centre, and the discriminant,
+/// negative when the ray's line misses the sphere.
+pub(crate) struct SphereLine<L: Lanes> {
+    /// Origin − centre.
+    f: Axes<L>,
+    /// −(f · d), the distance along the ray to the point of its line nearest the centre.
+    b: L,
+    /// r² minus the squared distance of the line from the centre.
+    pub(crate) disc: L,
+}
+
+/// Where the ray's line passes the sphere with centre `c` and squared radius `r2`.
+#[inline(always)]
+pub(crate) fn sphere_line<L: Lanes>(c: &Axes<L>, r2: L, o: &Axes<L>, d: &Axes<L>) -> SphereLine<L> {
+    // Numerically careful form (Haines et al., "Precision Improvements for Ray/Sphere
+    // Intersection", Ray Tracing Gems ch. 7): the discriminant is computed from the distance of
+    // the centre to the ray's line rather than as b² − c, which cancels catastrophically for
+    // small or distant spheres.
+    let f = sub(o, c);
+    let b = -dot(&f, d);
+    let l = [f[0] + d[0] * b, f[1] + d[1] * b, f[2] + d[2] * b];
+    let disc = r2 - dot(&l, &l);
+    SphereLine { f, b, disc }
+}
+
+impl<L: Lanes> SphereLine<L> {
+    /// The second half: whether the ray meets the sphere inside `(t_min, t_max)`, and the nearer
+    /// such distance.
+    #[inline(always)]
+    pub(crate) fn hit<const TIES: bool>(&self, r2: L, t_min: L, t_max: L) -> (L::Mask, L) {
+        let zero = L::splat(0.0);
+        let c = dot(&self.f, &self.f) - r2;
+        let q = self.b + self.disc.maxps(zero).sqrt().copysign(self.b);
+        // Roots c/q and q: the stable pair whatever the sign of b (none when q is 0).
+        let (t0, t1) = (c / q, q);
+        let (lo, hi) = (t0.minps(t1), t0.maxps(t1));
+        let lo_ok = lo.cmpgt(t_min) & below::<L, TIES>(lo, t_max);
+        let hi_ok = hi.cmpgt(t_min) & below::<L, TIES>(hi, t_max);
+        let hit = self.disc.cmpge(zero) & q.cmpne(zero) & (lo_ok | hi_ok);
+        (hit, L::select(lo_ok, lo, hi))
+    }
+}
+
+/// The first half of the triangle test, up to the supporting plane: Möller–Trumbore, two-sided,
+/// rearranged around the normal n = e1 × e2 (as Embree does). With c = v0 − o and r = d × c the
+/// barycentrics and the distance are −(e2·r), e1·r and c·n over d·n; everything is kept
+/// multiplied by a = |d·n|, so the division is made only for a hit.
+pub(crate) struct TrianglePlane<L: Lanes> {
+    /// v0 − origin.
+    pub(crate) c: Axes<L>,
+    /// The sign of d·n.
+    pub(crate) s: L,
+    /// |d·n|.
+    pub(crate) a: L,
+    /// The distance times `a`.
+    pub(crate) t: L,
+    /// The ray meets the plane with `t_min < t < t_far` (compared undivided).
+    pub(crate) hit: L::Mask,
+}
+
+/// Where the ray meets the plane of the triangle with corner `v0` and normal `n` = e1 × e2.
+#[inline(always)]
+pub(crate) fn triangle_plane<L: Lanes>(
+    v0: &Axes<L>,
+    n: &Axes<L>,
+    o: &Axes<L>,
+    d: &Axes<L>,
+    t_min: L,
+    t_far: L,
+) -> TrianglePlane<L> {
+    let c = sub(v0, o);
+    let den = dot(d, n);
+    let s = L::splat(1.0).copysign(den);
+    let a = den.abs();
+    let t = dot(&c, n) * s;
+    let hit = den.cmpne(L::splat(0.0)) & t.cmpgt(t_min * a) & t.cmplt(t_far * a);
+    TrianglePlane { c, s, a, t, hit }
+}
+
+impl<L: Lanes> TrianglePlane<L> {
+    /// The second half, the edges: the barycentrics (times `a`) of the point where the ray `d`
+    /// meets the plane, and where the ray meets the triangle with edges `e1`, `e2` inside
+    /// `(t_min, t_far)`.
+    #[inline(always)]
+    pub(crate) fn edges(&self, e1: &Axes<L>, e2: &Axes<L>, d: &Axes<L>) -> (L, L, L::Mask) {
+        let r = cross(d, &self.c);
+        let u = dot(e2, &r) * -self.s;
+        let v = dot(e1, &r) * self.s;
+        let zero = L::splat(0.0);
+        (u, v, self.hit & u.cmpge(zero) & v.cmpge(zero) & (u + v).cmple(self.a))
+    }
+}
 
 /// Where a ray met a primitive: distance plus the two surface parameters the primitive needs to
 /// rebuild its normal (barycentrics for triangles, unused elsewhere).
@@ -40,13 +191,9 @@ pub struct Plane {
 impl Primitive for Plane {
     #[inline]
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
-        let denom = self.normal.dot(ray.dir);
-        // A ray parallel to the plane never meets it (one lying in it is treated as a miss too).
-        if denom == 0.0 {
-            return None;
-        }
-        let t = (self.point - ray.origin).dot(self.normal) / denom;
-        (t > t_min && t < t_max).then_some(PrimHit { t, u: 0.0, v: 0.0 })
+        let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
+        let (hit, t) = plane_hit::<f32, false>(&self.point.to_array(), &self.normal.to_array(), &o, &d, t_min, t_max);
+        hit.then_some(PrimHit { t, u: 0.0, v: 0.0 })
     }
 
     #[inline]
@@ -78,32 +225,14 @@ impl Sphere {
 impl Primitive for Sphere {
     #[inline]
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
-        // Numerically careful form (Haines et al., "Precision Improvements for Ray/Sphere
-        // Intersection", Ray Tracing Gems ch. 7): the discriminant is computed from the distance
-        // of the centre to the ray's line rather than as b² − c, which cancels catastrophically
-        // for small or distant spheres.
-        let f = ray.origin - self.center;
-        let b = -f.dot(ray.dir);
-        let l = f + ray.dir * b;
+        let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
         let r2 = self.radius * self.radius;
-        let disc = r2 - l.length_squared();
-        if disc < 0.0 {
+        let line = sphere_line(&self.center.to_array(), r2, &o, &d);
+        if line.disc < 0.0 {
             return None;
         }
-        let c = f.length_squared() - r2;
-        let q = b + disc.sqrt().copysign(b);
-        // Roots c/q and q: the stable pair whatever the sign of b.
-        let (mut t0, mut t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q) };
-        if t0 > t1 {
-            std::mem::swap(&mut t0, &mut t1);
-        }
-        if t0 > t_min && t0 < t_max {
-            Some(PrimHit { t: t0, u: 0.0, v: 0.0 })
-        } else if t1 > t_min && t1 < t_max {
-            Some(PrimHit { t: t1, u: 0.0, v: 0.0 })
-        } else {
-            None
-        }
+        let (hit, t) = line.hit::<false>(r2, t_min, t_max);
+        hit.then_some(PrimHit { t, u: 0.0, v: 0.0 })
     }
 
     #[inline]
@@ -232,30 +361,24 @@ impl Triangle {
 impl Primitive for Triangle {
     #[inline]
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimHit> {
-        // Möller–Trumbore, two-sided, rearranged around the normal n = e1 × e2 (as Embree does):
-        // with c = v0 − o and r = d × c, the barycentrics and distance are −(e2·r), e1·r and c·n
-        // over d·n. Comparing numerators against |d·n| defers the division to a hit. The 4-wide
-        // packets run exactly this arithmetic.
-        let (e1, e2) = (self.e1(), self.e2());
-        let n = e1.cross(e2);
-        let c = self.v0() - ray.origin;
-        let r = ray.dir.cross(c);
-        let den = ray.dir.dot(n);
-        if den == 0.0 {
+        let (o, d) = (ray.origin.to_array(), ray.dir.to_array());
+        let (e1, e2) = (self.e1().to_array(), self.e2().to_array());
+        let n = cross(&e1, &e2);
+        let plane = triangle_plane(&self.v0().to_array(), &n, &o, &d, t_min, t_max);
+        if !plane.hit {
             return None;
         }
-        let s = 1f32.copysign(den);
-        let a = den.abs();
-        let u = e2.dot(r) * -s;
-        let v = e1.dot(r) * s;
-        let t = c.dot(n) * s;
-        let inside = u >= 0.0 && v >= 0.0 && u + v <= a;
-        if !(inside && t > t_min * a && t < t_max * a) {
+        let (u, v, hit) = plane.edges(&e1, &e2, &d);
+        if !hit {
             return None;
         }
         // The scaled test can pass by a rounding error for a hit no nearer than `t_max`.
-        let t = t / a;
-        (t < t_max).then(|| PrimHit { t, u: u / a, v: v / a })
+        let t = plane.t / plane.a;
+        (t < t_max).then(|| PrimHit {
+            t,
+            u: u / plane.a,
+            v: v / plane.a,
+        })
     }
 
     #[inline]
@@ -281,6 +404,142 @@ mod tests {
 
     fn ray(o: [f32; 3], d: [f32; 3]) -> Ray {
         Ray::new(Vec3A::from(o), Vec3A::from(d).normalize())
+    }
+
+    /// Lane `k` of per-axis `Vec4`s.
+    fn lane(v: &Axes<Vec4>, k: usize) -> Axes<f32> {
+        v.map(|x| x.to_array()[k])
+    }
+
+    fn bits(x: f32) -> u32 {
+        x.to_bits()
+    }
+
+    #[test]
+    fn four_lanes_return_the_one_lane_bits() {
+        // The BVH tests one ray against four primitives at once (`Vec4`) and one primitive
+        // against sixteen rays (`f32` per ray); images stay the same across engines only if
+        // every lane computes exactly what the one-value form computes.
+        let mut rng = crate::rng::Rng::for_sample(11, 5, 3);
+        let mut counts = [0u32; 3];
+        for round in 0..20_000 {
+            let rng = &mut rng;
+            let mut f = || rng.next_f32();
+            let mut point = |scale: f32| std::array::from_fn::<f32, 3, _>(|_| (f() * 2.0 - 1.0) * scale);
+            let axes = |p: [[f32; 3]; 4]| -> Axes<Vec4> { std::array::from_fn(|a| Vec4::from_array(p.map(|q| q[a]))) };
+            let tris: [Triangle; 4] = std::array::from_fn(|_| {
+                Triangle::new(
+                    Vec3A::from(point(4.0)),
+                    Vec3A::from(point(4.0)),
+                    Vec3A::from(point(4.0)),
+                )
+            });
+            // Aim at a corner, an edge's midpoint or inside one of the triangles, or anywhere.
+            let k = round % 4;
+            let [a, b, c] = tris[k].vertices();
+            let target = match round % 5 {
+                0 => a,
+                1 => (b + c) * 0.5,
+                2 => a * 0.2 + b * 0.3 + c * 0.5,
+                _ => Vec3A::from(point(4.0)),
+            };
+            let origin = Vec3A::from(point(10.0));
+            let r = Ray::new(origin, (target - origin).normalize());
+            let (o, d) = (r.origin.to_array(), r.dir.to_array());
+            let (o4, d4) = (o.map(Vec4::splat), d.map(Vec4::splat));
+            let t_min = if round % 2 == 0 { 0.0 } else { 1e-3 };
+            let t_max = if round % 3 == 0 {
+                f32::INFINITY
+            } else {
+                point(10.0)[0] + 10.0
+            };
+
+            let v0 = axes(tris.map(|t| t.v0().to_array()));
+            let e1 = axes(tris.map(|t| t.e1().to_array()));
+            let e2 = axes(tris.map(|t| t.e2().to_array()));
+            let n = cross(&e1, &e2);
+            let plane4 = triangle_plane(&v0, &n, &o4, &d4, Vec4::splat(t_min), Vec4::splat(t_max));
+            let (u4, v4, hit4) = plane4.edges(&e1, &e2, &d4);
+            for (k, tri) in tris.iter().enumerate() {
+                let plane = triangle_plane(&lane(&v0, k), &lane(&n, k), &o, &d, t_min, t_max);
+                let (u, v, hit) = plane.edges(&lane(&e1, k), &lane(&e2, k), &d);
+                assert_eq!(plane.hit, plane4.hit.test(k), "round {round}: triangle {k}'s plane");
+                assert_eq!(hit, hit4.test(k), "round {round}: triangle {k}");
+                let four = [plane4.t, plane4.a, u4, v4].map(|x| bits(x.to_array()[k]));
+                assert_eq!([plane.t, plane.a, u, v].map(bits), four, "round {round}: triangle {k}");
+                // The one-ray test divides exactly these.
+                let one = tri.intersect(&r, t_min, t_max).map(|h| [h.t, h.u, h.v].map(bits));
+                let t = plane.t / plane.a;
+                let expected = (hit && t < t_max).then(|| [t, u / plane.a, v / plane.a].map(bits));
+                assert_eq!(one, expected, "round {round}: triangle {k}");
+                counts[0] += u32::from(hit);
+            }
+
+            let spheres: [Sphere; 4] = std::array::from_fn(|_| Sphere {
+                center: Vec3A::from(point(4.0)),
+                radius: 1.6 + point(1.5)[0],
+            });
+            let centre = axes(spheres.map(|s| s.center.to_array()));
+            let r2 = Vec4::from_array(spheres.map(|s| s.radius * s.radius));
+            let line4 = sphere_line(&centre, r2, &o4, &d4);
+            let closest4 = line4.hit::<true>(r2, Vec4::splat(t_min), Vec4::splat(t_max));
+            let shadow4 = line4.hit::<false>(r2, Vec4::splat(t_min), Vec4::splat(t_max));
+            for (k, sphere) in spheres.iter().enumerate() {
+                let r2 = sphere.radius * sphere.radius;
+                let line = sphere_line(&lane(&centre, k), r2, &o, &d);
+                assert_eq!(
+                    bits(line.disc),
+                    bits(line4.disc.to_array()[k]),
+                    "round {round}: sphere {k}"
+                );
+                for ((hit, t), (hit4, t4)) in [
+                    (line.hit::<true>(r2, t_min, t_max), closest4),
+                    (line.hit::<false>(r2, t_min, t_max), shadow4),
+                ] {
+                    assert_eq!(hit, hit4.test(k), "round {round}: sphere {k}");
+                    if hit {
+                        assert_eq!(bits(t), bits(t4.to_array()[k]), "round {round}: sphere {k}");
+                    }
+                }
+                let (hit, t) = line.hit::<false>(r2, t_min, t_max);
+                let one = sphere.intersect(&r, t_min, t_max).map(|h| bits(h.t));
+                assert_eq!(one, hit.then(|| bits(t)), "round {round}: sphere {k}");
+                counts[1] += u32::from(hit);
+            }
+
+            let planes: [Plane; 4] = std::array::from_fn(|_| Plane {
+                point: Vec3A::from(point(4.0)),
+                normal: Vec3A::from(point(1.0)).normalize_or(Vec3A::Y),
+            });
+            let p4 = axes(planes.map(|p| p.point.to_array()));
+            let n4 = axes(planes.map(|p| p.normal.to_array()));
+            for ties in [false, true] {
+                let (hit4, t4) = if ties {
+                    plane_hit::<_, true>(&p4, &n4, &o4, &d4, Vec4::splat(t_min), Vec4::splat(t_max))
+                } else {
+                    plane_hit::<_, false>(&p4, &n4, &o4, &d4, Vec4::splat(t_min), Vec4::splat(t_max))
+                };
+                for (k, plane) in planes.iter().enumerate() {
+                    let (p, n) = (lane(&p4, k), lane(&n4, k));
+                    let (hit, t) = if ties {
+                        plane_hit::<_, true>(&p, &n, &o, &d, t_min, t_max)
+                    } else {
+                        plane_hit::<_, false>(&p, &n, &o, &d, t_min, t_max)
+                    };
+                    assert_eq!(hit, hit4.test(k), "round {round}: plane {k}");
+                    if hit {
+                        assert_eq!(bits(t), bits(t4.to_array()[k]), "round {round}: plane {k}");
+                    }
+                    if !ties {
+                        let one = plane.intersect(&r, t_min, t_max).map(|h| bits(h.t));
+                        assert_eq!(one, hit.then(|| bits(t)), "round {round}: plane {k}");
+                        counts[2] += u32::from(hit);
+                    }
+                }
+            }
+        }
+        // Enough of each kind hit for the comparison to mean something.
+        assert!(counts.iter().all(|&c| c > 5_000), "hits per kind: {counts:?}");
     }
 
     #[test]

@@ -1,5 +1,6 @@
-//! The SIMD vocabulary every sixteen-lane kernel shares: the lane count, lane masks, lane access,
-//! the run-time choice of instruction set and the cache prefetch hint.
+//! The SIMD vocabulary every lane kernel shares: the lane count, lane masks, lane access, the
+//! number type that lets a rule be written once for one lane or four (`Lanes`), the run-time
+//! choice of instruction set and the cache prefetch hint.
 //!
 //! The kernels are plain loops over `[f32; LANES]` arrays that the compiler vectorises. A module
 //! with a kernel defines its entry point with `dispatched!`, which also compiles the kernel with
@@ -61,6 +62,150 @@ pub(crate) fn maxps(a: f32, b: f32) -> f32 {
 #[inline(always)]
 pub(crate) fn max_element(c: [f32; 3]) -> f32 {
     maxps(maxps(c[0], c[2]), maxps(c[1], c[2]))
+}
+
+/// A number the ray–primitive tests compute with: one `f32`, or four in a `Vec4` (one ray
+/// against four primitives). Both carry out each operation with the same rounding, so a test
+/// written once over `Lanes` gives every lane the bits the one-value form gives.
+pub(crate) trait Lanes:
+    Copy
+    + std::ops::Add<Output = Self>
+    + std::ops::Sub<Output = Self>
+    + std::ops::Mul<Output = Self>
+    + std::ops::Div<Output = Self>
+    + std::ops::Neg<Output = Self>
+{
+    /// Per-lane flags.
+    type Mask: Copy + std::ops::BitAnd<Output = Self::Mask> + std::ops::BitOr<Output = Self::Mask>;
+    /// `x` in every lane.
+    fn splat(x: f32) -> Self;
+    /// The magnitude of `self` with the sign of `sign`.
+    fn copysign(self, sign: Self) -> Self;
+    /// Absolute value.
+    fn abs(self) -> Self;
+    /// Square root.
+    fn sqrt(self) -> Self;
+    /// `self < o`.
+    fn cmplt(self, o: Self) -> Self::Mask;
+    /// `self <= o`.
+    fn cmple(self, o: Self) -> Self::Mask;
+    /// `self > o`.
+    fn cmpgt(self, o: Self) -> Self::Mask;
+    /// `self >= o`.
+    fn cmpge(self, o: Self) -> Self::Mask;
+    /// `self != o`.
+    fn cmpne(self, o: Self) -> Self::Mask;
+    /// `a` where `m`, else `b`.
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self;
+    /// `minps`: `self` when `self < o`, else `o` (so `o` when either is NaN).
+    fn minps(self, o: Self) -> Self;
+    /// `maxps`: `self` when `self > o`, else `o` (so `o` when either is NaN).
+    fn maxps(self, o: Self) -> Self;
+}
+
+impl Lanes for f32 {
+    type Mask = bool;
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        x
+    }
+    #[inline(always)]
+    fn copysign(self, sign: Self) -> Self {
+        f32::copysign(self, sign)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        f32::abs(self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        f32::sqrt(self)
+    }
+    #[inline(always)]
+    fn cmplt(self, o: Self) -> bool {
+        self < o
+    }
+    #[inline(always)]
+    fn cmple(self, o: Self) -> bool {
+        self <= o
+    }
+    #[inline(always)]
+    fn cmpgt(self, o: Self) -> bool {
+        self > o
+    }
+    #[inline(always)]
+    fn cmpge(self, o: Self) -> bool {
+        self >= o
+    }
+    #[inline(always)]
+    fn cmpne(self, o: Self) -> bool {
+        self != o
+    }
+    #[inline(always)]
+    fn select(m: bool, a: Self, b: Self) -> Self {
+        sel(m, a, b)
+    }
+    #[inline(always)]
+    fn minps(self, o: Self) -> Self {
+        sel(self < o, self, o)
+    }
+    #[inline(always)]
+    fn maxps(self, o: Self) -> Self {
+        maxps(self, o)
+    }
+}
+
+impl Lanes for glam::Vec4 {
+    type Mask = glam::BVec4A;
+    #[inline(always)]
+    fn splat(x: f32) -> Self {
+        glam::Vec4::splat(x)
+    }
+    #[inline(always)]
+    fn copysign(self, sign: Self) -> Self {
+        glam::Vec4::copysign(self, sign)
+    }
+    #[inline(always)]
+    fn abs(self) -> Self {
+        glam::Vec4::abs(self)
+    }
+    #[inline(always)]
+    fn sqrt(self) -> Self {
+        glam::Vec4::from_array(self.to_array().map(f32::sqrt))
+    }
+    #[inline(always)]
+    fn cmplt(self, o: Self) -> Self::Mask {
+        glam::Vec4::cmplt(self, o)
+    }
+    #[inline(always)]
+    fn cmple(self, o: Self) -> Self::Mask {
+        glam::Vec4::cmple(self, o)
+    }
+    #[inline(always)]
+    fn cmpgt(self, o: Self) -> Self::Mask {
+        glam::Vec4::cmpgt(self, o)
+    }
+    #[inline(always)]
+    fn cmpge(self, o: Self) -> Self::Mask {
+        glam::Vec4::cmpge(self, o)
+    }
+    #[inline(always)]
+    fn cmpne(self, o: Self) -> Self::Mask {
+        glam::Vec4::cmpne(self, o)
+    }
+    #[inline(always)]
+    fn select(m: Self::Mask, a: Self, b: Self) -> Self {
+        glam::Vec4::select(m, a, b)
+    }
+    #[inline(always)]
+    fn minps(self, o: Self) -> Self {
+        // glam's `min` and `max` are `minps` and `maxps`.
+        glam::Vec4::min(self, o)
+    }
+    #[inline(always)]
+    fn maxps(self, o: Self) -> Self {
+        glam::Vec4::max(self, o)
+    }
 }
 
 /// Asks the CPU to start loading the cache line at `p` (a hint: it never faults, whatever `p`).

@@ -12,8 +12,7 @@ use super::layout::{
     Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, EMPTY, LEAF, MAX_RUN, NO_PRIM, PREFETCH_BYTES, RUN, RUN_SHIFT,
     SPHERES, SPLIT_BYTES, SPLIT_SHADOW_NODES, STACK,
 };
-use super::single::cross;
-use crate::geometry::{Plane, Sphere, Triangle};
+use crate::geometry::{cross, Plane, Sphere, Triangle};
 use crate::math::Aabb;
 
 /// Scenes that fit in this many packets are tested flat, without a tree.

@@ -19,9 +19,9 @@ use super::layout::{
     TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
 use super::single::{far, NodeConsts, RayConsts, TraversalStack, Walk, SLAB_SLACK};
-use crate::geometry::PrimRef;
+use crate::geometry::{plane_hit, sphere_line, triangle_plane, PrimRef, TrianglePlane};
 use crate::math::RayPacket;
-use crate::simd::{dispatched, Mask, LANES};
+use crate::simd::{dispatched, put, Mask, LANES};
 
 /// Every lane of a primitive packet.
 const ALL: u32 = 0xF;
@@ -145,6 +145,18 @@ fn lane_of(v: &[glam::Vec4; 3], k: usize) -> [f32; 3] {
     [at(0), at(1), at(2)]
 }
 
+/// Ray `i`'s origin.
+#[inline(always)]
+fn ray_o(rays: &RayPacket, i: usize) -> [f32; 3] {
+    [rays.o[0][i], rays.o[1][i], rays.o[2][i]]
+}
+
+/// Ray `i`'s direction.
+#[inline(always)]
+fn ray_d(rays: &RayPacket, i: usize) -> [f32; 3] {
+    [rays.d[0][i], rays.d[1][i], rays.d[2][i]]
+}
+
 /// `a` when `c`, else `b`: written so the compiler emits a blend.
 #[inline(always)]
 fn sel(c: bool, a: f32, b: f32) -> f32 {
@@ -225,17 +237,6 @@ impl PacketBest {
     }
 }
 
-/// `x < t_max`, or with `TIES` `x <= t_max`: a closest-hit query keeps hits at exactly the best
-/// distance so far for the tie rule ([`beats`]) to decide; a shadow query's bound is strict.
-#[inline(always)]
-fn below<const TIES: bool>(x: f32, t_max: f32) -> bool {
-    if TIES {
-        x <= t_max
-    } else {
-        x < t_max
-    }
-}
-
 #[inline(always)]
 fn any(m: &Mask) -> bool {
     m.iter().fold(false, |a, &b| a | b)
@@ -252,44 +253,38 @@ fn any_fresh(m: &Mask) -> bool {
 }
 
 impl TriPacket {
-    /// Lane `k`'s triangle tested against every ray: the per-ray arithmetic of
-    /// [`TriPacket::closest`]. Returns (hit, t, u, v, |d·n|) per ray, undivided; `None` when no
+    /// Lane `k`'s triangle tested against every ray ([`triangle_plane`], as in
+    /// [`TriPacket::closest`]). Returns (hit, t, u, v, |d·n|) per ray, undivided; `None` when no
     /// ray meets the triangle's plane inside its interval (checked before the edge tests, as the
     /// single-ray test does, so shadow rays that end before a wall cost a third).
     #[inline(always)]
     fn lane_vs_rays(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> Option<(Mask, F, F, F, F)> {
         let (v0, n) = (lane_of(&self.v0, k), lane_of(&self.n, k));
-        let (mut ok, mut t, mut den, mut a) = ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let (mut ok, mut t, mut s, mut a) = ([false; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
         let mut c = [[0.0; LANES]; 3];
         for i in 0..LANES {
-            for ax in 0..3 {
-                c[ax][i] = v0[ax] - rays.o[ax][i];
-            }
-            den[i] = rays.d[0][i] * n[0] + rays.d[1][i] * n[1] + rays.d[2][i] * n[2];
-            let s = 1f32.copysign(den[i]);
-            a[i] = den[i].abs();
-            t[i] = (c[0][i] * n[0] + c[1][i] * n[1] + c[2][i] * n[2]) * s;
-            ok[i] = (den[i] != 0.0) & (t[i] > t_min * a[i]) & (t[i] < t_max[i] * a[i]);
+            let plane = triangle_plane(&v0, &n, &ray_o(rays, i), &ray_d(rays, i), t_min, t_max[i]);
+            put(&mut c, i, plane.c);
+            (ok[i], t[i], s[i], a[i]) = (plane.hit, plane.t, plane.s, plane.a);
         }
         if !any_fresh(&ok) {
             return None;
         }
         let (e1, e2) = (lane_of(&self.e1, k), lane_of(&self.e2, k));
-        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
+        // The plane half is kept per ray in arrays, so the loop above stays vectorised and the
+        // edge half runs only when some ray meets the plane.
+        let (mut u, mut v, mut hit) = ([0.0; LANES], [0.0; LANES], [false; LANES]);
         for i in 0..LANES {
-            let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
-            let c = [c[0][i], c[1][i], c[2][i]];
-            let s = 1f32.copysign(den[i]);
-            let r = [
-                d[1] * c[2] - d[2] * c[1],
-                d[2] * c[0] - d[0] * c[2],
-                d[0] * c[1] - d[1] * c[0],
-            ];
-            u[i] = (e2[0] * r[0] + e2[1] * r[1] + e2[2] * r[2]) * -s;
-            v[i] = (e1[0] * r[0] + e1[1] * r[1] + e1[2] * r[2]) * s;
-            ok[i] &= (u[i] >= 0.0) & (v[i] >= 0.0) & (u[i] + v[i] <= a[i]);
+            let plane = TrianglePlane {
+                c: [c[0][i], c[1][i], c[2][i]],
+                s: s[i],
+                a: a[i],
+                t: t[i],
+                hit: ok[i],
+            };
+            (u[i], v[i], hit[i]) = plane.edges(&e1, &e2, &ray_d(rays, i));
         }
-        Some((ok, t, u, v, a))
+        Some((hit, t, u, v, a))
     }
 
     #[inline(always)]
@@ -345,30 +340,15 @@ fn block(rays: &mut RayPacket, blocked: &mut Mask, ok: &Mask) {
 }
 
 impl SpherePacket {
-    /// Lane `k`'s sphere against every ray: the arithmetic of [`SpherePacket::closest`].
+    /// Lane `k`'s sphere against every ray ([`sphere_line`], as in [`SpherePacket::closest`]).
     #[inline(always)]
     fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
         let c = lane_of(&self.c, k);
         let r2 = AsRef::<[f32; 4]>::as_ref(&self.r2)[k];
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
-            let d = [rays.d[0][i], rays.d[1][i], rays.d[2][i]];
-            let f = [rays.o[0][i] - c[0], rays.o[1][i] - c[1], rays.o[2][i] - c[2]];
-            let b = -(f[0] * d[0] + f[1] * d[1] + f[2] * d[2]);
-            let l = [f[0] + d[0] * b, f[1] + d[1] * b, f[2] + d[2] * b];
-            let disc = r2 - (l[0] * l[0] + l[1] * l[1] + l[2] * l[2]);
-            let cc = (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]) - r2;
-            let sq = sel(disc > 0.0, disc, 0.0).sqrt();
-            let q = b + sq.copysign(b);
-            let t0 = cc / q;
-            let t1 = q;
-            // minps/maxps semantics (second operand on NaN), as the 4-wide test.
-            let lo = sel(t0 < t1, t0, t1);
-            let hi = sel(t0 > t1, t0, t1);
-            let lo_ok = (lo > t_min) & below::<TIES>(lo, t_max[i]);
-            let hi_ok = (hi > t_min) & below::<TIES>(hi, t_max[i]);
-            ok[i] = (disc >= 0.0) & (q != 0.0) & (lo_ok | hi_ok);
-            t[i] = sel(lo_ok, lo, hi);
+            let line = sphere_line(&c, r2, &ray_o(rays, i), &ray_d(rays, i));
+            (ok[i], t[i]) = line.hit::<TIES>(r2, t_min, t_max[i]);
         }
         (ok, t)
     }
@@ -387,17 +367,13 @@ impl SpherePacket {
 }
 
 impl PlanePacket {
-    /// Lane `k`'s plane against every ray: the arithmetic of [`PlanePacket::closest`].
+    /// Lane `k`'s plane against every ray ([`plane_hit`], as in [`PlanePacket::closest`]).
     #[inline(always)]
     fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
         let (p, n) = (lane_of(&self.p, k), lane_of(&self.n, k));
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
-            let den = n[0] * rays.d[0][i] + n[1] * rays.d[1][i] + n[2] * rays.d[2][i];
-            let w = [p[0] - rays.o[0][i], p[1] - rays.o[1][i], p[2] - rays.o[2][i]];
-            let ti = (w[0] * n[0] + w[1] * n[1] + w[2] * n[2]) / den;
-            ok[i] = (den != 0.0) & (ti > t_min) & below::<TIES>(ti, t_max[i]);
-            t[i] = ti;
+            (ok[i], t[i]) = plane_hit::<_, TIES>(&p, &n, &ray_o(rays, i), &ray_d(rays, i), t_min, t_max[i]);
         }
         (ok, t)
     }

@@ -10,7 +10,7 @@ use super::layout::{
     beats, Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, WideHit, EMPTY, LEAF, NO_PRIM, RUN, RUN_SHIFT, SPHERES,
     STACK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
-use crate::geometry::PrimRef;
+use crate::geometry::{plane_hit, sphere_line, triangle_plane, PrimRef};
 use crate::math::Ray;
 
 /// Per-ray constants for the packet tests.
@@ -65,18 +65,6 @@ pub(super) fn far(ties: bool, t_max: f32) -> f32 {
         t_max * SLAB_SLACK
     } else {
         t_max
-    }
-}
-
-/// `x < t_max` per lane, or with `TIES` `x <= t_max`: a closest-hit query keeps hits at exactly
-/// the best distance so far for the tie rule ([`beats`]) to decide; a shadow query's bound is
-/// strict. (Triangles filter their undivided distance with [`far`] instead.)
-#[inline(always)]
-fn below<const TIES: bool>(x: Vec4, t_max: Vec4) -> BVec4A {
-    if TIES {
-        x.cmple(t_max)
-    } else {
-        x.cmplt(t_max)
     }
 }
 
@@ -516,20 +504,6 @@ pub(super) fn node_test(node: &Node4, rc: &RayConsts, nc: &NodeConsts, t_min: f3
     (t0.cmple(t1 * Vec4::splat(SLAB_SLACK)).bitmask() & node.valid, t0)
 }
 
-#[inline(always)]
-pub(super) fn cross(a: &[Vec4; 3], b: &[Vec4; 3]) -> [Vec4; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
-#[inline(always)]
-fn dot(a: &[Vec4; 3], b: &[Vec4; 3]) -> Vec4 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
 /// The lane with the smallest `t` among `mask`; of lanes at exactly the same `t`, the lowest,
 /// which holds the lowest primitive index (packets keep their ids in ascending order), as the
 /// tie rule ([`beats`]) wants.
@@ -554,32 +528,29 @@ struct Undivided {
 }
 
 impl TriPacket {
-    /// Möller–Trumbore on four triangles at once up to the division, rearranged around the
-    /// stored normal: the lanes whose triangle the ray meets with `t_min < t < t_far` (compared
-    /// undivided, so the caller decides on the divided distance), or `None` when there are none.
+    /// The triangle test ([`triangle_plane`]) on four triangles at once, up to the division: the
+    /// lanes whose triangle the ray meets with `t_min < t < t_far` (compared undivided, so the
+    /// caller decides on the divided distance), or `None` when there are none.
     #[inline(always)]
     fn undivided(&self, rc: &RayConsts, t_min: f32, t_far: f32) -> Option<Undivided> {
-        let c = [self.v0[0] - rc.o[0], self.v0[1] - rc.o[1], self.v0[2] - rc.o[2]];
-        let den = dot(&rc.d, &self.n);
-        let s = Vec4::ONE.copysign(den);
-        let a = den.abs();
-        let t = dot(&c, &self.n) * s;
+        let plane = triangle_plane(&self.v0, &self.n, &rc.o, &rc.d, Vec4::splat(t_min), Vec4::splat(t_far));
         // The supporting planes first: a shadow ray that ends before every plane (a wall behind
         // the light) is done after a third of the work.
-        let in_range = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min) * a) & t.cmplt(Vec4::splat(t_far) * a);
-        if !in_range.any() {
+        if !plane.hit.any() {
             return None;
         }
-        let r = cross(&rc.d, &c);
-        let u = dot(&self.e2, &r) * -s;
-        let v = dot(&self.e1, &r) * s;
-        let zero = Vec4::ZERO;
-        let mask = in_range & u.cmpge(zero) & v.cmpge(zero) & (u + v).cmple(a);
-        mask.any().then_some(Undivided { mask, t, u, v, a })
+        let (u, v, mask) = plane.edges(&self.e1, &self.e2, &rc.d);
+        mask.any().then_some(Undivided {
+            mask,
+            t: plane.t,
+            u,
+            v,
+            a: plane.a,
+        })
     }
 
-    /// The closest hit in the packet (same arithmetic as [`Triangle`](crate::geometry::Triangle)'s
-    /// routine, the division made only when some lane hits).
+    /// The closest hit in the packet (the test of [`Triangle`](crate::geometry::Triangle), the
+    /// division made only when some lane hits).
     #[inline(always)]
     fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
         let h = self.undivided(rc, t_min, far(TIES, t_max))?;
@@ -612,32 +583,16 @@ impl TriPacket {
 }
 
 impl SpherePacket {
-    /// The numerically careful sphere test of [`Sphere`](crate::geometry::Sphere) on four spheres
-    /// at once: the lanes whose sphere the ray meets with `t_min < t` and `t` below `t_max` (see
-    /// [`below`]), with each lane's nearer such distance, or `None` when no lane's ray meets its
-    /// sphere at all.
+    /// The sphere test ([`sphere_line`]) on four spheres at once: the lanes whose sphere the ray
+    /// meets with `t_min < t` and `t` below `t_max` (`t <= t_max` with `TIES`), with each lane's
+    /// nearer such distance, or `None` when the ray's line misses all four.
     #[inline(always)]
     fn hits<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32) -> Option<(BVec4A, Vec4)> {
-        let f = [rc.o[0] - self.c[0], rc.o[1] - self.c[1], rc.o[2] - self.c[2]];
-        let b = -dot(&f, &rc.d);
-        let l = [f[0] + rc.d[0] * b, f[1] + rc.d[1] * b, f[2] + rc.d[2] * b];
-        let disc = self.r2 - dot(&l, &l);
-        let ok = disc.cmpge(Vec4::ZERO);
-        if !ok.any() {
+        let line = sphere_line(&self.c, self.r2, &rc.o, &rc.d);
+        if !line.disc.cmpge(Vec4::ZERO).any() {
             return None;
         }
-        let c = dot(&f, &f) - self.r2;
-        let sq = Vec4::from_array(disc.max(Vec4::ZERO).to_array().map(f32::sqrt));
-        let q = b + sq.copysign(b);
-        let t0 = c / q;
-        let t1 = q;
-        let lo = t0.min(t1);
-        let hi = t0.max(t1);
-        let (tmin, tmax) = (Vec4::splat(t_min), Vec4::splat(t_max));
-        let ok = ok & q.cmpne(Vec4::ZERO);
-        let lo_ok = lo.cmpgt(tmin) & below::<TIES>(lo, tmax);
-        let hi_ok = hi.cmpgt(tmin) & below::<TIES>(hi, tmax);
-        Some((ok & (lo_ok | hi_ok), Vec4::select(lo_ok, lo, hi)))
+        Some(line.hit::<TIES>(self.r2, Vec4::splat(t_min), Vec4::splat(t_max)))
     }
 
     /// True when [`Self::closest`] without ties would find a hit: some lane's sphere meets the
@@ -665,7 +620,7 @@ impl SpherePacket {
 }
 
 impl PlanePacket {
-    /// [`Plane`](crate::geometry::Plane)'s routine on four planes at once (same arithmetic).
+    /// [`Plane`](crate::geometry::Plane)'s test on four planes at once.
     #[inline(always)]
     pub(super) fn closest<const TIES: bool>(
         &self,
@@ -674,11 +629,7 @@ impl PlanePacket {
         t_max: f32,
         key_max: u32,
     ) -> Option<WideHit> {
-        let den = dot(&self.n, &rc.d);
-        let w = [self.p[0] - rc.o[0], self.p[1] - rc.o[1], self.p[2] - rc.o[2]];
-        let t = dot(&w, &self.n) / den;
-        let tmax = Vec4::splat(t_max);
-        let mask = den.cmpne(Vec4::ZERO) & t.cmpgt(Vec4::splat(t_min)) & below::<TIES>(t, tmax);
+        let (mask, t) = plane_hit::<_, TIES>(&self.p, &self.n, &rc.o, &rc.d, Vec4::splat(t_min), Vec4::splat(t_max));
         let i = nearest_lane(mask, t)?;
         if TIES && !beats(t.to_array()[i], TAG_PLANE | self.ids[i], t_max, key_max) {
             return None;
