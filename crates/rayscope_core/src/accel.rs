@@ -41,7 +41,7 @@ mod stream;
 
 pub use builder::{BuildPrim, Bvh, BvhNode};
 pub use frustum::ApexCull;
-pub use layout::{Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, WideHit, SPLIT_BYTES, SPLIT_SHADOW_NODES};
+pub use layout::{Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, WideHit};
 pub use packet::PacketHits;
 #[cfg(feature = "bench-kernels")]
 pub use stream::INTERLEAVE_BYTES;

@@ -73,12 +73,6 @@ pub struct CameraPath {
 }
 
 impl CameraPath {
-    /// Whether the path moves the camera at all.
-    #[must_use]
-    pub fn is_still(&self) -> bool {
-        self.position.is_empty() && self.axis.is_empty() && self.angle.is_empty() && self.turntable.is_none()
-    }
-
     /// The camera at `frame`: `base` (the flags) with the keyframed values interpolated in, then
     /// carried round the turntable.
     #[must_use]

@@ -16,7 +16,7 @@
 //!
 //! **Lambert in lanes.** The path-tracing wave shades sixteen Lambertian vertices at once with
 //! `lambert_sample_lanes`, the Lambert model's sample in lane form (tested below to return
-//! [`Bsdf::sample`]'s bits), and with [`lambert_f`] and [`lambert_pdf`], the value and density
+//! [`Bsdf::sample`]'s bits), and with `lambert_f` and `lambert_pdf`, the value and density
 //! [`Bsdf::Lambert`] itself is evaluated with.
 
 use std::f32::consts::FRAC_1_PI;
@@ -34,7 +34,7 @@ use crate::simd::LANES;
 use rayscope_scene::MaterialKind;
 
 /// Refractive index of the Glossy material's clear coat.
-pub const COAT_IOR: f32 = 1.5;
+pub(crate) const COAT_IOR: f32 = 1.5;
 
 /// GGX α of a Glossy material with number `n`: (1 / (1 + max(n, 0)))², at least 0.001.
 #[must_use]
@@ -51,14 +51,14 @@ pub fn glossy_alpha(n: f32) -> f32 {
 /// between such surfaces would gain energy at every bounce and diverge.
 #[must_use]
 #[inline(always)]
-pub fn transport_albedo(m: &Material) -> Vec3A {
+pub(crate) fn transport_albedo(m: &Material) -> Vec3A {
     Vec3A::from(m.color).clamp(Vec3A::ZERO, Vec3A::ONE)
 }
 
 /// The Lambert BRDF of albedo `albedo` above the surface: albedo / π.
 #[must_use]
 #[inline(always)]
-pub fn lambert_f(albedo: Vec3A) -> Vec3A {
+pub(crate) fn lambert_f(albedo: Vec3A) -> Vec3A {
     albedo * FRAC_1_PI
 }
 
@@ -66,7 +66,7 @@ pub fn lambert_f(albedo: Vec3A) -> Vec3A {
 /// to the normal is `cos_i`: the cosine hemisphere's, cosθ / π.
 #[must_use]
 #[inline(always)]
-pub fn lambert_pdf(cos_i: f32) -> f32 {
+pub(crate) fn lambert_pdf(cos_i: f32) -> f32 {
     cosine_hemisphere_pdf(cos_i)
 }
 
@@ -129,7 +129,7 @@ pub struct BsdfSample {
     /// Whole BRDF value for `wi`.
     pub f: Vec3A,
     /// The coat's (specular) part of `f`.
-    pub f_coat: Vec3A,
+    pub(crate) f_coat: Vec3A,
     /// Density of `wi` (solid angle) over every lobe the model samples.
     pub pdf: f32,
 }
@@ -154,7 +154,7 @@ impl Bsdf {
     /// Probability of sampling the coat lobe for `wo`.
     #[must_use]
     #[inline]
-    pub fn coat_prob(&self, wo: Vec3A) -> f32 {
+    pub(crate) fn coat_prob(&self, wo: Vec3A) -> f32 {
         match *self {
             Bsdf::Lambert { .. } => 0.0,
             Bsdf::Coated { coat_only: true, .. } => 1.0,

@@ -91,7 +91,7 @@ impl Camera {
     /// (`u`, `v`) ∈ [0, 1]², origin top-left, +v down.
     #[must_use]
     #[inline]
-    pub fn plane_point_camera(&self, u: f32, v: f32) -> Vec3A {
+    pub(crate) fn plane_point_camera(&self, u: f32, v: f32) -> Vec3A {
         Vec3A::new((2.0 * u - 1.0) * self.half.x, (1.0 - 2.0 * v) * self.half.y, 1.0)
     }
 
@@ -113,7 +113,7 @@ impl Camera {
     /// same arithmetic in the same order, laid out so the compiler can vectorise it.
     #[must_use]
     #[inline]
-    pub fn ray_dirs<const N: usize>(&self, u: &[f32; N], v: &[f32; N]) -> [[f32; N]; 3] {
+    pub(crate) fn ray_dirs<const N: usize>(&self, u: &[f32; N], v: &[f32; N]) -> [[f32; N]; 3] {
         let r = [
             self.rotation.x_axis.to_array(),
             self.rotation.y_axis.to_array(),
@@ -191,7 +191,7 @@ pub fn rodrigues(axis: Vec3, angle_deg: f32) -> Mat3A {
 /// at ((i + 0.5)/n, (j + 0.5)/n).
 #[must_use]
 #[inline]
-pub fn cell_centre(cell: u32, n: u32) -> [f32; 2] {
+pub(crate) fn cell_centre(cell: u32, n: u32) -> [f32; 2] {
     let (i, j) = (cell % n, cell / n);
     [(i as f32 + 0.5) / n as f32, (j as f32 + 0.5) / n as f32]
 }
@@ -200,7 +200,7 @@ pub fn cell_centre(cell: u32, n: u32) -> [f32; 2] {
 /// random number `r` ∈ [0, 1): stratified jitter, for one ray or lane by lane.
 #[must_use]
 #[inline(always)]
-pub fn jittered(centre: f32, r: f32, n: f32) -> f32 {
+pub(crate) fn jittered(centre: f32, r: f32, n: f32) -> f32 {
     centre + (r - 0.5) / n
 }
 
@@ -222,7 +222,7 @@ dispatched!(
 /// at once.
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
+pub(crate) fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
     best_camera_dirs(camera, px, py, w, h)
 }
 

@@ -56,7 +56,7 @@ pub struct Heatmap {
     pub rgb: Vec<u8>,
     /// Difference (in 8-bit levels) shown at full brightness.
     pub range: u8,
-    /// True when `range` was chosen from the images ([`auto_range`]).
+    /// True when `range` was chosen from the images (`auto_range`).
     pub auto: bool,
     /// Pixels with a channel difference above `range` (shown at full brightness, clipped).
     pub clipped: u64,
@@ -64,12 +64,12 @@ pub struct Heatmap {
 
 /// Share of the differing pixels [`auto_range`] lets clip, so a few outliers (two surfaces tied
 /// at an edge) do not dim every other difference into black.
-pub const AUTO_RANGE_CLIP: f64 = 0.01;
+pub(crate) const AUTO_RANGE_CLIP: f64 = 0.01;
 
 /// The range [`heatmap`] picks by itself: the largest channel difference of all but the
 /// [`AUTO_RANGE_CLIP`] most different of the differing pixels (at least 1).
 #[must_use]
-pub fn auto_range(a: &[u8], b: &[u8]) -> u8 {
+pub(crate) fn auto_range(a: &[u8], b: &[u8]) -> u8 {
     let mut hist = [0u64; 256];
     for (pa, pb) in a.chunks_exact(3).zip(b.chunks_exact(3)) {
         let d = pa.iter().zip(pb).map(|(x, y)| x.abs_diff(*y)).max().unwrap_or(0);
@@ -90,7 +90,7 @@ pub fn auto_range(a: &[u8], b: &[u8]) -> u8 {
 
 /// A per-channel heat map of the difference between two RGB8 buffers of equal length: each
 /// output channel is |a − b| of that channel, times 255 / `range` and clipped at 255. With
-/// `range` `None` it is [`auto_range`]; a range of 0 counts as 1.
+/// `range` `None` it is `auto_range`; a range of 0 counts as 1.
 ///
 /// # Panics
 /// If the buffers differ in length.

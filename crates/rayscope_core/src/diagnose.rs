@@ -9,7 +9,7 @@
 //! Each pass scores a candidate by the better of two PSNRs: pixel for pixel, and between block
 //! averages of both images (a "downsampled" comparison, which sees speckle such as shadow acne
 //! as the darkening it is even where the speckles themselves fall on other pixels). The
-//! pixel-for-pixel one is robust: it leaves out up to [`OUTLIERS`] of the pixels, worst first,
+//! pixel-for-pixel one is robust: it leaves out up to `OUTLIERS` of the pixels, worst first,
 //! among those whose colour some pixel next to them has in rayscope's render. Where two surfaces
 //! meet at exactly the same distance (the course's box edges) which one a ray sees is
 //! floating-point noise, and two correct tracers disagree there by up to the whole colour, but
@@ -39,13 +39,13 @@ use crate::settings::{Channel, RenderSettings, Stage};
 /// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
 /// course's own scene-1 image 72 dB with every pixel counted), while the subtlest catalogue
 /// entries stay below 60 (Schlick's approximation 57 dB, rounded colours 51 dB).
-pub const MATCH_DB: f64 = 65.0;
+pub(crate) const MATCH_DB: f64 = 65.0;
 
 /// Side of the blocks both images are averaged over for the downsampled comparison at full size.
-pub const BLOCK: u32 = 4;
+pub(crate) const BLOCK: u32 = 4;
 
 /// Largest share of the pixels the robust PSNR leaves out (see the module's notes).
-pub const OUTLIERS: f64 = 0.01;
+pub(crate) const OUTLIERS: f64 = 0.01;
 
 /// Slack, in levels, of the neighbourhood test that excuses a pixel (see [`near_in`]).
 const NEIGHBOUR_LEVELS: u8 = 2;
@@ -124,14 +124,14 @@ pub struct Explanation {
     /// PSNR of the image against this render, pixel for pixel.
     #[serde(serialize_with = "ser_db")]
     pub psnr_db: f64,
-    /// The same without up to [`OUTLIERS`] of the pixels: the worst of those whose colour a
+    /// The same without up to `OUTLIERS` of the pixels: the worst of those whose colour a
     /// neighbouring pixel of the render has.
     #[serde(serialize_with = "ser_db")]
     pub robust_db: f64,
-    /// PSNR of the two images averaged over blocks of [`BLOCK`]×[`BLOCK`] pixels.
+    /// PSNR of the two images averaged over blocks of `BLOCK`×`BLOCK` pixels.
     #[serde(serialize_with = "ser_db")]
     pub psnr_downsampled_db: f64,
-    /// True when the image is this render: [`Self::robust_db`] ≥ [`MATCH_DB`].
+    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`.
     pub matches: bool,
 }
 
@@ -143,17 +143,17 @@ pub struct Diagnosis {
     /// PSNR of the image against rayscope's render (null when identical).
     #[serde(serialize_with = "ser_db")]
     pub psnr_db: f64,
-    /// The same without up to [`OUTLIERS`] of the pixels (those a neighbour's colour explains);
-    /// the image matches when this is at least [`MATCH_DB`].
+    /// The same without up to `OUTLIERS` of the pixels (those a neighbour's colour explains);
+    /// the image matches when this is at least `MATCH_DB`.
     #[serde(serialize_with = "ser_db")]
     pub robust_db: f64,
-    /// PSNR after averaging both over [`BLOCK`]×[`BLOCK`] blocks.
+    /// PSNR after averaging both over `BLOCK`×`BLOCK` blocks.
     #[serde(serialize_with = "ser_db")]
     pub psnr_downsampled_db: f64,
     /// Pixels whose largest channel difference is at least `threshold`.
     pub differing_pixels: u64,
     /// Pixels in the image.
-    pub total_pixels: u64,
+    pub(crate) total_pixels: u64,
     /// Channel difference (in 8-bit levels) counted as a difference.
     pub threshold: u8,
     /// Largest channel difference.

@@ -4,12 +4,12 @@
 //!
 //! A part is an OpenEXR file of the full image size with 32-bit float RGB channels: the tiles the
 //! part holds carry the film's values bit for bit, every other pixel is black, so any EXR viewer
-//! shows what a part holds. Its header carries one text attribute, [`HEADER_ATTRIBUTE`], holding a
+//! shows what a part holds. Its header carries one text attribute, `HEADER_ATTRIBUTE`, holding a
 //! [`PartHeader`] as JSON: the scene's content hash, the settings, the part's index and count, the
 //! tiles it holds and rayscope's version. The merge checks those before it reads any pixel.
 //!
 //! Tiles are dealt so that parts take about the same time even where a few tiles hold most of the
-//! cost (see [`owners`]).
+//! cost (see `owners`).
 
 use std::collections::BTreeMap;
 use std::io::{self, Read};
@@ -24,14 +24,14 @@ use crate::render::{tile_grid, tile_rect, TILE};
 use crate::settings::RenderSettings;
 
 /// The EXR header attribute that holds a part's [`PartHeader`] as JSON.
-pub const HEADER_ATTRIBUTE: &str = "rayscope.part";
+pub(crate) const HEADER_ATTRIBUTE: &str = "rayscope.part";
 
 /// The format name and version in every part's header.
-pub const FORMAT: &str = "rayscope-part/1";
+pub(crate) const FORMAT: &str = "rayscope-part/1";
 
 /// rayscope's version, recorded in each part: parts of different versions never merge, since a
 /// change of version may change pixels.
-pub const VERSION: &str = env!("CARGO_PKG_VERSION");
+pub(crate) const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 /// Part `index` of `count` (`--part K/N`, K = 0 … N−1 as Slurm array and Kubernetes completion
 /// indices count).
@@ -95,7 +95,7 @@ fn spread(v: u32) -> u64 {
 /// Measured on a Whitted scene whose mirror and glass spheres hold most of the rays
 /// (`tests/farm.rs`): the longest of 8 parts does 1.06× the mean work, contiguous bands 1.77×.
 #[must_use]
-pub fn owners(tiles_x: u32, tiles_y: u32, parts: u32) -> Vec<u32> {
+pub(crate) fn owners(tiles_x: u32, tiles_y: u32, parts: u32) -> Vec<u32> {
     let mut order: Vec<u32> = (0..tiles_x * tiles_y).collect();
     order.sort_by_key(|&t| spread(t % tiles_x) | (spread(t / tiles_x) << 1));
     let n = u64::from(parts);
@@ -142,17 +142,17 @@ fn hex(bytes: &[u8]) -> String {
     bytes.iter().map(|b| format!("{b:02x}")).collect()
 }
 
-/// What a part file says about itself (the [`HEADER_ATTRIBUTE`] of its EXR header).
+/// What a part file says about itself (the `HEADER_ATTRIBUTE` of its EXR header).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct PartHeader {
-    /// [`FORMAT`].
+    /// `FORMAT`.
     pub format: String,
     /// The rayscope version that rendered it ([`VERSION`]).
-    pub rayscope_version: String,
+    pub(crate) rayscope_version: String,
     /// The scene file as it was given (for messages only; the hash decides).
     pub scene: String,
     /// [`scene_hash`] of the scene.
-    pub scene_sha256: String,
+    pub(crate) scene_sha256: String,
     /// Every setting that changes pixels, as [`RenderSettings`] serialises them.
     pub settings: serde_json::Value,
     /// The render flags that give the same pixels (for messages and re-running a part).
@@ -165,9 +165,9 @@ pub struct PartHeader {
     /// N.
     pub parts: u32,
     /// Tile edge in pixels ([`TILE`]).
-    pub tile_size: u32,
+    pub(crate) tile_size: u32,
     /// How many tiles the part holds.
-    pub tile_count: u32,
+    pub(crate) tile_count: u32,
     /// The tiles it holds: a bitmap over the image's tiles in raster order (tile `t` is bit
     /// `t % 8` of byte `t / 8`), in hexadecimal.
     pub tiles: String,
@@ -320,7 +320,7 @@ fn ascii_json(json: &str) -> String {
 ///
 /// # Errors
 /// A message naming the file and what is wrong with it.
-pub fn read_header(path: &Path) -> Result<PartHeader, String> {
+pub(crate) fn read_header(path: &Path) -> Result<PartHeader, String> {
     let name = path.display();
     let mut magic = [0u8; 4];
     std::fs::File::open(path)

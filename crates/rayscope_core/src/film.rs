@@ -32,7 +32,7 @@ impl Film {
 
     /// RGBA8 bytes with the course's conversion: clamp to [0, 1], then `trunc(v · 255)`.
     #[must_use]
-    pub fn to_rgba8(&self) -> Vec<u8> {
+    pub(crate) fn to_rgba8(&self) -> Vec<u8> {
         // Into a buffer of the final size: pushed pixel by pixel, the conversion was 4 ns a
         // pixel, most of a millisecond of a small render's wall time.
         let mut out = vec![255; self.pixels.len() * 4];
@@ -56,7 +56,7 @@ impl Film {
 /// The course's channel conversion: `(byte)(Math.Min(v, 1) * 255)`, with negatives and NaN as 0.
 #[must_use]
 #[inline]
-pub fn to_byte(v: f32) -> u8 {
+pub(crate) fn to_byte(v: f32) -> u8 {
     // NaN and negatives fail the first test (`f32::min` would turn NaN into 1.0); `as u8`
     // truncates like the C# cast. Selects rather than an early return, so loops over pixels
     // compile without a branch per channel.

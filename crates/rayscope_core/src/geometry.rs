@@ -300,7 +300,7 @@ impl Triangle {
 
     /// The point of the triangle nearest to `p`.
     #[must_use]
-    pub fn closest_point(&self, p: Vec3A) -> Vec3A {
+    pub(crate) fn closest_point(&self, p: Vec3A) -> Vec3A {
         // By the Voronoi region of `p`: a corner, an edge or the face (Ericson, Real-Time
         // Collision Detection, 5.1.5).
         let (a, ab, ac) = (self.v0(), self.e1(), self.e2());

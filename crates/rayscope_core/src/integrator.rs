@@ -48,7 +48,7 @@ use crate::lights::Emitters;
 use crate::math::Ray;
 use crate::mistakes::Mistake;
 use crate::rng::Rng;
-pub use crate::sampling::concentric_disk;
+pub(crate) use crate::sampling::concentric_disk;
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, RenderSettings, Stage};
 
@@ -111,13 +111,13 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// The scene.
     pub scene: &'a Scene,
     /// The intersector rays are traced with (the scene's BVH, or the reference).
-    pub isect: &'a I,
+    pub(crate) isect: &'a I,
     /// The settings.
     pub settings: &'a RenderSettings,
     /// Camera built from the settings.
     pub camera: Camera,
     /// The scene's area lights.
-    pub emitters: Emitters,
+    pub(crate) emitters: Emitters,
     /// True when a stochastic effect is on, so `-q` multiplies the samples.
     pub stochastic: bool,
     /// Whitted glass branches with a smaller path weight are not traced (0: trace all).
@@ -312,7 +312,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
     #[must_use]
-    pub fn paths_per_cell(&self) -> u32 {
+    pub(crate) fn paths_per_cell(&self) -> u32 {
         if self.stochastic && self.settings.channel == Channel::Color {
             1 << self.settings.quality.min(16)
         } else {
@@ -320,7 +320,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
-    /// Samples per pixel the settings ask for: N² grid positions × [`Self::paths_per_cell`].
+    /// Samples per pixel the settings ask for: N² grid positions × `Self::paths_per_cell`.
     #[must_use]
     pub fn samples_per_pixel(&self) -> u32 {
         match self.settings.stage {
@@ -396,7 +396,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
 /// A distinct, stable colour for entity `i`.
 #[must_use]
-pub fn entity_color(i: u32) -> Vec3A {
+pub(crate) fn entity_color(i: u32) -> Vec3A {
     // Golden-ratio hue steps keep neighbouring ids far apart.
     let h = (i as f32 * 0.618_034 + 0.1).fract();
     let f = |n: f32| {

@@ -4,8 +4,8 @@
 //! A point light lights a surface point through a shadow ray from the point, offset off the
 //! surface, toward the light, by the course's max(0, N·L) · albedo · light colour when nothing
 //! blocks the ray. The shadow ray, its shading cosine and the light's contribution are computed
-//! here for one point ([`toward_point_light`], [`point_light_contribution`]) and for sixteen
-//! ([`point_light_rays`], [`add_point_light_lanes`]), the lanes' arithmetic the one point's.
+//! here for one point (`toward_point_light`, `point_light_contribution`) and for sixteen
+//! (`point_light_rays`, `add_point_light_lanes`), the lanes' arithmetic the one point's.
 //!
 //! An emitter is two-sided and emits its material colour as radiance, uniformly over its surface.
 //! One emitter is chosen with probability proportional to its power (luminance × area); a point
@@ -34,7 +34,7 @@ pub struct Emitter {
     /// Its entity.
     pub entity: u32,
     /// Emitted radiance.
-    pub radiance: Vec3A,
+    pub(crate) radiance: Vec3A,
     /// Surface area.
     pub area: f32,
     /// A triangle's e1 × e2 (twice its area along its normal), kept because every sample and
@@ -44,13 +44,13 @@ pub struct Emitter {
 
 /// A point drawn on an emitter, seen from a shading point.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LightSample {
+pub(crate) struct LightSample {
     /// Unit direction from the shading point to the sampled point.
     pub dir: Vec3A,
     /// Distance to the sampled point.
     pub dist: f32,
     /// Radiance arriving from it (before visibility).
-    pub radiance: Vec3A,
+    pub(crate) radiance: Vec3A,
     /// Density of `dir` in solid angle, including the choice of emitter.
     pub pdf: f32,
     /// Index into [`Emitters::list`].
@@ -59,16 +59,16 @@ pub struct LightSample {
 
 /// The scene's emitters with a power-proportional selection table.
 #[derive(Debug, Clone, Default)]
-pub struct Emitters {
+pub(crate) struct Emitters {
     /// Emitting spheres and triangles.
     pub list: Vec<Emitter>,
     /// Selection probability of each emitter.
-    pub pmf: Vec<f32>,
+    pub(crate) pmf: Vec<f32>,
     cdf: Vec<f32>,
     sphere_slot: Vec<u32>,
     triangle_slot: Vec<u32>,
     /// True when any entity (planes included) has an Emissive material with non-zero colour.
-    pub any_emission: bool,
+    pub(crate) any_emission: bool,
 }
 
 fn is_emitting(scene: &Scene, material: u32) -> Option<Vec3A> {
@@ -78,7 +78,7 @@ fn is_emitting(scene: &Scene, material: u32) -> Option<Vec3A> {
 impl Emitters {
     /// Collects the emitters of `scene`.
     #[must_use]
-    pub fn from_scene(scene: &Scene) -> Emitters {
+    pub(crate) fn from_scene(scene: &Scene) -> Emitters {
         let mut e = Emitters::default();
         if !scene.materials.iter().any(Material::is_emitter) {
             return e;
@@ -144,7 +144,7 @@ impl Emitters {
     /// The emitter index of a primitive, if it emits.
     #[must_use]
     #[inline]
-    pub fn index_of(&self, prim: PrimRef) -> Option<u32> {
+    pub(crate) fn index_of(&self, prim: PrimRef) -> Option<u32> {
         let slot = match prim {
             PrimRef::Sphere(i) => *self.sphere_slot.get(i as usize)?,
             PrimRef::Triangle(i) => *self.triangle_slot.get(i as usize)?,
@@ -218,7 +218,7 @@ pub(crate) struct LightLanes {
     /// Distance to the sampled point.
     pub dist: [f32; LANES],
     /// The emitter's radiance, per axis.
-    pub radiance: [[f32; LANES]; 3],
+    pub(crate) radiance: [[f32; LANES]; 3],
     /// Solid-angle density, selection included.
     pub pdf: [f32; LANES],
 }
@@ -441,7 +441,7 @@ fn triangle_pdf_with(c: Vec3A, area2: f32, p: Vec3A, y: Vec3A) -> f32 {
 /// sent. Only a positive cosine lets the light contribute.
 #[inline(always)]
 #[must_use]
-pub fn toward_point_light(from: Vec3A, ns: Vec3A, light: Vec3A) -> Option<(Vec3A, f32, f32)> {
+pub(crate) fn toward_point_light(from: Vec3A, ns: Vec3A, light: Vec3A) -> Option<(Vec3A, f32, f32)> {
     let to = light - from;
     let dist = to.length();
     if dist == 0.0 {
@@ -455,7 +455,7 @@ pub fn toward_point_light(from: Vec3A, ns: Vec3A, light: Vec3A) -> Option<(Vec3A
 /// shading normal makes cosine `cos` with the shadow ray: the course's albedo · colour · N·L.
 #[inline(always)]
 #[must_use]
-pub fn point_light_contribution(albedo: Vec3A, color: Vec3A, cos: f32) -> Vec3A {
+pub(crate) fn point_light_contribution(albedo: Vec3A, color: Vec3A, cos: f32) -> Vec3A {
     albedo * color * cos
 }
 
@@ -463,14 +463,14 @@ pub fn point_light_contribution(albedo: Vec3A, color: Vec3A, cos: f32) -> Vec3A 
 /// `f`: π · f · colour · N·L (π · f is the albedo of a Lambertian surface).
 #[inline(always)]
 #[must_use]
-pub fn point_light_contribution_brdf(f: Vec3A, color: Vec3A, cos: f32) -> Vec3A {
+pub(crate) fn point_light_contribution_brdf(f: Vec3A, color: Vec3A, cos: f32) -> Vec3A {
     f * color * (std::f32::consts::PI * cos)
 }
 
 /// What [`point_light_rays`] finds for each lane.
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub struct LightRays {
+pub(crate) struct LightRays {
     /// N·L with the shading normal (0 for lanes without a ray).
     pub cos: [f32; LANES],
     /// The light is in front of the surface and nothing blocks it.
@@ -564,7 +564,7 @@ dispatched!(
 /// ([`Intersect::apex_cull`]).
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub fn point_light_rays<I: Intersect>(
+pub(crate) fn point_light_rays<I: Intersect>(
     isect: &I,
     org: &[[f32; LANES]; 3],
     ns: &[[f32; LANES]; 3],
@@ -578,7 +578,12 @@ pub fn point_light_rays<I: Intersect>(
 /// Adds to `sums` (per axis) what a point light of colour `color` found by `vis` adds at
 /// surfaces of albedo `alb`: [`point_light_contribution`] in the lanes where it is visible.
 #[inline(always)]
-pub fn add_point_light_lanes(sums: &mut [[f32; LANES]; 3], alb: &[[f32; LANES]; 3], color: [f32; 3], vis: &LightRays) {
+pub(crate) fn add_point_light_lanes(
+    sums: &mut [[f32; LANES]; 3],
+    alb: &[[f32; LANES]; 3],
+    color: [f32; 3],
+    vis: &LightRays,
+) {
     for a in 0..3 {
         for i in 0..LANES {
             // albedo × colour × cosine, or zero when the light is hidden (glam's order).

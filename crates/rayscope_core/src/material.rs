@@ -31,7 +31,7 @@ fn ser_kind<S: serde::Serializer>(k: &MaterialKind, s: S) -> Result<S::Ok, S::Er
 impl Material {
     /// The renderer's form of a scene file's material: its colour and number in f32.
     #[must_use]
-    pub fn from_def(m: &MaterialDef) -> Material {
+    pub(crate) fn from_def(m: &MaterialDef) -> Material {
         Material {
             kind: m.kind,
             color: m.color.as_vec3(),
@@ -42,7 +42,7 @@ impl Material {
     /// The radiance a surface of this material emits, when it emits any (the full renderer's
     /// area lights).
     #[must_use]
-    pub fn emission(&self) -> Option<Vec3A> {
+    pub(crate) fn emission(&self) -> Option<Vec3A> {
         match self.kind {
             MaterialKind::Emissive => (self.color.max_element() > 0.0).then(|| self.color.into()),
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Glossy => None,
@@ -51,7 +51,7 @@ impl Material {
 
     /// True when this kind can emit at all, whatever its colour.
     #[must_use]
-    pub fn is_emitter(&self) -> bool {
+    pub(crate) fn is_emitter(&self) -> bool {
         match self.kind {
             MaterialKind::Emissive => true,
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Glossy => false,
@@ -61,7 +61,7 @@ impl Material {
     /// True when light leaves a surface of this material in a randomly sampled direction, so a
     /// render that shows it is stochastic (`-q` multiplies its paths).
     #[must_use]
-    pub fn scatters_at_random(&self) -> bool {
+    pub(crate) fn scatters_at_random(&self) -> bool {
         match self.kind {
             MaterialKind::Glossy => true,
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Emissive => {
@@ -73,7 +73,7 @@ impl Material {
     /// True when light passing through this material is absorbed along the way (Beer's law,
     /// from the colour) at `stage`: coloured glass in the full renderer.
     #[must_use]
-    pub fn absorbs(&self, stage: Stage) -> bool {
+    pub(crate) fn absorbs(&self, stage: Stage) -> bool {
         match self.kind {
             MaterialKind::Refractive => stage == Stage::Full && self.color != Vec3::ZERO,
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive | MaterialKind::Glossy => false,
@@ -105,7 +105,7 @@ impl Material {
     /// course's formula, so its shadow rays can be traced as packets. `lambert_point_lit` says
     /// whether the full renderer's Lambertian vertices are (no emitters, no ambient light).
     #[must_use]
-    pub fn point_lit_only(&self, stage: Stage, lambert_point_lit: bool) -> bool {
+    pub(crate) fn point_lit_only(&self, stage: Stage, lambert_point_lit: bool) -> bool {
         match (stage, self.kind) {
             (Stage::One, _) => false,
             (Stage::Two, MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive) => true,

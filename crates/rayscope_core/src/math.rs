@@ -65,7 +65,7 @@ impl Aabb {
     /// The smallest box holding the box and a point.
     #[must_use]
     #[inline]
-    pub fn grow(self, p: Vec3A) -> Aabb {
+    pub(crate) fn grow(self, p: Vec3A) -> Aabb {
         Aabb {
             min: self.min.min(p),
             max: self.max.max(p),
@@ -75,7 +75,7 @@ impl Aabb {
     /// Half the surface area (enough for SAH ratios); 0 for an empty box.
     #[must_use]
     #[inline]
-    pub fn half_area(&self) -> f32 {
+    pub(crate) fn half_area(&self) -> f32 {
         let d = (self.max - self.min).max(Vec3A::ZERO);
         d.x * d.y + d.y * d.z + d.z * d.x
     }

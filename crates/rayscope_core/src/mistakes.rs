@@ -3,7 +3,7 @@
 //! `diagnose` can search for the mistakes that explain a wrong picture.
 //!
 //! A render with any mistake goes through the one-ray-at-a-time recursive integrator: its
-//! intersector is a [`crate::render::Mistaken`] wrapper, which offers no wide BVH (so the packet
+//! intersector is a `crate::render::Mistaken` wrapper, which offers no wide BVH (so the packet
 //! and wave engines are never chosen) and whose [`crate::scene::Intersect::MISTAKEN`] turns on the
 //! integrator's few checks. Every other intersector leaves that constant false, so those checks
 //! compile away from correct renders.
@@ -90,11 +90,11 @@ const OUTPUT: &str = "Output: the image matches the reference";
 const OBJ: &str = "Stage 3 C: OBJ models";
 
 /// The offset [`Mistake::HugeShadowOffset`] moves shadow rays off the surface, in scene units.
-pub const HUGE_OFFSET: f32 = 0.1;
+pub(crate) const HUGE_OFFSET: f32 = 0.1;
 /// The ambient term [`Mistake::AmbientTerm`] adds, as a fraction of the material colour.
-pub const AMBIENT: f32 = 0.1;
+pub(crate) const AMBIENT: f32 = 0.1;
 /// The exponent [`Mistake::Gamma`] raises colours to.
-pub const GAMMA: f32 = 1.0 / 2.2;
+pub(crate) const GAMMA: f32 = 1.0 / 2.2;
 
 impl Mistake {
     /// Every mistake, in catalogue order.
@@ -283,7 +283,7 @@ impl Mistake {
 
     /// The mistake called `name`.
     #[must_use]
-    pub fn from_name(name: &str) -> Option<Mistake> {
+    pub(crate) fn from_name(name: &str) -> Option<Mistake> {
         Mistake::ALL.into_iter().find(|m| m.name() == name)
     }
 
@@ -350,12 +350,6 @@ impl Mistakes {
         Ok(set)
     }
 
-    /// True when the set changes how OBJ files are loaded ([`Self::apply_to_file`]).
-    #[must_use]
-    pub fn changes_obj(self) -> bool {
-        self.has(Mistake::ObjNoZFlip) || self.has(Mistake::ObjFlatNormals)
-    }
-
     /// Makes the OBJ mistakes in a parsed scene: meshes mirrored back along z about their
     /// offset, or stripped of their vertex normals.
     pub fn apply_to_file(self, file: &mut SceneFile) {
@@ -390,7 +384,7 @@ impl Mistakes {
     }
 
     /// A linear colour as the student's output code would write it, in a form the course's
-    /// truncating conversion ([`crate::film::to_byte`]) turns into the student's bytes.
+    /// truncating conversion (`crate::film::to_byte`) turns into the student's bytes.
     #[must_use]
     #[inline]
     pub fn output(self, v: Vec3) -> Vec3 {
@@ -406,12 +400,12 @@ impl Mistakes {
 
     /// True when [`Self::output`] changes colours.
     #[must_use]
-    pub fn changes_output(self) -> bool {
+    pub(crate) fn changes_output(self) -> bool {
         self.has(Mistake::Gamma) || self.has(Mistake::RoundedColours)
     }
 
     /// Applies [`Self::output`] to every pixel of `film`.
-    pub fn apply_to_film(self, film: &mut Film) {
+    pub(crate) fn apply_to_film(self, film: &mut Film) {
         if self.changes_output() {
             for p in &mut film.pixels {
                 *p = self.output(*p);

@@ -1,7 +1,7 @@
 //! Optics at an interface: mirror reflection, Snell refraction and the Fresnel reflectance
 //! (exact, and Schlick's approximation a tracer with that mistake uses), and the rays mirrors and
-//! glass send on, for one ray ([`mirror_ray`], [`glass_rays`]) and for the sixteen lanes of a
-//! packet ([`specular_rays`], the same arithmetic in the same order, tested bit for bit below).
+//! glass send on, for one ray (`mirror_ray`, `glass_rays`) and for the sixteen lanes of a
+//! packet (`specular_rays`, the same arithmetic in the same order, tested bit for bit below).
 //!
 //! The BSDFs (`bsdf`), the integrators and the packet kernels all take these rules from here.
 
@@ -75,7 +75,7 @@ pub fn schlick(cos_i: f32, n1: f32, n2: f32) -> f32 {
 /// `n` faces the ray: `d` reflected about `n`, starting `eps` off the surface on the ray's side.
 #[must_use]
 #[inline]
-pub fn mirror_ray(d: Vec3A, n: Vec3A, point: Vec3A, eps: f32) -> Ray {
+pub(crate) fn mirror_ray(d: Vec3A, n: Vec3A, point: Vec3A, eps: f32) -> Ray {
     Ray::new(point + n * eps, reflect(d, n).normalize())
 }
 
@@ -85,7 +85,14 @@ pub fn mirror_ray(d: Vec3A, n: Vec3A, point: Vec3A, eps: f32) -> Ray {
 /// the far side, none under total internal reflection.
 #[must_use]
 #[inline]
-pub fn glass_rays(d: Vec3A, n: Vec3A, point: Vec3A, eps: f32, front_face: bool, ior: f32) -> (f32, Ray, Option<Ray>) {
+pub(crate) fn glass_rays(
+    d: Vec3A,
+    n: Vec3A,
+    point: Vec3A,
+    eps: f32,
+    front_face: bool,
+    ior: f32,
+) -> (f32, Ray, Option<Ray>) {
     let (n1, n2) = if front_face { (1.0, ior) } else { (ior, 1.0) };
     let cos_i = (-d.dot(n)).clamp(0.0, 1.0);
     let kr = fresnel(cos_i, n1, n2);
@@ -101,13 +108,13 @@ pub fn glass_rays(d: Vec3A, n: Vec3A, point: Vec3A, eps: f32, front_face: bool, 
 /// [`glass_rays`] return (meaningless in lanes without a hit).
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub struct SpecularRays {
+pub(crate) struct SpecularRays {
     /// Unit mirror-reflection direction.
     pub reflected: [F; 3],
     /// Fresnel reflectance of glass with the lane's index of refraction.
     pub kr: F,
     /// Lanes where light also refracts (reflectance below 1, no total internal reflection).
-    pub has_refracted: Mask,
+    pub(crate) has_refracted: Mask,
     /// Unit refracted direction, in those lanes.
     pub refracted: [F; 3],
     /// Where refracted rays start: the hit point moved off the surface to the far side.
@@ -173,7 +180,7 @@ dispatched!(
 /// The rays mirrors and glass send on from the hits `frames` of `rays`; see [`SpecularRays`].
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
+pub(crate) fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
     best_specular_rays(rays, frames, ior)
 }
 

@@ -68,7 +68,7 @@ pub struct Cancelled;
 /// Renders `scene` with `settings` on the current rayon pool.
 ///
 /// `progress(done, total)` is called with pixel counts as tiles finish; setting `cancel` stops the
-/// render within one batch of samples (at most [`WAVE_BATCH`] paths on each thread) and returns
+/// render within one batch of samples (at most `WAVE_BATCH` paths on each thread) and returns
 /// [`Cancelled`].
 pub fn render(
     scene: &Scene,
@@ -245,7 +245,7 @@ const WAVE_PILOT: u64 = 4096;
 /// Most samples a path-traced tile hands to the wave engine at once: enough that a wave's lanes
 /// rarely drain between batches (a 16×16 tile at 16 samples a pixel is one batch), few enough that
 /// a tile's memory and the time to notice a cancel do not grow with `-x` and `-q`.
-pub const WAVE_BATCH: usize = 4096;
+pub(crate) const WAVE_BATCH: usize = 4096;
 
 /// Samples the one-at-a-time loop traces between looks at the cancel flag.
 const CANCEL_EVERY: u32 = 256;
@@ -437,7 +437,7 @@ pub(crate) fn record_pixel<I: Intersect>(integ: &Integrator<'_, I>, x: u32, y: u
 /// whose renders make the integrator's mistakes ([`Intersect::MISTAKEN`]). It offers no wide
 /// BVH, so its renders run one ray at a time.
 #[derive(Debug, Clone, Copy)]
-pub struct Mistaken<'a, I: Intersect> {
+pub(crate) struct Mistaken<'a, I: Intersect> {
     /// The intersector rays are really traced with.
     pub inner: &'a I,
     /// The scene (for the triangles' normals).

@@ -16,7 +16,7 @@ use crate::simd::LANES;
 /// Uniform point on the unit disk from two uniform numbers (Shirley–Chiu concentric mapping).
 #[must_use]
 #[inline]
-pub fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
+pub(crate) fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
     let a = 2.0 * u1 - 1.0;
     let b = 2.0 * u2 - 1.0;
     if a == 0.0 && b == 0.0 {
@@ -39,7 +39,7 @@ pub fn concentric_disk(u1: f32, u2: f32) -> Vec2 {
 /// sampling cosine-weighted bounces.
 #[must_use]
 #[inline]
-pub fn sin_cos_eighth(x: f32) -> (f32, f32) {
+pub(crate) fn sin_cos_eighth(x: f32) -> (f32, f32) {
     let z = x * x;
     let sin = x + x * z * (-0.166_666_51 + z * (0.008_331_979 + z * -0.000_194_956_35));
     // 1 − z/2 is rounded once and its rounding error added back with the small terms, which
@@ -86,7 +86,7 @@ pub fn cosine_hemisphere_pdf(cos_theta: f32) -> f32 {
 /// `1 − cos` keeps small cones exact in f32); density `1 / (2π · omc)`.
 #[must_use]
 #[inline]
-pub fn uniform_cone(u1: f32, u2: f32, omc: f32) -> Vec3A {
+pub(crate) fn uniform_cone(u1: f32, u2: f32, omc: f32) -> Vec3A {
     let x = u1 * omc; // 1 − cosθ
     let cos = 1.0 - x;
     let sin = (x * (2.0 - x)).max(0.0).sqrt();
@@ -97,7 +97,7 @@ pub fn uniform_cone(u1: f32, u2: f32, omc: f32) -> Vec3A {
 /// Density of [`uniform_cone`] inside the cone.
 #[must_use]
 #[inline]
-pub fn uniform_cone_pdf(omc: f32) -> f32 {
+pub(crate) fn uniform_cone_pdf(omc: f32) -> f32 {
     1.0 / (2.0 * PI * omc)
 }
 
@@ -114,7 +114,7 @@ pub fn uniform_sphere(u1: f32, u2: f32) -> Vec3A {
 /// Uniform barycentrics (b1, b2) on a triangle (weights of v1 and v2), the square-root mapping.
 #[must_use]
 #[inline]
-pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
+pub(crate) fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
     let s = u1.sqrt();
     (s * (1.0 - u2), s * u2)
 }
@@ -122,7 +122,7 @@ pub fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
 /// The power heuristic (β = 2) weight of a strategy with density `a` against one with density `b`.
 #[must_use]
 #[inline]
-pub fn power_heuristic(a: f32, b: f32) -> f32 {
+pub(crate) fn power_heuristic(a: f32, b: f32) -> f32 {
     let (a2, b2) = (a * a, b * b);
     if a2 + b2 == 0.0 || !a2.is_finite() {
         return if a > 0.0 { 1.0 } else { 0.0 };
@@ -164,7 +164,7 @@ pub(crate) fn to_world_unit_lanes(
 /// divides what it carries by it, which keeps the estimate unbiased.
 #[must_use]
 #[inline(always)]
-pub fn russian_roulette_survival(beta: Vec3) -> f32 {
+pub(crate) fn russian_roulette_survival(beta: Vec3) -> f32 {
     beta.max_element().min(0.95)
 }
 
@@ -178,7 +178,7 @@ pub fn to_local(v: Vec3A, t: Vec3A, b: Vec3A, n: Vec3A) -> Vec3A {
 /// Isotropic GGX (Trowbridge–Reitz) normal distribution D(h) for a local half vector `h`.
 #[must_use]
 #[inline]
-pub fn ggx_d(h: Vec3A, alpha: f32) -> f32 {
+pub(crate) fn ggx_d(h: Vec3A, alpha: f32) -> f32 {
     if h.z <= 0.0 {
         return 0.0;
     }
@@ -191,7 +191,7 @@ pub fn ggx_d(h: Vec3A, alpha: f32) -> f32 {
 /// Smith's Λ for GGX, for a local direction `w`.
 #[must_use]
 #[inline]
-pub fn ggx_lambda(w: Vec3A, alpha: f32) -> f32 {
+pub(crate) fn ggx_lambda(w: Vec3A, alpha: f32) -> f32 {
     let c2 = w.z * w.z;
     if c2 <= 0.0 {
         return f32::INFINITY;
@@ -203,14 +203,14 @@ pub fn ggx_lambda(w: Vec3A, alpha: f32) -> f32 {
 /// Smith's masking G1 for GGX.
 #[must_use]
 #[inline]
-pub fn ggx_g1(w: Vec3A, alpha: f32) -> f32 {
+pub(crate) fn ggx_g1(w: Vec3A, alpha: f32) -> f32 {
     1.0 / (1.0 + ggx_lambda(w, alpha))
 }
 
 /// Height-correlated masking–shadowing G2 for GGX.
 #[must_use]
 #[inline]
-pub fn ggx_g2(wo: Vec3A, wi: Vec3A, alpha: f32) -> f32 {
+pub(crate) fn ggx_g2(wo: Vec3A, wi: Vec3A, alpha: f32) -> f32 {
     1.0 / (1.0 + ggx_lambda(wo, alpha) + ggx_lambda(wi, alpha))
 }
 

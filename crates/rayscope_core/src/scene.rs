@@ -79,7 +79,7 @@ pub struct TriangleInfo {
 }
 
 /// [`Scene::triangle_normals`] entry of a triangle without vertex normals.
-pub const NO_NORMALS: [u32; 3] = [u32::MAX; 3];
+pub(crate) const NO_NORMALS: [u32; 3] = [u32::MAX; 3];
 
 /// A render-ready scene.
 #[derive(Debug, Clone, Default)]
@@ -87,7 +87,7 @@ pub struct Scene {
     /// Materials by index.
     pub materials: Vec<Material>,
     /// Material names by index.
-    pub material_names: Vec<String>,
+    pub(crate) material_names: Vec<String>,
     /// Point lights.
     pub lights: Vec<PointLight>,
     /// Light names by index.
@@ -108,7 +108,7 @@ pub struct Scene {
     pub triangle_info: Vec<TriangleInfo>,
     /// Vertex normals of the meshes, shared by the triangles that meet at a vertex.
     pub normals: Vec<Vec3>,
-    /// Per triangle, its corners' indices into `normals` for smooth shading, or [`NO_NORMALS`];
+    /// Per triangle, its corners' indices into `normals` for smooth shading, or `NO_NORMALS`;
     /// empty when no triangle has vertex normals. Kept apart from [`TriangleInfo`] so a mesh
     /// without normals (most large scans and generated meshes) costs nothing for them.
     pub triangle_normals: Vec<[u32; 3]>,
@@ -121,7 +121,7 @@ pub struct Scene {
 /// A closest-hit and any-hit query over a [`Scene`]: rayscope's BVH or the parry3d reference.
 pub trait Intersect: Sync {
     /// True for an intersector whose renders make the course's mistakes
-    /// ([`crate::render::Mistaken`]); false everywhere else, so the integrator's checks for
+    /// (`crate::render::Mistaken`); false everywhere else, so the integrator's checks for
     /// them compile away.
     const MISTAKEN: bool = false;
     /// The mistakes this intersector's renders make.
@@ -283,7 +283,7 @@ fn v3(d: DVec3) -> Vec3A {
 }
 
 /// Most triangles [`Scene::sphere_alone`] checks a sphere against (more would slow loading).
-pub const MAX_ALONE_TRIANGLES: usize = 4096;
+pub(crate) const MAX_ALONE_TRIANGLES: usize = 4096;
 
 impl Scene {
     /// Converts a parsed scene file and builds its BVH. Degenerate triangles are dropped.
@@ -489,11 +489,11 @@ impl Scene {
     /// Node and packet tests (planes count one each) the closest-hit query of `ray` makes: the
     /// "cost" debug channel.
     #[must_use]
-    pub fn traversal_cost(&self, ray: &Ray) -> u32 {
+    pub(crate) fn traversal_cost(&self, ray: &Ray) -> u32 {
         self.intersect_with_cost(ray).1
     }
 
-    /// [`Self::intersect`] of `ray` over `t > 0`, with the [`Self::traversal_cost`] of that walk.
+    /// [`Self::intersect`] of `ray` over `t > 0`, with the `Self::traversal_cost` of that walk.
     #[must_use]
     pub fn intersect_with_cost(&self, ray: &Ray) -> (Option<Hit>, u32) {
         let mut visits = 0;
@@ -516,7 +516,7 @@ impl Scene {
     }
 
     /// True when no other primitive comes within a margin of sphere `k`, so a ray that starts
-    /// inside it meets nothing before it leaves. Scenes of more than [`MAX_ALONE_TRIANGLES`]
+    /// inside it meets nothing before it leaves. Scenes of more than `MAX_ALONE_TRIANGLES`
     /// triangles are not searched (false).
     #[must_use]
     pub fn sphere_alone(&self, k: usize) -> bool {

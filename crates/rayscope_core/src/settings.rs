@@ -91,7 +91,7 @@ pub const BYTES_PER_PIXEL: u64 = 32;
 
 /// Most samples a pixel may take (`-x` N² grid positions × 2^q paths): each pixel's sum is kept
 /// in f32, which cannot resolve one more sample past 2^24 of them.
-pub const MAX_SAMPLES_PER_PIXEL: u64 = 1 << 24;
+pub(crate) const MAX_SAMPLES_PER_PIXEL: u64 = 1 << 24;
 
 /// What a front end lets one render use; [`RenderSettings::check`] holds settings to it.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -137,7 +137,7 @@ impl Limits {
 
 /// Memory the system could give this process now (`MemAvailable` on Linux), if known.
 #[must_use]
-pub fn available_memory() -> Option<u64> {
+pub(crate) fn available_memory() -> Option<u64> {
     let info = std::fs::read_to_string("/proc/meminfo").ok()?;
     let line = info.lines().find(|l| l.starts_with("MemAvailable:"))?;
     let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
@@ -148,7 +148,7 @@ impl RenderSettings {
     /// These settings as a render with the mistakes `m` runs under: those mistakes that are
     /// settings of rayscope's too (the field of view's axis, the recursion limit) applied.
     #[must_use]
-    pub fn mistaken(&self, m: Mistakes) -> RenderSettings {
+    pub(crate) fn mistaken(&self, m: Mistakes) -> RenderSettings {
         let mut s = *self;
         if m.has(Mistake::FovVertical) {
             s.camera.fov_axis = FovAxis::Vertical;
@@ -162,7 +162,7 @@ impl RenderSettings {
     /// Most samples a pixel can take with these settings, in any scene: N² grid positions, times
     /// 2^q paths when the scene turns out to have a stochastic effect.
     #[must_use]
-    pub fn max_samples_per_pixel(&self) -> u64 {
+    pub(crate) fn max_samples_per_pixel(&self) -> u64 {
         if self.stage == Stage::One || self.channel != Channel::Color {
             return 1;
         }

@@ -133,14 +133,14 @@ impl Bvh {
     /// returns a negative value (any-hit queries). A cross-check of the wide BVH's walk, for tests.
     #[cfg(any(test, feature = "test-support"))]
     #[inline]
-    pub fn traverse(&self, ray: &Ray, t_min: f32, t_max: f32, leaf: impl FnMut(&[u32], f32) -> f32) -> f32 {
+    pub(crate) fn traverse(&self, ray: &Ray, t_min: f32, t_max: f32, leaf: impl FnMut(&[u32], f32) -> f32) -> f32 {
         self.traverse_counting::<false>(ray, t_min, t_max, leaf, &mut 0)
     }
 
     /// [`Bvh::traverse`] that also counts, when `COUNT`, the nodes whose bounds were tested.
     #[cfg(any(test, feature = "test-support"))]
     #[inline]
-    pub fn traverse_counting<const COUNT: bool>(
+    pub(crate) fn traverse_counting<const COUNT: bool>(
         &self,
         ray: &Ray,
         t_min: f32,
@@ -191,7 +191,7 @@ impl Bvh {
     /// The primitive references of leaf `node`.
     #[must_use]
     #[inline]
-    pub fn leaf(&self, node: &BvhNode) -> &[u32] {
+    pub(crate) fn leaf(&self, node: &BvhNode) -> &[u32] {
         let start = node.offset as usize;
         &self.prims[start..start + node.count as usize]
     }

@@ -147,11 +147,11 @@ pub struct Bvh4 {
     /// True when the nodes and packets outgrow the per-core cache (see `PREFETCH_BYTES`), so
     /// the walks prefetch the children they will visit.
     pub prefetch: bool,
-    /// True when the tree is larger than [`SPLIT_BYTES`]: a pixel then usually covers several
+    /// True when the tree is larger than `SPLIT_BYTES`: a pixel then usually covers several
     /// triangles, so a packet's rays part in the lower levels, and each ray finishes alone the
     /// subtrees few of the packet's rays enter.
     pub split_packets: bool,
-    /// True when the tree has at least [`SPLIT_SHADOW_NODES`] nodes: shadow packets, whose rays
+    /// True when the tree has at least `SPLIT_SHADOW_NODES` nodes: shadow packets, whose rays
     /// part as they leave the surface, are split as [`Self::split_packets`] splits camera rays.
     pub split_shadows: bool,
 }
@@ -160,12 +160,12 @@ pub struct Bvh4 {
 /// [`Bvh4::split_packets`]). The bookkeeping (each stack entry carries its rays) costs packets
 /// that never part 2–4 %; a bumpy torus rendered at 1024² with one sample a pixel broke even at
 /// 300 k triangles (36 MB), and gained 4 % at 1 M (121 MB) and 17 % at 4 M.
-pub const SPLIT_BYTES: usize = 64 << 20;
+pub(crate) const SPLIT_BYTES: usize = 64 << 20;
 
 /// Trees with at least this many nodes split shadow packets (see [`Bvh4::split_shadows`]). The
 /// course's rooms have a handful of nodes, too few levels for a packet's shadow rays to part in;
 /// the bunny scene (354 nodes) renders about 1 % faster split.
-pub const SPLIT_SHADOW_NODES: usize = 64;
+pub(crate) const SPLIT_SHADOW_NODES: usize = 64;
 
 /// Traversal stack entries kept on the machine stack. A 4-wide node pushes at most four entries
 /// and pops one, so a tree of depth d needs at most 3d + 1: 64 covers 21 levels, more than any

@@ -66,7 +66,7 @@ impl PacketHits {
     /// pixel's samples, whose shading data can then be looked up once.
     #[must_use]
     #[inline]
-    pub fn one_prim(&self) -> bool {
+    pub(crate) fn one_prim(&self) -> bool {
         let p = self.prim[0];
         // A fold rather than `all`, which would stop early and keep the loop scalar.
         p & TAG_MASK != 0 && self.prim.iter().fold(true, |a, &q| a & (q == p))
@@ -84,7 +84,7 @@ impl PacketHits {
     /// Every lane's barycentrics (u, v) (meaningless in lanes without a hit), as whole arrays.
     #[must_use]
     #[inline(always)]
-    pub fn barycentrics(&self) -> (F, F) {
+    pub(crate) fn barycentrics(&self) -> (F, F) {
         (self.u, self.v)
     }
 
@@ -1019,7 +1019,13 @@ impl Bvh4 {
     // The hits are written in place: returned by value, they were copied on the way (a `memcpy`
     // per packet in the packet tracer).
     #[inline(always)]
-    pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
+    pub(crate) fn closest_rays_from(
+        &self,
+        rays: &mut RayPacket,
+        t_min: f32,
+        cull: Option<&ApexCull>,
+        hits: &mut PacketHits,
+    ) {
         *hits = PacketHits::default();
         closest_rays(self, rays, t_min, hits, cull);
         hits.divide();
@@ -1052,7 +1058,7 @@ impl Bvh4 {
 
     /// [`Self::closest_rays`] for rays that share little of their way through the scene, such
     /// as a wave of paths' bounce rays: the same hits, found by whichever walk suits such rays.
-    pub fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+    pub(crate) fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         scattered_closest_rays(self, rays, t_min, &mut hits);
         hits.divide();
@@ -1060,7 +1066,7 @@ impl Bvh4 {
     }
 
     /// [`Self::occluded_rays`] for rays that share little of their way through the scene.
-    pub fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
+    pub(crate) fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
         scattered_occluded_rays(self, rays, t_min)
     }
 

@@ -367,7 +367,7 @@ impl Bvh4 {
     /// the list in one loop, so the two independent tests overlap in the core instead of one
     /// query waiting for the other; in trees the two walks run one after the other.
     #[inline(always)]
-    pub fn closest_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<WideHit>, bool) {
+    pub(crate) fn closest_and_occluded(&self, ray: &Ray, shadow: &Ray, shadow_t_max: f32) -> (Option<WideHit>, bool) {
         let list = if !self.single.is_empty() {
             &self.single
         } else if self.root == EMPTY {

@@ -66,7 +66,14 @@ impl<I: Intersect> Integrator<'_, I> {
 
     /// Radiance along `ray` (a camera ray, reported to `obs` as `id`) with a fresh path state.
     #[inline]
-    pub fn radiance<O: RayObserver>(&self, ray: &Ray, id: u32, rng: &mut Rng, obs: &mut O, c: &mut Counters) -> Vec3A {
+    pub(crate) fn radiance<O: RayObserver>(
+        &self,
+        ray: &Ray,
+        id: u32,
+        rng: &mut Rng,
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Vec3A {
         self.trace(ray, PathState::CAMERA, true, id, &mut PathCx { rng, obs, c })
             .total()
     }
