@@ -218,11 +218,11 @@ dispatched!(
 );
 
 /// Directions of the pinhole camera rays through pixel positions (`px`, `py`) (pixels, not
-/// normalised) of a `w` × `h` image: [`Camera::ray_dirs`] of (`px`/`w`, `py`/`h`), sixteen lanes
+/// normalised) of a `w` × `h` image: `Camera::ray_dirs` of (`px`/`w`, `py`/`h`), sixteen lanes
 /// at once.
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub(crate) fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
+pub fn camera_dirs(camera: &Camera, px: &[f32; LANES], py: &[f32; LANES], w: f32, h: f32) -> [[f32; LANES]; 3] {
     best_camera_dirs(camera, px, py, w, h)
 }
 

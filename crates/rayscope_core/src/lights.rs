@@ -5,7 +5,7 @@
 //! surface, toward the light, by the course's max(0, N·L) · albedo · light colour when nothing
 //! blocks the ray. The shadow ray, its shading cosine and the light's contribution are computed
 //! here for one point (`toward_point_light`, `point_light_contribution`) and for sixteen
-//! (`point_light_rays`, `add_point_light_lanes`), the lanes' arithmetic the one point's.
+//! ([`point_light_rays`], [`add_point_light_lanes`]), the lanes' arithmetic the one point's.
 //!
 //! An emitter is two-sided and emits its material colour as radiance, uniformly over its surface.
 //! One emitter is chosen with probability proportional to its power (luminance × area); a point
@@ -470,7 +470,7 @@ pub(crate) fn point_light_contribution_brdf(f: Vec3A, color: Vec3A, cos: f32) ->
 /// What [`point_light_rays`] finds for each lane.
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub(crate) struct LightRays {
+pub struct LightRays {
     /// N·L with the shading normal (0 for lanes without a ray).
     pub cos: [f32; LANES],
     /// The light is in front of the surface and nothing blocks it.
@@ -564,7 +564,7 @@ dispatched!(
 /// ([`Intersect::apex_cull`]).
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub(crate) fn point_light_rays<I: Intersect>(
+pub fn point_light_rays<I: Intersect>(
     isect: &I,
     org: &[[f32; LANES]; 3],
     ns: &[[f32; LANES]; 3],
@@ -576,14 +576,9 @@ pub(crate) fn point_light_rays<I: Intersect>(
 }
 
 /// Adds to `sums` (per axis) what a point light of colour `color` found by `vis` adds at
-/// surfaces of albedo `alb`: [`point_light_contribution`] in the lanes where it is visible.
+/// surfaces of albedo `alb`: `point_light_contribution` in the lanes where it is visible.
 #[inline(always)]
-pub(crate) fn add_point_light_lanes(
-    sums: &mut [[f32; LANES]; 3],
-    alb: &[[f32; LANES]; 3],
-    color: [f32; 3],
-    vis: &LightRays,
-) {
+pub fn add_point_light_lanes(sums: &mut [[f32; LANES]; 3], alb: &[[f32; LANES]; 3], color: [f32; 3], vis: &LightRays) {
     for a in 0..3 {
         for i in 0..LANES {
             // albedo × colour × cosine, or zero when the light is hidden (glam's order).

@@ -1,7 +1,7 @@
 //! Optics at an interface: mirror reflection, Snell refraction and the Fresnel reflectance
 //! (exact, and Schlick's approximation a tracer with that mistake uses), and the rays mirrors and
 //! glass send on, for one ray (`mirror_ray`, `glass_rays`) and for the sixteen lanes of a
-//! packet (`specular_rays`, the same arithmetic in the same order, tested bit for bit below).
+//! packet ([`specular_rays`], the same arithmetic in the same order, tested bit for bit below).
 //!
 //! The BSDFs (`bsdf`), the integrators and the packet kernels all take these rules from here.
 
@@ -104,11 +104,11 @@ pub(crate) fn glass_rays(
     )
 }
 
-/// The rays mirrors and glass send on from a packet's hits: per lane, what [`mirror_ray`] and
-/// [`glass_rays`] return (meaningless in lanes without a hit).
+/// The rays mirrors and glass send on from a packet's hits: per lane, what `mirror_ray` and
+/// `glass_rays` return (meaningless in lanes without a hit).
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub(crate) struct SpecularRays {
+pub struct SpecularRays {
     /// Unit mirror-reflection direction.
     pub reflected: [F; 3],
     /// Fresnel reflectance of glass with the lane's index of refraction.
@@ -180,7 +180,7 @@ dispatched!(
 /// The rays mirrors and glass send on from the hits `frames` of `rays`; see [`SpecularRays`].
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub(crate) fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
+pub fn specular_rays(rays: &RayPacket, frames: &SurfaceFrames, ior: &[f32; LANES]) -> SpecularRays {
     best_specular_rays(rays, frames, ior)
 }
 

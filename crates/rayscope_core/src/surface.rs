@@ -3,7 +3,7 @@
 //! on the ray's side start.
 //!
 //! One ray's surface is [`Scene::surface`]; [`Surface::outside`] is its shadow-ray origin. The
-//! sixteen-lane form is `surface_frames`, over the lanes' primitive data (`HitPrims`); the
+//! sixteen-lane form is [`surface_frames`], over the lanes' primitive data ([`HitPrims`]); the
 //! packet engines get it through `PacketSurfaces`, which gathers that data from the scene and
 //! hands each lane's [`Surface`] back. The tests below check that every lane's surface is the
 //! single ray's, bit for bit.
@@ -21,7 +21,7 @@ use crate::scene::{Hit, Scene};
 use crate::simd::{lane, put, LANES};
 
 mod lanes;
-pub(crate) use lanes::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
+pub use lanes::{surface_frames, HitPrims, SmoothNormals, SurfaceFrames};
 #[cfg(test)]
 pub(crate) use lanes::{surface_frames_avx2, surface_frames_avx512, surface_frames_impl};
 

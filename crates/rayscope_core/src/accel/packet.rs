@@ -1019,13 +1019,7 @@ impl Bvh4 {
     // The hits are written in place: returned by value, they were copied on the way (a `memcpy`
     // per packet in the packet tracer).
     #[inline(always)]
-    pub(crate) fn closest_rays_from(
-        &self,
-        rays: &mut RayPacket,
-        t_min: f32,
-        cull: Option<&ApexCull>,
-        hits: &mut PacketHits,
-    ) {
+    pub fn closest_rays_from(&self, rays: &mut RayPacket, t_min: f32, cull: Option<&ApexCull>, hits: &mut PacketHits) {
         *hits = PacketHits::default();
         closest_rays(self, rays, t_min, hits, cull);
         hits.divide();
@@ -1058,7 +1052,7 @@ impl Bvh4 {
 
     /// [`Self::closest_rays`] for rays that share little of their way through the scene, such
     /// as a wave of paths' bounce rays: the same hits, found by whichever walk suits such rays.
-    pub(crate) fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
+    pub fn scattered_closest_rays(&self, rays: &mut RayPacket, t_min: f32) -> PacketHits {
         let mut hits = PacketHits::default();
         scattered_closest_rays(self, rays, t_min, &mut hits);
         hits.divide();
@@ -1066,7 +1060,7 @@ impl Bvh4 {
     }
 
     /// [`Self::occluded_rays`] for rays that share little of their way through the scene.
-    pub(crate) fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
+    pub fn scattered_occluded_rays(&self, rays: &mut RayPacket, t_min: f32) -> [bool; LANES] {
         scattered_occluded_rays(self, rays, t_min)
     }
 

@@ -19,7 +19,7 @@ type F = [f32; LANES];
 /// Per-lane data of the primitives a packet's rays hit, gathered for [`surface_frames`].
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub(crate) struct HitPrims {
+pub struct HitPrims {
     /// Lanes with a hit.
     pub hit: Mask,
     /// Hit distance.
@@ -56,7 +56,7 @@ impl Default for HitPrims {
 /// The vertex normals of a packet's hits on triangles that have them.
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub(crate) struct SmoothNormals {
+pub struct SmoothNormals {
     /// Lanes whose triangle has vertex normals.
     pub on: Mask,
     /// The normals, in vertex order.
@@ -81,7 +81,7 @@ impl Default for SmoothNormals {
 /// The local geometry at each lane's hit (meaningless in lanes without one).
 #[derive(Debug, Clone)]
 #[repr(align(64))]
-pub(crate) struct SurfaceFrames {
+pub struct SurfaceFrames {
     /// Hit point.
     pub point: [F; 3],
     /// Unit geometric normal, flipped to face the ray.
@@ -201,6 +201,6 @@ dispatched!(
 /// normals and the offset origin that the single-ray code computes (see the module docs).
 // Calls the dispatcher rather than being it (see `crate::simd::dispatched`).
 #[must_use]
-pub(crate) fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
+pub fn surface_frames(rays: &RayPacket, prims: &HitPrims) -> SurfaceFrames {
     best_surface_frames(rays, prims)
 }
