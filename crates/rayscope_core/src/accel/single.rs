@@ -517,6 +517,31 @@ fn nearest_lane(mask: BVec4A, t: Vec4) -> Option<usize> {
     Some((t.cmpeq(Vec4::splat(m)) & mask).bitmask().trailing_zeros() as usize)
 }
 
+/// The nearest of a sphere or plane packet's lanes in `mask` as a hit on `prim(id)`; with `TIES`
+/// only when it beats the best hit so far (`t_max`, `key_max`) by the tie rule ([`beats`]).
+#[inline(always)]
+fn nearest_hit<const TIES: bool>(
+    mask: BVec4A,
+    t: Vec4,
+    ids: &[u32; 4],
+    tag: u32,
+    prim: fn(u32) -> PrimRef,
+    t_max: f32,
+    key_max: u32,
+) -> Option<WideHit> {
+    let i = nearest_lane(mask, t)?;
+    let ti = t.to_array()[i];
+    if TIES && !beats(ti, tag | ids[i], t_max, key_max) {
+        return None;
+    }
+    Some(WideHit {
+        t: ti,
+        u: 0.0,
+        v: 0.0,
+        prim: prim(ids[i]),
+    })
+}
+
 /// The lanes of a triangle packet a ray meets, before the division: the hit mask, and per lane
 /// the distance, u and v, each still multiplied by `a` = |d · n|.
 struct Undivided {
@@ -606,16 +631,7 @@ impl SpherePacket {
     #[inline(always)]
     fn closest<const TIES: bool>(&self, rc: &RayConsts, t_min: f32, t_max: f32, key_max: u32) -> Option<WideHit> {
         let (mask, t) = self.hits::<TIES>(rc, t_min, t_max)?;
-        let i = nearest_lane(mask, t)?;
-        if TIES && !beats(t.to_array()[i], TAG_SPHERE | self.ids[i], t_max, key_max) {
-            return None;
-        }
-        Some(WideHit {
-            t: t.to_array()[i],
-            u: 0.0,
-            v: 0.0,
-            prim: PrimRef::Sphere(self.ids[i]),
-        })
+        nearest_hit::<TIES>(mask, t, &self.ids, TAG_SPHERE, PrimRef::Sphere, t_max, key_max)
     }
 }
 
@@ -630,15 +646,6 @@ impl PlanePacket {
         key_max: u32,
     ) -> Option<WideHit> {
         let (mask, t) = plane_hit::<_, TIES>(&self.p, &self.n, &rc.o, &rc.d, Vec4::splat(t_min), Vec4::splat(t_max));
-        let i = nearest_lane(mask, t)?;
-        if TIES && !beats(t.to_array()[i], TAG_PLANE | self.ids[i], t_max, key_max) {
-            return None;
-        }
-        Some(WideHit {
-            t: t.to_array()[i],
-            u: 0.0,
-            v: 0.0,
-            prim: PrimRef::Plane(self.ids[i]),
-        })
+        nearest_hit::<TIES>(mask, t, &self.ids, TAG_PLANE, PrimRef::Plane, t_max, key_max)
     }
 }
