@@ -9,12 +9,14 @@ use std::fs;
 use std::path::Path;
 use std::process::Command;
 
-use serde_yaml::Value;
+use yaml_rust2::{Yaml as Value, YamlLoader};
 
 fn manifest(name: &str) -> Value {
     let path = rayscope_testkit::workspace().join("deploy/kubernetes").join(name);
     let text = fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    serde_yaml::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
+    let mut docs = YamlLoader::load_from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(docs.len(), 1, "{}: one YAML document", path.display());
+    docs.remove(0)
 }
 
 fn get<'a>(v: &'a Value, path: &str) -> &'a Value {
@@ -33,13 +35,14 @@ fn text(v: &Value, path: &str) -> String {
 
 fn num(v: &Value, path: &str) -> u64 {
     get(v, path)
-        .as_u64()
+        .as_i64()
+        .and_then(|n| u64::try_from(n).ok())
         .unwrap_or_else(|| panic!("{path} is not a whole number: {:?}", get(v, path)))
 }
 
 fn env(container: &Value, name: &str) -> String {
     container["env"]
-        .as_sequence()
+        .as_vec()
         .expect("env list")
         .iter()
         .find(|e| e["name"].as_str() == Some(name))
@@ -55,13 +58,13 @@ fn pod(job: &Value) -> Value {
     assert_eq!(text(job, "kind"), "Job");
     let spec = get(job, "spec.template.spec");
     assert_eq!(text(spec, "restartPolicy"), "Never");
-    let volumes = spec["volumes"].as_sequence().expect("volumes");
+    let volumes = spec["volumes"].as_vec().expect("volumes");
     assert_eq!(volumes.len(), 1);
     assert_eq!(text(&volumes[0], "persistentVolumeClaim.claimName"), "rayscope-work");
-    let containers = spec["containers"].as_sequence().expect("containers");
+    let containers = spec["containers"].as_vec().expect("containers");
     assert_eq!(containers.len(), 1);
     let c = containers[0].clone();
-    let mounts = c["volumeMounts"].as_sequence().expect("volumeMounts");
+    let mounts = c["volumeMounts"].as_vec().expect("volumeMounts");
     assert_eq!(text(&mounts[0], "mountPath"), "/work");
     assert_eq!(text(&mounts[0], "name"), text(&volumes[0], "name"));
     c
@@ -70,13 +73,13 @@ fn pod(job: &Value) -> Value {
 /// The shell command of a container (`sh -c ARG`).
 fn shell(c: &Value) -> String {
     let cmd: Vec<&str> = c["command"]
-        .as_sequence()
+        .as_vec()
         .unwrap()
         .iter()
         .map(|v| v.as_str().unwrap())
         .collect();
     assert_eq!(cmd, ["/bin/sh", "-c"]);
-    let args = c["args"].as_sequence().unwrap();
+    let args = c["args"].as_vec().unwrap();
     assert_eq!(args.len(), 1);
     args[0].as_str().unwrap().to_owned()
 }
