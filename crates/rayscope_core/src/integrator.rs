@@ -39,6 +39,8 @@
 //!   stochastic effect each path starts at a random point of its cell (stratified jitter), so
 //!   pixels converge to their area's mean; otherwise samples sit at the cell centres.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use glam::Vec3A;
 
 use crate::accel::ApexCull;
@@ -140,7 +142,13 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// True when some material is glass that absorbs (Beer's law, [`Self::absorb`]), so a path
     /// can travel inside a medium.
     pub(crate) media: bool,
+    /// Set when the render is cancelled: every ray traced after that returns black at once, so
+    /// a cancel reaches inside a path however deep it branches.
+    cancel: &'a AtomicBool,
 }
+
+/// The cancel flag of integrators that are never cancelled.
+static NEVER_CANCELLED: AtomicBool = AtomicBool::new(false);
 
 /// [`ApexCull`]s of the points many packets' rays share.
 #[derive(Debug, Clone, Default)]
@@ -220,10 +228,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             beams: Beams::default(),
             lone_spheres: Vec::new(),
             media: scene.materials.iter().any(|m| m.absorbs(settings.stage)),
+            cancel: &NEVER_CANCELLED,
         }
         .with_point_lit()
         .with_grid()
         .with_beams()
+    }
+
+    /// The same integrator, stopping its paths once `cancel` is set.
+    #[must_use]
+    pub(crate) fn with_cancel(self, cancel: &'a AtomicBool) -> Self {
+        Self { cancel, ..self }
+    }
+
+    /// True once the render is cancelled; the paths then return black and the render loop
+    /// discards what they made.
+    #[inline]
+    pub(crate) fn cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
     }
 
     /// The engine this render's samples take, by this rule: debug channels, and intersectors

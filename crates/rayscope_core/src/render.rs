@@ -127,7 +127,7 @@ pub(crate) fn render_tiles<I: Intersect>(
     cancel: &AtomicBool,
 ) -> Result<RenderOutput, Cancelled> {
     let start = Instant::now();
-    let integ = Integrator::with_intersector(scene, isect, settings);
+    let integ = Integrator::with_intersector(scene, isect, settings).with_cancel(cancel);
     let spp = integ.samples_per_pixel();
     let (w, h) = (settings.width, settings.height);
     let (tiles_x, tiles_y) = tile_grid(w, h);

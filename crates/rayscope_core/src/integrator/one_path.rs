@@ -116,6 +116,9 @@ impl<I: Intersect> Integrator<'_, I> {
         id: u32,
         cx: &mut PathCx<'_, O>,
     ) -> Li {
+        if self.cancelled() {
+            return Li::default();
+        }
         let hit = self.isect.intersect(ray, 0.0, f32::INFINITY);
         self.trace_found(ray, hit, path, want_reflected, id, cx)
     }

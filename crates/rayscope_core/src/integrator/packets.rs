@@ -83,6 +83,9 @@ impl<I: Intersect> Integrator<'_, I> {
     /// `t_max` is left at their hits: traced in place, as a copy of the packet cost a `memcpy`.
     fn trace_packet(&self, lanes: &mut PathPacket, jobs: &[Job], c: &mut Counters, vals: &mut [Vec3A; LANES]) {
         *vals = [Vec3A::ZERO; LANES];
+        if self.cancelled() {
+            return;
+        }
         if lanes.depth >= MAX_PACKET_DEPTH {
             // Deep recursion continues one ray at a time, whose stack frames are smaller.
             for i in (0..LANES).filter(|&i| lanes.on[i]) {

@@ -289,7 +289,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 w.found[i] = ahead.then(|| cams.hits.get(k));
                 w.path[i] = PathState::CAMERA;
             }
-            if !w.on.contains(&true) {
+            if !w.on.contains(&true) || self.cancelled() {
                 break;
             }
             self.wave_step(&mut w, out, c);
