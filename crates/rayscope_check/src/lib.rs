@@ -12,6 +12,7 @@ pub mod geom;
 pub mod judge;
 pub mod log;
 pub mod pixels;
+pub mod probe_answer;
 pub mod report;
 pub mod selflog;
 pub mod verdict;

@@ -6,6 +6,8 @@
 //! too: where the two disagree on hit or miss, or the ray passes within rounding of an edge or a
 //! rim, the case is a genuine tie and either answer is accepted.
 
+use std::rc::Rc;
+
 use glam::{DVec3, Vec3A};
 use rayscope_core::geometry::{Plane, Primitive, Sphere, Triangle};
 use rayscope_core::rng::Rng;
@@ -292,8 +294,8 @@ pub struct Case {
     pub case: CaseKind,
     /// The primitive as sent (scaled for the tiny and huge cases).
     pub shape: Shape,
-    /// The scene entity the primitive comes from.
-    pub source: String,
+    /// The scene entity the primitive comes from (shared by the source's cases).
+    pub source: Rc<str>,
     /// Ray origin as sent.
     pub origin: DVec3,
     /// Ray direction as sent (unit length to 7 digits).
@@ -308,7 +310,7 @@ pub struct Source {
     /// Its geometry.
     pub shape: Shape,
     /// Where it comes from, for the report.
-    pub name: String,
+    pub name: Rc<str>,
 }
 
 /// The scene's primitives: every plane, sphere and triangle, and `mesh_triangles` triangles of
@@ -323,21 +325,21 @@ pub fn sources(file: &SceneFile, mesh_triangles: usize) -> Vec<Source> {
                     point: nice_v(*point),
                     normal: nice_dir(*normal),
                 },
-                name,
+                name: name.as_str().into(),
             }),
             SceneShape::Sphere { center, radius } => out.push(Source {
                 shape: Shape::Sphere {
                     center: nice_v(*center),
                     radius: nice(*radius),
                 },
-                name,
+                name: name.as_str().into(),
             }),
             SceneShape::Triangle { vertices } => {
                 let v = vertices.map(nice_v);
                 if !degenerate(&v) {
                     out.push(Source {
                         shape: Shape::Triangle { v },
-                        name,
+                        name: name.as_str().into(),
                     });
                 }
             }
@@ -351,7 +353,7 @@ pub fn sources(file: &SceneFile, mesh_triangles: usize) -> Vec<Source> {
                     if !degenerate(&v) {
                         out.push(Source {
                             shape: Shape::Triangle { v },
-                            name: format!("triangle {} of {name}", i + 1),
+                            name: format!("triangle {} of {name}", i + 1).into(),
                         });
                     }
                 }
@@ -359,6 +361,26 @@ pub fn sources(file: &SceneFile, mesh_triangles: usize) -> Vec<Source> {
         }
     }
     out
+}
+
+/// How many requests [`sources`] and [`battery`] make at most for `file` (degenerate triangles,
+/// which are skipped, are counted), and of how many primitives: counted without building them.
+pub fn request_bound(file: &SceneFile, mesh_triangles: usize, per_case: usize) -> (u64, u64) {
+    let mut primitives = 0u64;
+    let mut requests = 0u64;
+    for e in &file.entities {
+        let (kind, n) = match &e.shape {
+            SceneShape::Plane { .. } => (PrimKind::Plane, 1),
+            SceneShape::Sphere { .. } => (PrimKind::Sphere, 1),
+            SceneShape::Triangle { .. } => (PrimKind::Triangle, 1),
+            SceneShape::Mesh { mesh, .. } => (PrimKind::Triangle, mesh_triangles.min(mesh.triangles.len())),
+        };
+        let n = n as u64;
+        primitives = primitives.saturating_add(n);
+        let each = (cases_for(kind).len() as u64).saturating_mul(per_case as u64);
+        requests = requests.saturating_add(n.saturating_mul(each));
+    }
+    (requests, primitives)
 }
 
 fn degenerate(v: &[DVec3; 3]) -> bool {

@@ -1,27 +1,10 @@
-//! The protocol's lines, and the verdict on each answer.
+//! The protocol's lines, and the verdict on each answer (the answer's parser is
+//! `rayscope_check::probe_answer`, where it can be fuzzed).
 
 use glam::DVec3;
-use serde_json::Value;
+pub use rayscope_check::probe_answer::{parse_answer, Answer};
 
 use super::battery::{Case, CaseKind, PrimKind, Shape};
-
-/// What the program answered to one request.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Answer {
-    /// `"hit": null`.
-    Miss,
-    /// `"hit": {...}` with at least `t` or `point`.
-    Hit {
-        /// Ray parameter.
-        t: Option<f64>,
-        /// Hit point.
-        point: Option<DVec3>,
-        /// Normal.
-        normal: Option<DVec3>,
-    },
-    /// `"error": "..."`: the intersector threw.
-    Error(String),
-}
 
 /// What is wrong with one answer. The order is the report's.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -136,129 +119,6 @@ pub fn request_json(id: usize, case: &Case) -> String {
         arr(case.dir),
         primitive_json(&case.shape)
     )
-}
-
-/// Puts quotes around bare NaN and infinity tokens (Python's `json.dumps` and C's `printf`
-/// write them), so that such an answer is judged rather than rejected as garbage.
-fn quote_non_finite(line: &str) -> String {
-    let mut out = String::with_capacity(line.len() + 8);
-    let mut chars = line.char_indices().peekable();
-    let mut in_string = false;
-    while let Some((i, c)) = chars.next() {
-        if in_string {
-            out.push(c);
-            if c == '\\' {
-                if let Some((_, n)) = chars.next() {
-                    out.push(n);
-                }
-            } else if c == '"' {
-                in_string = false;
-            }
-            continue;
-        }
-        if c == '"' {
-            in_string = true;
-            out.push(c);
-            continue;
-        }
-        let starts_word = c.is_ascii_alphabetic()
-            || ((c == '-' || c == '+') && matches!(line[i + 1..].chars().next(), Some(n) if n.is_ascii_alphabetic()));
-        if starts_word {
-            let end = line[i + 1..]
-                .find(|ch: char| !ch.is_ascii_alphabetic())
-                .map_or(line.len(), |k| i + 1 + k);
-            let word = &line[i..end];
-            let lower = word.to_ascii_lowercase();
-            let replaced = match lower.trim_start_matches('+') {
-                "nan" | "-nan" => Some("\"NaN\""),
-                "inf" | "infinity" => Some("\"Infinity\""),
-                "-inf" | "-infinity" => Some("\"-Infinity\""),
-                _ => None,
-            };
-            out.push_str(replaced.unwrap_or(word));
-            while chars.peek().is_some_and(|(k, _)| *k < end) {
-                chars.next();
-            }
-            continue;
-        }
-        out.push(c);
-    }
-    out
-}
-
-fn number(v: &Value, what: &str) -> Result<f64, String> {
-    match v {
-        Value::Number(n) => n.as_f64().ok_or_else(|| format!("{what} is not a number")),
-        Value::String(s) => match s.to_ascii_lowercase().as_str() {
-            "nan" | "-nan" => Ok(f64::NAN),
-            "inf" | "infinity" | "+infinity" | "∞" => Ok(f64::INFINITY),
-            "-inf" | "-infinity" | "-∞" => Ok(f64::NEG_INFINITY),
-            _ => s
-                .trim()
-                .parse()
-                .map_err(|_| format!("{what} should be a number, found the string \"{s}\"")),
-        },
-        other => Err(format!("{what} should be a number, found {other}")),
-    }
-}
-
-fn vector(v: &Value, what: &str) -> Result<DVec3, String> {
-    let items = v
-        .as_array()
-        .filter(|a| a.len() == 3)
-        .ok_or_else(|| format!("{what} should be an array of three numbers [x, y, z], found {v}"))?;
-    Ok(DVec3::new(
-        number(&items[0], what)?,
-        number(&items[1], what)?,
-        number(&items[2], what)?,
-    ))
-}
-
-/// Reads an answer line to request `id`; the error says what was expected.
-pub fn parse_answer(line: &str, id: usize) -> Result<Answer, String> {
-    let fixed = quote_non_finite(line);
-    let value: Value = serde_json::from_str(fixed.trim()).map_err(|e| format!("not JSON ({e})"))?;
-    let obj = value.as_object().ok_or_else(|| "not a JSON object".to_string())?;
-    match obj.get("id") {
-        Some(v) if v.as_u64() == Some(id as u64) => {}
-        Some(v) => return Err(format!("its \"id\" is {v}, but rayscope asked request {id}")),
-        None => return Err(format!("it has no \"id\" (it should be {id}, the request's)")),
-    }
-    if let Some(e) = obj.get("error") {
-        let msg = match e {
-            Value::String(s) => s.clone(),
-            other => other.to_string(),
-        };
-        return Ok(Answer::Error(msg));
-    }
-    let hit = obj
-        .get("hit")
-        .ok_or_else(|| "it has neither \"hit\" (null for a miss) nor \"error\"".to_string())?;
-    if hit.is_null() {
-        return Ok(Answer::Miss);
-    }
-    let h = hit.as_object().ok_or_else(|| {
-        format!("\"hit\" should be null or an object {{\"t\":…,\"point\":[…],\"normal\":[…]}}, found {hit}")
-    })?;
-    let t = h
-        .get("t")
-        .filter(|v| !v.is_null())
-        .map(|v| number(v, "\"t\""))
-        .transpose()?;
-    let point = h
-        .get("point")
-        .filter(|v| !v.is_null())
-        .map(|v| vector(v, "\"point\""))
-        .transpose()?;
-    let normal = h
-        .get("normal")
-        .filter(|v| !v.is_null())
-        .map(|v| vector(v, "\"normal\""))
-        .transpose()?;
-    if t.is_none() && point.is_none() {
-        return Err("its \"hit\" has neither \"t\" nor \"point\": give at least one".into());
-    }
-    Ok(Answer::Hit { t, point, normal })
 }
 
 /// The verdicts on `answer` to `case`.
@@ -482,32 +342,6 @@ pub fn hint(kind: PrimKind, case: Option<CaseKind>, v: Verdict, outward: bool) -
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn answers_parse_with_non_finite_tokens() {
-        assert_eq!(parse_answer(r#"{"id":3,"hit":null}"#, 3), Ok(Answer::Miss));
-        let a = parse_answer(r#"{"id":3,"hit":{"t":Infinity,"point":[NaN,-inf,1]}}"#, 3).unwrap();
-        let Answer::Hit { t, point, .. } = a else {
-            panic!("{a:?}")
-        };
-        assert_eq!(t, Some(f64::INFINITY));
-        assert!(point.unwrap().x.is_nan() && point.unwrap().y == f64::NEG_INFINITY);
-        assert_eq!(
-            parse_answer(r#"{"id":3,"error":"ZeroDivisionError: Infinity"}"#, 3),
-            Ok(Answer::Error("ZeroDivisionError: Infinity".into())),
-            "strings are left alone"
-        );
-        assert!(parse_answer(r#"{"id":4,"hit":null}"#, 3)
-            .unwrap_err()
-            .contains("request 3"));
-        assert!(parse_answer("hello", 3).unwrap_err().contains("not JSON"));
-        assert!(parse_answer(r#"{"id":3,"hit":{"normal":[0,0,1]}}"#, 3)
-            .unwrap_err()
-            .contains("neither \"t\" nor \"point\""));
-        assert!(parse_answer(r#"{"id":3,"hit":{"t":1,"point":[1,2]}}"#, 3)
-            .unwrap_err()
-            .contains("three numbers"));
-    }
 
     #[test]
     fn conventions() {

@@ -18,9 +18,43 @@ use battery::{cases_for, nice, Case, CaseKind, Expect, PrimKind, Shape};
 use child::{ChildError, Probed};
 use judge::{Answer, Verdict};
 
+/// Most requests one run sends (primitives × their cases × `--rays-per-case`). Each is kept
+/// with its answer and verdicts until the report, about 400 bytes, so a run stays under about
+/// 400 MiB whatever the flags.
+pub const MAX_REQUESTS: u64 = 1_000_000;
+
+/// Longest `--timeout` and `--startup-timeout` accepted, in seconds (a day).
+pub const MAX_TIMEOUT_S: f64 = 86_400.0;
+
 /// Runs `rayscope probe`.
 pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
+    for (flag, secs) in [("--timeout", a.timeout), ("--startup-timeout", a.startup_timeout)] {
+        if !(secs > 0.0 && secs <= MAX_TIMEOUT_S) {
+            return Err(Failure::input(format!(
+                "{flag} {} is out of range: give a number of seconds greater than 0 and at most {MAX_TIMEOUT_S} (a day)",
+                if secs.abs() >= 1e9 { format!("{secs:e}") } else { format!("{secs}") }
+            )));
+        }
+    }
     let file = load_file(&a.file, a.json)?;
+    // Counted before anything is built: the battery is held whole until the report.
+    let (requests, primitives) = battery::request_bound(&file, a.mesh_triangles as usize, a.rays_per_case as usize);
+    if requests > MAX_REQUESTS {
+        // Every term of the count has --rays-per-case as a factor.
+        let fitting = MAX_REQUESTS / (requests / u64::from(a.rays_per_case)).max(1);
+        return Err(Failure::input(format!(
+            "{}: --mesh-triangles {} and --rays-per-case {} make up to {requests} requests ({primitives} primitives, each 11 to 15 cases of {} rays), more than the {MAX_REQUESTS} one run sends (every request is kept until the report).\n  Lower --rays-per-case{} or --mesh-triangles.",
+            a.file.display(),
+            a.mesh_triangles,
+            a.rays_per_case,
+            a.rays_per_case,
+            if fitting >= 1 {
+                format!(" (at most {fitting} here)")
+            } else {
+                String::new()
+            }
+        )));
+    }
     let sources = battery::sources(&file, a.mesh_triangles as usize);
     if sources.is_empty() {
         return Err(Failure::input(format!(
@@ -102,10 +136,12 @@ pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
     }
 
     let report = Report::new(&cases, &answers, &judgements, &conventions);
+    crate::set_verdict(u8::from(!report.findings.is_empty()));
     if a.json {
         println!("{}", report.json(&a.file, &a.command));
     } else {
-        print!("{}", report.text(&shown, &a.file, &sources, a.all_examples));
+        // Written as it is made: with --all-examples the text grows with the battery.
+        report.text(&shown, &a.file, &sources, a.all_examples, &mut |part| print!("{part}"));
     }
     Ok(if report.findings.is_empty() {
         ExitCode::SUCCESS
@@ -173,16 +209,32 @@ fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Ca
                 }
             )
         }
-        ChildError::Exited(status) => {
-            let how = match status {
-                Some(s) => describe_status(s),
-                None => "closed its output".to_string(),
-            };
-            format!("`{shown}` {how} before answering {what}.")
+        ChildError::NotReading(d) => {
+            child.kill();
+            format!(
+                "`{shown}` did not read {what} from its input (stdin) within {} s, so rayscope stopped it.\n  It stopped reading what rayscope sends: read each request line, then answer it.",
+                d.as_secs_f64()
+            )
+        }
+        ChildError::Exited(Some(status)) => format!("`{shown}` {} before answering {what}.", describe_status(status)),
+        ChildError::Exited(None) => {
+            child.kill();
+            format!(
+                "`{shown}` closed its output (stdout) without exiting before answering {what}, so rayscope stopped it."
+            )
+        }
+        ChildError::InputClosed => {
+            child.kill();
+            format!(
+                "`{shown}` closed its input (stdin) without exiting before reading {what}, so rayscope stopped it.\n  Keep reading requests until rayscope closes the input, then exit."
+            )
         }
         ChildError::TooLong => {
             child.kill();
-            format!("`{shown}` wrote a line of more than 64 KiB instead of answering {what}; that is not an answer.")
+            format!(
+                "`{shown}` wrote a line of more than {} KiB instead of answering {what}; that is not an answer.",
+                child::MAX_LINE / 1024
+            )
         }
         ChildError::Io(err) => {
             child.kill();
@@ -192,16 +244,44 @@ fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Ca
     if let Some((_, request)) = at {
         msg.push_str(&format!("\n  request: {request}"));
     }
-    let tail = child.stderr_tail();
-    if tail.is_empty() {
+    let err = child.stderr();
+    if err.total == 0 {
         msg.push_str("\n  (it wrote nothing to stderr)");
+    } else if err.lines.is_empty() {
+        msg.push_str(&format!(
+            "\n  (it wrote {} of blank lines to stderr)",
+            amount(err.total)
+        ));
     } else {
-        msg.push_str("\n  the last lines it wrote to stderr:");
-        for l in tail {
+        msg.push_str("\n  the last lines it wrote to stderr");
+        if err.dropped > 0 {
+            msg.push_str(&format!(
+                " (it wrote {} in all; only the last {} KiB were kept)",
+                amount(err.total),
+                child::STDERR_KEPT / 1024
+            ));
+        }
+        msg.push(':');
+        for l in err.lines {
             msg.push_str(&format!("\n    | {l}"));
         }
     }
     Failure::input(msg)
+}
+
+/// A number of bytes, for reading.
+fn amount(bytes: u64) -> String {
+    const KIB: f64 = 1024.0;
+    let b = bytes as f64;
+    if bytes < 1024 {
+        format!("{bytes} bytes")
+    } else if b < KIB * KIB {
+        format!("{:.1} KiB", b / KIB)
+    } else if b < KIB * KIB * KIB {
+        format!("{:.1} MiB", b / (KIB * KIB))
+    } else {
+        format!("{:.2} GiB", b / (KIB * KIB * KIB))
+    }
 }
 
 fn request_id(at: Option<(&Case, &str)>) -> String {
@@ -404,7 +484,15 @@ impl<'a> Report<'a> {
         )
     }
 
-    fn text(&self, shown: &str, scene: &std::path::Path, sources: &[battery::Source], all: bool) -> String {
+    /// The text report, handed to `emit` a piece at a time.
+    fn text(
+        &self,
+        shown: &str,
+        scene: &std::path::Path,
+        sources: &[battery::Source],
+        all: bool,
+        emit: &mut dyn FnMut(&str),
+    ) {
         let count = |k: PrimKind| sources.iter().filter(|s| s.shape.kind() == k).count();
         let mut out = format!(
             "probe: {} rays sent to `{shown}`, built from {} ({} spheres, {} planes, {} triangles)\n\n",
@@ -434,7 +522,8 @@ impl<'a> Report<'a> {
                 "\nEvery answer is right: your intersector agrees with rayscope on all {} rays.\n",
                 self.cases.len()
             ));
-            return out;
+            emit(&out);
+            return;
         }
         out.push_str(&format!(
             "\n{wrong} of {} rays answered wrongly; {} finding{}:\n",
@@ -464,9 +553,11 @@ impl<'a> Report<'a> {
                 out.push_str(&format!("     expected  {}\n", describe_expect(&c.expect, f.kind)));
                 out.push_str(&format!("     yours     {}\n", describe_answer(&self.answers[i], c)));
                 out.push_str(&format!("     request   {}\n", judge::request_json(i, c)));
+                emit(&out);
+                out.clear();
             }
         }
-        out
+        emit(&out);
     }
 
     fn json(&self, scene: &std::path::Path, command: &[String]) -> String {
@@ -498,7 +589,7 @@ impl<'a> Report<'a> {
                             serde_json::from_str(&judge::request_json(i, c)).unwrap_or(serde_json::Value::Null);
                         json!({
                             "request": request,
-                            "source": c.source,
+                            "source": &*c.source,
                             "expected": describe_expect(&c.expect, f.kind),
                             "answer": describe_answer(&self.answers[i], c),
                         })
