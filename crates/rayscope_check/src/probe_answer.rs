@@ -226,6 +226,37 @@ mod tests {
     }
 
     #[test]
+    fn the_fuzz_seeds_and_regressions_read_within_bounds() {
+        // The fuzz target's checks (fuzz/fuzz_targets/probe_answer.rs), on its seeds and on any
+        // input it found that was fixed since.
+        let fuzz = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz");
+        let mut read = 0;
+        for (dir, seeds_only) in [("corpus/probe_answer", true), ("regressions/probe_answer", false)] {
+            let Ok(entries) = std::fs::read_dir(fuzz.join(dir)) else {
+                continue;
+            };
+            for entry in entries {
+                let path = entry.unwrap().path();
+                if seeds_only && !path.file_name().unwrap().to_string_lossy().starts_with("seed-") {
+                    continue;
+                }
+                let data = std::fs::read(&path).unwrap();
+                let line = String::from_utf8_lossy(&data);
+                for id in 0..4 {
+                    match parse_answer(&line, id) {
+                        Ok(Answer::Error(m)) => assert!(m.len() <= MAX_ERROR_MESSAGE + " …".len()),
+                        Ok(Answer::Hit { t, point, .. }) => assert!(t.is_some() || point.is_some()),
+                        Ok(Answer::Miss) => {}
+                        Err(why) => assert!(!why.is_empty() && why.len() < 1024, "{}: {why}", path.display()),
+                    }
+                }
+                read += 1;
+            }
+        }
+        assert!(read >= 7, "the seeds are in fuzz/corpus/probe_answer");
+    }
+
+    #[test]
     fn odd_lines_give_a_reason_not_a_panic() {
         for line in [
             "",
