@@ -90,6 +90,7 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
             t.judging.as_secs_f64(),
             rayon::current_num_threads()
         );
+    crate::set_verdict(u8::from(!report.passed()));
     }
     Ok(if report.passed() {
         ExitCode::SUCCESS

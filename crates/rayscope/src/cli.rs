@@ -74,6 +74,9 @@ pub struct MergeArgs {
     /// Write the image even if parts are missing (their tiles black), naming what is absent.
     #[arg(long = "allow-missing")]
     pub allow_missing: bool,
+    /// Merge images over the pixel budget (64 megapixels), as a render's --allow-large.
+    #[arg(long = "allow-large")]
+    pub allow_large: bool,
     /// No summary.
     #[arg(long)]
     pub quiet: bool,
@@ -140,8 +143,9 @@ pub struct FarmArgs {
     /// Render only part K of N (K from 0 to N-1) into an EXR part; `rayscope merge` joins parts.
     #[arg(long, value_name = "K/N", value_parser = rayscope_core::farm::PartSpec::parse)]
     pub part: Option<rayscope_core::farm::PartSpec>,
-    /// Render frames A to B (both included) of an animation, each to a numbered file (a run of
-    /// `#` in -o becomes the frame number, else `_NNNN` goes before the extension).
+    /// Render frames A to B (both included, at most 100000 frames) of an animation, each to a
+    /// numbered file (a run of `#` in -o becomes the frame number, else `_NNNN` goes before the
+    /// extension).
     #[arg(long, value_name = "A..B", value_parser = parse_frames)]
     pub frames: Option<(u32, u32)>,
     /// Circle the point X,Y,Z about the vertical axis over the frames (see --turntable-frames).
@@ -180,6 +184,10 @@ impl FarmArgs {
     }
 }
 
+/// Most frames one `--frames` run renders: 69 minutes at 24 frames a second. Frames are rendered
+/// one after another and nothing is kept per frame; the bound catches a mistyped range.
+pub const MAX_FRAMES: u32 = 100_000;
+
 fn parse_frames(s: &str) -> Result<(u32, u32), String> {
     let bad = || format!("expected frames A..B such as 0..119 (both included), or one frame N, found '{s}'");
     let (a, b) = match s.split_once("..") {
@@ -190,6 +198,12 @@ fn parse_frames(s: &str) -> Result<(u32, u32), String> {
     let b: u32 = b.trim().parse().map_err(|_| bad())?;
     if b < a {
         return Err(format!("--frames {s}: the last frame comes before the first"));
+    }
+    if b - a >= MAX_FRAMES {
+        return Err(format!(
+            "--frames {s} is {} frames; one run renders at most {MAX_FRAMES}: split the range over several runs (or array tasks)",
+            u64::from(b - a) + 1
+        ));
     }
     Ok((a, b))
 }

@@ -143,16 +143,17 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
             )));
         }
     }
-    let frames: Vec<Option<u32>> = match farm.frames {
-        Some((a, b)) => (a..=b).map(Some).collect(),
-        None => vec![None],
+    // Frames one after another, none of them held (`--frames` bounds their number).
+    let frames: Box<dyn Iterator<Item = Option<u32>>> = match farm.frames {
+        Some((a, b)) => Box::new((a..=b).map(Some)),
+        None => Box::new(std::iter::once(None)),
     };
     let out_path = |frame: Option<u32>| match frame {
         Some(f) => frame_path(output, f),
         None => output.clone(),
     };
     // Fail before the (possibly long) render if the output cannot be written.
-    check_writable(&out_path(frames[0])).map_err(|e| Failure::input(e.to_string()))?;
+    check_writable(&out_path(farm.frames.map(|(a, _)| a))).map_err(|e| Failure::input(e.to_string()))?;
     // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
     let mut scene_file = load_file(file, opts.quiet)?;
@@ -236,7 +237,11 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
 fn merge_command(a: &MergeArgs) -> Result<ExitCode, Failure> {
     check_writable(&a.output).map_err(|e| Failure::input(e.to_string()))?;
     let start = Instant::now();
-    let m = farm::merge(&a.parts, a.allow_missing).map_err(|e| Failure::input(e.0))?;
+    let mut limits = rayscope_core::settings::Limits::command_line(a.allow_large);
+    if !a.allow_large {
+        limits.pixel_hint = " (8192×8192); pass --allow-large to merge it anyway";
+    }
+    let m = farm::merge_within(&a.parts, a.allow_missing, &limits).map_err(|e| Failure::input(e.0))?;
     let (w, h) = (m.film.width, m.film.height);
     if !m.missing_parts.is_empty() {
         let rects: Vec<String> = m
@@ -459,6 +464,12 @@ fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
+/// Bytes of one ray in a `bench rays --rays-file` file: six little-endian f32.
+const RAY_RECORD: u64 = 24;
+
+/// Most rays `bench rays --rays-file` reads: 384 MiB of records, traced from 512 MiB of rays.
+pub const MAX_BENCH_RAYS: u64 = 1 << 24;
+
 fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     use rayon::prelude::*;
     use rayscope_core::{math::RayPacket, simd::LANES};
@@ -473,8 +484,16 @@ fn bench_rays(a: &BenchRaysArgs) -> Result<ExitCode, Failure> {
     let build = t0.elapsed().as_secs_f64();
     let rays: Vec<Ray> = match (&a.rays_file, a.primary) {
         (Some(path), _) => {
-            let bytes =
-                std::fs::read(path).map_err(|e| Failure::input(format!("cannot read '{}': {e}", path.display())))?;
+            let bytes = rayscope_scene::input::read_bounded(path, MAX_BENCH_RAYS * RAY_RECORD).map_err(|e| {
+                // A regular file refused as input is one over the bound.
+                let too_large = e.kind() == std::io::ErrorKind::InvalidInput && path.is_file();
+                let hint = if too_large {
+                    format!(" (at most {MAX_BENCH_RAYS} rays of {RAY_RECORD} bytes)")
+                } else {
+                    String::new()
+                };
+                Failure::input(format!("cannot read '{}': {e}{hint}", path.display()))
+            })?;
             if bytes.is_empty() {
                 return Err(Failure::input(format!(
                     "'{}' holds no rays: expected 24-byte records of 6 little-endian f32 (origin, direction)",

@@ -44,7 +44,7 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
 fn student_input(a: &DebugArgs) -> Result<StudentInput, Failure> {
     let ray_ids = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
     if let Some(p) = &a.rays {
-        std::fs::File::open(p).map_err(|e| Failure::input(format!("cannot read ray log {}: {e}", p.display())))?;
+        regular_log(p)?;
     }
     let image = a
         .image
@@ -60,6 +60,19 @@ fn student_input(a: &DebugArgs) -> Result<StudentInput, Failure> {
     })
 }
 
+/// Checks that a ray log is a regular file that can be opened: a named pipe would block, a
+/// device never end.
+fn regular_log(p: &std::path::Path) -> Result<(), Failure> {
+    let cannot = |e: String| Failure::input(format!("cannot read ray log {}: {e}", p.display()));
+    // Looked at before opening: opening a named pipe blocks until a writer appears.
+    let meta = std::fs::metadata(p).map_err(|e| cannot(e.to_string()))?;
+    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
+        return Err(cannot(format!("it is {what}, not a file")));
+    }
+    std::fs::File::open(p).map_err(|e| cannot(e.to_string()))?;
+    Ok(())
+}
+
 /// Judges `--rays-log` for `rayscope view`.
 fn judge_log(
     a: &ViewArgs,
@@ -70,6 +83,7 @@ fn judge_log(
         return Ok(None);
     };
     let roles = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
+    regular_log(path)?;
     let never = AtomicBool::new(false);
     let log = rayscope_debug::student::judge_file(scene, settings, path, &roles, a.lenient, &|_, _| {}, &never)
         .map_err(|e| match e {
@@ -106,7 +120,9 @@ pub fn view(a: &ViewArgs) -> Result<ExitCode, Failure> {
     }
     match rayscope_core::output::check_writable(&a.output) {
         Ok(Format::Png) => {}
-        Ok(_) => return Err(Failure::input("the scene view is written as PNG: use a .png output")),
+        Ok(_) | Err(rayscope_core::output::OutputError::UnsupportedFormat { .. }) => {
+            return Err(Failure::input("the scene view is written as PNG: use a .png output"))
+        }
         Err(e) => return Err(Failure::input(e.to_string())),
     }
     let scene = load_scene(&a.file, a.opts.quiet)?;

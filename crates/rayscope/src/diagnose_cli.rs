@@ -100,6 +100,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
         DiagnoseError::Size { .. } => Failure::input(format!("{}: {e}", a.image.display())),
         DiagnoseError::Buffer(_) => Failure::input(format!("{}: {e}", a.image.display())),
     })?;
+    crate::set_verdict(u8::from(!d.matches));
     if a.json {
         let s = serde_json::to_string_pretty(&d).map_err(|e| Failure::failed(e.to_string()))?;
         println!("{s}");

@@ -148,6 +148,11 @@ pub fn diff(a: &DiffArgs) -> Result<ExitCode, Failure> {
     }
 
     let c = compare_rgb8(ia.as_raw(), ib.as_raw());
+    let ok = match a.tol {
+        Some(db) => c.psnr >= db,
+        None => c.differing == 0,
+    };
+    crate::set_verdict(u8::from(!ok));
     let psnr = if c.psnr.is_infinite() {
         "inf".to_string()
     } else {
@@ -198,9 +203,5 @@ pub fn diff(a: &DiffArgs) -> Result<ExitCode, Failure> {
             print!("{}", attribution_text(&shares));
         }
     }
-    let ok = match a.tol {
-        Some(db) => c.psnr >= db,
-        None => c.differing == 0,
-    };
     Ok(if ok { ExitCode::SUCCESS } else { ExitCode::from(1) })
 }

@@ -41,14 +41,26 @@ mod probe;
 mod trace_text;
 
 use std::process::ExitCode;
+use std::sync::atomic::{AtomicU8, Ordering};
 
 use clap::Parser;
 
-/// Ends the process when standard output fails: quietly with status 0 when the reader went away
-/// (a closed pipe), else with a message and status 1.
+/// The exit status when standard output turns out to be closed: 0 for commands that only print,
+/// the verdict for those whose exit status is their verdict (see [`set_verdict`]).
+static CLOSED_STDOUT_STATUS: AtomicU8 = AtomicU8::new(0);
+
+/// Records a command's verdict (0 pass, 1 fail) before it prints its report, so that a reader
+/// that goes away (`rayscope check … | head -1`) cannot turn a failure into success.
+pub(crate) fn set_verdict(code: u8) {
+    CLOSED_STDOUT_STATUS.store(code, Ordering::SeqCst);
+}
+
+/// Ends the process when standard output fails: quietly when the reader went away (a closed
+/// pipe), with the verdict [`set_verdict`] recorded (0 if none), else with a message and
+/// status 1.
 pub(crate) fn stdout_failed(e: std::io::Error) -> ! {
     if e.kind() == std::io::ErrorKind::BrokenPipe {
-        std::process::exit(0);
+        std::process::exit(i32::from(CLOSED_STDOUT_STATUS.load(Ordering::SeqCst)));
     }
     eprintln!("error: cannot write to standard output: {e}");
     std::process::exit(1);

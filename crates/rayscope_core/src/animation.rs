@@ -82,9 +82,12 @@ impl CameraPath {
             cam.position = p;
         }
         if let Some(a) = self.axis.at(frame, |a, b, t| a.lerp(b, t)) {
-            // A zero axis (keyframes pointing opposite ways, half way) keeps the last good one.
-            if a.length_squared() > 0.0 {
-                cam.axis = a.normalize();
+            // Normalised in f64, as `--cam-axis` is: a tiny but non-zero axis is a direction even
+            // where its squared length underflows in f32. A zero axis (keyframes pointing
+            // opposite ways, half way) keeps the flags' axis.
+            let axis = a.as_dvec3().normalize_or_zero();
+            if axis != glam::DVec3::ZERO {
+                cam.axis = axis.as_vec3();
             }
         }
         if let Some(n) = self.angle.at(frame, |a, b, t| a + (b - a) * t) {

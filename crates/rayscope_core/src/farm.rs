@@ -11,7 +11,6 @@
 //! Tiles are dealt so that parts take about the same time even where a few tiles hold most of the
 //! cost (see `owners`).
 
-use std::collections::BTreeMap;
 use std::io::{self, Read};
 use std::path::{Path, PathBuf};
 
@@ -21,7 +20,7 @@ use sha2::{Digest, Sha256};
 use crate::film::Film;
 use crate::output::{write_atomic, OutputError};
 use crate::render::{tile_grid, tile_rect, TILE};
-use crate::settings::RenderSettings;
+use crate::settings::{Limits, RenderSettings};
 
 /// The EXR header attribute that holds a part's [`PartHeader`] as JSON.
 pub(crate) const HEADER_ATTRIBUTE: &str = "rayscope.part";
@@ -213,45 +212,110 @@ impl PartHeader {
         }
     }
 
-    /// The image size the settings give.
+    /// Parses a part header's JSON and checks its format name.
+    ///
+    /// # Errors
+    /// A message saying what is wrong with it (no file name: the caller adds it).
+    pub fn from_json(text: &str) -> Result<PartHeader, String> {
+        let h: PartHeader =
+            serde_json::from_str(text).map_err(|e| format!("its '{HEADER_ATTRIBUTE}' header is damaged: {e}"))?;
+        if h.format != FORMAT {
+            return Err(format!(
+                "it is a part in format '{}'; this rayscope reads '{FORMAT}'",
+                h.format
+            ));
+        }
+        Ok(h)
+    }
+
+    /// The image size the settings give, unchecked.
     fn size(&self) -> Result<(u32, u32), String> {
         let w = self.settings.get("width").and_then(serde_json::Value::as_u64);
         let h = self.settings.get("height").and_then(serde_json::Value::as_u64);
         match (w, h) {
             (Some(w @ 1..=0xffff_ffff), Some(h @ 1..=0xffff_ffff)) => Ok((w as u32, h as u32)),
-            _ => Err("its settings name no image size".into()),
+            _ => Err("its header's settings name no image size (width, height)".into()),
         }
     }
 
-    /// The tiles of the bitmap, in raster order, checked against an image of `tile_count` tiles.
-    fn tile_list(&self, tile_count: u32) -> Result<Vec<u32>, String> {
-        let s = self.tiles.as_bytes();
-        if s.len() != 2 * tile_count.div_ceil(8) as usize {
+    /// Checks every size the header states, against `limits` and against each other, without
+    /// allocating anything for them: the image (a render's limits: pixels, memory), the tile
+    /// size, the part's index and count (at most one part a tile) and the tile bitmap (its
+    /// length, its digits, `tile_count`). Returns the image size.
+    ///
+    /// # Errors
+    /// A message naming the field at fault and the limit it breaks.
+    pub fn check(&self, limits: &Limits) -> Result<(u32, u32), String> {
+        let settings: RenderSettings = serde_json::from_value(self.settings.clone())
+            .map_err(|e| format!("its header's settings are not a render's ({e})"))?;
+        let (w, h) = (settings.width, settings.height);
+        settings
+            .check(limits)
+            .map_err(|e| format!("its header's settings (width {w}, height {h}) are refused: {e}"))?;
+        if self.tile_size != TILE {
             return Err(format!(
-                "its tile bitmap has {} hex digits; an image of {tile_count} tiles needs {}",
-                s.len(),
-                2 * tile_count.div_ceil(8)
+                "its header's tile_size is {}; rayscope's tiles are {TILE} pixels",
+                self.tile_size
             ));
         }
-        let mut out = Vec::new();
-        for (i, pair) in s.chunks_exact(2).enumerate() {
-            let byte = std::str::from_utf8(pair)
-                .ok()
-                .and_then(|p| u8::from_str_radix(p, 16).ok())
-                .ok_or_else(|| "its tile bitmap is not hexadecimal".to_string())?;
-            for bit in 0..8 {
-                if byte & (1 << bit) != 0 {
-                    let t = i as u32 * 8 + bit;
-                    if t >= tile_count {
-                        return Err(format!(
-                            "its tile bitmap names tile {t}, past the image's {tile_count} tiles"
-                        ));
-                    }
-                    out.push(t);
-                }
-            }
+        let (tx, ty) = tile_grid(w, h);
+        let tiles = tx * ty;
+        if self.parts == 0 || self.parts > tiles {
+            return Err(format!(
+                "its header's parts is {}: a {w}×{h} image has {tiles} tiles of {TILE}×{TILE} pixels, so from 1 to {tiles} parts",
+                self.parts
+            ));
         }
-        Ok(out)
+        if self.part >= self.parts {
+            return Err(format!(
+                "its header's part is {} of {}: parts count from 0 to {}",
+                self.part,
+                self.parts,
+                self.parts - 1
+            ));
+        }
+        let digits = 2 * tiles.div_ceil(8) as usize;
+        if self.tiles.len() != digits {
+            return Err(format!(
+                "its header's tile bitmap has {} hex digits; a {w}×{h} image of {tiles} tiles needs {digits}",
+                self.tiles.len()
+            ));
+        }
+        if !self.tiles.bytes().all(|b| b.is_ascii_hexdigit()) {
+            return Err("its header's tile bitmap is not hexadecimal".into());
+        }
+        let mut held = 0u32;
+        for t in self.held_tiles() {
+            if t >= tiles {
+                return Err(format!(
+                    "its header's tile bitmap names tile {t}, past the image's {tiles} tiles"
+                ));
+            }
+            held += 1;
+        }
+        if held != self.tile_count {
+            return Err(format!(
+                "its header's tile_count is {} but its tile bitmap holds {held} tiles",
+                self.tile_count
+            ));
+        }
+        Ok((w, h))
+    }
+
+    /// The tiles of the bitmap, in raster order (a digit that is not hexadecimal counts as 0:
+    /// [`PartHeader::check`] refuses those).
+    fn held_tiles(&self) -> impl Iterator<Item = u32> + '_ {
+        let digit = |c: u8| (c as char).to_digit(16).unwrap_or(0) as u8;
+        self.tiles
+            .as_bytes()
+            .chunks_exact(2)
+            .enumerate()
+            .flat_map(move |(i, pair)| {
+                let byte = (digit(pair[0]) << 4) | digit(pair[1]);
+                (0..8u32)
+                    .filter(move |bit| byte & (1 << bit) != 0)
+                    .map(move |bit| i as u32 * 8 + bit)
+            })
     }
 }
 
@@ -316,24 +380,53 @@ fn ascii_json(json: &str) -> String {
     out
 }
 
-/// Reads a part's header, checking that the file is a rayscope part with 32-bit float RGB.
+/// The most bytes of a part file rayscope reads before its pixels: the EXR header, which holds
+/// the JSON with its tile bitmap (1 MiB of hexadecimal for the 2^30 pixels of the largest render).
+pub const MAX_HEADER_BYTES: u64 = 4 << 20;
+
+/// The most a part's pixels can be compressed: rayscope writes ZIP (deflate), which never
+/// compresses better than 1032:1, and twice that leaves room for any lossless EXR compression a
+/// tool may have saved the part with. A header claiming more pixels than its file could hold is
+/// refused before anything is allocated for them.
+pub const MAX_COMPRESSION_RATIO: u64 = 2048;
+
+/// Bytes of one pixel of a part: three 32-bit floats.
+const PART_PIXEL_BYTES: u64 = 12;
+
+/// OpenEXR's magic number, the first four bytes of every EXR file.
+const EXR_MAGIC: [u8; 4] = [0x76, 0x2f, 0x31, 0x01];
+
+/// Reads a part file's header from `reader` (the file from its first byte, `file_len` bytes in
+/// all) and checks it before anything is allocated for its pixels: an OpenEXR image of one
+/// layer with 32-bit float R, G and B channels, its `HEADER_ATTRIBUTE` a [`PartHeader`] whose
+/// sizes pass [`PartHeader::check`], its pixels the size the settings give, at the origin, and
+/// the file large enough to hold them (see [`MAX_COMPRESSION_RATIO`]). At most
+/// [`MAX_HEADER_BYTES`] are read.
 ///
 /// # Errors
-/// A message naming the file and what is wrong with it.
-pub(crate) fn read_header(path: &Path) -> Result<PartHeader, String> {
-    let name = path.display();
+/// A message saying what is wrong (no file name: the caller adds it).
+pub fn read_part_header(reader: impl Read, file_len: u64, limits: &Limits) -> Result<PartHeader, String> {
+    let mut reader = reader.take(MAX_HEADER_BYTES);
     let mut magic = [0u8; 4];
-    std::fs::File::open(path)
-        .and_then(|mut f| f.read_exact(&mut magic))
-        .map_err(|e| format!("cannot read part '{name}': {e}"))?;
-    if magic != [0x76, 0x2f, 0x31, 0x01] {
-        return Err(format!(
-            "'{name}' is not a rayscope part: not an OpenEXR file (render parts with `rayscope -f SCENE -o part_K.exr --part K/N`)"
-        ));
+    let not_exr = "it is not a rayscope part: not an OpenEXR file (render parts with `rayscope -f SCENE -o part_K.exr --part K/N`)";
+    reader.read_exact(&mut magic).map_err(|_| not_exr.to_string())?;
+    if magic != EXR_MAGIC {
+        return Err(not_exr.into());
     }
-    let meta = exr::meta::MetaData::read_from_file(path, false)
-        .map_err(|e| format!("cannot read part '{name}': a damaged OpenEXR header ({e})"))?;
-    let header = meta.headers.first().ok_or_else(|| format!("'{name}' holds no image"))?;
+    let meta = exr::meta::MetaData::read_from_buffered(io::BufReader::new((&magic[..]).chain(reader)), false).map_err(
+        |e| {
+            format!(
+                "a damaged OpenEXR header, or one longer than the {} MiB a part's header may be ({e})",
+                MAX_HEADER_BYTES >> 20
+            )
+        },
+    )?;
+    let [header] = meta.headers.as_slice() else {
+        return Err(format!(
+            "it holds {} images; a part holds one (was it converted?)",
+            meta.headers.len()
+        ));
+    };
     let key = exr::prelude::Text::from(HEADER_ATTRIBUTE);
     let value = header
         .own_attributes
@@ -342,20 +435,13 @@ pub(crate) fn read_header(path: &Path) -> Result<PartHeader, String> {
         .or_else(|| header.shared_attributes.other.get(&key))
         .ok_or_else(|| {
             format!(
-                "'{name}' is an OpenEXR image but not a rayscope part: it has no '{HEADER_ATTRIBUTE}' header (render parts with --part K/N)"
+                "it is an OpenEXR image but not a rayscope part: it has no '{HEADER_ATTRIBUTE}' header (render parts with --part K/N)"
             )
         })?;
     let exr::meta::attribute::AttributeValue::Text(text) = value else {
-        return Err(format!("'{name}': its '{HEADER_ATTRIBUTE}' header is not text"));
+        return Err(format!("its '{HEADER_ATTRIBUTE}' header is not text"));
     };
-    let h: PartHeader = serde_json::from_str(&text.to_string())
-        .map_err(|e| format!("'{name}': its '{HEADER_ATTRIBUTE}' header is damaged: {e}"))?;
-    if h.format != FORMAT {
-        return Err(format!(
-            "'{name}' is a part in format '{}'; this rayscope reads '{FORMAT}'",
-            h.format
-        ));
-    }
+    let part = PartHeader::from_json(&text.to_string())?;
     let f32_rgb = ["B", "G", "R"].iter().all(|c| {
         header
             .channels
@@ -363,33 +449,96 @@ pub(crate) fn read_header(path: &Path) -> Result<PartHeader, String> {
             .iter()
             .any(|ch| ch.name == **c && ch.sample_type == exr::prelude::SampleType::F32)
     });
-    if !f32_rgb {
+    if header.deep || !f32_rgb {
+        return Err(
+            "it has lost its 32-bit float R, G and B channels (was it converted?); render the part again".into(),
+        );
+    }
+    // The file's length first: a header that claims more pixels than its file can hold is not
+    // a render too large for the limits but a damaged or forged part.
+    let (w, h) = part.size()?;
+    let least = u64::from(w) * u64::from(h) * PART_PIXEL_BYTES / MAX_COMPRESSION_RATIO;
+    if file_len < least {
         return Err(format!(
-            "'{name}' has lost its 32-bit float R, G and B channels (was it converted?); render the part again"
+            "its header says {w}×{h} pixels, which take at least {least} bytes even compressed {MAX_COMPRESSION_RATIO}:1, but the file is {file_len} bytes: it is damaged or not what it says"
         ));
     }
-    Ok(h)
+    let (w, h) = part.check(limits)?;
+    let (size, at) = (header.layer_size, header.own_attributes.layer_position);
+    if (size.width(), size.height()) != (w as usize, h as usize) || (at.x(), at.y()) != (0, 0) {
+        return Err(format!(
+            "its pixels are {}×{} at ({}, {}); its header's settings say {w}×{h} at (0, 0)",
+            size.width(),
+            size.height(),
+            at.x(),
+            at.y()
+        ));
+    }
+    Ok(part)
 }
 
-/// Reads a part's pixels, exactly as stored.
-fn read_pixels(path: &Path, w: u32, h: u32) -> Result<Film, String> {
+/// Opens a part file, only if it is a regular file (a named pipe would block, a device never
+/// end), and reads its checked header; the file is left open for its pixels.
+fn open_part(path: &Path, limits: &Limits) -> Result<(std::fs::File, PartHeader), String> {
+    let name = path.display();
+    let cannot = |e: io::Error| format!("cannot read part '{name}': {e}");
+    // Looked at before opening: opening a named pipe blocks until a writer appears.
+    let meta = std::fs::metadata(path).map_err(cannot)?;
+    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
+        return Err(format!("cannot read part '{name}': it is {what}, not a file"));
+    }
+    let file = std::fs::File::open(path).map_err(cannot)?;
+    // The path may have been replaced between the two looks.
+    let meta = file.metadata().map_err(cannot)?;
+    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
+        return Err(format!("cannot read part '{name}': it is {what}, not a file"));
+    }
+    // "it is …" reads "'part_3.exr' is …"; other messages follow the name.
+    let header = read_part_header(&file, meta.len(), limits).map_err(|e| match e.strip_prefix("it ") {
+        Some(rest) => format!("'{name}' {rest}"),
+        None => format!("'{name}': {e}"),
+    })?;
+    Ok((file, header))
+}
+
+/// Reads a part's pixels, exactly as stored, from the file [`open_part`] checked.
+fn read_pixels(mut file: std::fs::File, path: &Path, w: u32, h: u32) -> Result<Film, String> {
     use exr::prelude::*;
+    use std::io::Seek;
+    let cannot = |e: String| format!("cannot read the pixels of part '{}': {e}", path.display());
+    file.rewind().map_err(|e| cannot(e.to_string()))?;
+    let (ew, eh) = (w as usize, h as usize);
     let image = read()
         .no_deep_data()
         .largest_resolution_level()
         .rgb_channels(
-            |size, _| (size.width(), vec![glam::Vec3::ZERO; size.area()]),
+            move |size, _| {
+                // The header was checked to be w×h; any other size allocates nothing and is
+                // refused below.
+                let n = if (size.width(), size.height()) == (ew, eh) {
+                    size.area()
+                } else {
+                    0
+                };
+                (size.width(), vec![glam::Vec3::ZERO; n])
+            },
             |(fw, px): &mut (usize, Vec<glam::Vec3>), Vec2(x, y), (r, g, b): (f32, f32, f32)| {
-                px[y * *fw + x] = glam::Vec3::new(r, g, b);
+                if let Some(p) = px.get_mut(y * *fw + x) {
+                    *p = glam::Vec3::new(r, g, b);
+                }
             },
         )
         .first_valid_layer()
         .all_attributes()
-        .from_file(path)
-        .map_err(|e| format!("cannot read the pixels of part '{}': {e}", path.display()))?;
+        .from_buffered(io::BufReader::new(file))
+        .map_err(|e| cannot(e.to_string()))?;
     let layer = image.layer_data;
     let size = layer.size;
-    if (size.width(), size.height()) != (w as usize, h as usize) || layer.attributes.layer_position != Vec2(0, 0) {
+    let pixels = layer.channel_data.pixels.1;
+    if (size.width(), size.height()) != (ew, eh)
+        || layer.attributes.layer_position != Vec2(0, 0)
+        || pixels.len() != ew * eh
+    {
         return Err(format!(
             "part '{}' is {}×{} pixels; its header says {w}×{h}",
             path.display(),
@@ -400,7 +549,7 @@ fn read_pixels(path: &Path, w: u32, h: u32) -> Result<Film, String> {
     Ok(Film {
         width: w,
         height: h,
-        pixels: layer.channel_data.pixels.1,
+        pixels,
     })
 }
 
@@ -424,71 +573,99 @@ pub struct Merged {
 #[error("{0}")]
 pub struct MergeError(pub String);
 
-/// Merges part files: checks that they belong to one render (scene content, settings, version,
-/// frame, part count), that each part is given once and holds the tiles its index deals it, and
-/// that together they cover every tile (unless `allow_missing`); then copies each part's tiles
-/// into one film. Parts are read one at a time, so memory holds two images whatever their number.
+/// [`merge_within`] the command line's limits without `--allow-large`.
 ///
 /// # Errors
 /// A [`MergeError`] naming the parts at fault.
 pub fn merge(paths: &[PathBuf], allow_missing: bool) -> Result<Merged, MergeError> {
+    merge_within(paths, allow_missing, &Limits::command_line(false))
+}
+
+/// Why `hd` (from `pd`) is not part of the same render as `first` (from `p0`), if it is not.
+fn same_render(first: &PartHeader, p0: &str, hd: &PartHeader, pd: &str) -> Result<(), MergeError> {
+    let differs = |what: &str, a: &str, b: &str| {
+        Err(MergeError(format!(
+            "'{pd}' is not part of the same render as '{p0}': {what} differ ({b} against {a})"
+        )))
+    };
+    if hd.rayscope_version != first.rayscope_version {
+        return differs("the rayscope versions", &first.rayscope_version, &hd.rayscope_version);
+    }
+    if hd.scene_sha256 != first.scene_sha256 {
+        return differs(
+            "the scenes' contents (scene file or OBJ files)",
+            &format!("{} {:.12}", first.scene, first.scene_sha256),
+            &format!("{} {:.12}", hd.scene, hd.scene_sha256),
+        );
+    }
+    if hd.frame != first.frame {
+        let f = |v: Option<u32>| v.map_or("a still".to_string(), |f| format!("frame {f}"));
+        return differs("the frames", &f(first.frame), &f(hd.frame));
+    }
+    if hd.settings != first.settings {
+        return differs("the render flags", &first.flags, &hd.flags);
+    }
+    if hd.parts != first.parts {
+        return differs(
+            "the part counts",
+            &format!("{} parts", first.parts),
+            &format!("{} parts", hd.parts),
+        );
+    }
+    Ok(())
+}
+
+/// Merges part files: checks that they belong to one render (scene content, settings, version,
+/// frame, part count), that each part is given once and holds the tiles its index deals it, and
+/// that together they cover every tile (unless `allow_missing`); then copies each part's tiles
+/// into one film. Every size a header states is checked against `limits` and its file's length
+/// before anything is allocated for it, and parts are read one at a time: memory holds two
+/// images of 12 bytes a pixel and a few bytes a tile, whatever the number of parts.
+///
+/// # Errors
+/// A [`MergeError`] naming the parts at fault.
+pub fn merge_within(paths: &[PathBuf], allow_missing: bool, limits: &Limits) -> Result<Merged, MergeError> {
     let err = |m: String| MergeError(m);
-    if paths.is_empty() {
+    let Some(path0) = paths.first() else {
         return Err(err("no parts given".into()));
-    }
-    let mut headers = Vec::with_capacity(paths.len());
-    for p in paths {
-        headers.push(read_header(p).map_err(err)?);
-    }
-    let first = &headers[0];
-    let p0 = paths[0].display();
-    let (w, h) = first.size().map_err(|e| err(format!("'{p0}': {e}")))?;
+    };
+    let (_, first) = open_part(path0, limits).map_err(err)?;
+    let p0 = path0.display().to_string();
+    let (w, h) = first.check(limits).map_err(|e| err(format!("'{p0}': {e}")))?;
     let (tx, ty) = tile_grid(w, h);
     let tile_count = tx * ty;
-    let mut by_part: BTreeMap<u32, usize> = BTreeMap::new();
-    let mut tiles_of = Vec::with_capacity(paths.len());
-    for (i, (p, hd)) in paths.iter().zip(&headers).enumerate() {
-        let pd = p.display();
-        let differs = |what: &str, a: &str, b: &str| {
-            err(format!(
-                "'{pd}' is not part of the same render as '{p0}': {what} differ ({b} against {a})"
-            ))
+    // `check` bounds the part count by the tile count, so these are a few bytes a tile.
+    let owner = owners(tx, ty, first.parts);
+    // Part k's tiles, in raster order, are dealt[start[k]..start[k + 1]].
+    let mut start = vec![0usize; first.parts as usize + 1];
+    for &o in &owner {
+        start[o as usize + 1] += 1;
+    }
+    for k in 0..first.parts as usize {
+        start[k + 1] += start[k];
+    }
+    let mut dealt = vec![0u32; owner.len()];
+    let mut next = start.clone();
+    for (t, &o) in owner.iter().enumerate() {
+        dealt[next[o as usize]] = t as u32;
+        next[o as usize] += 1;
+    }
+    drop(next);
+    // For each part, the path that holds it.
+    let mut given: Vec<Option<usize>> = vec![None; first.parts as usize];
+    let mut part_of = Vec::with_capacity(paths.len());
+    for (i, p) in paths.iter().enumerate() {
+        let pd = p.display().to_string();
+        let hd = if i == 0 {
+            None
+        } else {
+            Some(open_part(p, limits).map_err(err)?.1)
         };
-        if hd.rayscope_version != first.rayscope_version {
-            return Err(differs(
-                "the rayscope versions",
-                &first.rayscope_version,
-                &hd.rayscope_version,
-            ));
-        }
-        if hd.scene_sha256 != first.scene_sha256 {
-            return Err(differs(
-                "the scenes' contents (scene file or OBJ files)",
-                &format!("{} {:.12}", first.scene, first.scene_sha256),
-                &format!("{} {:.12}", hd.scene, hd.scene_sha256),
-            ));
-        }
-        if hd.frame != first.frame {
-            let f = |v: Option<u32>| v.map_or("a still".to_string(), |f| format!("frame {f}"));
-            return Err(differs("the frames", &f(first.frame), &f(hd.frame)));
-        }
-        if hd.settings != first.settings {
-            return Err(differs("the render flags", &first.flags, &hd.flags));
-        }
-        if hd.parts != first.parts {
-            return Err(differs(
-                "the part counts",
-                &format!("{} parts", first.parts),
-                &format!("{} parts", hd.parts),
-            ));
-        }
-        if hd.tile_size != TILE || hd.part >= hd.parts {
-            return Err(err(format!(
-                "'{pd}': its header is inconsistent (part {} of {}, {}-pixel tiles)",
-                hd.part, hd.parts, hd.tile_size
-            )));
-        }
-        if let Some(&j) = by_part.get(&hd.part) {
+        let hd = hd.as_ref().unwrap_or(&first);
+        // `open_part` checked its sizes; being of the same render, it has the first's size.
+        same_render(&first, &p0, hd, &pd)?;
+        let k = hd.part as usize;
+        if let Some(j) = given[k] {
             return Err(err(format!(
                 "part {} of {} is given twice: '{}' and '{pd}'; give each part once",
                 hd.part,
@@ -496,28 +673,19 @@ pub fn merge(paths: &[PathBuf], allow_missing: bool) -> Result<Merged, MergeErro
                 paths[j].display()
             )));
         }
-        by_part.insert(hd.part, i);
-        let tiles = hd.tile_list(tile_count).map_err(|e| err(format!("'{pd}': {e}")))?;
-        let spec = PartSpec {
-            index: hd.part,
-            count: hd.parts,
-        };
-        if tiles != deal(tx, ty, spec) {
+        given[k] = Some(i);
+        if !hd.held_tiles().eq(dealt[start[k]..start[k + 1]].iter().copied()) {
             return Err(err(format!(
                 "'{pd}' holds other tiles than part {} of {} is dealt; it was not written by `--part {}/{}`",
                 hd.part, hd.parts, hd.part, hd.parts
             )));
         }
-        tiles_of.push(tiles);
+        part_of.push(hd.part);
     }
-    let missing_parts: Vec<u32> = (0..first.parts).filter(|k| !by_part.contains_key(k)).collect();
-    let mut covered = vec![false; tile_count as usize];
-    for tiles in &tiles_of {
-        for &t in tiles {
-            covered[t as usize] = true;
-        }
-    }
-    let missing_tiles: Vec<u32> = (0..tile_count).filter(|&t| !covered[t as usize]).collect();
+    let missing_parts: Vec<u32> = (0..first.parts).filter(|&k| given[k as usize].is_none()).collect();
+    let missing_tiles: Vec<u32> = (0..tile_count)
+        .filter(|&t| given[owner[t as usize] as usize].is_none())
+        .collect();
     if !missing_parts.is_empty() && !allow_missing {
         return Err(err(format!(
             "{} of {} parts are missing: {}; {} of {tile_count} tiles are not covered. Render them with `--part K/{}` (flags: {}), or pass --allow-missing to write the image without them",
@@ -529,11 +697,22 @@ pub fn merge(paths: &[PathBuf], allow_missing: bool) -> Result<Merged, MergeErro
             first.flags
         )));
     }
+    drop(owner);
     let mut film = Film::new(w, h);
-    let mut nonfinite = 0;
-    for ((p, hd), tiles) in paths.iter().zip(&headers).zip(&tiles_of) {
-        let part = read_pixels(p, w, h).map_err(err)?;
-        for &t in tiles {
+    let mut nonfinite = 0u64;
+    for (p, &k) in paths.iter().zip(&part_of) {
+        // Opened and checked again: the file read now is the one whose header was checked.
+        let pd = p.display().to_string();
+        let (file, hd) = open_part(p, limits).map_err(err)?;
+        same_render(&first, &p0, &hd, &pd)?;
+        if hd.part != k {
+            return Err(err(format!(
+                "'{pd}' changed while the parts were merged (it held part {k}, now part {})",
+                hd.part
+            )));
+        }
+        let part = read_pixels(file, p, w, h).map_err(err)?;
+        for &t in &dealt[start[k as usize]..start[k as usize + 1]] {
             let (x0, y0, x1, y1) = tile_rect(w, h, t);
             for y in y0..y1 {
                 let row = (y * w) as usize;
@@ -541,11 +720,11 @@ pub fn merge(paths: &[PathBuf], allow_missing: bool) -> Result<Merged, MergeErro
                     .copy_from_slice(&part.pixels[row + x0 as usize..row + x1 as usize]);
             }
         }
-        nonfinite += hd.nonfinite;
+        nonfinite = nonfinite.saturating_add(hd.nonfinite);
     }
     Ok(Merged {
         film,
-        header: headers.swap_remove(0),
+        header: first,
         missing_parts,
         missing_tiles,
         nonfinite,
@@ -628,8 +807,16 @@ mod tests {
         let spec = PartSpec { index: 1, count: 3 };
         let tiles = deal(7, 3, spec);
         let h = PartHeader::new(Path::new("s.txt"), "ab".into(), &s, String::new(), None, spec, &tiles);
-        assert_eq!(h.size(), Ok((100, 40)));
-        assert_eq!(h.tile_list(21), Ok(tiles));
-        assert!(h.tile_list(40).is_err());
+        let limits = Limits::command_line(false);
+        assert_eq!(h.check(&limits), Ok((100, 40)));
+        assert!(h.held_tiles().eq(tiles));
+        let bigger = PartHeader {
+            settings: serde_json::to_value(RenderSettings { width: 200, ..s }).unwrap(),
+            ..h.clone()
+        };
+        assert!(bigger
+            .check(&limits)
+            .unwrap_err()
+            .contains("tile bitmap has 6 hex digits"));
     }
 }

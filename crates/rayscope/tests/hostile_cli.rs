@@ -1,0 +1,308 @@
+//! The command line's other inputs against hostile values: verdicts that must survive a closed
+//! standard output, camera axes too short for f32, outputs in formats a command cannot write,
+//! and ray files that are devices, pipes or too large. Each test runs the real binary.
+
+use std::ffi::OsStr;
+use std::fs;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+use std::thread;
+use std::time::{Duration, Instant};
+
+const SCENE: &str = "Material \"W\" Diffuse (0.8, 0.8, 0.8) 1\n\
+                     Material \"R\" Diffuse (0.9, 0.1, 0.1) 1\n\
+                     PointLight \"L\" (0, 2, 1) (1, 1, 1)\n\
+                     Plane \"Floor\" (0, -1, 0) (0, 1, 0) \"W\"\n\
+                     Sphere \"Ball\" (0.6, 0.2, 3) 0.8 \"R\"\n";
+
+fn bin() -> PathBuf {
+    PathBuf::from(env!("CARGO_BIN_EXE_rayscope"))
+}
+
+fn scene(dir: &Path) -> PathBuf {
+    let p = dir.join("scene.txt");
+    fs::write(&p, SCENE).unwrap();
+    p
+}
+
+fn run<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    Command::new(bin()).args(args).stdin(Stdio::null()).output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Runs rayscope with `args` and its standard output a pipe whose reader is already gone;
+/// returns the exit code and stderr.
+fn with_closed_stdout<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String) {
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(bin())
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    (o.status.code(), stderr(&o))
+}
+
+/// Runs rayscope with `args`, killing it and failing the test if it runs past 20 s; returns the
+/// exit code, stderr and its highest VmHWM seen, in KiB.
+fn watched<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String, u64) {
+    let start = Instant::now();
+    let mut child = Command::new(bin())
+        .args(args)
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut err = child.stderr.take().unwrap();
+    let drain = thread::spawn(move || {
+        let mut s = String::new();
+        let _ = err.read_to_string(&mut s);
+        s
+    });
+    let mut peak = 0;
+    let status = loop {
+        if let Some(kib) = fs::read_to_string(format!("/proc/{}/status", child.id()))
+            .ok()
+            .and_then(|s| {
+                let line = s.lines().find(|l| l.starts_with("VmHWM:"))?.to_owned();
+                line.split_whitespace().nth(1)?.parse::<u64>().ok()
+            })
+        {
+            peak = peak.max(kib);
+        }
+        if let Some(s) = child.try_wait().unwrap() {
+            break s;
+        }
+        if start.elapsed() > Duration::from_secs(20) {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!(
+                "{args:?}: still running after 20 s",
+                args = args.iter().map(|a| a.as_ref().to_owned()).collect::<Vec<_>>()
+            );
+        }
+        thread::sleep(Duration::from_millis(2));
+    };
+    (status.code(), drain.join().unwrap(), peak)
+}
+
+fn png(path: &Path, rgb: [u8; 3]) {
+    image::RgbImage::from_pixel(16, 16, image::Rgb(rgb)).save(path).unwrap();
+}
+
+#[test]
+fn a_closed_stdout_keeps_diffs_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("a.png"), dir.path().join("b.png"));
+    png(&a, [0, 0, 0]);
+    png(&b, [200, 10, 10]);
+    let (code, err) = with_closed_stdout(&[OsStr::new("diff"), a.as_os_str(), b.as_os_str()]);
+    assert_eq!(code, Some(1), "images differ: {err}");
+    let (code, err) = with_closed_stdout(&[OsStr::new("diff"), a.as_os_str(), a.as_os_str()]);
+    assert_eq!(code, Some(0), "images equal: {err}");
+    // With a tolerance the verdict is the tolerance's.
+    let (code, _) = with_closed_stdout(&[
+        OsStr::new("diff"),
+        a.as_os_str(),
+        b.as_os_str(),
+        OsStr::new("--tol"),
+        OsStr::new("1"),
+    ]);
+    assert_eq!(code, Some(0));
+}
+
+#[test]
+fn a_closed_stdout_keeps_diagnoses_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let img = dir.path().join("yours.png");
+    png(&img, [255, 0, 255]);
+    let (code, err) = with_closed_stdout(&[
+        OsStr::new("diagnose"),
+        OsStr::new("-f"),
+        s.as_os_str(),
+        img.as_os_str(),
+        OsStr::new("--no-pairs"),
+        OsStr::new("--quiet"),
+    ]);
+    assert_eq!(code, Some(1), "a magenta image is not the scene: {err}");
+}
+
+#[test]
+fn plain_output_to_a_closed_stdout_still_ends_quietly() {
+    let (code, err) = with_closed_stdout(&["mistakes"]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.is_empty(), "{err}");
+}
+
+/// Renders frame 0 of the scene with `flags` into `dir/name_0000.png` and returns its bytes.
+fn frame(dir: &Path, name: &str, flags: &[&str]) -> Result<Vec<u8>, String> {
+    let out = dir.join(format!("{name}.png"));
+    let o = Command::new(bin())
+        .arg("-f")
+        .arg(scene(dir))
+        .arg("-o")
+        .arg(&out)
+        .args(["-w", "24", "-h", "16", "--quiet"])
+        .args(flags)
+        .output()
+        .unwrap();
+    if !o.status.success() {
+        return Err(stderr(&o));
+    }
+    let written = if flags.contains(&"--frames") {
+        dir.join(format!("{name}_0000.png"))
+    } else {
+        out
+    };
+    Ok(fs::read(written).unwrap())
+}
+
+#[test]
+fn a_tiny_key_axis_is_the_direction_it_names() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let unit = frame(d, "unit", &["--frames", "0", "--key-a", "0:1,0,0", "-n", "90"]).unwrap();
+    let about_z = frame(d, "z", &["--frames", "0", "--key-a", "0:0,0,1", "-n", "90"]).unwrap();
+    assert_ne!(unit, about_z, "the scene must show a turn about x from one about z");
+    // Lengths whose square underflows in f32 (1e-23) or is a subnormal (1e-30, 1e-40): each is
+    // the x axis, not dropped for the flags' axis (+z).
+    for tiny in ["1e-23", "1e-30", "1e-40"] {
+        let key = format!("0:{tiny},0,0");
+        let got = frame(d, "tiny", &["--frames", "0", "--key-a", &key, "-n", "90"]).unwrap();
+        assert!(got == unit, "--key-a {key} did not turn about x");
+        // Between two tiny keyframes too.
+        let got = frame(
+            d,
+            "tiny2",
+            &[
+                "--frames",
+                "0",
+                "--key-a",
+                &key,
+                "--key-a",
+                &format!("10:{tiny},0,0"),
+                "-n",
+                "90",
+            ],
+        )
+        .unwrap();
+        assert!(got == unit, "--key-a {key} (two keys) did not turn about x");
+    }
+    // --cam-axis takes tiny axes the same way.
+    let cam = frame(d, "cam", &["-a", "1e-30,0,0", "-n", "90"]).unwrap();
+    let cam_unit = frame(d, "cam_unit", &["-a", "1,0,0", "-n", "90"]).unwrap();
+    assert!(cam == cam_unit);
+    // A zero axis has no direction: refused, naming the flag.
+    let err = frame(d, "zero", &["--frames", "0", "--key-a", "3:0,0,0"]).unwrap_err();
+    assert!(err.contains("--key-a") && err.contains("(0, 0, 0)"), "{err}");
+}
+
+#[test]
+fn view_names_only_the_format_it_writes() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    for name in ["x.jpg", "x.exr", "x"] {
+        let out = dir.path().join(name);
+        let o = run(&[
+            OsStr::new("view"),
+            OsStr::new("-f"),
+            s.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+        ]);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{err}");
+        assert!(err.contains("PNG") && err.contains(".png"), "{err}");
+        assert!(!err.contains("ppm") && !err.contains("exr,"), "{err}");
+        assert!(!out.exists());
+    }
+}
+
+#[test]
+fn bench_rays_reads_only_regular_files_of_bounded_size() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let fifo = dir.path().join("rays.bin");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let sparse = dir.path().join("big.bin");
+    // 400 MiB without a byte written (a sparse file): over the bound, refused by its length.
+    fs::File::create(&sparse).unwrap().set_len(400 << 20).unwrap();
+    for (file, needle) in [
+        (Path::new("/dev/zero"), "a device, not a file"),
+        (fifo.as_path(), "a named pipe (FIFO), not a file"),
+        (dir.path(), "a folder, not a file"),
+        (sparse.as_path(), "more than the 384 MiB"),
+    ] {
+        let (code, err, peak) = watched(&[
+            OsStr::new("bench"),
+            OsStr::new("rays"),
+            OsStr::new("-f"),
+            s.as_os_str(),
+            OsStr::new("--rays-file"),
+            file.as_os_str(),
+        ]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(needle), "{err}");
+        assert!(peak < 100 * 1024, "{peak} KiB");
+    }
+    let (_, err, _) = watched(&[
+        OsStr::new("bench"),
+        OsStr::new("rays"),
+        OsStr::new("-f"),
+        s.as_os_str(),
+        OsStr::new("--rays-file"),
+        sparse.as_os_str(),
+    ]);
+    assert!(err.contains("at most 16777216 rays"), "{err}");
+}
+
+#[test]
+fn view_and_debug_read_ray_logs_only_from_regular_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let s = scene(dir.path());
+    let fifo = dir.path().join("rays.jsonl");
+    assert!(Command::new("mkfifo").arg(&fifo).status().unwrap().success());
+    let out = dir.path().join("view.png");
+    for (log, needle) in [
+        (Path::new("/dev/zero"), "a device, not a file"),
+        (fifo.as_path(), "a named pipe (FIFO), not a file"),
+    ] {
+        let (code, err, peak) = watched(&[
+            OsStr::new("view"),
+            OsStr::new("-f"),
+            s.as_os_str(),
+            OsStr::new("-o"),
+            out.as_os_str(),
+            OsStr::new("-w"),
+            OsStr::new("8"),
+            OsStr::new("-h"),
+            OsStr::new("8"),
+            OsStr::new("--view-width"),
+            OsStr::new("32"),
+            OsStr::new("--view-height"),
+            OsStr::new("32"),
+            OsStr::new("--rays-log"),
+            log.as_os_str(),
+        ]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(needle), "{err}");
+        assert!(peak < 200 * 1024, "{peak} KiB");
+        assert!(!out.exists());
+        let (code, err, _) = watched(&[
+            OsStr::new("debug"),
+            s.as_os_str(),
+            OsStr::new("--rays"),
+            log.as_os_str(),
+        ]);
+        assert_eq!(code, Some(2), "{err}");
+        assert!(err.contains(needle), "{err}");
+    }
+}
