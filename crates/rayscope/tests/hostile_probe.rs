@@ -358,3 +358,48 @@ fn batteries_past_the_request_limit_are_refused_before_they_are_built() {
     assert_eq!(r.code, Some(2), "{}", r.stderr);
     assert!(r.stderr.contains("make up to 1003632 requests"), "{}", r.stderr);
 }
+
+#[test]
+fn the_csharp_adapter_gives_entities_a_material_they_may_read() {
+    // ExampleTracer.cs has the template's shape: its hits read their entity's material, as many
+    // students' do, so an entity built with a null material throws on every hit.
+    let have = |tool: &str| {
+        Command::new(tool)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    if !(have("mcs") && have("mono")) {
+        rayscope_testkit::not_run(
+            "needs mcs and mono",
+            "No mcs (Mono's C# compiler) and mono found on PATH.",
+            "To run it, install them (Debian: apt-get install mono-mcs).",
+        );
+        return;
+    }
+    let csharp = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/probe/csharp");
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("probe.exe");
+    let built = Command::new("mcs")
+        .arg(format!("-out:{}", exe.display()))
+        .arg(csharp.join("ProbeAdapter.cs"))
+        .arg(csharp.join("ExampleTracer.cs"))
+        .output()
+        .unwrap();
+    assert!(built.status.success(), "{}", String::from_utf8_lossy(&built.stdout));
+    let s = scenes("basic.txt");
+    let r = watched(
+        &[
+            "probe",
+            "-f",
+            s.to_str().unwrap(),
+            "--",
+            "mono",
+            exe.to_str().unwrap(),
+            "--probe",
+        ],
+        Duration::from_secs(20),
+    );
+    assert_eq!(r.code, Some(0), "{}\n{}", r.stdout, r.stderr);
+    assert!(r.stdout.contains("Every answer is right"), "{}", r.stdout);
+}

@@ -1,12 +1,31 @@
-// A minimal, correct stand-in for a course project's classes, so that ProbeAdapter.cs can be
-// compiled and tried on its own:
+// A minimal, correct stand-in for the course template's classes, in their shape (a material and
+// its colour included), so that ProbeAdapter.cs can be compiled and tried on its own:
 //     mcs -out:probe.exe ProbeAdapter.cs ExampleTracer.cs
 //     rayscope probe -f tests/sample_scene_1.txt -- mono probe.exe --probe
 using System;
 
 namespace RayTracer
 {
-    public class Material { }
+    // The template's material and colour, as far as the adapter and the entities use them.
+    public class Color
+    {
+        public double R { get; private set; }
+        public double G { get; private set; }
+        public double B { get; private set; }
+        public Color(double r, double g, double b) { R = r; G = g; B = b; }
+    }
+
+    public class Material
+    {
+        public enum MaterialType { Diffuse, Reflective, Refractive, Emissive }
+        public MaterialType Type { get; private set; }
+        public Color Color { get; private set; }
+        public double RefractiveIndex { get; private set; }
+        public Material(MaterialType type, Color color, double refractiveIndex = 1)
+        {
+            Type = type; Color = color; RefractiveIndex = refractiveIndex;
+        }
+    }
 
     public class Vector3
     {
@@ -36,9 +55,13 @@ namespace RayTracer
         public Vector3 Normal { get; private set; }
         public Vector3 Incident { get; private set; }
         public Material Material { get; private set; }
+        // As in many course tracers, a hit reads its material (here its colour), so an entity
+        // built without one throws.
+        public Color Color { get; private set; }
         public RayHit(Vector3 position, Vector3 normal, Vector3 incident, Material material)
         {
             Position = position; Normal = normal; Incident = incident; Material = material;
+            Color = material.Color;
         }
     }
 

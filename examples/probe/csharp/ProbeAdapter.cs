@@ -15,12 +15,15 @@ namespace RayTracer
     public static class ProbeAdapter
     {
         // ---- connect your tracer here: n holds the primitive's numbers in request order ----
+        // Every primitive gets a real material (white, diffuse), since intersection code may
+        // read it: a hit often carries the material or its colour.
+        static readonly Material Probe = new Material(Material.MaterialType.Diffuse, new Color(1, 1, 1));
         static SceneEntity Make(string kind, double[] n)
         {
             Func<int, Vector3> v = i => new Vector3(n[i], n[i + 1], n[i + 2]);
-            if (kind == "sphere") return new Sphere(v(0), n[3], null);
-            if (kind == "plane") return new Plane(v(0), v(3), null);
-            return new Triangle(v(0), v(3), v(6), null);
+            if (kind == "sphere") return new Sphere(v(0), n[3], Probe);
+            if (kind == "plane") return new Plane(v(0), v(3), Probe);
+            return new Triangle(v(0), v(3), v(6), Probe);
         }
         // -------------------------------------------------------------------------------------
 
