@@ -789,6 +789,39 @@ mod tests {
         assert!(columns.len() > 20, "{columns:?}");
     }
 
+    /// The part_header fuzz target's seeds, read as the target reads them: the real part is
+    /// accepted, every forged one refused by the field it lies in.
+    #[test]
+    fn the_fuzz_seeds_are_judged_by_the_field_that_lies() {
+        let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus/part_header");
+        let limits = Limits {
+            max_pixels: 8192 * 8192,
+            memory_bytes: 2 << 30,
+            max_samples: None,
+            pixel_hint: "",
+            memory_hint: "",
+        };
+        let judge = |name: &str| -> Result<(u32, u32), String> {
+            let data = std::fs::read(dir.join(name)).unwrap();
+            if name.ends_with(".exr") {
+                read_part_header(&data[..], data.len() as u64, &limits)?.check(&limits)
+            } else {
+                PartHeader::from_json(std::str::from_utf8(&data).unwrap())?.check(&limits)
+            }
+        };
+        assert_eq!(judge("seed-part-32x32.exr"), Ok((32, 32)));
+        assert_eq!(judge("seed-header.json"), Ok((32, 32)));
+        for (name, field) in [
+            ("seed-part-huge-parts.exr", "parts is 4294967295"),
+            ("seed-huge-parts.json", "parts is 4294967295"),
+            ("seed-huge-size.json", "width 1048576, height 1048576"),
+            ("seed-bad-bitmap.json", "not hexadecimal"),
+        ] {
+            let e = judge(name).unwrap_err();
+            assert!(e.contains(field), "{name}: {e}");
+        }
+    }
+
     #[test]
     fn headers_are_ascii_whatever_the_scene_path() {
         let j = ascii_json(r#"{"scene":"szène/日本/🎥.txt"}"#);
