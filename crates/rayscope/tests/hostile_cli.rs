@@ -136,6 +136,39 @@ fn a_closed_stdout_keeps_diagnoses_verdict() {
 }
 
 #[test]
+fn a_closed_stdout_keeps_checks_verdict() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("rays.jsonl");
+    // Three camera rays straight ahead: pixels (0..3, 0) of an 8×6 image look elsewhere.
+    let text: String = (0..3)
+        .map(|x| {
+            format!("{{\"pixel\": [{x}, 0], \"id\": {x}, \"kind\": \"camera\", \"origin\": [0, 0, 0], \"direction\": [0, 0, 1]}}\n")
+        })
+        .collect();
+    fs::write(&log, text).unwrap();
+    let scene = rayscope_testkit::scene("basic.txt");
+    for json in [false, true] {
+        let mut args = vec![
+            OsStr::new("check"),
+            OsStr::new("-f"),
+            scene.as_os_str(),
+            OsStr::new("--rays"),
+            log.as_os_str(),
+            OsStr::new("-w"),
+            OsStr::new("8"),
+            OsStr::new("-h"),
+            OsStr::new("6"),
+            OsStr::new("--quiet"),
+        ];
+        if json {
+            args.push(OsStr::new("--json"));
+        }
+        let (code, err) = with_closed_stdout(&args);
+        assert_eq!(code, Some(1), "the rays disagree (json {json}): {err}");
+    }
+}
+
+#[test]
 fn plain_output_to_a_closed_stdout_still_ends_quietly() {
     let (code, err) = with_closed_stdout(&["mistakes"]);
     assert_eq!(code, Some(0), "{err}");
