@@ -286,12 +286,20 @@ fn a_header_longer_than_the_bound_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let p = part(dir.path(), 0, 1);
     let bad = forged(&p, &dir.path().join("long.exr"), 0, |v| {
-        v["flags"] = "x".repeat(5 << 20).into();
+        v["flags"] = "x".repeat(21 << 20).into();
     });
     let out = dir.path().join("merged.png");
     refused(
         &watched(&merge_args(&[&bad], &out, &[])),
-        &["long.exr", "longer than the 4 MiB"],
+        &["long.exr", "longer than the 20 MiB"],
+    );
+    // Just within the bound: read, parsed and refused by its bitmap's length, in small memory.
+    let bad = forged(&p, &dir.path().join("wide.exr"), 0, |v| {
+        v["tiles"] = "00".repeat(19 << 19).into();
+    });
+    refused(
+        &watched(&merge_args(&[&bad], &out, &[])),
+        &["wide.exr", "has 19922944 hex digits"],
     );
     assert!(!out.exists());
 }

@@ -381,8 +381,9 @@ fn ascii_json(json: &str) -> String {
 }
 
 /// The most bytes of a part file rayscope reads before its pixels: the EXR header, which holds
-/// the JSON with its tile bitmap (1 MiB of hexadecimal for the 2^30 pixels of the largest render).
-pub const MAX_HEADER_BYTES: u64 = 4 << 20;
+/// the JSON with its tile bitmap. The largest render, 2^30 pixels, has at most 2^26 tiles (one
+/// pixel wide), 16 MiB of hexadecimal; at least 16 pixels wide, 2^22 tiles, 1 MiB.
+pub const MAX_HEADER_BYTES: u64 = 20 << 20;
 
 /// The most a part's pixels can be compressed: rayscope writes ZIP (deflate), which never
 /// compresses better than 1032:1, and twice that leaves room for any lossless EXR compression a
