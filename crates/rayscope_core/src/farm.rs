@@ -574,7 +574,7 @@ pub struct Merged {
 #[error("{0}")]
 pub struct MergeError(pub String);
 
-/// [`merge_within`] the command line's limits without `--allow-large`.
+/// [`merge_within`] under the command line's limits without `--allow-large`.
 ///
 /// # Errors
 /// A [`MergeError`] naming the parts at fault.
