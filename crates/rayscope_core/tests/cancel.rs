@@ -51,7 +51,7 @@ fn a_cancel_stops_a_branching_glass_path_at_once() {
     // mistake goes through it).
     let one_path = RenderSettings {
         mistakes: Mistakes::parse("no-shadow-offset").unwrap(),
-        ..base.clone()
+        ..base
     };
     for (engine, settings) in [("packets", &base), ("one path", &one_path)] {
         let took = stop_time(&scene, settings, Duration::from_millis(400));
