@@ -22,7 +22,23 @@ fn log_failure(e: LogError) -> Failure {
     }
 }
 
-/// Runs `rayscope check`: exit 0 when every ray agrees, 1 when any disagrees, 2 for bad input.
+/// The refusal of a log without a ray to judge: a check that judged nothing has no verdict.
+fn nothing_judged(path: &std::path::Path, report: &rayscope_check::Report) -> Failure {
+    let mut message = format!("{} has no ray to judge, so nothing was checked", path.display());
+    match &report.first_skipped {
+        Some(first) if report.skipped_lines > 0 => message.push_str(&format!(
+            ": its {} non-blank line{} {} malformed (skipped under --lenient); the first:\n{first}",
+            report.skipped_lines,
+            if report.skipped_lines == 1 { "" } else { "s" },
+            if report.skipped_lines == 1 { "is" } else { "are all" },
+        )),
+        _ => message.push_str(" (the log is empty or has only blank lines): make your tracer write a record per ray, as docs/check.md describes"),
+    }
+    Failure::input(message)
+}
+
+/// Runs `rayscope check`: exit 0 when every ray agrees, 1 when any disagrees, 2 for bad input
+/// or a log without a ray.
 pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
     let settings = settings(&a.opts)?;
     let roles = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
@@ -60,6 +76,9 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
     bar.finish_and_clear();
     let report = report.map_err(log_failure)?;
     let secs = start.elapsed().as_secs_f64();
+    if report.rays == 0 {
+        return Err(nothing_judged(&a.rays, &report));
+    }
 
     let flags = replay_flags(&a.opts);
     let file = a.file.display().to_string();
@@ -71,6 +90,7 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
             )
         })
     };
+    crate::set_verdict(u8::from(!report.passed()));
     if a.json {
         let v = report.to_json(&trace);
         println!(
@@ -90,7 +110,6 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
             t.judging.as_secs_f64(),
             rayon::current_num_threads()
         );
-    crate::set_verdict(u8::from(!report.passed()));
     }
     Ok(if report.passed() {
         ExitCode::SUCCESS

@@ -40,6 +40,32 @@ const WINDOW: u64 = 1 << 16;
 /// Most rays one pixel sample may gather before it is judged as it stands.
 const MAX_GROUP: usize = 1 << 16;
 
+/// Most rays of unfinished pixel samples held at once (280 bytes a ray: 70 MiB, and up to twice
+/// that with their vectors' spare room), after each batch is grouped: a log written
+/// sample after sample holds about [`WINDOW`] rays, and one from a tracer whose threads interleave
+/// their samples' rays (64 threads, each with a sample of up to 3,000 rays in flight) fits
+/// comfortably. A log that interleaves more is refused with a note on how to write it.
+pub const MAX_PENDING_RAYS: usize = 4 * WINDOW as usize;
+
+/// Too many rays of unfinished samples: the last record read, the rays and the samples.
+#[derive(Debug, PartialEq)]
+struct Overfull {
+    line: u64,
+    rays: u64,
+    samples: u64,
+}
+
+impl Overfull {
+    fn error(self, source: &dyn RaySource) -> LogError {
+        LogError::Interleaved {
+            place: source.place(self.line),
+            rays: self.rays,
+            samples: self.samples,
+            limit: MAX_PENDING_RAYS as u64,
+        }
+    }
+}
+
 /// Collects rays into pixel samples, closing those that are complete.
 ///
 /// Tracers write most of a sample's rays one after another, so the sample of the last record is
@@ -51,6 +77,8 @@ struct Grouper {
     /// The sample of the last record, with the record count at its last ray.
     current: Option<(Key, (Vec<LoggedRay>, u64))>,
     seen: u64,
+    /// Rays in `open` and `current`.
+    pending: usize,
 }
 
 impl Grouper {
@@ -59,7 +87,9 @@ impl Grouper {
         let key = (r.pixel, r.sample);
         if !matches!(&self.current, Some((k, _)) if *k == key) {
             self.park();
-            let e = self.open.remove(&key).unwrap_or_default();
+            // Room for one ray: many samples have only their camera ray, and held samples are
+            // what a check's memory is mostly made of.
+            let e = self.open.remove(&key).unwrap_or_else(|| (Vec::with_capacity(1), 0));
             self.current = Some((key, e));
         }
         let Some((_, entry)) = self.current.as_mut() else {
@@ -67,8 +97,10 @@ impl Grouper {
         };
         entry.0.push(r);
         entry.1 = self.seen;
+        self.pending += 1;
         if entry.0.len() >= MAX_GROUP {
             if let Some((_, (g, _))) = self.current.take() {
+                self.pending -= g.len();
                 ready.push(g);
             }
         }
@@ -82,8 +114,9 @@ impl Grouper {
     }
 
     /// Moves the samples that got no ray in the last [`WINDOW`] records (all, at the end) to
-    /// `ready`, in the order of their last ray.
-    fn close(&mut self, all: bool, ready: &mut Vec<Vec<LoggedRay>>) {
+    /// `ready`, in the order of their last ray; refuses the log when the samples left open hold
+    /// more than [`MAX_PENDING_RAYS`] rays.
+    fn close(&mut self, all: bool, ready: &mut Vec<Vec<LoggedRay>>) -> Result<(), Overfull> {
         if all {
             self.park();
         }
@@ -97,9 +130,23 @@ impl Grouper {
         done.sort_unstable_by_key(|x| x.0);
         for (_, k) in done {
             if let Some((g, _)) = self.open.remove(&k) {
+                self.pending -= g.len();
                 ready.push(g);
             }
         }
+        if self.pending > MAX_PENDING_RAYS {
+            let last = self
+                .current
+                .as_ref()
+                .and_then(|(_, (g, _))| g.last())
+                .map_or(0, |r| r.line);
+            return Err(Overfull {
+                line: last,
+                rays: self.pending as u64,
+                samples: (self.open.len() + usize::from(self.current.is_some())) as u64,
+            });
+        }
+        Ok(())
     }
 }
 
@@ -129,7 +176,7 @@ pub fn check(
 }
 
 /// What [`run`] hands each judged pixel sample to: its rays and their verdicts.
-pub(crate) type Sink<'s> = &'s mut dyn FnMut(Vec<LoggedRay>, Vec<Vec<Finding>>);
+pub(crate) type Sink<'s> = &'s mut (dyn FnMut(Vec<LoggedRay>, Vec<Vec<Finding>>) + Send);
 
 /// Pixel samples judged in one step: the tally and, when a sink wants them, each ray's findings.
 type Judged = (Tally, Option<Vec<Vec<Vec<Finding>>>>);
@@ -187,7 +234,6 @@ pub(crate) fn run(
     let mut grouper = Grouper::default();
     let keep = opts.examples;
     let mut tally = Tally::new(keep);
-    let findings = sink.is_some();
     // The batch being read, and the one read before it with whether it was the log's last.
     let mut next: Vec<LoggedRay> = Vec::with_capacity(log::BATCH);
     let mut read: Option<(Vec<LoggedRay>, bool)> = None;
@@ -202,26 +248,41 @@ pub(crate) fn run(
             let again = more && source.next_batch(&mut next)?;
             Ok((again, t0.elapsed()))
         };
-        let judger = || {
+        let judger = || -> Result<(Tally, Duration), Overfull> {
             let t1 = Instant::now();
             let mut ready = Vec::new();
             if let Some((batch, last)) = read.as_mut() {
                 for r in batch.drain(..) {
                     grouper.push(r, &mut ready);
                 }
-                grouper.close(*last, &mut ready);
+                grouper.close(*last, &mut ready)?;
             }
-            let judged = judge_groups(judge, &ready, keep, findings);
-            (ready, judged, t1.elapsed())
+            let Some(sink) = sink.as_mut() else {
+                return Ok((judge_groups(judge, &ready, keep, false).0, t1.elapsed()));
+            };
+            // A batch's worth of rays at a time, so that the verdicts waiting for the sink stay
+            // bounded however many samples complete at once.
+            let mut tally = Tally::new(keep);
+            let mut ready = ready.into_iter().peekable();
+            while ready.peek().is_some() {
+                let mut rays = 0;
+                let mut part = Vec::new();
+                while let Some(g) = ready.next_if(|g| part.is_empty() || rays + g.len() <= log::BATCH) {
+                    rays += g.len();
+                    part.push(g);
+                }
+                let (t, f) = judge_groups(judge, &part, keep, true);
+                tally = tally.merge(t);
+                for (g, f) in part.into_iter().zip(f.unwrap_or_default()) {
+                    sink(g, f);
+                }
+            }
+            Ok((tally, t1.elapsed()))
         };
-        let (got, (ready, (t, f), dt)) = rayon::join(reader, judger);
+        let (got, judged) = rayon::join(reader, judger);
+        let (t, dt) = judged.map_err(|o: Overfull| o.error(source))?;
         judging += dt;
         tally = tally.merge(t);
-        if let (Some(sink), Some(f)) = (sink.as_mut(), f) {
-            for (g, f) in ready.into_iter().zip(f) {
-                sink(g, f);
-            }
-        }
         let (again, dt) = got?;
         reading += dt;
         // The buffers trade places, so neither is allocated again.
@@ -278,9 +339,9 @@ mod tests {
             g.push(LoggedRay::for_tests(p, s, line as u64 + 1), &mut ready);
         }
         g.push(LoggedRay::for_tests([0, 0], 0, 8), &mut ready);
-        g.close(false, &mut ready);
+        g.close(false, &mut ready).unwrap();
         assert!(ready.is_empty(), "no sample is older than the window");
-        g.close(true, &mut ready);
+        g.close(true, &mut ready).unwrap();
         // In the order of each sample's last ray.
         assert_eq!(lines(&ready), vec![vec![3, 5], vec![4, 6], vec![7], vec![1, 2, 8]]);
     }
@@ -293,10 +354,56 @@ mod tests {
         for i in 0..WINDOW {
             g.push(LoggedRay::for_tests([1, 0], (i % 2) as u32, i + 2), &mut ready);
         }
-        g.close(false, &mut ready);
+        g.close(false, &mut ready).unwrap();
         assert_eq!(lines(&ready), vec![vec![1]]);
-        g.close(true, &mut ready);
+        g.close(true, &mut ready).unwrap();
         assert_eq!(ready.len(), 3);
         assert_eq!(ready.iter().map(Vec::len).sum::<usize>() as u64, WINDOW + 1);
+    }
+
+    /// Pushes `rays` as the check's loop does: a batch at a time, closing after each.
+    fn group_all(rays: impl Iterator<Item = LoggedRay>) -> Result<usize, Overfull> {
+        let mut g = Grouper::default();
+        let mut ready = Vec::new();
+        let mut judged = 0;
+        let mut n = 0;
+        for r in rays {
+            g.push(r, &mut ready);
+            n += 1;
+            if n % log::BATCH == 0 {
+                g.close(false, &mut ready)?;
+                judged += ready.drain(..).map(|s| s.len()).sum::<usize>();
+            }
+        }
+        g.close(true, &mut ready)?;
+        Ok(judged + ready.iter().map(Vec::len).sum::<usize>())
+    }
+
+    #[test]
+    fn logs_written_sample_by_sample_or_by_64_threads_fit_the_pending_cap() {
+        // 2,000,000 rays, 20 a sample, one sample after another.
+        let ordered =
+            (0..2_000_000u64).map(|i| LoggedRay::for_tests([(i / 20 % 64) as u32, (i / 1280) as u32], 0, i + 1));
+        assert_eq!(group_all(ordered), Ok(2_000_000));
+        // 64 threads, each writing the rays of its own 3,000-ray samples as it traces them.
+        let threads = (0..768_000u64).map(|i| {
+            let (thread, step) = (i % 64, i / 64);
+            LoggedRay::for_tests([thread as u32, (step / 3000) as u32], 0, i + 1)
+        });
+        assert_eq!(group_all(threads), Ok(768_000));
+    }
+
+    #[test]
+    fn a_log_interleaving_more_samples_than_the_cap_holds_is_refused() {
+        // 4,096 samples' rays round-robin: every sample stays open until the log ends.
+        let rays = (0..400_000u64).map(|i| LoggedRay::for_tests([(i % 64) as u32, (i / 64 % 64) as u32], 0, i + 1));
+        let o = group_all(rays).unwrap_err();
+        assert_eq!(o.samples, 4096);
+        assert!(o.rays > MAX_PENDING_RAYS as u64 && o.rays <= (MAX_PENDING_RAYS + log::BATCH) as u64);
+        assert_eq!(
+            o.line,
+            MAX_PENDING_RAYS as u64 + log::BATCH as u64,
+            "the batch after the cap was passed"
+        );
     }
 }

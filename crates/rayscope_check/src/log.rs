@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use rayon::prelude::*;
+use rayscope_scene::input::not_a_file;
 use rayscope_scene::Diagnostic;
 use rustc_hash::FxHashMap;
 use serde::Deserialize;
@@ -35,15 +36,25 @@ pub enum Kind {
 }
 
 impl Kind {
-    /// The kind a log's word names (case-insensitive, with common synonyms).
+    /// The kind a log's word names (case-insensitive, with common synonyms). Any other word is
+    /// kept in [`printable`] form, at most [`MAX_KIND_CHARS`] characters of it.
     #[must_use]
     pub fn from_word(w: &str) -> Kind {
-        match w.to_ascii_lowercase().as_str() {
-            "camera" | "primary" | "eye" => Kind::Camera,
-            "shadow" => Kind::Shadow,
-            "reflection" | "reflect" | "reflected" | "mirror" => Kind::Reflection,
-            "refraction" | "refract" | "refracted" | "transmission" | "transmitted" => Kind::Refraction,
-            _ => Kind::Other(w.into()),
+        let is = |words: &[&str]| words.iter().any(|x| w.eq_ignore_ascii_case(x));
+        if is(&["camera", "primary", "eye"]) {
+            Kind::Camera
+        } else if is(&["shadow"]) {
+            Kind::Shadow
+        } else if is(&["reflection", "reflect", "reflected", "mirror"]) {
+            Kind::Reflection
+        } else if is(&["refraction", "refract", "refracted", "transmission", "transmitted"]) {
+            Kind::Refraction
+        } else {
+            let mut word: String = w.chars().take(MAX_KIND_CHARS).collect();
+            if word.len() < w.len() {
+                word.push('…');
+            }
+            Kind::Other(printable(&word).into())
         }
     }
 
@@ -58,6 +69,30 @@ impl Kind {
             Kind::Other(w) => w,
         }
     }
+}
+
+/// Characters of a kind word the log names that are kept: a kind is one word.
+pub const MAX_KIND_CHARS: usize = 64;
+
+/// `text` safe to print on a terminal: control characters (and the invisible characters that
+/// reorder text) escaped as `\u{1b}`, so that a log cannot send escape sequences to the terminal.
+#[must_use]
+pub fn printable(text: &str) -> Cow<'_, str> {
+    let unsafe_char = |c: char| {
+        c.is_control() || matches!(c, '\u{200E}'..='\u{200F}' | '\u{202A}'..='\u{202E}' | '\u{2066}'..='\u{2069}')
+    };
+    if !text.chars().any(unsafe_char) {
+        return Cow::Borrowed(text);
+    }
+    let mut out = String::with_capacity(text.len() + 8);
+    for c in text.chars() {
+        if unsafe_char(c) {
+            out.extend(c.escape_unicode());
+        } else {
+            out.push(c);
+        }
+    }
+    Cow::Owned(out)
 }
 
 /// A logged answer that may be missing, explicitly nothing (`null`), or a value.
@@ -210,6 +245,17 @@ pub enum LogError {
         /// What was expected and found.
         message: String,
     },
+    /// The log interleaves the rays of more pixel samples than the check holds at once.
+    Interleaved {
+        /// Where the check stopped (see [`RaySource::place`]).
+        place: String,
+        /// Rays of unfinished pixel samples that were waiting.
+        rays: u64,
+        /// The unfinished pixel samples.
+        samples: u64,
+        /// The most rays the check holds, which was exceeded.
+        limit: u64,
+    },
 }
 
 impl fmt::Display for LogError {
@@ -227,6 +273,15 @@ impl fmt::Display for LogError {
                 "error: {message}\n  --> {}: ray {ray}, byte {offset}",
                 path.display()
             ),
+            LogError::Interleaved {
+                place,
+                rays,
+                samples,
+                limit,
+            } => write!(
+                f,
+                "error: the log interleaves the rays of too many pixel samples: {rays} rays of {samples} unfinished pixel samples were waiting for the rest of their samples, more than the {limit} rays check holds at once\n  --> {place}\n  = note: write each pixel sample's rays together, one sample after another (a tracer that renders in parallel can collect a sample's rays and write them at once when the sample is done), or log fewer pixels at a time"
+            ),
         }
     }
 }
@@ -241,13 +296,19 @@ pub trait RaySource {
     fn progress(&self) -> (u64, u64);
     /// Records skipped as malformed under `--lenient`, and the first one's diagnostic.
     fn skipped(&self) -> (u64, Option<&Diagnostic>);
+    /// Where record `record` (a line, or a `.rays` file's ray number) is, for messages.
+    fn place(&self, record: u64) -> String;
 }
 
-/// Rays handed out per batch.
+/// Rays handed out per batch, at most (for JSON Lines, lines read per batch).
 pub const BATCH: usize = 1 << 16;
 
 /// Bytes of a JSON Lines log read per step.
 const CHUNK: usize = 8 << 20;
+
+/// The longest line of a JSON Lines log, in bytes: a ray record is a few hundred bytes, so a
+/// longer line is not one, and the reader never holds more than this of a line it refuses.
+pub const MAX_LINE: usize = 64 << 10;
 
 /// How a `.rays` file's int32 ids map onto the record's fields.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -288,20 +349,47 @@ impl IdRole {
     }
 }
 
-/// Opens `path` as a ray log: `.rays` files (or files that do not start with `{`) as
-/// RayTracer.Debug's binary format, everything else as JSON Lines.
+/// Opens the ray log at `path` for reading, with its size: only a regular file is read (a
+/// folder, a named pipe or a device is named as such instead of blocking or growing without end).
+///
+/// # Errors
+/// [`LogError::Io`] with the OS error, or saying what the path is instead of a file.
+pub fn open_file(path: &Path) -> Result<(File, u64), LogError> {
+    let io = |source| LogError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let wrong = |what: &str| {
+        io(std::io::Error::new(
+            std::io::ErrorKind::InvalidInput,
+            format!("it is {what}, not a file"),
+        ))
+    };
+    // Looked at before opening: opening a named pipe blocks until a writer appears.
+    if let Some(what) = not_a_file(&std::fs::metadata(path).map_err(io)?) {
+        return Err(wrong(what));
+    }
+    let file = File::open(path).map_err(io)?;
+    // The path may have been replaced between the two looks.
+    let meta = file.metadata().map_err(io)?;
+    if let Some(what) = not_a_file(&meta) {
+        return Err(wrong(what));
+    }
+    Ok((file, meta.len()))
+}
+
+/// Opens `path` as a ray log: `.rays` files as RayTracer.Debug's binary format, everything else
+/// as JSON Lines. Only a regular file is read ([`open_file`]).
+///
+/// # Errors
+/// See [`open_file`].
 pub fn open(
     path: &Path,
     ctx: LogContext,
     lenient: bool,
     id_roles: &[IdRole],
 ) -> Result<Box<dyn RaySource + Send>, LogError> {
-    let io = |source| LogError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = File::open(path).map_err(io)?;
-    let total = file.metadata().map(|m| m.len()).unwrap_or(0);
+    let (file, total) = open_file(path)?;
     let binary = path.extension().is_some_and(|e| e.eq_ignore_ascii_case("rays"));
     if binary {
         Ok(Box::new(BinaryReader::new(file, path, total, ctx, id_roles)))
@@ -316,15 +404,24 @@ pub struct JsonlReader<R: Read> {
     path: PathBuf,
     ctx: LogContext,
     lenient: bool,
+    /// Bytes read and not yet dropped; those before `pos` are consumed. At most [`CHUNK`] plus
+    /// [`MAX_LINE`] bytes.
     buf: Vec<u8>,
-    /// Line number of the first line in `buf`.
+    pos: usize,
+    /// Bytes dropped from the front of `buf`.
+    dropped: u64,
+    /// Line number of the line at `pos`.
     next_line: u64,
+    /// Under `--lenient`, inside a line longer than [`MAX_LINE`]: the rest of it is skipped.
+    skipping: bool,
     eof: bool,
-    consumed: u64,
     total: u64,
     skipped: u64,
     first_skipped: Option<Diagnostic>,
 }
+
+/// A line of the batch being parsed: its number and where it lies in the buffer.
+type LineSpan = (u64, usize, usize);
 
 impl<R: Read> JsonlReader<R> {
     /// A reader over `src` (named `path` in messages, `total` bytes long).
@@ -335,97 +432,184 @@ impl<R: Read> JsonlReader<R> {
             ctx,
             lenient,
             buf: Vec::new(),
+            pos: 0,
+            dropped: 0,
             next_line: 1,
+            skipping: false,
             eof: false,
-            consumed: 0,
             total,
             skipped: 0,
             first_skipped: None,
         }
     }
 
-    /// Reads until the buffer holds at least one whole line (or the log ends).
+    /// Drops the consumed bytes and reads up to [`CHUNK`] more.
+    fn read_more(&mut self) -> Result<(), LogError> {
+        self.buf.drain(..self.pos);
+        self.dropped += self.pos as u64;
+        self.pos = 0;
+        // `read_to_end` reads into the spare capacity without zeroing it first.
+        self.buf.reserve(CHUNK);
+        let n = (&mut self.src)
+            .take(CHUNK as u64)
+            .read_to_end(&mut self.buf)
+            .map_err(|source| LogError::Io {
+                path: self.path.clone(),
+                source,
+            })?;
+        if n < CHUNK {
+            self.eof = true;
+        }
+        Ok(())
+    }
+
+    /// Reads until the unconsumed bytes hold a whole line, or more than [`MAX_LINE`] bytes of
+    /// one, or the log ends.
     fn fill(&mut self) -> Result<(), LogError> {
-        let mut want = CHUNK;
+        let mut searched = self.pos;
         loop {
-            if self.buf.len() < want && !self.eof {
-                // `read_to_end` reads into the spare capacity without zeroing it first.
-                let need = want - self.buf.len();
-                self.buf.reserve(need);
-                let n = (&mut self.src)
-                    .take(need as u64)
-                    .read_to_end(&mut self.buf)
-                    .map_err(|source| LogError::Io {
-                        path: self.path.clone(),
-                        source,
-                    })?;
-                if n < need {
-                    self.eof = true;
-                }
-            }
-            if self.eof || memchr::memrchr(b'\n', &self.buf).is_some() {
+            if memchr::memchr(b'\n', &self.buf[searched..]).is_some()
+                || self.eof
+                || self.buf.len() - self.pos > MAX_LINE
+            {
                 return Ok(());
             }
-            // A line longer than the buffer: read on until it ends.
-            want = self.buf.len() * 2;
+            searched = self.buf.len() - self.pos;
+            self.read_more()?;
         }
+    }
+
+    /// Consumes the rest of a line longer than [`MAX_LINE`], holding at most [`CHUNK`] of it.
+    fn skip_long_line(&mut self) -> Result<(), LogError> {
+        loop {
+            if let Some(i) = memchr::memchr(b'\n', &self.buf[self.pos..]) {
+                self.pos += i + 1;
+                self.skipping = false;
+                return Ok(());
+            }
+            self.pos = self.buf.len();
+            if self.eof {
+                self.skipping = false;
+                return Ok(());
+            }
+            self.read_more()?;
+        }
+    }
+
+    /// The diagnostic of line `no`, which is longer than [`MAX_LINE`] and starts at `start`.
+    fn long_line(&self, no: u64, start: usize) -> Diagnostic {
+        let head = &self.buf[start..(start + 120).min(self.buf.len())];
+        Diagnostic::error(
+            &self.path,
+            no as usize,
+            &String::from_utf8_lossy(head),
+            1,
+            1,
+            format!(
+                "this line is longer than {MAX_LINE} bytes, the most a ray record may be (a record is a few hundred bytes)"
+            ),
+        )
+        .with_note("a ray log has one JSON object per line, one ray per object; is this a ray log?")
+    }
+
+    /// Notes a malformed line: the error, or under `--lenient` a line skipped (the first's
+    /// diagnostic kept, the others counted).
+    fn malformed(&mut self, diagnostic: impl FnOnce(&Self) -> Diagnostic) -> Result<(), LogError> {
+        if !self.lenient {
+            return Err(LogError::Malformed(Box::new(diagnostic(self))));
+        }
+        self.skipped += 1;
+        if self.first_skipped.is_none() {
+            self.first_skipped = Some(diagnostic(self));
+        }
+        Ok(())
+    }
+
+    /// The next lines, at most [`BATCH`] of them, each at most [`MAX_LINE`] bytes; with the
+    /// line after them when that one is longer. Reads only what `fill` has made whole.
+    fn split(&self) -> (Vec<LineSpan>, Option<(u64, usize)>) {
+        let text = &self.buf[self.pos..];
+        let mut lines = Vec::with_capacity((text.len() / 128).clamp(16, BATCH));
+        let mut start = 0;
+        let mut no = self.next_line;
+        for nl in memchr::memchr_iter(b'\n', text) {
+            if nl - start > MAX_LINE {
+                return (lines, Some((no, self.pos + start)));
+            }
+            lines.push((no, self.pos + start, self.pos + nl));
+            start = nl + 1;
+            no += 1;
+            if lines.len() == BATCH {
+                return (lines, None);
+            }
+        }
+        let tail = text.len() - start;
+        if tail > MAX_LINE {
+            return (lines, Some((no, self.pos + start)));
+        }
+        if self.eof && tail > 0 {
+            lines.push((no, self.pos + start, self.pos + text.len()));
+        }
+        (lines, None)
     }
 }
 
 impl<R: Read> RaySource for JsonlReader<R> {
     fn next_batch(&mut self, out: &mut Vec<LoggedRay>) -> Result<bool, LogError> {
+        if self.skipping {
+            self.skip_long_line()?;
+        }
         self.fill()?;
-        if self.buf.is_empty() {
+        if self.pos == self.buf.len() {
             return Ok(false);
         }
-        let end = match memchr::memrchr(b'\n', &self.buf) {
-            Some(i) if !self.eof => i + 1,
-            _ => self.buf.len(),
-        };
-        let text = &self.buf[..end];
-        let mut lines: Vec<(u64, &[u8])> = Vec::with_capacity(text.len() / 128);
-        let mut start = 0;
-        let mut no = self.next_line;
-        for nl in memchr::memchr_iter(b'\n', text) {
-            lines.push((no, &text[start..nl]));
-            start = nl + 1;
-            no += 1;
-        }
-        if start < text.len() {
-            lines.push((no, &text[start..]));
-            no += 1;
-        }
-        let (ctx, path) = (&self.ctx, self.path.as_path());
-        let parsed: Vec<Result<Option<LoggedRay>, Box<Diagnostic>>> = lines
+        let (lines, long) = self.split();
+        let (ctx, path, buf) = (&self.ctx, self.path.as_path(), &self.buf);
+        // A malformed line's diagnostic is dropped at once and made again for the one reported,
+        // so a log of bad lines costs no memory per line.
+        let parsed: Vec<Result<Option<LoggedRay>, ()>> = lines
             .par_iter()
             .with_min_len(256)
-            .map(|&(n, l)| parse_line(l, n, path, ctx))
+            .map(|&(n, a, b)| parse_line(&buf[a..b], n, path, ctx).map_err(drop))
             .collect();
-        for p in parsed {
+        for (p, &(n, a, b)) in parsed.into_iter().zip(&lines) {
             match p {
                 Ok(Some(r)) => out.push(r),
                 Ok(None) => {}
-                Err(d) if self.lenient => {
-                    self.skipped += 1;
-                    if self.first_skipped.is_none() {
-                        self.first_skipped = Some(*d);
-                    }
-                }
-                Err(d) => return Err(LogError::Malformed(d)),
+                Err(()) => self.malformed(|me| {
+                    parse_line(&me.buf[a..b], n, &me.path, &me.ctx).map_or_else(
+                        |d| *d,
+                        |_| {
+                            // Parsing is deterministic: the line fails again.
+                            Diagnostic::error(&me.path, n as usize, "", 1, 1, "expected a JSON ray record")
+                        },
+                    )
+                })?,
             }
         }
-        self.next_line = no;
-        self.consumed += end as u64;
-        self.buf.drain(..end);
+        if let Some(&(n, _, b)) = lines.last() {
+            self.next_line = n + 1;
+            self.pos = (b + 1).min(self.buf.len());
+        }
+        if let Some((n, start)) = long {
+            self.malformed(|me| me.long_line(n, start))?;
+            self.next_line = n + 1;
+            self.pos = start;
+            self.skipping = true;
+        }
         Ok(true)
     }
 
     fn progress(&self) -> (u64, u64) {
-        (self.consumed, self.total)
+        (self.dropped + self.pos as u64, self.total)
     }
 
     fn skipped(&self) -> (u64, Option<&Diagnostic>) {
         (self.skipped, self.first_skipped.as_ref())
+    }
+
+    fn place(&self, record: u64) -> String {
+        format!("{}:{record}", self.path.display())
     }
 }
 
@@ -670,10 +854,15 @@ impl<R: Read> BinaryReader<R> {
     }
 
     fn fail(&self, message: String) -> LogError {
+        self.fail_at(self.offset, message)
+    }
+
+    /// An error about the current ray at byte `offset` of the file.
+    fn fail_at(&self, offset: u64, message: String) -> LogError {
         LogError::Binary {
             path: self.path.clone(),
             ray: self.next_ray,
-            offset: self.offset,
+            offset,
             message,
         }
     }
@@ -697,22 +886,24 @@ impl<R: Read> BinaryReader<R> {
     }
 
     fn read_ray(&mut self) -> Result<LoggedRay, LogError> {
+        let start = self.offset;
         let mut n = [0u8; 1];
         self.read_exact(&mut n, "the number of ids")?;
-        let mut ids = vec![0u8; n[0] as usize * 4];
-        self.read_exact(&mut ids, "the ids")?;
+        let mut id_bytes = [0u8; 255 * 4];
+        let id_bytes = &mut id_bytes[..n[0] as usize * 4];
+        self.read_exact(id_bytes, "the ids")?;
         let mut pts = [0u8; 48];
         self.read_exact(&mut pts, "from and to as six doubles")?;
-        let f: Vec<f64> = pts
-            .chunks_exact(8)
-            .map(|b| f64::from_le_bytes(b.try_into().unwrap_or([0; 8])))
-            .collect();
-        let from = DVec3::new(f[0], f[1], f[2]);
-        let to = DVec3::new(f[3], f[4], f[5]);
-        let ids: Vec<i32> = ids
+        let f = |i: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&pts[i * 8..i * 8 + 8]);
+            f64::from_le_bytes(b)
+        };
+        let from = DVec3::new(f(0), f(1), f(2));
+        let to = DVec3::new(f(3), f(4), f(5));
+        let ids = id_bytes
             .chunks_exact(4)
-            .map(|b| i32::from_le_bytes(b.try_into().unwrap_or([0; 4])))
-            .collect();
+            .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]));
         let mut r = LoggedRay {
             line: self.next_ray,
             pixel: None,
@@ -729,11 +920,22 @@ impl<R: Read> BinaryReader<R> {
             blocked_by: Answer::NotLogged,
         };
         let (mut x, mut y) = (None, None);
-        for (role, &v) in self.roles.iter().zip(&ids) {
+        for (k, (role, v)) in self.roles.iter().zip(ids).enumerate() {
             match role {
                 IdRole::X => x = Some(v),
                 IdRole::Y => y = Some(v),
-                IdRole::Sample => r.sample = Some(v.max(0) as u32),
+                IdRole::Sample => {
+                    let Ok(s) = u32::try_from(v) else {
+                        return Err(self.fail_at(
+                            start + 1 + 4 * k as u64,
+                            format!(
+                                "ray {} is sample {v}: expected a sample index of 0 or more (is --ray-ids right about which id is the sample?)",
+                                self.next_ray
+                            ),
+                        ));
+                    };
+                    r.sample = Some(s);
+                }
                 IdRole::Id => r.id = Some(i64::from(v)),
                 IdRole::Parent => r.parent = (v >= 0).then_some(i64::from(v)),
                 IdRole::Ignore => {}
@@ -812,5 +1014,9 @@ impl<R: Read> RaySource for BinaryReader<R> {
 
     fn skipped(&self) -> (u64, Option<&Diagnostic>) {
         (0, None)
+    }
+
+    fn place(&self, record: u64) -> String {
+        format!("{}: ray {record}", self.path.display())
     }
 }

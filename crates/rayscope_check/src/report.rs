@@ -7,6 +7,7 @@ use std::time::Duration;
 use serde::Serialize;
 
 use crate::judge::{Finding, Tally, Tolerances};
+use crate::log::printable;
 use crate::verdict::Code;
 
 /// Where a check spent its time.
@@ -158,7 +159,7 @@ impl Report {
             );
             if let Some(d) = &self.first_skipped {
                 for l in d.lines() {
-                    let _ = writeln!(s, "  {l}");
+                    let _ = writeln!(s, "  {}", printable(l));
                 }
             }
         }
@@ -176,6 +177,10 @@ impl Report {
             );
         }
         let all: Vec<&VerdictGroup> = self.verdicts.iter().chain(&self.tie_verdicts).collect();
+        if self.rays == 0 {
+            let _ = writeln!(s, "\nno ray was judged: the log has none");
+            return s;
+        }
         if all.is_empty() {
             let _ = writeln!(s, "\nevery ray agrees with rayscope");
             return s;
@@ -216,12 +221,13 @@ fn example(f: &Finding, cmd: Option<String>) -> String {
     if let Some(sm) = f.sample {
         let _ = write!(head, " sample {sm}");
     }
-    let _ = write!(head, ", {} ray", f.kind);
+    // The kind and the details may quote the log: what is printed is made safe for a terminal.
+    let _ = write!(head, ", {} ray", printable(&f.kind));
     if let Some(id) = f.id {
         let _ = write!(head, " {id}");
     }
     let _ = writeln!(s, "{head}");
-    let _ = writeln!(s, "    {}", f.detail);
+    let _ = writeln!(s, "    {}", printable(&f.detail));
     if !f.values.is_empty() {
         let w = f
             .values
@@ -246,7 +252,7 @@ fn example(f: &Finding, cmd: Option<String>) -> String {
 /// A JSON value as a compact text cell.
 fn show(v: &serde_json::Value) -> String {
     match v {
-        serde_json::Value::String(s) => s.clone(),
+        serde_json::Value::String(s) => printable(s).into_owned(),
         serde_json::Value::Array(a) => format!("({})", a.iter().map(show).collect::<Vec<_>>().join(", ")),
         serde_json::Value::Null => "—".into(),
         other => other.to_string(),
