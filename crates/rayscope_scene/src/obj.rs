@@ -3,7 +3,14 @@
 //! Supported: `v x y z [w]`, `vn x y z`, `vt …` (counted, otherwise ignored) and `f` with the
 //! `v`, `v/vt`, `v//vn` and `v/vt/vn` forms, including negative (relative) indices; polygons are
 //! fan-triangulated. Every other statement (`o`, `g`, `s`, `usemtl`, `mtllib`, `l`, `p`, …) is
-//! ignored. Indices must refer to elements defined on earlier lines, as the OBJ format says.
+//! ignored. Vertex indices must refer to vertices defined on earlier lines, as the OBJ format
+//! says, and so must normal indices once the file has normals.
+//!
+//! Students' readers take only what they draw from a line, so files take liberties with the rest;
+//! those that change nothing drawn load, with one warning a kind naming the first line (and
+//! counting the others): texture coordinate indices the file lacks (texture coordinates are never
+//! used), normal indices in a file without `vn` lines before the face (the face is shaded flat),
+//! and `vn` lines that cannot be read (faces using them are shaded flat).
 //!
 //! OBJ files are right-handed and the scene is left-handed, so positions become
 //! (s·x + ox, s·y + oy, −s·z + oz) and normals normalize(nx, ny, −nz). Negating z mirrors the
@@ -16,7 +23,7 @@ use std::path::Path;
 use glam::{DVec3, Vec3};
 use rayon::prelude::*;
 
-use crate::diagnostic::{decode_utf8, Diagnostic};
+use crate::diagnostic::{decode_utf8, Diagnostic, Severity};
 use crate::lexer::{lines, parse_number, NumberError};
 use crate::{Mesh, MeshTriangle, SceneError};
 
@@ -248,6 +255,111 @@ struct ObjParser<'a, 'o> {
     corner_positions: Vec<u32>,
     /// Scratch for a face's corners: normal indices (`None` where a corner has none).
     corner_normals: Vec<Option<u32>>,
+    /// The lines of this stretch that loaded with something ignored, by [`Ignore`] kind.
+    ignored: [Ignored; IGNORE_KINDS],
+}
+
+/// What a resolved index is wrong about.
+#[derive(Debug, Clone, Copy)]
+enum IndexProblem {
+    /// Not a whole number.
+    NotANumber,
+    /// 0, which OBJ indices never are.
+    Zero,
+    /// A number that names no element defined so far.
+    Missing(i64),
+}
+
+/// Resolves a 1-based or negative OBJ index `text` against `count` elements defined so far.
+fn resolve(text: &str, count: usize) -> Result<usize, IndexProblem> {
+    let n: i64 = text.parse().map_err(|_| IndexProblem::NotANumber)?;
+    if n == 0 {
+        return Err(IndexProblem::Zero);
+    }
+    let resolved = if n > 0 {
+        usize::try_from(n - 1).ok().filter(|&i| i < count)
+    } else {
+        usize::try_from(n.unsigned_abs())
+            .ok()
+            .and_then(|back| count.checked_sub(back))
+    };
+    resolved.ok_or(IndexProblem::Missing(n))
+}
+
+/// The kinds of liberty a line may take that loads with a warning, the thing concerned ignored.
+#[derive(Debug, Clone, Copy)]
+enum Ignore {
+    /// A face's texture coordinate index names none that is defined.
+    Texcoord,
+    /// A face gives normal indices in a file with no normals before it.
+    FaceNormal,
+    /// A `vn` line whose coordinates cannot be read.
+    NormalLine,
+}
+
+/// How many [`Ignore`] kinds there are.
+const IGNORE_KINDS: usize = 3;
+
+/// How many later line numbers a warning about ignored things lists.
+const SHOWN_LINES: usize = 5;
+
+/// The lines of one kind that loaded with something ignored: the first one's warning, and how
+/// many more there were, the first few by number.
+#[derive(Debug, Default)]
+struct Ignored {
+    /// The warning for the first such line.
+    first: Option<Diagnostic>,
+    /// Numbers of the next lines, at most [`SHOWN_LINES`].
+    shown: Vec<usize>,
+    /// How many lines there were after the first.
+    more: usize,
+}
+
+impl Ignored {
+    /// Counts one more line, `line`, after the first.
+    fn later(&mut self, line: usize) {
+        if self.shown.len() < SHOWN_LINES {
+            self.shown.push(line);
+        }
+        self.more += 1;
+    }
+
+    /// These lines followed by those of `after`, a later stretch.
+    fn then(mut self, after: Ignored) -> Ignored {
+        let Some(first) = after.first else {
+            return self;
+        };
+        if self.first.is_none() {
+            return Ignored {
+                first: Some(first),
+                ..after
+            };
+        }
+        self.later(first.line);
+        let unshown = after.more - after.shown.len();
+        for line in after.shown {
+            self.later(line);
+        }
+        self.more += unshown;
+        self
+    }
+
+    /// The warning, naming the other lines like it.
+    fn into_warning(self) -> Option<Diagnostic> {
+        let mut d = self.first?;
+        if self.more > 0 {
+            let lines: Vec<String> = self.shown.iter().map(ToString::to_string).collect();
+            let rest = self.more - self.shown.len();
+            let also = if rest > 0 {
+                format!("{} and {rest} more", lines.join(", "))
+            } else {
+                lines.join(", ")
+            };
+            let s = if self.more == 1 { "" } else { "s" };
+            d.add_note(format!("the same holds on {} more line{s}: {also}", self.more));
+        }
+        Some(d)
+    }
 }
 
 impl<'a> ObjParser<'a, '_> {
@@ -303,56 +415,58 @@ impl<'a> ObjParser<'a, '_> {
 
     /// Resolves a 1-based or negative OBJ index against `count` elements defined so far.
     fn index(&self, start: usize, text: &str, kind: &str, count: usize) -> Result<usize, Box<Diagnostic>> {
-        // Made only for a message: built for every index, it was an allocation per corner.
-        let kinds = || match kind {
-            "vertex" if count != 1 => "vertices".to_string(),
-            _ if count != 1 => format!("{kind}s"),
-            _ => kind.to_string(),
-        };
-        let defined = if count == 1 { "is" } else { "are" };
-        let n: i64 = text.parse().map_err(|_| {
-            Box::new(
-                self.error(
+        resolve(text, count).map_err(|problem| Box::new(self.index_error(start, text, kind, count, problem)))
+    }
+
+    /// The error for an index `text` of a `kind` that [`resolve`] rejected.
+    fn index_error(&self, start: usize, text: &str, kind: &str, count: usize, problem: IndexProblem) -> Diagnostic {
+        match problem {
+            IndexProblem::NotANumber => self
+                .error(
                     start,
                     text,
                     format!("expected a {kind} index (a whole number) but found '{text}'"),
                 )
                 .with_label("not an index"),
-            )
-        })?;
-        if n == 0 {
-            return Err(Box::new(
-                self.error(start, text, format!("expected a {kind} index but found 0"))
-                    .with_label("OBJ indices start at 1")
-                    .with_note("negative indices count back from the most recent element: -1 is the last one"),
-            ));
+            IndexProblem::Zero => self
+                .error(start, text, format!("expected a {kind} index but found 0"))
+                .with_label("OBJ indices start at 1")
+                .with_note("negative indices count back from the most recent element: -1 is the last one"),
+            IndexProblem::Missing(n) => {
+                let kinds = match kind {
+                    "vertex" if count != 1 => "vertices".to_string(),
+                    _ if count != 1 => format!("{kind}s"),
+                    _ => kind.to_string(),
+                };
+                let so_far = match count {
+                    0 => format!("no {kinds} are defined so far"),
+                    1 => format!("only 1 {kinds} is defined so far"),
+                    _ => format!("only {count} {kinds} are defined so far"),
+                };
+                let label = if n > 0 {
+                    so_far.clone()
+                } else {
+                    format!("counts back past the first {kind}")
+                };
+                self.error(start, text, format!("face refers to {kind} {n} but {so_far}"))
+                    .with_label(label)
+                    .with_note("OBJ indices refer to elements defined on earlier lines, counting from 1")
+            }
         }
-        let resolved = if n > 0 {
-            usize::try_from(n - 1).ok().filter(|&i| i < count)
+    }
+
+    /// Records that the current line loaded with something of kind `kind` ignored; `warning`
+    /// makes the warning when this is the first such line of the stretch (later ones are only
+    /// counted, so that a file of a million such faces costs no more memory than one).
+    fn ignore(&mut self, kind: Ignore, warning: impl FnOnce(&Self) -> Diagnostic) {
+        let line = self.line_no;
+        if self.ignored[kind as usize].first.is_none() {
+            let mut d = warning(self);
+            d.severity = Severity::Warning;
+            self.ignored[kind as usize].first = Some(d);
         } else {
-            usize::try_from(n.unsigned_abs())
-                .ok()
-                .and_then(|back| count.checked_sub(back))
-        };
-        resolved.ok_or_else(|| {
-            let label = if n > 0 {
-                format!("only {count} {} {defined} defined so far", kinds())
-            } else {
-                format!("counts back past the first {kind}")
-            };
-            Box::new(
-                self.error(
-                    start,
-                    text,
-                    format!(
-                        "face refers to {kind} {n} but only {count} {} {defined} defined so far",
-                        kinds()
-                    ),
-                )
-                .with_label(label)
-                .with_note("OBJ indices refer to elements defined on earlier lines, counting from 1"),
-            )
-        })
+            self.ignored[kind as usize].later(line);
+        }
     }
 
     fn face(&mut self, toks: &[(usize, &str)]) -> Result<(), Box<Diagnostic>> {
@@ -373,6 +487,8 @@ impl<'a> ObjParser<'a, '_> {
         let mut normals = std::mem::take(&mut self.corner_normals);
         positions.clear();
         normals.clear();
+        // One warning of each kind a line at most, however many of its corners it concerns.
+        let (mut texcoord_warned, mut normal_warned) = (false, false);
         for &(start, text) in corners {
             let mut parts = text.split('/');
             let v = parts.next().unwrap_or_default();
@@ -392,13 +508,45 @@ impl<'a> ObjParser<'a, '_> {
             positions.push(u32::try_from(vi).unwrap_or(u32::MAX));
             let mut offset = start + v.len() + 1;
             if let Some(vt) = vt.filter(|t| !t.is_empty()) {
-                self.index(offset, vt, "texture coordinate", self.before.texcoords + self.texcoords)?;
+                // Texture coordinates are never used, so one the file lacks changes nothing drawn:
+                // the course's readers skip them, and so does this one, with a warning.
+                let count = self.before.texcoords + self.texcoords;
+                if let Err(problem) = resolve(vt, count) {
+                    if !texcoord_warned {
+                        texcoord_warned = true;
+                        self.ignore(Ignore::Texcoord, |p| {
+                            p.index_error(offset, vt, "texture coordinate", count, problem)
+                                .with_label("ignored: texture coordinates are not used")
+                        });
+                    }
+                }
             }
             offset += vt.map_or(0, |t| t.len() + 1);
             match vn {
                 Some(vn) if !vn.is_empty() => {
-                    let ni = self.index(offset, vn, "normal", self.before.normals + self.normals.len())?;
-                    normals.push(u32::try_from(ni).ok());
+                    let count = self.before.normals + self.normals.len();
+                    if count == 0 {
+                        // A file without normals: the indices cannot mean any, and a reader that
+                        // ignores them draws the face flat, as this one then does.
+                        if !normal_warned {
+                            normal_warned = true;
+                            self.ignore(Ignore::FaceNormal, |p| {
+                                p.error(
+                                    offset,
+                                    vn,
+                                    format!(
+                                        "face refers to normal '{vn}' but no normals ('vn' lines) are defined so far"
+                                    ),
+                                )
+                                .with_label("ignored: the face is shaded flat")
+                            });
+                        }
+                        normals.push(None);
+                    } else {
+                        // Normals that exist but are indexed wrongly would shade wrongly: an error.
+                        let ni = self.index(offset, vn, "normal", count)?;
+                        normals.push(u32::try_from(ni).ok());
+                    }
                 }
                 _ => normals.push(None),
             }
@@ -442,7 +590,17 @@ impl<'a> ObjParser<'a, '_> {
                 self.positions.push(q);
             }
             "vn" => {
-                let n = self.coords(toks, "normal")?;
+                let n = match self.coords(toks, "normal") {
+                    Ok(n) => n,
+                    Err(d) => {
+                        // Kept as a normal without length, which faces then ignore (shading flat):
+                        // the geometry does not depend on it, and readers that skip `vn` load it.
+                        self.ignore(Ignore::NormalLine, move |_| {
+                            (*d).with_label("ignored: faces using this normal are shaded flat")
+                        });
+                        DVec3::ZERO
+                    }
+                };
                 let n = DVec3::new(n.x, n.y, -n.z);
                 let m = n.abs().max_element();
                 let unit = if m > 0.0 { (n / m).normalize() } else { DVec3::ZERO };
@@ -518,6 +676,7 @@ impl<'a, 'o> ObjParser<'a, 'o> {
             line: "",
             corner_positions: Vec::new(),
             corner_normals: Vec::new(),
+            ignored: Default::default(),
         }
     }
 
@@ -544,20 +703,24 @@ fn parse_in_stretches(
     n: usize,
 ) -> Result<(Mesh, Vec<Diagnostic>), Box<Diagnostic>> {
     let parts = stretches(src, n.max(1));
-    let (positions, normals, triangles) = if let [text] = parts[..] {
+    let ((positions, normals, triangles), ignored) = if let [text] = parts[..] {
         let own = (Slots::Own(Vec::new()), Slots::Own(Vec::new()), Slots::Own(Vec::new()));
         let mut parser = ObjParser::new(path, opts, Counts::default(), own);
         parser.run(text)?;
         (
-            parser.positions.into_own(),
-            parser.normals.into_own(),
-            parser.triangles.into_own(),
+            (
+                parser.positions.into_own(),
+                parser.normals.into_own(),
+                parser.triangles.into_own(),
+            ),
+            parser.ignored,
         )
     } else {
         in_parts(&parts, path, opts)?
     };
     let mesh = mesh_from(positions, &normals, triangles);
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<Diagnostic> = ignored.into_iter().filter_map(Ignored::into_warning).collect();
+    warnings.sort_by_key(|d| (d.line, d.column));
     if mesh.triangles.is_empty() {
         let (n, text) = lines(src).enumerate().last().map_or((0, ""), |(i, l)| (i + 1, l));
         warnings.push(
@@ -577,8 +740,12 @@ fn parse_in_stretches(
 }
 
 /// The positions, per-line normals and triangles of the stretches `parts`, parsed at once on
-/// every thread once counted.
-fn in_parts(parts: &[&str], path: &Path, opts: &ObjOptions) -> Result<Parsed, Box<Diagnostic>> {
+/// every thread once counted, and the lines that loaded with something ignored.
+fn in_parts(
+    parts: &[&str],
+    path: &Path,
+    opts: &ObjOptions,
+) -> Result<(Parsed, [Ignored; IGNORE_KINDS]), Box<Diagnostic>> {
     let counts: Vec<Counts> = parts.par_iter().map(|t| Counts::of(t)).collect();
     let total = counts.iter().fold(Counts::default(), |a, &c| a.plus(c));
     // Every element's place is known, so each stretch writes its own part of these.
@@ -603,12 +770,21 @@ fn in_parts(parts: &[&str], path: &Path, opts: &ObjOptions) -> Result<Parsed, Bo
         before = before.plus(c);
     }
     // Each stretch stops at its first error; the file's first error is the earliest stretch's.
-    let results: Vec<Result<(), Box<Diagnostic>>> = jobs
+    let results: Vec<Result<[Ignored; IGNORE_KINDS], Box<Diagnostic>>> = jobs
         .into_par_iter()
-        .map(|(text, before, out)| ObjParser::new(path, opts, before, out).run(text))
+        .map(|(text, before, out)| {
+            let mut parser = ObjParser::new(path, opts, before, out);
+            parser.run(text).map(|()| parser.ignored)
+        })
         .collect();
-    results.into_iter().collect::<Result<(), _>>()?;
-    Ok((positions, normals, triangles))
+    let mut ignored: [Ignored; IGNORE_KINDS] = Default::default();
+    for stretch in results {
+        // In file order, so that the warnings are those of the file parsed in one go.
+        for (all, part) in ignored.iter_mut().zip(stretch?) {
+            *all = std::mem::take(all).then(part);
+        }
+    }
+    Ok(((positions, normals, triangles), ignored))
 }
 
 /// `n` copies of `v`, written on every thread (for a large mesh this is fresh memory, whose
@@ -707,8 +883,16 @@ mod tests {
         assert_eq!((e.line, e.column), (1, 5));
         let e = parse("v 0 0\n").unwrap_err();
         assert_eq!((e.line, e.column), (1, 6));
-        let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1/1 2 3\n").unwrap_err();
-        assert_eq!((e.line, e.column), (4, 5));
+        // A texture coordinate the file lacks is ignored with a warning where it is named.
+        let (_, w) = parse_obj_with_warnings(
+            "v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1/1 2 3\n",
+            Path::new("m.obj"),
+            &ObjOptions::default(),
+        )
+        .unwrap();
+        assert_eq!((w[0].severity, w[0].line, w[0].column), (Severity::Warning, 4, 5));
+        let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1/1 2 4/1\n").unwrap_err();
+        assert_eq!((e.line, e.column), (4, 9));
         let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf -4 2 3\n").unwrap_err();
         assert_eq!((e.line, e.column), (4, 3));
         let e = parse("v 0 0 0\nv 0 0 0\nv 0 0 0\nf 1/2/3/4 2 3\n").unwrap_err();
@@ -824,6 +1008,37 @@ mod tests {
         let src = format!("v 0 0 0\nf 1 1 2\n{}v 0 0\n", assorted_obj(30));
         for n in [1, 4] {
             assert_eq!(parse_in(&src, n).unwrap_err().line, 2, "{n} stretches");
+        }
+    }
+
+    #[test]
+    fn stretches_warn_as_the_whole_file() {
+        // Faces without their texture coordinates and normals throughout, and one unreadable
+        // normal line in the middle.
+        let mut src = String::from("v 0 0 0\nv 1 0 0\nv 0 1 0\n");
+        for k in 0..20_000 {
+            src += if k == 10_000 {
+                "vn 0 x 1\n"
+            } else {
+                "f 1/1 2/2 3/3\nf 1//1 2//1 3//1\n"
+            };
+        }
+        let (whole, warnings) = parse_in(&src, 1).unwrap();
+        let shown: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+        assert_eq!(warnings.len(), 3, "{shown:?}");
+        assert_eq!(
+            warnings.iter().map(|w| (w.line, w.column)).collect::<Vec<_>>(),
+            [(4, 5), (5, 6), (20_004, 6)]
+        );
+        assert!(
+            shown[0].contains("the same holds on 19998 more lines: 6, 8, 10, 12, 14 and 19993 more"),
+            "{}",
+            shown[0]
+        );
+        for n in [2, 3, 7, 50] {
+            let (mesh, w) = parse_in(&src, n).unwrap();
+            assert_eq!(mesh, whole, "{n} stretches");
+            assert_eq!(w, warnings, "{n} stretches");
         }
     }
 
