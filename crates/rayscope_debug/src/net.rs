@@ -25,11 +25,13 @@ pub const MAX_HEAD_BYTES: usize = 16 * 1024;
 pub const MAX_HEADERS: usize = 64;
 /// Longest URL (path and query) the debugger answers; longer ones get a 414.
 pub const MAX_URL_BYTES: usize = 8 * 1024;
-/// How long, and for how many bytes, a closing connection keeps reading what the client still
-/// sends (see [`GuardedStream::poll_shutdown`]).
-const LINGER: Duration = Duration::from_secs(1);
-/// See [`LINGER`].
-const LINGER_BYTES: usize = 1 << 20;
+/// Longest a closing connection keeps reading and discarding what the client still sends (see
+/// [`GuardedStream::poll_shutdown`]): time for the rest of a refused upload of a few GiB to
+/// arrive over loopback or a fast network. Draining costs no memory, only a connection slot.
+const LINGER: Duration = Duration::from_secs(30);
+/// A closing connection stops draining once the client has sent nothing for this long (it
+/// has stopped sending, and reads its answer).
+const LINGER_IDLE: Duration = Duration::from_secs(1);
 
 /// Serves `app` on `listener` until `shutdown` resolves.
 ///
@@ -99,7 +101,7 @@ struct GuardedStream {
     /// bytes it has discarded.
     write_closed: bool,
     linger: Option<Pin<Box<Sleep>>>,
-    drained: usize,
+    idle: Option<Pin<Box<Sleep>>>,
 }
 
 impl GuardedStream {
@@ -111,7 +113,7 @@ impl GuardedStream {
             replacement: None,
             write_closed: false,
             linger: None,
-            drained: 0,
+            idle: None,
         }
     }
 
@@ -181,9 +183,9 @@ impl AsyncWrite for GuardedStream {
     }
 
     /// Shuts the writing side, then reads and discards what the client still sends (the rest
-    /// of a body refused before it was read) until it closes too, for at most [`LINGER`] and
-    /// [`LINGER_BYTES`]: closing a socket with unread data makes the kernel reset the
-    /// connection, and the client may then lose the answer it was sent.
+    /// of a body refused before it was read) until it closes too, pauses for [`LINGER_IDLE`],
+    /// or [`LINGER`] has passed: closing a socket with unread data makes the kernel reset the
+    /// connection, and a client still sending then loses the answer it was sent.
     fn poll_shutdown(mut self: Pin<&mut Self>, cx: &mut Context<'_>) -> Poll<io::Result<()>> {
         let this = &mut *self;
         ready!(this.poll_replacement(cx))?;
@@ -193,14 +195,19 @@ impl AsyncWrite for GuardedStream {
             this.write_closed = true;
         }
         let linger = this.linger.get_or_insert_with(|| Box::pin(tokio::time::sleep(LINGER)));
-        let mut scratch = [0u8; 8192];
+        let idle = this
+            .idle
+            .get_or_insert_with(|| Box::pin(tokio::time::sleep(LINGER_IDLE)));
+        let mut scratch = [0u8; 16384];
         loop {
-            if this.drained >= LINGER_BYTES || linger.as_mut().poll(cx).is_ready() {
+            if linger.as_mut().poll(cx).is_ready() || idle.as_mut().poll(cx).is_ready() {
                 return Poll::Ready(Ok(()));
             }
             let mut buf = ReadBuf::new(&mut scratch);
             match Pin::new(&mut this.inner).poll_read(cx, &mut buf) {
-                Poll::Ready(Ok(())) if !buf.filled().is_empty() => this.drained += buf.filled().len(),
+                Poll::Ready(Ok(())) if !buf.filled().is_empty() => {
+                    idle.as_mut().reset(tokio::time::Instant::now() + LINGER_IDLE);
+                }
                 // The client has closed (or reset) its side: nothing more to wait for.
                 Poll::Ready(_) => return Poll::Ready(Ok(())),
                 Poll::Pending => return Poll::Pending,

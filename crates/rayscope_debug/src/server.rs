@@ -69,7 +69,7 @@ use crate::view::{auto_view, pick, render_view, ImageMode, RayMode, RgbImage, Se
 
 mod compare_api;
 mod rays_api;
-pub use rays_api::{KEEP_LOG_BYTES, MAX_LOG_BYTES};
+pub use rays_api::{KEEP_LOG_BYTES, MAX_LOG_BYTES, RAY_DETAIL_CAP};
 
 /// Largest image the debugger renders, per side.
 pub const MAX_IMAGE_SIDE: u32 = 2048;
@@ -140,8 +140,19 @@ pub struct ServerLimits {
     /// Time a client has to send a request's head; also how long an idle keep-alive
     /// connection stays open.
     pub header_timeout: Duration,
-    /// Time a client has to send a request's body.
+    /// Longest a request's body may pause; also the grace before [`Self::min_body_rate`] applies.
     pub body_timeout: Duration,
+    /// Slowest a body may arrive once [`Self::body_timeout`] has passed, in bytes a second
+    /// averaged over the time spent waiting for it; a slower one is answered 408.
+    pub min_body_rate: u64,
+    /// Most bytes of request bodies (images, settings) held at once; a body that does not fit is
+    /// answered 503 before any of it is read.
+    pub body_budget: usize,
+    /// A ray log upload up to this size is kept to judge again after a settings change.
+    pub keep_log_bytes: usize,
+    /// A judged ray log keeps at most this many rays for display (samples that disagree up to
+    /// twice as many); the verdicts cover every ray.
+    pub ray_detail_cap: usize,
     /// Longest a response write may make no progress (a client that stopped reading).
     pub write_timeout: Duration,
     /// Most heavy requests (views, traces, channel renders, checks, compares) in flight; one
@@ -151,15 +162,21 @@ pub struct ServerLimits {
 
 impl Default for ServerLimits {
     /// 256 connections (well under the usual 1,024 open files), 10 s for a head or an idle
-    /// connection, 30 s for a body or a stalled write, and 4 heavy requests: each of those
-    /// already uses every core, so more in flight adds memory, not speed.
+    /// connection, 30 s for a body's pause or a stalled write, bodies at 16 KiB/s at least after
+    /// that, and 4 heavy requests: each of those already uses every core, so more in flight adds
+    /// memory, not speed. Bodies held: 128 MiB (four of the largest images); ray logs kept:
+    /// [`KEEP_LOG_BYTES`], rays for display: [`RAY_DETAIL_CAP`].
     fn default() -> Self {
         Self {
             max_connections: 256,
             header_timeout: Duration::from_secs(10),
             body_timeout: Duration::from_secs(30),
+            min_body_rate: 16 * 1024,
             write_timeout: Duration::from_secs(30),
             heavy_slots: 4,
+            body_budget: 4 * COMPARE_BODY_LIMIT,
+            keep_log_bytes: KEEP_LOG_BYTES,
+            ray_detail_cap: RAY_DETAIL_CAP,
         }
     }
 }
@@ -331,7 +348,7 @@ pub fn start(mut cfg: ServeConfig) -> Result<RunningServer, DebugError> {
 pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
     let server = start(cfg)?;
     if server.addr.ip().is_loopback() {
-        println!("rayscope debugger listening on {}", server.url);
+        say(&format!("rayscope debugger listening on {}", server.url));
     } else {
         let ip = server.addr.ip();
         let port = server.addr.port();
@@ -341,8 +358,8 @@ pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
         } else {
             ""
         };
-        println!("rayscope debugger listening on http://{shown}/{which}");
-        println!("  on this machine: {}", server.url);
+        say(&format!("rayscope debugger listening on http://{shown}/{which}"));
+        say(&format!("  on this machine: {}", server.url));
         let names: Vec<String> = server
             .host_names
             .iter()
@@ -350,14 +367,16 @@ pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
             .map(|n| format!("http://{n}:{port}/"))
             .collect();
         if ip.is_unspecified() {
-            println!("  from other machines: http://<this machine's IP address>:{port}/");
+            say(&format!(
+                "  from other machines: http://<this machine's IP address>:{port}/"
+            ));
         }
         if !names.is_empty() {
-            println!("  by name: {}", names.join(", "));
+            say(&format!("  by name: {}", names.join(", ")));
         }
-        eprintln!("{}", exposure_warning(&shown));
+        tell(&exposure_warning(&shown));
     }
-    println!("press Ctrl-C to stop");
+    say("press Ctrl-C to stop");
     if open {
         let _ = std::process::Command::new("xdg-open")
             .arg(&server.url)
@@ -366,6 +385,21 @@ pub fn serve(cfg: ServeConfig, open: bool) -> Result<(), DebugError> {
             .spawn();
     }
     server.wait()
+}
+
+/// Writes a line of the launcher's messages to standard output. Nothing depends on them being
+/// read, so a closed pipe (`rayscope debug … | true`) neither stops nor panics the server,
+/// which goes on serving.
+fn say(line: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    let _ = writeln!(out, "{line}").and_then(|()| out.flush());
+}
+
+/// [`say`] for standard error.
+fn tell(text: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr().lock(), "{text}");
 }
 
 /// What `rayscope debug` prints when it listens beyond this machine.
@@ -454,6 +488,7 @@ struct AppState {
     hosts: HostPolicy,
     limits: ServerLimits,
     heavy: HeavyPool,
+    bodies: BodyBudget,
     inner: Mutex<Inner>,
     rays: rays_api::RaysState,
     compare: compare_api::CompareState,
@@ -486,6 +521,122 @@ impl HeavyPool {
     }
 }
 
+/// The bytes of request bodies held at once ([`ServerLimits::body_budget`]), counted in KiB.
+struct BodyBudget(Arc<Semaphore>, usize);
+
+/// A body's share of the [`BodyBudget`], given back when the body is dropped.
+struct BodyPermit(#[allow(dead_code)] OwnedSemaphorePermit);
+
+impl BodyBudget {
+    fn new(bytes: usize) -> Self {
+        let kib = bytes.div_ceil(1024).clamp(1, Semaphore::MAX_PERMITS);
+        Self(Arc::new(Semaphore::new(kib)), bytes)
+    }
+
+    /// Room for a body of `bytes`, or the answer to give before reading it: 503 while other
+    /// bodies take the room, 413 when the body could never fit.
+    fn reserve(&self, bytes: u64, what: &str) -> ApiResult<BodyPermit> {
+        if bytes > self.1 as u64 {
+            return Err(ApiError(
+                StatusCode::PAYLOAD_TOO_LARGE,
+                format!(
+                    "{what} is too large ({bytes} bytes; the debugger holds at most {} bytes of uploads at once)",
+                    self.1
+                ),
+            ));
+        }
+        let kib = u32::try_from(bytes.div_ceil(1024).max(1)).unwrap_or(u32::MAX);
+        match self.0.clone().try_acquire_many_owned(kib) {
+            Ok(p) => Ok(BodyPermit(p)),
+            Err(_) => Err(ApiError(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!(
+                    "the debugger is busy receiving other uploads (at most {} MiB of them at once): send {what} again in a moment",
+                    self.1 >> 20
+                ),
+            )),
+        }
+    }
+}
+
+/// A request body as received, with its share of the [`BodyBudget`].
+struct Received {
+    bytes: Bytes,
+    _budget: BodyPermit,
+}
+
+impl std::ops::Deref for Received {
+    type Target = [u8];
+    fn deref(&self) -> &[u8] {
+        &self.bytes
+    }
+}
+
+/// The pace a body must keep ([`ServerLimits::body_timeout`], [`ServerLimits::min_body_rate`]):
+/// only the time spent waiting for the client counts, not the time the server itself takes to
+/// use what arrived (a ray log judged as it arrives).
+struct BodyPace {
+    grace: Duration,
+    min_rate: u64,
+    waited: Duration,
+    received: u64,
+}
+
+impl BodyPace {
+    fn new(limits: &ServerLimits) -> Self {
+        Self {
+            grace: limits.body_timeout,
+            min_rate: limits.min_body_rate.max(1),
+            waited: Duration::ZERO,
+            received: 0,
+        }
+    }
+
+    /// The body's next frame, or the 408 to answer when it paused too long or arrived too slowly.
+    async fn next(&mut self, body: &mut Body, what: &str) -> ApiResult<Option<Bytes>> {
+        use http_body_util::BodyExt;
+        loop {
+            let earned = self.grace + Duration::from_secs_f64(self.received as f64 / self.min_rate as f64);
+            let left = earned.saturating_sub(self.waited);
+            let wait = left.min(self.grace);
+            let t = Instant::now();
+            let frame = tokio::time::timeout(wait, body.frame()).await;
+            self.waited += t.elapsed();
+            match frame {
+                Err(_) if wait < self.grace => {
+                    return Err(ApiError(
+                        StatusCode::REQUEST_TIMEOUT,
+                        format!(
+                            "{what} arrived too slowly ({} bytes in {:.0} s; after the first {} s a body must arrive at {} bytes a second or faster)",
+                            self.received,
+                            self.waited.as_secs_f64(),
+                            self.grace.as_secs_f64(),
+                            self.min_rate
+                        ),
+                    ))
+                }
+                Err(_) => {
+                    return Err(ApiError(
+                        StatusCode::REQUEST_TIMEOUT,
+                        format!(
+                            "{what} did not arrive: nothing came for {} s",
+                            self.grace.as_secs_f64()
+                        ),
+                    ))
+                }
+                Ok(None) => return Ok(None),
+                Ok(Some(Err(e))) => return Err(ApiError::bad(format!("could not read {what}: {e}"))),
+                Ok(Some(Ok(f))) => {
+                    if let Ok(data) = f.into_data() {
+                        self.received += data.len() as u64;
+                        return Ok(Some(data));
+                    }
+                }
+            }
+        }
+    }
+}
+
 impl AppState {
     fn new(cfg: ServeConfig, hosts: HostPolicy) -> Self {
         let scene_json = scene_json(&cfg);
@@ -496,6 +647,7 @@ impl AppState {
             hosts,
             limits: cfg.limits,
             heavy: HeavyPool::new(cfg.limits.heavy_slots),
+            bodies: BodyBudget::new(cfg.limits.body_budget),
             rays: rays_api::RaysState::default(),
             compare: compare_api::CompareState::default(),
             inner: Mutex::new(Inner {
@@ -839,6 +991,8 @@ async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Res
         .unwrap_or("")
         .to_string();
     let url_len = req.uri().path_and_query().map_or(0, |p| p.as_str().len());
+    let has_body =
+        req.headers().contains_key(header::TRANSFER_ENCODING) || declared_length(req.headers()).is_some_and(|n| n > 0);
     let res = if !st.hosts.allows(&host) {
         ApiError(
             StatusCode::FORBIDDEN,
@@ -858,7 +1012,15 @@ async fn guard(State(st): State<Arc<AppState>>, req: Request, next: Next) -> Res
     } else {
         next.run(req).await
     };
-    finish_response(res, &method, &path).await
+    let mut res = finish_response(res, &method, &path).await;
+    // A refused request's body may be unread: it must not be read as the next request, and the
+    // client, told the connection closes, stops sending it (the socket drains what is already
+    // on its way, see net.rs, so the answer is not lost to a reset).
+    if has_body && (res.status().is_client_error() || res.status().is_server_error()) {
+        res.headers_mut()
+            .insert(header::CONNECTION, HeaderValue::from_static("close"));
+    }
+    res
 }
 
 /// Replaces a non-JSON error answer (axum's 405 and extractor rejections) with the JSON one,
@@ -936,19 +1098,22 @@ fn declared_length(headers: &HeaderMap) -> Option<u64> {
         .and_then(|v| v.parse::<u64>().ok())
 }
 
-/// Reads a request body sent as `mime`, at most `limit` bytes, within the body timeout.
+/// Reads a request body sent as `mime`, at most `limit` bytes, at the pace [`BodyPace`] sets,
+/// within the [`BodyBudget`].
 ///
 /// The type is required, not guessed: `application/json` and `image/png` are types a page on
 /// another origin cannot send without a preflight, so requiring them keeps forms and no-cors
-/// fetches (which may only send `text/plain`, form and multipart bodies) out.
+/// fetches (which may only send `text/plain`, form and multipart bodies) out. Every refusal
+/// comes before the body is read, so the answer goes out at once (the guard closes the
+/// connection after it, see [`guard`]).
 async fn read_body(
     st: &AppState,
     headers: &HeaderMap,
-    body: Body,
+    mut body: Body,
     mime: &str,
     what: &str,
     limit: usize,
-) -> ApiResult<Bytes> {
+) -> ApiResult<Received> {
     let (sent, essence) = content_type(headers);
     if essence != mime {
         return Err(ApiError(
@@ -965,23 +1130,24 @@ async fn read_body(
             format!("{what} is too large (at most {limit} bytes)"),
         )
     };
-    if declared_length(headers).is_some_and(|n| n > limit as u64) {
+    let declared = declared_length(headers);
+    if declared.is_some_and(|n| n > limit as u64) {
         return Err(too_large());
     }
-    use http_body_util::BodyExt;
-    let read = http_body_util::Limited::new(body, limit).collect();
-    match tokio::time::timeout(st.limits.body_timeout, read).await {
-        Err(_) => Err(ApiError(
-            StatusCode::REQUEST_TIMEOUT,
-            format!(
-                "{what} did not arrive within {} s",
-                st.limits.body_timeout.as_secs_f64()
-            ),
-        )),
-        Ok(Err(e)) if e.is::<http_body_util::LengthLimitError>() => Err(too_large()),
-        Ok(Err(e)) => Err(ApiError::bad(format!("could not read {what}: {e}"))),
-        Ok(Ok(c)) => Ok(c.to_bytes()),
+    // A body without a length may grow to the limit: it reserves that much.
+    let budget = st.bodies.reserve(declared.unwrap_or(limit as u64), what)?;
+    let mut pace = BodyPace::new(&st.limits);
+    let mut bytes = Vec::with_capacity(declared.map_or(0, |n| n as usize));
+    while let Some(data) = pace.next(&mut body, what).await? {
+        if bytes.len() + data.len() > limit {
+            return Err(too_large());
+        }
+        bytes.extend_from_slice(&data);
     }
+    Ok(Received {
+        bytes: Bytes::from(bytes),
+        _budget: budget,
+    })
 }
 
 async fn index() -> impl IntoResponse {

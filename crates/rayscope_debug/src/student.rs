@@ -204,6 +204,51 @@ pub fn sample_rays(log: &PixelLog, x: u32, y: u32, sample: Option<u32>) -> Vec<S
         .unwrap_or_default()
 }
 
+/// Most of a sample's rays one comparison shows: a pixel's tree rarely has more than a few
+/// hundred, and a log with hundreds of thousands in one pixel must not turn one request into
+/// hundreds of megabytes (the rest are paged with [`RayPage::offset`]).
+pub const PAGE_RAYS: usize = 1000;
+/// Most samples a comparison lists (all are counted).
+pub const LISTED_SAMPLES: usize = 1024;
+
+/// Which of a sample's rays a comparison shows: `limit` of them from `offset`, in log order.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct RayPage {
+    /// Rays of the sample skipped before the first shown.
+    pub offset: usize,
+    /// Most rays shown (at most [`PAGE_RAYS`]).
+    pub limit: usize,
+}
+
+impl Default for RayPage {
+    /// The first [`PAGE_RAYS`] rays.
+    fn default() -> Self {
+        Self {
+            offset: 0,
+            limit: PAGE_RAYS,
+        }
+    }
+}
+
+/// One page of the rays of one sample of a pixel, in log order, and how many rays the sample
+/// has in all; only the page is copied.
+#[must_use]
+pub fn sample_rays_page(log: &PixelLog, x: u32, y: u32, sample: Option<u32>, page: RayPage) -> (Vec<ShownRay>, usize) {
+    let Some(rays) = log.rays.get(&[x, y]) else {
+        return (Vec::new(), 0);
+    };
+    let limit = page.limit.min(PAGE_RAYS);
+    let mut shown = Vec::with_capacity(limit.min(rays.len()));
+    let mut total = 0;
+    for r in rays.iter().filter(|r| r.sample == sample) {
+        if total >= page.offset && shown.len() < limit {
+            shown.push(r.clone());
+        }
+        total += 1;
+    }
+    (shown, total)
+}
+
 fn v3(a: [f64; 3]) -> Vec3 {
     Vec3::new(a[0] as f32, a[1] as f32, a[2] as f32)
 }
@@ -299,11 +344,20 @@ pub struct PixelComparison {
     pub code: Option<&'static str>,
     /// Samples logged at the pixel (`null`: without a sample).
     pub samples: Vec<Option<u32>>,
+    /// Samples logged at the pixel in all (`samples` lists at most [`LISTED_SAMPLES`]).
+    pub samples_total: usize,
     /// The sample shown.
     pub sample: Option<u32>,
     /// Some of the pixel's rays were judged but not kept (the detail cap).
     pub dropped: bool,
-    /// The student's rays of the sample, in log order.
+    /// Rays of the sample kept in all (`yours` is one page of them).
+    pub rays_total: usize,
+    /// Rays of the sample before `yours` (the page's start).
+    pub offset: usize,
+    /// Rays of the sample after `yours`: ask for them with `offset`.
+    pub more: usize,
+    /// The student's rays of the sample, in log order: at most [`PAGE_RAYS`] of them from
+    /// `offset` (aligned with rayscope's tree as a page of their own).
     pub yours: Vec<ShownRay>,
     /// rayscope's ray tree of the sample.
     pub rayscope: RayTree,
@@ -316,7 +370,7 @@ pub struct PixelComparison {
 }
 
 /// Compares the student's rays of pixel (`x`, `y`) with rayscope's tree, for sample `want` (else
-/// the first one with a verdict).
+/// the first one with a verdict): the first [`PAGE_RAYS`] rays of the sample.
 #[must_use]
 pub fn compare_pixel(
     scene: &Scene,
@@ -326,8 +380,28 @@ pub fn compare_pixel(
     y: u32,
     want: Option<u32>,
 ) -> PixelComparison {
-    let sample = pick_sample(log, x, y, want).flatten();
-    let yours = sample_rays(log, x, y, pick_sample(log, x, y, want).unwrap_or(None));
+    compare_pixel_page(scene, settings, log, x, y, want, RayPage::default())
+}
+
+/// [`compare_pixel`] for one page of the sample's rays.
+#[must_use]
+pub fn compare_pixel_page(
+    scene: &Scene,
+    settings: &RenderSettings,
+    log: &PixelLog,
+    x: u32,
+    y: u32,
+    want: Option<u32>,
+    page: RayPage,
+) -> PixelComparison {
+    let picked = pick_sample(log, x, y, want);
+    let sample = picked.flatten();
+    let (yours, rays_total) = sample_rays_page(log, x, y, picked.unwrap_or(None), page);
+    let offset = page.offset.min(rays_total);
+    let more = rays_total - offset - yours.len();
+    let mut samples = samples_at(log, x, y);
+    let samples_total = samples.len();
+    samples.truncate(LISTED_SAMPLES);
     let spp = log.spp.max(1);
     let rs_sample = sample.filter(|&s| s < spp).unwrap_or(0);
     let tree = rayscope_core::trace_pixel_with(scene, scene, settings, x, y, rs_sample);
@@ -338,9 +412,13 @@ pub fn compare_pixel(
         y,
         status: log.status_at(x, y),
         code: log.code_at(x, y).map(|c| c.as_str()),
-        samples: samples_at(log, x, y),
+        samples,
+        samples_total,
         sample,
         dropped: log.dropped_at(x, y),
+        rays_total,
+        offset,
+        more,
         rayscope_answers: tree.nodes.iter().map(rs_answer).collect(),
         yours,
         rayscope: tree,

@@ -3,14 +3,18 @@
 //! - `POST /api/rays?name=FILE` with the log as the body: `Content-Type: application/x-ndjson`
 //!   for JSON Lines, `application/octet-stream` for RayTracer.Debug's `.rays` (both types a page
 //!   on another origin cannot send without a preflight). At most [`MAX_LOG_BYTES`]; the body is
-//!   judged as it arrives (each part within the body timeout), so memory stays bounded; a log of
-//!   up to [`KEEP_LOG_BYTES`] is kept to judge again when the settings change. Runs in a heavy
-//!   slot. Answers the summary once judged.
+//!   judged as it arrives, at the pace [`ServerLimits::min_body_rate`] sets, so memory stays
+//!   bounded; a log of up to [`ServerLimits::keep_log_bytes`] is kept to judge again when the
+//!   settings change. One log is received at a time, outside the heavy slots: a newer upload
+//!   replaces one still arriving (answered 409), so a slow or stalled upload holds nothing
+//!   another request needs. Answers the summary once judged.
 //! - `GET /api/rays/summary`: the judgement's state and counts; judges again when the settings
 //!   changed and the log can be read again (a file, or a kept upload), else says `stale`.
 //! - `GET /api/rays/map.png`: the verdict map, one pixel per image pixel.
-//! - `GET /api/rays/pixel?x=&y=&sample=`: the student's rays of a pixel sample beside rayscope's
-//!   tree, aligned, with the first divergence explained.
+//! - `GET /api/rays/pixel?x=&y=&sample=&offset=&limit=`: the student's rays of a pixel sample
+//!   beside rayscope's tree, aligned, with the first divergence explained; at most
+//!   [`student::PAGE_RAYS`] rays of the sample from `offset`, with their count (`rays_total`)
+//!   and how many follow (`more`).
 //! - `POST /api/rays/image` (`image/png`, at most 32 MiB, at most 2048 pixels a side) and
 //!   `GET /api/rays/image.png`: the student's image.
 //! - `/api/view` takes `student=1` (the student's rays of the selected pixel), `verdicts=1` (the
@@ -29,8 +33,18 @@ use crate::student::{self, StudentInput};
 /// Largest ray log the debugger accepts as an upload.
 pub const MAX_LOG_BYTES: u64 = 4 << 30;
 /// Uploads up to this size are kept in memory to judge again after a settings change; larger
-/// ones are judged once and marked stale after a change (the page sends them again).
+/// ones are judged once and marked stale after a change (the page sends them again). The default
+/// of [`ServerLimits::keep_log_bytes`].
 pub const KEEP_LOG_BYTES: usize = 64 << 20;
+/// Rays of a judged log kept for display by default ([`ServerLimits::ray_detail_cap`]): a kept
+/// ray with its verdicts costs a few hundred bytes, so at most twice this many (samples that
+/// disagree) stay within about 150 MiB.
+pub const RAY_DETAIL_CAP: usize = 200_000;
+/// How long a new upload waits for the one it replaces to stop.
+const REPLACE_WAIT: Duration = Duration::from_secs(5);
+/// The blocks a kept upload is stored in: no copy of the whole log is ever made, and a block
+/// holds only bytes of the log, whatever the sizes of the parts it arrived in.
+const KEEP_BLOCK: usize = 1 << 20;
 /// Largest uploaded student image in bytes.
 const IMAGE_BODY_LIMIT: usize = 32 * 1024 * 1024;
 /// Pixels that disagree listed in the summary (all are counted).
@@ -38,9 +52,61 @@ const LIST: usize = 2000;
 
 enum Data {
     File(PathBuf),
-    Bytes(Bytes),
+    Kept(Arc<Kept>),
     /// An upload too large to keep.
     Gone,
+}
+
+/// An upload's bytes, kept in blocks of [`KEEP_BLOCK`].
+#[derive(Default)]
+struct Kept {
+    blocks: Vec<Vec<u8>>,
+    len: usize,
+}
+
+impl Kept {
+    /// Appends `data`; false (and nothing kept any more) once the log would pass `cap` bytes.
+    fn push(&mut self, data: &[u8], cap: usize) -> bool {
+        if self.len + data.len() > cap {
+            self.blocks = Vec::new();
+            return false;
+        }
+        let mut rest = data;
+        while !rest.is_empty() {
+            if self.blocks.last().is_none_or(|b| b.len() == KEEP_BLOCK) {
+                self.blocks.push(Vec::with_capacity(KEEP_BLOCK.min(cap)));
+            }
+            let b = self.blocks.last_mut().expect("a block was just pushed");
+            let n = rest.len().min(KEEP_BLOCK - b.len());
+            b.extend_from_slice(&rest[..n]);
+            rest = &rest[n..];
+        }
+        self.len += data.len();
+        true
+    }
+}
+
+/// Reads a [`Kept`] log from its start.
+struct KeptReader {
+    kept: Arc<Kept>,
+    block: usize,
+    at: usize,
+}
+
+impl Read for KeptReader {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        while let Some(b) = self.kept.blocks.get(self.block) {
+            if self.at < b.len() {
+                let n = buf.len().min(b.len() - self.at);
+                buf[..n].copy_from_slice(&b[self.at..self.at + n]);
+                self.at += n;
+                return Ok(n);
+            }
+            self.block += 1;
+            self.at = 0;
+        }
+        Ok(0)
+    }
 }
 
 struct Source {
@@ -80,12 +146,24 @@ struct RInner {
     error: Option<(RenderSettings, String)>,
     image: Option<(String, Arc<RgbImage>)>,
     next: u64,
+    /// How to stop the upload being received, so that a newer one replaces it.
+    receiving: Option<Arc<tokio::sync::Notify>>,
 }
 
 /// The student's log and image, held by the server.
-#[derive(Default)]
 pub(super) struct RaysState {
     inner: Mutex<RInner>,
+    /// The one upload being received.
+    upload: Arc<Semaphore>,
+}
+
+impl Default for RaysState {
+    fn default() -> Self {
+        Self {
+            inner: Mutex::default(),
+            upload: Arc::new(Semaphore::new(1)),
+        }
+    }
 }
 
 impl RaysState {
@@ -199,7 +277,14 @@ fn start_job(
                     let len = f.metadata().map(|m| m.len()).unwrap_or(0);
                     (Box::new(std::io::BufReader::with_capacity(1 << 20, f)), len)
                 }
-                (None, Data::Bytes(b)) => (Box::new(std::io::Cursor::new(b.clone())), b.len() as u64),
+                (None, Data::Kept(k)) => (
+                    Box::new(KeptReader {
+                        kept: k.clone(),
+                        block: 0,
+                        at: 0,
+                    }),
+                    k.len as u64,
+                ),
                 (None, Data::Gone) => return Err("the log was not kept: send it again".to_string()),
             };
             total.store(len, Ordering::Relaxed);
@@ -212,7 +297,10 @@ fn start_job(
                 source.binary,
                 &source.roles,
                 source.lenient,
-                rayscope_check::PixelOptions::default(),
+                rayscope_check::PixelOptions {
+                    detail_cap: st.limits.ray_detail_cap,
+                    ..rayscope_check::PixelOptions::default()
+                },
                 &progress,
                 &cancel,
             )
@@ -297,7 +385,7 @@ fn summary(st: &Arc<AppState>) -> Value {
     let mut v = json!({
         "state": "none",
         "image": image,
-        "keep_bytes": KEEP_LOG_BYTES,
+        "keep_bytes": st.limits.keep_log_bytes,
         "max_bytes": MAX_LOG_BYTES,
     });
     if let Some(r) = &g.running {
@@ -319,7 +407,7 @@ fn summary(st: &Arc<AppState>) -> Value {
         s["stale"] = json!(stale);
         s["settings"] = settings_json(&j.settings);
         s["map"] = json!(format!("/api/rays/map.png?job={}", j.job));
-        s["detail_cap"] = json!(rayscope_check::PixelOptions::default().detail_cap);
+        s["detail_cap"] = json!(st.limits.ray_detail_cap);
         v["judged"] = s;
         if g.running.is_none() {
             v["state"] = json!(if stale { "stale" } else { "done" });
@@ -335,7 +423,7 @@ fn summary(st: &Arc<AppState>) -> Value {
     if let Some(src) = &g.source {
         v["source"] = json!({
             "name": src.name,
-            "kind": match src.data { Data::File(_) => "file", Data::Bytes(_) => "upload", Data::Gone => "upload-not-kept" },
+            "kind": match src.data { Data::File(_) => "file", Data::Kept(_) => "upload", Data::Gone => "upload-not-kept" },
             "format": if src.binary { "rays" } else { "jsonl" },
         });
     }
@@ -401,7 +489,51 @@ pub(super) async fn api_upload(
     if declared.is_some_and(|n| n > MAX_LOG_BYTES) {
         return Err(too_large());
     }
-    let slot = st.heavy.slot()?;
+    // The newest upload wins: the one still arriving stops (its client is answered 409), so a
+    // stalled upload cannot keep a new one out.
+    let abort = Arc::new(tokio::sync::Notify::new());
+    if let Some(old) = st.rays.lock().receiving.replace(abort.clone()) {
+        old.notify_one();
+    }
+    let permit = match tokio::time::timeout(REPLACE_WAIT, st.rays.upload.clone().acquire_owned()).await {
+        Ok(Ok(p)) => p,
+        _ => return Err(ApiError(
+            StatusCode::SERVICE_UNAVAILABLE,
+            format!(
+                "another ray log is still being received and did not stop within {} s: send this one again in a moment",
+                REPLACE_WAIT.as_secs()
+            ),
+        )),
+    };
+    let outcome = receive(&st, body, &abort, name, binary, roles, lenient, declared).await;
+    drop(permit);
+    let mut g = st.rays.lock();
+    if g.receiving.as_ref().is_some_and(|a| Arc::ptr_eq(a, &abort)) {
+        g.receiving = None;
+    }
+    drop(g);
+    outcome?;
+    Ok(Json(summary(&st)))
+}
+
+/// Receives an upload's body and judges it as it arrives; `Ok` once judged.
+#[allow(clippy::too_many_arguments)]
+async fn receive(
+    st: &Arc<AppState>,
+    mut body: Body,
+    abort: &tokio::sync::Notify,
+    name: String,
+    binary: bool,
+    roles: Vec<IdRole>,
+    lenient: bool,
+    declared: Option<u64>,
+) -> ApiResult<()> {
+    let too_large = || {
+        ApiError(
+            StatusCode::PAYLOAD_TOO_LARGE,
+            format!("the ray log is too large (at most {MAX_LOG_BYTES} bytes); judge it with `rayscope debug SCENE --rays LOG` instead"),
+        )
+    };
     let settings = st.lock().settings;
     let (tx, rx) = tokio::sync::mpsc::channel::<Result<Bytes, String>>(16);
     let reader = ChannelReader { rx, cur: Bytes::new() };
@@ -413,50 +545,39 @@ pub(super) async fn api_upload(
         lenient,
     });
     let (id, result) = start_job(
-        &st,
+        st,
         placeholder,
         Some((Box::new(reader), declared.unwrap_or(0))),
         settings,
     );
 
-    use http_body_util::BodyExt;
-    let mut body = body;
-    let mut size = 0u64;
-    let mut kept: Option<Vec<u8>> = Some(Vec::new());
+    let keep_cap = st.limits.keep_log_bytes;
+    let mut kept = (declared.unwrap_or(0) <= keep_cap as u64).then(Kept::default);
+    let mut pace = BodyPace::new(&st.limits);
     let mut failure: Option<ApiError> = None;
     loop {
-        let frame = match tokio::time::timeout(st.limits.body_timeout, body.frame()).await {
-            Err(_) => {
-                failure = Some(ApiError(
-                    StatusCode::REQUEST_TIMEOUT,
-                    format!(
-                        "the ray log stopped arriving (nothing for {} s)",
-                        st.limits.body_timeout.as_secs_f64()
-                    ),
-                ));
-                break;
-            }
+        let next = tokio::select! {
+            biased;
+            () = abort.notified() => Err(ApiError(
+                StatusCode::CONFLICT,
+                "replaced: another ray log was sent while this one was arriving".into(),
+            )),
+            n = pace.next(&mut body, "the ray log") => n,
+        };
+        let data = match next {
+            Ok(Some(d)) => d,
             Ok(None) => break,
-            Ok(Some(Err(e))) => {
-                failure = Some(ApiError::bad(format!("could not read the ray log: {e}")));
+            Err(e) => {
+                failure = Some(e);
                 break;
             }
-            Ok(Some(Ok(f))) => f,
         };
-        let Ok(data) = frame.into_data() else {
-            continue;
-        };
-        size += data.len() as u64;
-        if size > MAX_LOG_BYTES {
+        if pace.received > MAX_LOG_BYTES {
             failure = Some(too_large());
             break;
         }
-        if let Some(k) = kept.as_mut() {
-            if k.len() + data.len() <= KEEP_LOG_BYTES {
-                k.extend_from_slice(&data);
-            } else {
-                kept = None;
-            }
+        if kept.as_mut().is_some_and(|k| !k.push(&data, keep_cap)) {
+            kept = None;
         }
         if tx.send(Ok(data)).await.is_err() {
             // The judge stopped reading: a malformed line, or a newer log replaced this one.
@@ -467,7 +588,6 @@ pub(super) async fn api_upload(
         let _ = tx.send(Err("the upload did not complete".into())).await;
         drop(tx);
         let _ = result.await;
-        drop(slot);
         return Err(f);
     }
     drop(tx);
@@ -479,7 +599,7 @@ pub(super) async fn api_upload(
             g.source = Some(Arc::new(Source {
                 name,
                 binary,
-                data: kept.map_or(Data::Gone, |k| Data::Bytes(Bytes::from(k))),
+                data: kept.map_or(Data::Gone, |k| Data::Kept(Arc::new(k))),
                 roles,
                 lenient,
             }));
@@ -488,9 +608,8 @@ pub(super) async fn api_upload(
     let outcome = result
         .await
         .unwrap_or_else(|_| Err("judging the log failed".to_string()));
-    drop(slot);
     match outcome {
-        Ok(()) => Ok(Json(summary(&st))),
+        Ok(()) => Ok(()),
         Err(e) if e.starts_with("cancelled") => Err(ApiError(StatusCode::CONFLICT, e)),
         Err(e) => Err(ApiError::bad(e)),
     }
@@ -524,16 +643,23 @@ pub(super) async fn api_pixel(State(st): State<Arc<AppState>>, Query(q): Params)
         Some(_) => Some(parse_num(&q, "sample", 0u32, 0, u32::MAX)?),
         None => None,
     };
+    let page = student::RayPage {
+        offset: parse_num(&q, "offset", 0usize, 0, usize::MAX)?,
+        limit: parse_num(&q, "limit", student::PAGE_RAYS, 1, student::PAGE_RAYS)?,
+    };
     let slot = st.heavy.slot()?;
     let st2 = st.clone();
     let j2 = j.clone();
+    // Paged before anything is copied, so the answer and what is built for it stay within a
+    // page of rays whatever the pixel holds.
     let cmp = tokio::task::spawn_blocking(move || {
         let _slot = slot;
-        student::compare_pixel(&st2.scene, &j2.settings, &j2.log, x, y, sample)
+        student::compare_pixel_page(&st2.scene, &j2.settings, &j2.log, x, y, sample, page)
     })
     .await
     .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, format!("comparison failed: {e}")))?;
     let mut v = serde_json::to_value(&cmp).map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?;
+    v["page_rays"] = json!(student::PAGE_RAYS);
     let settings = st.lock().settings;
     v["stale"] = json!(j.settings != settings);
     v["samples_per_pixel"] = json!(j.log.spp);

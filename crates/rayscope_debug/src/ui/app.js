@@ -1148,7 +1148,9 @@ async function raysPixel() {
   try {
     const q = new URLSearchParams({ x, y });
     if (rays.pixelSample != null) q.set("sample", rays.pixelSample);
+    if (rays.pixelOffset) q.set("offset", rays.pixelOffset);
     rays.pixelSample = null;
+    rays.pixelOffset = 0;
     const r = await api("/api/rays/pixel?" + q);
     if (seq !== rays.pixelSeq) return;
     // The view and the ray tree follow the sample shown (the first one that disagrees).
@@ -1178,6 +1180,15 @@ function raysShowPixel(r) {
   if (r.stale) head.append(el("span", { class: "warn" }, " — judged under other settings"));
   if (r.dropped) head.append(el("span", { class: "warn" }, " — some of this pixel's rays were not kept (the display cap): its verdict stands, the table shows the rays kept"));
   if (r.status === "not-logged") head.append(" — your log has no ray for this pixel");
+  if (r.samples_total > r.samples.length) head.append(` — the list shows ${r.samples.length} of its ${r.samples_total} samples`);
+  if (r.offset > 0 || r.more > 0) {
+    // One page of the sample's rays: the rest are asked for a page at a time.
+    const page = (offset) => () => { rays.pixelSample = r.sample; rays.pixelOffset = offset; raysPixel(); };
+    const note = el("span", { class: "warn", id: "rays-page" }, ` — rays ${r.offset + 1} to ${r.offset + r.yours.length} of ${r.rays_total} in this sample, and ${r.more} more `);
+    if (r.offset > 0) note.append(el("button", { type: "button", onclick: page(Math.max(0, r.offset - r.page_rays)) }, "previous"));
+    if (r.more > 0) note.append(el("button", { type: "button", onclick: page(r.offset + r.yours.length) }, "next"));
+    head.append(note);
+  }
   // The first divergence, explained.
   const dv = $("rays-divergence");
   dv.innerHTML = "";
