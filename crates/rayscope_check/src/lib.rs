@@ -260,14 +260,14 @@ pub(crate) fn run(
             let Some(sink) = sink.as_mut() else {
                 return Ok((judge_groups(judge, &ready, keep, false).0, t1.elapsed()));
             };
-            // A batch's worth of rays at a time, so that the verdicts waiting for the sink stay
-            // bounded however many samples complete at once.
+            // A sixteenth of a batch's rays at a time, so that the verdicts waiting for the sink
+            // (up to a few KiB a ray) stay bounded however many samples complete at once.
             let mut tally = Tally::new(keep);
             let mut ready = ready.into_iter().peekable();
             while ready.peek().is_some() {
                 let mut rays = 0;
                 let mut part = Vec::new();
-                while let Some(g) = ready.next_if(|g| part.is_empty() || rays + g.len() <= log::BATCH) {
+                while let Some(g) = ready.next_if(|g| part.is_empty() || rays + g.len() <= log::BATCH / 16) {
                     rays += g.len();
                     part.push(g);
                 }
