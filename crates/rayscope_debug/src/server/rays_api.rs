@@ -497,13 +497,15 @@ pub(super) async fn api_upload(
     }
     let permit = match tokio::time::timeout(REPLACE_WAIT, st.rays.upload.clone().acquire_owned()).await {
         Ok(Ok(p)) => p,
-        _ => return Err(ApiError(
-            StatusCode::SERVICE_UNAVAILABLE,
-            format!(
+        _ => {
+            return Err(ApiError(
+                StatusCode::SERVICE_UNAVAILABLE,
+                format!(
                 "another ray log is still being received and did not stop within {} s: send this one again in a moment",
                 REPLACE_WAIT.as_secs()
             ),
-        )),
+            ))
+        }
     };
     let outcome = receive(&st, body, &abort, name, binary, roles, lenient, declared).await;
     drop(permit);
