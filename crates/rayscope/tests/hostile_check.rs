@@ -356,3 +356,26 @@ fn a_large_log_written_sample_by_sample_is_judged_within_the_budget() {
     assert!(matches!(r.code, Some(0 | 1)), "{}", r.stderr);
     assert!(r.stdout.contains("checked 300000 rays"), "{}", r.stdout);
 }
+
+#[test]
+fn one_sample_of_400000_rays_is_judged_within_the_budget() {
+    let dir = tempfile::tempdir().unwrap();
+    let log = dir.path().join("one.jsonl");
+    // The debugger issue's reproduction: 400,000 rays of one pixel, all of one sample (a real
+    // sample has at most a few thousand). They are judged in groups, never held whole.
+    let mut f = std::io::BufWriter::with_capacity(1 << 20, fs::File::create(&log).unwrap());
+    for i in 0..400_000u32 {
+        let (parent, kind) = if i == 0 { ("null", "camera") } else { ("0", "shadow") };
+        writeln!(
+            f,
+            "{{\"pixel\":[5,5],\"sample\":0,\"id\":{i},\"parent\":{parent},\"kind\":\"{kind}\",\
+             \"origin\":[0,0,0],\"direction\":[0,0,1],\"hit\":null}}"
+        )
+        .unwrap();
+    }
+    f.flush().unwrap();
+    drop(f);
+    let r = check(dir.path(), &log, &["-w", "8", "-h", "8"]);
+    within_budget(&r, "400,000 rays of one sample");
+    assert_eq!(r.code, Some(1), "the rays disagree with rayscope's: {}", r.stderr);
+}

@@ -96,12 +96,8 @@ pub fn judge_file(
     progress: &dyn Fn(u64, u64),
     cancel: &AtomicBool,
 ) -> Result<Option<PixelLog>, LogError> {
-    let io = |source| LogError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let file = std::fs::File::open(path).map_err(io)?;
-    let total = file.metadata().map(|m| m.len()).unwrap_or(0);
+    // Only a regular file: a device or a pipe would never end.
+    let (file, total) = rayscope_check::log::open_file(path)?;
     judge_reader(
         scene,
         settings,
@@ -111,7 +107,11 @@ pub fn judge_file(
         is_binary_log(path),
         roles,
         lenient,
-        PixelOptions::default(),
+        // The debugger's cap on rays kept for display, so `view --rays-log` has its budget.
+        PixelOptions {
+            detail_cap: crate::server::RAY_DETAIL_CAP,
+            ..PixelOptions::default()
+        },
         progress,
         cancel,
     )
