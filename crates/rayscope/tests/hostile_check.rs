@@ -3,11 +3,15 @@
 //! names the place and the limit. Each test runs the real binary and reads its peak resident
 //! memory (VmHWM) while it runs.
 
+mod common;
+
 use std::fs;
-use std::io::{Read, Write};
+use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
+
+use common::{watch, Watched};
 
 /// The most memory `rayscope check` may use on a small scene, whatever the log (docs/security.md):
 /// the rays of unfinished pixel samples it holds (`rayscope_check::MAX_PENDING_RAYS`), two
@@ -23,73 +27,24 @@ fn bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_rayscope"))
 }
 
-/// What a run printed, its exit code and its peak resident memory.
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-    peak_kib: u64,
-}
-
-/// Peak resident memory of a running process, in KiB (`None` once it has exited).
-fn peak_rss_kib(pid: u32) -> Option<u64> {
-    let status = fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
 /// Runs `rayscope check` on `log` against the test scene in `dir`, watching its peak memory
 /// (the high-water mark only grows, so polling it misses at most the last moments' growth).
-fn check(dir: &Path, log: &Path, flags: &[&str]) -> Run {
+fn check(dir: &Path, log: &Path, flags: &[&str]) -> Watched {
     let scene = dir.join("scene.txt");
     fs::write(&scene, SCENE).unwrap();
-    let mut child = Command::new(bin())
-        .arg("check")
+    let mut cmd = Command::new(bin());
+    cmd.arg("check")
         .arg("-f")
         .arg(&scene)
         .arg("--rays")
         .arg(log)
         .arg("--quiet")
-        .args(flags)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let drain = |mut r: Box<dyn Read + Send>| {
-        std::thread::spawn(move || {
-            let mut s = Vec::new();
-            r.read_to_end(&mut s).unwrap();
-            String::from_utf8_lossy(&s).into_owned()
-        })
-    };
-    let out = drain(Box::new(child.stdout.take().unwrap()));
-    let err = drain(Box::new(child.stderr.take().unwrap()));
-    let start = Instant::now();
-    let mut peak_kib = 0;
-    let status = loop {
-        if let Some(kib) = peak_rss_kib(child.id()) {
-            peak_kib = peak_kib.max(kib);
-        }
-        if let Some(status) = child.try_wait().unwrap() {
-            break status;
-        }
-        if start.elapsed() > Duration::from_secs(60) || peak_kib > 4 * BUDGET_KIB {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("check still running after {:?} at {peak_kib} KiB", start.elapsed());
-        }
-        std::thread::sleep(Duration::from_millis(2));
-    };
-    Run {
-        code: status.code(),
-        stdout: out.join().unwrap(),
-        stderr: err.join().unwrap(),
-        peak_kib,
-    }
+        .args(flags);
+    watch(cmd, Duration::from_secs(60))
 }
 
 /// Asserts the run stayed within the budget.
-fn within_budget(r: &Run, what: &str) {
+fn within_budget(r: &Watched, what: &str) {
     eprintln!("{what}: peak resident memory {} KiB", r.peak_kib);
     assert!(
         r.peak_kib < BUDGET_KIB,

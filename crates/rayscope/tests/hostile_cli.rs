@@ -2,13 +2,13 @@
 //! standard output, camera axes too short for f32, outputs in formats a command cannot write,
 //! and ray files that are devices, pipes or too large. Each test runs the real binary.
 
+mod common;
+
 use std::ffi::OsStr;
 use std::fs;
-use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output, Stdio};
-use std::thread;
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 const SCENE: &str = "Material \"W\" Diffuse (0.8, 0.8, 0.8) 1\n\
                      Material \"R\" Diffuse (0.9, 0.1, 0.1) 1\n\
@@ -52,45 +52,10 @@ fn with_closed_stdout<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String) {
 /// Runs rayscope with `args`, killing it and failing the test if it runs past 20 s; returns the
 /// exit code, stderr and its highest VmHWM seen, in KiB.
 fn watched<S: AsRef<OsStr>>(args: &[S]) -> (Option<i32>, String, u64) {
-    let start = Instant::now();
-    let mut child = Command::new(bin())
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let drain = thread::spawn(move || {
-        let mut s = String::new();
-        let _ = err.read_to_string(&mut s);
-        s
-    });
-    let mut peak = 0;
-    let status = loop {
-        if let Some(kib) = fs::read_to_string(format!("/proc/{}/status", child.id()))
-            .ok()
-            .and_then(|s| {
-                let line = s.lines().find(|l| l.starts_with("VmHWM:"))?.to_owned();
-                line.split_whitespace().nth(1)?.parse::<u64>().ok()
-            })
-        {
-            peak = peak.max(kib);
-        }
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > Duration::from_secs(20) {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!(
-                "{args:?}: still running after 20 s",
-                args = args.iter().map(|a| a.as_ref().to_owned()).collect::<Vec<_>>()
-            );
-        }
-        thread::sleep(Duration::from_millis(2));
-    };
-    (status.code(), drain.join().unwrap(), peak)
+    let mut cmd = Command::new(bin());
+    cmd.args(args);
+    let r = common::watch(cmd, Duration::from_secs(20));
+    (r.code, r.stderr, r.peak_kib)
 }
 
 fn png(path: &Path, rgb: [u8; 3]) {
@@ -338,4 +303,28 @@ fn view_and_debug_read_ray_logs_only_from_regular_files() {
         assert_eq!(code, Some(2), "{err}");
         assert!(err.contains(needle), "{err}");
     }
+}
+
+#[test]
+fn a_closed_stdout_keeps_probes_verdict() {
+    // The probe tests' student tracer, made to return the sphere's far root: probe finds
+    // mistakes, so its verdict is 1 whether or not its report could be printed.
+    let manifest = Path::new(env!("CARGO_MANIFEST_DIR"));
+    let (reader, writer) = std::io::pipe().unwrap();
+    drop(reader);
+    let o = Command::new(bin())
+        .arg("probe")
+        .arg("-f")
+        .arg(rayscope_testkit::scene("basic.txt"))
+        .arg("--")
+        .arg("python3")
+        .arg(manifest.join("../../examples/probe/python/probe_adapter.py"))
+        .arg(manifest.join("tests/probe/student_tracer.py"))
+        .env("PROBE_MISTAKES", "sphere-far-root")
+        .stdin(Stdio::null())
+        .stdout(writer)
+        .stderr(Stdio::piped())
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
 }

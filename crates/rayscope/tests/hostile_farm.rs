@@ -4,14 +4,15 @@
 //! without Slurm) and checks what a user would see: the exit code, the message naming the limit,
 //! nothing written, and memory that stays small.
 
+mod common;
+
 use std::ffi::{OsStr, OsString};
 use std::fs;
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::thread;
-use std::time::{Duration, Instant};
+use std::process::Command;
+use std::time::Duration;
 
+use common::{watch, Watched};
 use serde_json::Value;
 
 const SCENE: &str = "Material \"W\" Diffuse (0.8, 0.8, 0.8) 1\n\
@@ -36,66 +37,21 @@ fn scene(dir: &Path) -> PathBuf {
     p
 }
 
-/// What one watched run did.
-struct Run {
-    code: Option<i32>,
-    stderr: String,
-    /// Highest VmHWM seen while it ran, in KiB.
-    peak_kib: u64,
-}
-
-fn vm_hwm_kib(pid: u32) -> Option<u64> {
-    let status = fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
 /// Runs rayscope with `args` under `ulimit -v` of [`CAP_MIB`], watching its peak resident
 /// memory; fails the test if it is still running after 20 s.
-fn watched<S: AsRef<OsStr>>(args: &[S]) -> Run {
-    let start = Instant::now();
-    let mut child = Command::new("sh")
-        .arg("-c")
+fn watched<S: AsRef<OsStr>>(args: &[S]) -> Watched {
+    let mut cmd = Command::new("sh");
+    cmd.arg("-c")
         .arg("ulimit -v \"$1\" && shift && exec \"$@\"")
         .arg("sh")
         .arg((CAP_MIB * 1024).to_string())
         .arg(bin())
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::null())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let mut err = child.stderr.take().unwrap();
-    let drain = thread::spawn(move || {
-        let mut s = Vec::new();
-        let _ = err.read_to_end(&mut s);
-        String::from_utf8_lossy(&s).into_owned()
-    });
-    let mut peak_kib = 0;
-    let status = loop {
-        if let Some(kib) = vm_hwm_kib(child.id()) {
-            peak_kib = peak_kib.max(kib);
-        }
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > Duration::from_secs(20) {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!("still running after 20 s (peak {peak_kib} KiB)");
-        }
-        thread::sleep(Duration::from_millis(2));
-    };
-    Run {
-        code: status.code(),
-        stderr: drain.join().unwrap(),
-        peak_kib,
-    }
+        .args(args);
+    watch(cmd, Duration::from_secs(20))
 }
 
 /// Asserts a refusal: exit 2, every one of `needles` in the message, small memory.
-fn refused(run: &Run, needles: &[&str]) {
+fn refused(run: &Watched, needles: &[&str]) {
     assert_eq!(run.code, Some(2), "{}", run.stderr);
     for n in needles {
         assert!(run.stderr.contains(n), "'{n}' not in:\n{}", run.stderr);

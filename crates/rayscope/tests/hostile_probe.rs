@@ -6,80 +6,23 @@
 mod common;
 
 use std::fs;
-use std::io::Read;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
+use std::process::Command;
 use std::thread;
 use std::time::{Duration, Instant};
 
-use common::scenes;
-
-/// What one watched run of rayscope did.
-struct Run {
-    code: Option<i32>,
-    stdout: String,
-    stderr: String,
-    /// Highest VmHWM seen while it ran, in KiB.
-    peak_kib: u64,
-    secs: f64,
-}
+use common::{scenes, watch, Watched};
 
 fn bin() -> PathBuf {
     PathBuf::from(env!("CARGO_BIN_EXE_rayscope"))
 }
 
-/// Peak resident memory of a running process, in KiB (None once it has exited).
-fn peak_rss_kib(pid: u32) -> Option<u64> {
-    let status = fs::read_to_string(format!("/proc/{pid}/status")).ok()?;
-    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
-    line.split_whitespace().nth(1)?.parse().ok()
-}
-
 /// Runs rayscope with `args`, watching its peak memory; kills it and fails the test if it is
 /// still running after `limit`.
-fn watched(args: &[&str], limit: Duration) -> Run {
-    let start = Instant::now();
-    let mut child = Command::new(bin())
-        .args(args)
-        .stdin(Stdio::null())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    let drain = |mut r: Box<dyn Read + Send>| {
-        thread::spawn(move || {
-            let mut s = Vec::new();
-            let _ = r.read_to_end(&mut s);
-            String::from_utf8_lossy(&s).into_owned()
-        })
-    };
-    let out = drain(Box::new(child.stdout.take().unwrap()));
-    let err = drain(Box::new(child.stderr.take().unwrap()));
-    let mut peak_kib = 0;
-    let status = loop {
-        if let Some(kib) = peak_rss_kib(child.id()) {
-            peak_kib = peak_kib.max(kib);
-        }
-        if let Some(s) = child.try_wait().unwrap() {
-            break s;
-        }
-        if start.elapsed() > limit {
-            let _ = child.kill();
-            let _ = child.wait();
-            panic!(
-                "rayscope {args:?} still running after {limit:?} (peak {peak_kib} KiB); stderr:\n{}",
-                err.join().unwrap()
-            );
-        }
-        thread::sleep(Duration::from_millis(5));
-    };
-    Run {
-        code: status.code(),
-        stdout: out.join().unwrap(),
-        stderr: err.join().unwrap(),
-        peak_kib,
-        secs: start.elapsed().as_secs_f64(),
-    }
+fn watched(args: &[&str], limit: Duration) -> Watched {
+    let mut cmd = Command::new(bin());
+    cmd.args(args);
+    watch(cmd, limit)
 }
 
 /// A one-sphere scene and a Python program `code` in a new folder.
@@ -96,7 +39,7 @@ fn setup(code: &str) -> (tempfile::TempDir, PathBuf, PathBuf) {
     (dir, scene, prog)
 }
 
-fn probe(scene: &Path, prog: &Path, flags: &[&str]) -> Run {
+fn probe(scene: &Path, prog: &Path, flags: &[&str]) -> Watched {
     let mut args = vec!["probe", "-f", scene.to_str().unwrap()];
     args.extend_from_slice(flags);
     args.extend(["--", "python3", prog.to_str().unwrap()]);
