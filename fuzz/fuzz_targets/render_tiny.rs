@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 
 use libfuzzer_sys::fuzz_target;
 use rayscope_core::{render, Channel, RenderSettings, Scene, Stage};
-use rayscope_scene::{DVec3, MaterialKind, SceneFile, Shape};
+use rayscope_scene::{DVec3, SceneFile, Shape};
 
 fuzz_target!(|data: &[u8]| {
     let Some((&mode, rest)) = data.split_first() else {
