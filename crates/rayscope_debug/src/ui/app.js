@@ -1184,7 +1184,8 @@ function raysShowPixel(r) {
   if (r.offset > 0 || r.more > 0) {
     // One page of the sample's rays: the rest are asked for a page at a time.
     const page = (offset) => () => { rays.pixelSample = r.sample; rays.pixelOffset = offset; raysPixel(); };
-    const note = el("span", { class: "warn", id: "rays-page" }, ` — rays ${r.offset + 1} to ${r.offset + r.yours.length} of ${r.rays_total} in this sample, and ${r.more} more `);
+    const more = r.more > 0 ? `, and ${r.more} more` : "";
+    const note = el("span", { class: "warn", id: "rays-page" }, ` — rays ${r.offset + 1} to ${r.offset + r.yours.length} of ${r.rays_total} in this sample${more} `);
     if (r.offset > 0) note.append(el("button", { type: "button", onclick: page(Math.max(0, r.offset - r.page_rays)) }, "previous"));
     if (r.more > 0) note.append(el("button", { type: "button", onclick: page(r.offset + r.yours.length) }, "next"));
     head.append(note);
