@@ -424,10 +424,37 @@ fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
     Ok(ExitCode::SUCCESS)
 }
 
-pub fn read_rgb8(path: &Path) -> Result<image::RgbImage, Failure> {
-    Ok(image::open(path)
-        .map_err(|e| Failure::input(format!("cannot read image '{}': {e}", path.display())))?
-        .to_rgb8())
+/// Most pixels of an image `diff` and `diagnose` read: a render's budget without `--allow-large`
+/// (with it, a render's largest image).
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
+
+/// Reads the image at `path` as 8-bit RGB: a regular file only, its size read from its header and
+/// checked against [`MAX_IMAGE_PIXELS`] (or 2^30 with `allow_large`) before it is decoded.
+pub fn read_rgb8(path: &Path, allow_large: bool) -> Result<image::RgbImage, Failure> {
+    let cannot = |e: &dyn std::fmt::Display| Failure::input(format!("cannot read image '{}': {e}", path.display()));
+    let meta = std::fs::metadata(path).map_err(|e| cannot(&e))?;
+    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
+        return Err(cannot(&format!("it is {what}, not a file")));
+    }
+    let open = || {
+        image::ImageReader::open(path)
+            .and_then(image::ImageReader::with_guessed_format)
+            .map_err(|e| cannot(&e))
+    };
+    let (w, h) = open()?.into_dimensions().map_err(|e| cannot(&e))?;
+    let max = if allow_large { 1 << 30 } else { MAX_IMAGE_PIXELS };
+    if u64::from(w) * u64::from(h) > max {
+        let hint = if allow_large {
+            ""
+        } else {
+            " (--allow-large raises it to 2^30 where the command has it)"
+        };
+        return Err(cannot(&format!(
+            "its header says {w}×{h} = {} pixels, over the limit of {max}{hint}",
+            u64::from(w) * u64::from(h)
+        )));
+    }
+    Ok(open()?.decode().map_err(|e| cannot(&e))?.to_rgb8())
 }
 
 fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {

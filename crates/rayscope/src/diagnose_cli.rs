@@ -77,7 +77,7 @@ pub(crate) fn given(sub: &str, id: &str) -> bool {
 
 /// `rayscope diagnose`: exit 0 when the image matches, 1 with a diagnosis, 2 for bad input.
 pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
-    let img = read_rgb8(&a.image)?;
+    let img = read_rgb8(&a.image, a.opts.allow_large)?;
     let mut opts = a.opts.clone();
     // The image's size is the render's, unless the flags name one.
     if !given("diagnose", "width") && !given("diagnose", "height") {

@@ -109,8 +109,8 @@ pub fn diff(a: &DiffArgs) -> Result<ExitCode, Failure> {
             "render flags only apply with --scene SCENE (to trace the pixels that differ)",
         ));
     }
-    let ia = read_rgb8(&a.a)?;
-    let ib = read_rgb8(&a.b)?;
+    let ia = read_rgb8(&a.a, false)?;
+    let ib = read_rgb8(&a.b, false)?;
     if ia.dimensions() != ib.dimensions() {
         return Err(Failure::input(format!(
             "the images differ in size: '{}' is {}×{}, '{}' is {}×{}",

@@ -328,3 +328,73 @@ fn a_closed_stdout_keeps_probes_verdict() {
         .unwrap();
     assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
 }
+
+/// A PNG that is a header claiming `w`×`h` RGB pixels and almost no data: a reader that decodes before it
+/// checks the size would allocate `3·w·h` bytes.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let mut ihdr = b"IHDR".to_vec();
+    ihdr.extend_from_slice(&w.to_be_bytes());
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[8, 2, 0, 0, 0]);
+    let crc = |data: &[u8]| {
+        let mut c = 0xffff_ffffu32;
+        for &b in data {
+            c ^= u32::from(b);
+            for _ in 0..8 {
+                c = if c & 1 != 0 { 0xedb8_8320 ^ (c >> 1) } else { c >> 1 };
+            }
+        }
+        !c
+    };
+    let mut png = b"\x89PNG\r\n\x1a\n".to_vec();
+    png.extend_from_slice(&13u32.to_be_bytes());
+    png.extend_from_slice(&ihdr);
+    png.extend_from_slice(&crc(&ihdr).to_be_bytes());
+    // A few bytes of image data (an empty zlib stream): readers look for it before they answer.
+    let mut idat = b"IDAT".to_vec();
+    idat.extend_from_slice(&[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01]);
+    png.extend_from_slice(&8u32.to_be_bytes());
+    png.extend_from_slice(&idat);
+    png.extend_from_slice(&crc(&idat).to_be_bytes());
+    png.extend_from_slice(&0u32.to_be_bytes());
+    png.extend_from_slice(b"IEND");
+    png.extend_from_slice(&crc(b"IEND").to_be_bytes());
+    png
+}
+
+#[test]
+fn diff_and_diagnose_check_an_images_size_before_decoding_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let huge = dir.path().join("huge.png");
+    fs::write(&huge, png_header_only(100_000, 100_000)).unwrap();
+    let scene = rayscope_testkit::scene("basic.txt");
+    let cases: [Vec<&OsStr>; 2] = [
+        vec![OsStr::new("diff"), huge.as_os_str(), huge.as_os_str()],
+        vec![
+            OsStr::new("diagnose"),
+            OsStr::new("-f"),
+            scene.as_os_str(),
+            huge.as_os_str(),
+        ],
+    ];
+    for args in cases {
+        let (code, err, peak) = watched(&args);
+        assert_eq!(code, Some(2), "{args:?}: {err}");
+        assert!(
+            err.contains("100000×100000") && err.contains("over the limit of 67108864"),
+            "{args:?}: {err}"
+        );
+        assert!(peak < 64 * 1024, "{args:?}: peak {peak} KiB");
+    }
+}
+
+#[test]
+fn diff_reads_images_only_from_regular_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe.png");
+    let made = Command::new("mkfifo").arg(&fifo).status().unwrap();
+    assert!(made.success());
+    let (code, err, _) = watched(&[OsStr::new("diff"), fifo.as_os_str(), fifo.as_os_str()]);
+    assert_eq!(code, Some(2), "{err}");
+    assert!(err.contains("it is a named pipe (FIFO), not a file"), "{err}");
+}
