@@ -44,7 +44,9 @@ pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {
 fn student_input(a: &DebugArgs) -> Result<StudentInput, Failure> {
     let ray_ids = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
     if let Some(p) = &a.rays {
-        regular_log(p)?;
+        // Refused now, before the server starts: only a regular file that opens is read.
+        rayscope_check::log::open_file(p)
+            .map_err(|e| Failure::input(e.to_string().trim_start_matches("error: ").to_string()))?;
     }
     let image = a
         .image
@@ -60,19 +62,6 @@ fn student_input(a: &DebugArgs) -> Result<StudentInput, Failure> {
     })
 }
 
-/// Checks that a ray log is a regular file that can be opened: a named pipe would block, a
-/// device never end.
-fn regular_log(p: &std::path::Path) -> Result<(), Failure> {
-    let cannot = |e: String| Failure::input(format!("cannot read ray log {}: {e}", p.display()));
-    // Looked at before opening: opening a named pipe blocks until a writer appears.
-    let meta = std::fs::metadata(p).map_err(|e| cannot(e.to_string()))?;
-    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
-        return Err(cannot(format!("it is {what}, not a file")));
-    }
-    std::fs::File::open(p).map_err(|e| cannot(e.to_string()))?;
-    Ok(())
-}
-
 /// Judges `--rays-log` for `rayscope view`.
 fn judge_log(
     a: &ViewArgs,
@@ -83,7 +72,6 @@ fn judge_log(
         return Ok(None);
     };
     let roles = IdRole::parse_list(&a.ray_ids).map_err(|e| Failure::input(format!("--ray-ids: {e}")))?;
-    regular_log(path)?;
     let never = AtomicBool::new(false);
     let log = rayscope_debug::student::judge_file(scene, settings, path, &roles, a.lenient, &|_, _| {}, &never)
         .map_err(|e| match e {
