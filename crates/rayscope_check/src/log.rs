@@ -13,7 +13,6 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 use rayon::prelude::*;
-use rayscope_scene::input::not_a_file;
 use rayscope_scene::Diagnostic;
 use rustc_hash::FxHashMap;
 use serde::Deserialize;
@@ -355,27 +354,10 @@ impl IdRole {
 /// # Errors
 /// [`LogError::Io`] with the OS error, or saying what the path is instead of a file.
 pub fn open_file(path: &Path) -> Result<(File, u64), LogError> {
-    let io = |source| LogError::Io {
+    rayscope_scene::input::open_regular(path).map_err(|source| LogError::Io {
         path: path.to_path_buf(),
         source,
-    };
-    let wrong = |what: &str| {
-        io(std::io::Error::new(
-            std::io::ErrorKind::InvalidInput,
-            format!("it is {what}, not a file"),
-        ))
-    };
-    // Looked at before opening: opening a named pipe blocks until a writer appears.
-    if let Some(what) = not_a_file(&std::fs::metadata(path).map_err(io)?) {
-        return Err(wrong(what));
-    }
-    let file = File::open(path).map_err(io)?;
-    // The path may have been replaced between the two looks.
-    let meta = file.metadata().map_err(io)?;
-    if let Some(what) = not_a_file(&meta) {
-        return Err(wrong(what));
-    }
-    Ok((file, meta.len()))
+    })
 }
 
 /// Opens `path` as a ray log: `.rays` files as RayTracer.Debug's binary format, everything else

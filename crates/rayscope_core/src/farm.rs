@@ -483,19 +483,9 @@ pub fn read_part_header(reader: impl Read, file_len: u64, limits: &Limits) -> Re
 fn open_part(path: &Path, limits: &Limits) -> Result<(std::fs::File, PartHeader), String> {
     let name = path.display();
     let cannot = |e: io::Error| format!("cannot read part '{name}': {e}");
-    // Looked at before opening: opening a named pipe blocks until a writer appears.
-    let meta = std::fs::metadata(path).map_err(cannot)?;
-    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
-        return Err(format!("cannot read part '{name}': it is {what}, not a file"));
-    }
-    let file = std::fs::File::open(path).map_err(cannot)?;
-    // The path may have been replaced between the two looks.
-    let meta = file.metadata().map_err(cannot)?;
-    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
-        return Err(format!("cannot read part '{name}': it is {what}, not a file"));
-    }
+    let (file, len) = rayscope_scene::input::open_regular(path).map_err(cannot)?;
     // "it is …" reads "'part_3.exr' is …"; other messages follow the name.
-    let header = read_part_header(&file, meta.len(), limits).map_err(|e| match e.strip_prefix("it ") {
+    let header = read_part_header(&file, len, limits).map_err(|e| match e.strip_prefix("it ") {
         Some(rest) => format!("'{name}' {rest}"),
         None => format!("'{name}': {e}"),
     })?;

@@ -39,18 +39,32 @@ pub fn not_a_file(meta: &fs::Metadata) -> Option<&'static str> {
     Some("not a regular file")
 }
 
+/// Opens `path` for reading with its length, only if it is a regular file.
+///
+/// # Errors
+/// The OS error, or an `InvalidInput` error that says what the path is instead of a file.
+pub fn open_regular(path: &Path) -> io::Result<(fs::File, u64)> {
+    let wrong = |what: &str| io::Error::new(io::ErrorKind::InvalidInput, format!("it is {what}, not a file"));
+    // Looked at before opening: opening a named pipe blocks until a writer appears.
+    if let Some(what) = not_a_file(&fs::metadata(path)?) {
+        return Err(wrong(what));
+    }
+    let file = fs::File::open(path)?;
+    // The path may have been replaced between the two looks.
+    let meta = file.metadata()?;
+    if let Some(what) = not_a_file(&meta) {
+        return Err(wrong(what));
+    }
+    Ok((file, meta.len()))
+}
+
 /// Reads the regular file at `path`, at most `max_bytes` of it.
 ///
 /// # Errors
 /// The OS error, or an `InvalidInput` error that says what the path is instead of a file, or
 /// how large the file is against the bound.
 pub fn read_bounded(path: &Path, max_bytes: u64) -> io::Result<Vec<u8>> {
-    // Looked at before opening: opening a named pipe blocks until a writer appears.
-    let meta = fs::metadata(path)?;
-    let wrong = |what: &str| io::Error::new(io::ErrorKind::InvalidInput, format!("it is {what}, not a file"));
-    if let Some(what) = not_a_file(&meta) {
-        return Err(wrong(what));
-    }
+    let (file, len) = open_regular(path)?;
     let too_large = |len: u64| {
         io::Error::new(
             io::ErrorKind::InvalidInput,
@@ -61,15 +75,10 @@ pub fn read_bounded(path: &Path, max_bytes: u64) -> io::Result<Vec<u8>> {
             ),
         )
     };
-    if meta.len() > max_bytes {
-        return Err(too_large(meta.len()));
+    if len > max_bytes {
+        return Err(too_large(len));
     }
-    let file = fs::File::open(path)?;
-    // The path may have been replaced between the two looks.
-    if let Some(what) = not_a_file(&file.metadata()?) {
-        return Err(wrong(what));
-    }
-    let mut bytes = Vec::with_capacity(meta.len() as usize);
+    let mut bytes = Vec::with_capacity(len as usize);
     file.take(max_bytes + 1).read_to_end(&mut bytes)?;
     if bytes.len() as u64 > max_bytes {
         return Err(too_large(bytes.len() as u64));
