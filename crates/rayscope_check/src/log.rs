@@ -147,6 +147,8 @@ pub struct LoggedRay {
     pub light: Option<u32>,
     /// Shadow rays: the entity in the way, or `Nothing` when the light is reached.
     pub blocked_by: Answer<u32>,
+    /// The linear colour the ray brought back to whoever cast it, before clamping, when logged.
+    pub color: Option<DVec3>,
 }
 
 #[cfg(test)]
@@ -167,6 +169,7 @@ impl LoggedRay {
             hit: Answer::NotLogged,
             light: None,
             blocked_by: Answer::NotLogged,
+            color: None,
         }
     }
 }
@@ -631,10 +634,11 @@ struct RawRay<'a> {
     light: Option<Cow<'a, str>>,
     #[serde(default, deserialize_with = "present", borrow)]
     blocked_by: Option<Option<Cow<'a, str>>>,
+    color: Option<[f64; 3]>,
 }
 
 /// The fields a ray record may have, for notes.
-const FORMAT_NOTE: &str = "a record is one JSON object per line: {\"pixel\": [x, y], \"sample\": 0, \"id\": 1, \"parent\": null, \"kind\": \"camera\", \"origin\": [x, y, z], \"direction\": [x, y, z], \"hit\": {\"t\": 1.0, \"point\": [x, y, z], \"normal\": [x, y, z], \"entity\": \"Name\"} or null}; shadow rays add \"light\" and \"blocked_by\"";
+const FORMAT_NOTE: &str = "a record is one JSON object per line: {\"pixel\": [x, y], \"sample\": 0, \"id\": 1, \"parent\": null, \"kind\": \"camera\", \"origin\": [x, y, z], \"direction\": [x, y, z], \"hit\": {\"t\": 1.0, \"point\": [x, y, z], \"normal\": [x, y, z], \"entity\": \"Name\"} or null}; shadow rays add \"light\" and \"blocked_by\"; any ray may add \"color\": [r, g, b]";
 
 /// 1-based character column of byte offset `byte` in `line`.
 fn char_column(line: &str, byte: usize) -> usize {
@@ -801,6 +805,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
         hit,
         light,
         blocked_by,
+        color: raw.color.map(vec),
     }))
 }
 
@@ -900,6 +905,7 @@ impl<R: Read> BinaryReader<R> {
             hit: Answer::NotLogged,
             light: None,
             blocked_by: Answer::NotLogged,
+            color: None,
         };
         let (mut x, mut y) = (None, None);
         for (k, (role, v)) in self.roles.iter().zip(ids).enumerate() {

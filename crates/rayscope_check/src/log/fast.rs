@@ -334,7 +334,7 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
     };
     let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
     let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
-    let (mut hit_, mut light, mut blocked_by) = (None, None, None);
+    let (mut hit_, mut light, mut blocked_by, mut color) = (None, None, None, None);
     c.object(|c, key| match key {
         "pixel" => once(&mut pixel, c.nullable(Cursor::pixel)),
         "sample" => once(&mut sample, c.nullable(Cursor::u32)),
@@ -348,6 +348,7 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
         "hit" => once(&mut hit_, c.nullable(hit)),
         "light" => once(&mut light, c.nullable(|c| c.string().map(Cow::Borrowed))),
         "blocked_by" => once(&mut blocked_by, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        "color" => once(&mut color, c.nullable(Cursor::vec3)),
         _ => c.skip_value(0),
     })?;
     c.skip_ws();
@@ -367,6 +368,7 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
         hit: hit_,
         light: light.flatten(),
         blocked_by,
+        color: color.flatten(),
     })
 }
 
@@ -504,6 +506,7 @@ mod tests {
             vec3().prop_map(|v| format!("\"origin\":{v}")),
             vec3().prop_map(|v| format!("\"direction\":{v}")),
             vec3().prop_map(|v| format!("\"to\":{v}")),
+            vec3().prop_map(|v| format!("\"color\":{v}")),
             (number(), vec3(), "[A-Za-z0-9 ]{0,12}")
                 .prop_map(|(t, n, e)| format!("\"hit\":{{\"t\":{t},\"normal\":{n},\"entity\":\"{e}\"}}")),
             Just("\"hit\":null".to_string()),
