@@ -20,6 +20,10 @@ use crate::geom::{angle, d3, reflect, refract, Geometry};
 use crate::log::{Answer, HitClaim, Kind, LoggedRay};
 use crate::verdict::Code;
 
+pub mod causes;
+
+pub use causes::Cause;
+
 /// The tolerances verdicts are decided with. Lengths are relative: each is multiplied by the
 /// ray's scale, max(1, the largest absolute coordinate of its origin and hit point), because
 /// rounding error grows with the size of the coordinates.
@@ -122,8 +126,35 @@ pub struct Tally {
     pub outward: (u64, Vec<Finding>),
     /// Back-face hits whose normal faces the ray, with the first examples.
     pub facing: (u64, Vec<Finding>),
+    /// Per root cause: the pixel samples and rays it is the first mistake of, what follows
+    /// from it, and its first examples.
+    pub causes: BTreeMap<Cause, CauseCount>,
     /// Examples kept per code.
     pub keep: usize,
+}
+
+/// One root cause's counts.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct CauseCount {
+    /// Pixel samples in which it is the first wrong ray (of a branch).
+    pub samples: u64,
+    /// Rays on which it is the first wrong verdict.
+    pub rays: u64,
+    /// Verdicts on rays below it (or beside it on the same ray), per code.
+    pub consequences: BTreeMap<Code, u64>,
+    /// The first rays it is the cause on, by line.
+    pub examples: Vec<Finding>,
+}
+
+impl CauseCount {
+    fn merge(&mut self, o: CauseCount, keep: usize) {
+        self.samples += o.samples;
+        self.rays += o.rays;
+        for (c, n) in o.consequences {
+            *self.consequences.entry(c).or_default() += n;
+        }
+        keep_first(&mut self.examples, o.examples, keep);
+    }
 }
 
 fn keep_first(v: &mut Vec<Finding>, more: Vec<Finding>, keep: usize) {
@@ -161,6 +192,24 @@ impl Tally {
         }
     }
 
+    fn add_causes(&mut self, sample: &causes::SampleCauses, findings: &[Vec<Finding>]) {
+        for c in sample.distinct() {
+            self.causes.entry(c).or_default().samples += 1;
+        }
+        for &(i, c) in &sample.roots {
+            let e = self.causes.entry(c).or_default();
+            e.rays += 1;
+            if e.examples.len() < self.keep {
+                if let Some(f) = findings[i].iter().find(|f| !f.code.is_tie()) {
+                    e.examples.push(f.clone());
+                }
+            }
+        }
+        for &(c, code) in &sample.consequences {
+            *self.causes.entry(c).or_default().consequences.entry(code).or_default() += 1;
+        }
+    }
+
     /// Adds another tally's counts and examples (keeping the first examples by line).
     #[must_use]
     pub fn merge(mut self, o: Tally) -> Tally {
@@ -176,6 +225,9 @@ impl Tally {
             let e = self.codes.entry(c).or_default();
             e.0 += n;
             keep_first(&mut e.1, ex, keep);
+        }
+        for (c, count) in o.causes {
+            self.causes.entry(c).or_default().merge(count, keep);
         }
         self.outward.0 += o.outward.0;
         keep_first(&mut self.outward.1, o.outward.1, keep);
@@ -196,7 +248,16 @@ impl Tally {
         self.disagree += n;
         let e = self.codes.entry(Code::HitNormalInconsistent).or_default();
         e.0 += n;
-        keep_first(&mut e.1, ex, self.keep);
+        keep_first(&mut e.1, ex.clone(), self.keep);
+        // Decided over the whole log, so each such ray is a cause of its own sample.
+        let c = self.causes.entry(Cause {
+            code: Code::HitNormalInconsistent,
+            or: None,
+        });
+        let c = c.or_default();
+        c.samples += n;
+        c.rays += n;
+        keep_first(&mut c.examples, ex, self.keep);
     }
 }
 
@@ -455,6 +516,7 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, &parent, &evals, &kinds, &mut findings);
+        tally.add_causes(&causes::causes(&order, &parent, &findings), &findings);
         let mut out = Vec::with_capacity(if keep { n } else { 0 });
         for (i, f) in findings.into_iter().enumerate() {
             if keep {

@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use serde::Serialize;
 
-use crate::judge::{Finding, Tally, Tolerances};
+use crate::judge::{Cause, Finding, Tally, Tolerances};
 use crate::log::printable;
 use crate::verdict::Code;
 
@@ -36,6 +36,79 @@ pub struct VerdictGroup {
     pub examples: Vec<Finding>,
 }
 
+/// One root cause: the first wrong ray of a branch of a pixel sample's ray tree, with the
+/// verdicts that follow from it below.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct CauseGroup {
+    /// The verdict.
+    pub code: Code,
+    /// A second verdict the same rays fit as well; both fixes apply.
+    pub or: Option<Code>,
+    /// Pixel samples in which it is the first wrong ray.
+    pub samples: u64,
+    /// Rays on which it is the first wrong verdict.
+    pub rays: u64,
+    /// One line: what was found.
+    pub summary: String,
+    /// What to change in the code.
+    pub explanation: String,
+    /// Verdicts that follow from it, most frequent first.
+    pub consequences: Vec<Consequence>,
+    /// The first rays it is the cause on, by line.
+    pub examples: Vec<Finding>,
+}
+
+/// Verdicts of one code that follow from a cause.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Consequence {
+    /// The verdict.
+    pub code: Code,
+    /// Rays with it below the cause (or beside it on the same ray).
+    pub count: u64,
+}
+
+impl CauseGroup {
+    fn new(c: Cause, n: crate::judge::CauseCount) -> Self {
+        let (summary, explanation) = match c.or {
+            None => (c.code.summary().to_string(), c.code.explanation().to_string()),
+            Some(b) => (
+                format!("{}, or {}", c.code.summary(), b.summary()),
+                format!(
+                    "These rays fit either mistake; check both. {} {}",
+                    c.code.explanation(),
+                    b.explanation()
+                ),
+            ),
+        };
+        let mut consequences: Vec<Consequence> = n
+            .consequences
+            .into_iter()
+            .map(|(code, count)| Consequence { code, count })
+            .collect();
+        consequences.sort_by_key(|c| (std::cmp::Reverse(c.count), c.code));
+        CauseGroup {
+            code: c.code,
+            or: c.or,
+            samples: n.samples,
+            rays: n.rays,
+            summary,
+            explanation,
+            consequences,
+            examples: n.examples,
+        }
+    }
+
+    /// The cause's name: `code` or `code | other`.
+    #[must_use]
+    pub fn name(&self) -> String {
+        Cause {
+            code: self.code,
+            or: self.or,
+        }
+        .name()
+    }
+}
+
 /// The result of checking a log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
@@ -57,7 +130,9 @@ pub struct Report {
     pub skipped_lines: u64,
     /// The first skipped line's diagnostic.
     pub first_skipped: Option<String>,
-    /// Verdicts against the tracer, most frequent first.
+    /// Root causes, the one the most pixel samples share first: the mistakes to fix.
+    pub causes: Vec<CauseGroup>,
+    /// Verdicts against the tracer, causes and consequences alike, most frequent first.
     pub verdicts: Vec<VerdictGroup>,
     /// Genuine ties, most frequent first.
     pub tie_verdicts: Vec<VerdictGroup>,
@@ -89,6 +164,10 @@ impl Report {
             }
         }
         verdicts.sort_by_key(|g| std::cmp::Reverse(g.count));
+        let mut causes: Vec<CauseGroup> = t.causes.into_iter().map(|(c, n)| CauseGroup::new(c, n)).collect();
+        // Most samples first; then most rays; then the order codes are listed in (camera, hit,
+        // shadow, secondary), which is the order a tracer's rays are cast in.
+        causes.sort_by_key(|g| (std::cmp::Reverse(g.samples), std::cmp::Reverse(g.rays), g.code, g.or));
         ties.sort_by_key(|g| std::cmp::Reverse(g.count));
         let disagree = t.disagree.min(t.rays);
         Report {
@@ -101,6 +180,7 @@ impl Report {
             orphans: t.orphans,
             skipped_lines: skipped,
             first_skipped,
+            causes,
             verdicts,
             tie_verdicts: ties,
             tolerances,
@@ -118,33 +198,60 @@ impl Report {
     #[must_use]
     pub fn to_json(&self, trace_command: &dyn Fn(&Finding) -> Option<String>) -> serde_json::Value {
         let mut v = serde_json::to_value(self).unwrap_or_default();
-        for list in ["verdicts", "tie_verdicts"] {
+        let examples: [(&str, Vec<&[Finding]>); 3] = [
+            ("causes", self.causes.iter().map(|g| g.examples.as_slice()).collect()),
+            ("verdicts", self.verdicts.iter().map(|g| g.examples.as_slice()).collect()),
+            ("tie_verdicts", self.tie_verdicts.iter().map(|g| g.examples.as_slice()).collect()),
+        ];
+        for (list, src) in examples {
             let Some(groups) = v.get_mut(list).and_then(|g| g.as_array_mut()) else {
                 continue;
-            };
-            let src = if list == "verdicts" {
-                &self.verdicts
-            } else {
-                &self.tie_verdicts
             };
             for (g, sg) in groups.iter_mut().zip(src) {
                 let Some(ex) = g.get_mut("examples").and_then(|e| e.as_array_mut()) else {
                     continue;
                 };
-                for (e, f) in ex.iter_mut().zip(&sg.examples) {
+                for (e, f) in ex.iter_mut().zip(sg) {
                     if let Some(obj) = e.as_object_mut() {
                         obj.insert("trace_command".into(), trace_command(f).into());
                     }
                 }
             }
         }
+        if let Some(obj) = v.as_object_mut() {
+            obj.insert("headline".into(), self.headline().into());
+        }
         v
+    }
+
+    /// The report's first line: the cause the most pixel samples share, or that none was found.
+    #[must_use]
+    pub fn headline(&self) -> String {
+        if let Some(c) = self.causes.first() {
+            let more = match self.causes.len() - 1 {
+                0 => String::new(),
+                1 => "; 1 other cause below".to_string(),
+                n => format!("; {n} other causes below"),
+            };
+            format!(
+                "mistake: {} [{}]: the first wrong ray in {} pixel sample{}{more}",
+                c.summary,
+                c.name(),
+                c.samples,
+                if c.samples == 1 { "" } else { "s" }
+            )
+        } else if self.rays == 0 {
+            "no ray was judged: the log has none".to_string()
+        } else {
+            "no mistake found: every ray agrees with rayscope".to_string()
+        }
     }
 
     /// The report as text for a terminal.
     #[must_use]
     pub fn to_text(&self, trace_command: &dyn Fn(&Finding) -> Option<String>) -> String {
         let mut s = String::new();
+        let _ = writeln!(s, "{}", self.headline());
         let _ = writeln!(
             s,
             "checked {} rays ({} camera rays): {} agree, {} disagree, {} ties (not counted against you)",
@@ -176,21 +283,49 @@ impl Report {
                 self.orphans
             );
         }
-        let all: Vec<&VerdictGroup> = self.verdicts.iter().chain(&self.tie_verdicts).collect();
-        if self.rays == 0 {
-            let _ = writeln!(s, "\nno ray was judged: the log has none");
-            return s;
+        if self.causes.len() > 1 {
+            let _ = writeln!(s, "\n{:>9}  {:>9}  cause (fix the first one first)", "samples", "rays");
+            for c in &self.causes {
+                let _ = writeln!(s, "{:>9}  {:>9}  {}", c.samples, c.rays, c.name());
+            }
         }
-        if all.is_empty() {
-            let _ = writeln!(s, "\nevery ray agrees with rayscope");
-            return s;
+        for c in &self.causes {
+            let _ = writeln!(
+                s,
+                "\n{} — the first wrong ray in {} pixel sample{} ({} ray{})",
+                c.name(),
+                c.samples,
+                if c.samples == 1 { "" } else { "s" },
+                c.rays,
+                if c.rays == 1 { "" } else { "s" }
+            );
+            let _ = writeln!(s, "  {}", c.summary);
+            for l in wrap(&c.explanation, 96) {
+                let _ = writeln!(s, "  {l}");
+            }
+            for f in &c.examples {
+                let _ = writeln!(s, "{}", example(f, trace_command(f)));
+            }
+            if c.rays > c.examples.len() as u64 {
+                let _ = writeln!(s, "  … and {} more", c.rays - c.examples.len() as u64);
+            }
+            if !c.consequences.is_empty() {
+                let list: Vec<String> = c.consequences.iter().map(|k| format!("{} {}", k.count, k.code.as_str())).collect();
+                for l in wrap(
+                    &format!(
+                        "follows from it (rays below it, or beside it on the same ray; fix the cause first): {}",
+                        list.join(", ")
+                    ),
+                    96,
+                ) {
+                    let _ = writeln!(s, "  {l}");
+                }
+            }
         }
-        let width = all.iter().map(|g| g.code.as_str().len()).max().unwrap_or(0);
-        let _ = writeln!(s, "\n{:>9}  {:width$}  what", "rays", "verdict");
-        for g in &all {
-            let _ = writeln!(s, "{:>9}  {:width$}  {}", g.count, g.code.as_str(), g.summary);
+        if !self.tie_verdicts.is_empty() {
+            let _ = writeln!(s, "\nties (either answer is right; not counted against you):");
         }
-        for g in all {
+        for g in &self.tie_verdicts {
             let _ = writeln!(
                 s,
                 "\n{} — {} ray{}",

@@ -108,17 +108,36 @@ fn assert_clean(run: Run<'_>) {
     assert_eq!(r.disagree, 0, "the correct tracer got verdicts:\n{}", text(&r));
 }
 
-/// A mistake: named by `code`, the most frequent verdict, and no verdict outside `allowed`.
+/// A mistake: named by `code` on the report's first line, as the one cause, and no verdict (nor a
+/// second cause) outside `allowed`.
 fn assert_named(run: Run<'_>, code: Code, allowed: &[Code]) {
     let Some(r) = run.check() else {
         return;
     };
     let t = text(&r);
     assert!(r.disagree > 0, "bug '{}' went unnoticed:\n{t}", run.bug);
-    assert_eq!(r.verdicts[0].code, code, "bug '{}' is not named first:\n{t}", run.bug);
+    let first = &r.causes[0];
+    assert!(
+        first.code == code || first.or == Some(code),
+        "bug '{}' is not named first:\n{t}",
+        run.bug
+    );
+    assert!(
+        t.lines().next().is_some_and(|l| l.contains(code.as_str())),
+        "bug '{}': the first line does not name it:\n{t}",
+        run.bug
+    );
+    for c in &r.causes[1..] {
+        assert!(
+            allowed.contains(&c.code),
+            "bug '{}' gave a second headline, {}:\n{t}",
+            run.bug,
+            c.name()
+        );
+    }
     for v in &r.verdicts {
         assert!(
-            v.code == code || allowed.contains(&v.code),
+            v.code == code || first.or == Some(v.code) || allowed.contains(&v.code),
             "bug '{}' also gave {}:\n{t}",
             run.bug,
             v.code.as_str()

@@ -516,6 +516,15 @@ pub fn summary_json(log: &PixelLog, list: usize) -> Value {
         "orphans": r.orphans,
         "skipped_lines": r.skipped_lines,
         "first_skipped": r.first_skipped,
+        "headline": r.headline(),
+        "causes": r.causes.iter().map(|c| json!({
+            "name": c.name(),
+            "code": c.code.as_str(),
+            "samples": c.samples,
+            "rays": c.rays,
+            "summary": c.summary,
+            "consequences": c.consequences.iter().map(|k| k.count).sum::<u64>(),
+        })).collect::<Vec<_>>(),
         "verdicts": codes(&r.verdicts),
         "tie_verdicts": codes(&r.tie_verdicts),
         "pixels": {

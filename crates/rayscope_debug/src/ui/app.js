@@ -1049,7 +1049,13 @@ function raysOnSummary(s) {
   box.dataset.job = String(j.job);
   const codes = $("rays-codes");
   codes.innerHTML = "";
-  for (const v of j.verdicts) codes.append(el("span", { title: v.summary }, el("b", {}, v.code), ` × ${v.count}`));
+  // One chip per root cause (what to fix), counted in pixel samples; the verdicts that follow
+  // from a cause are in its tooltip, not chips of their own.
+  if (j.causes.length) codes.append(el("div", { class: "rays-headline" }, j.headline));
+  for (const c of j.causes) {
+    const follows = c.consequences ? `; ${c.consequences} verdicts below it follow from it` : "";
+    codes.append(el("span", { title: `${c.summary}${follows}` }, el("b", {}, c.name), ` × ${c.samples} samples`));
+  }
   for (const v of j.tie_verdicts) codes.append(el("span", { title: v.summary + " (not counted against you)" }, v.code, ` × ${v.count}`));
   if (j.job !== rays.mapJob) {
     rays.mapJob = j.job;

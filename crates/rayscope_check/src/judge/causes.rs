@@ -1,0 +1,231 @@
+//! One mistake, one headline: within a pixel sample's ray tree, the first ray that went wrong is
+//! the cause, and the verdicts on the rays below it are its consequences.
+//!
+//! A ray inherits what its parent hit (point, normal, material) and the direction its parent's
+//! mistake gave it, so a verdict below a wrong ray says more about the ray above than about the
+//! code that cast it. Verdicts on how a surface's colour was put together, and on rays that were
+//! never cast, are not handed down: a child's own rays are judged from its own start.
+
+use rustc_hash::FxHashSet;
+use serde::Serialize;
+
+use super::Finding;
+use crate::verdict::Code;
+
+/// A root cause: the first wrong verdict on a ray with no wrong ray above it, and the code it
+/// cannot be told apart from on that ray, when there is one.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash, Serialize)]
+pub struct Cause {
+    /// The verdict.
+    pub code: Code,
+    /// A second verdict the same rays fit as well (both fixes are named).
+    pub or: Option<Code>,
+}
+
+impl Cause {
+    /// The codes of the cause, first the one reports lead with.
+    #[must_use]
+    pub fn codes(self) -> Vec<Code> {
+        std::iter::once(self.code).chain(self.or).collect()
+    }
+
+    /// The cause's name as reports print it: `a` or `a | b`.
+    #[must_use]
+    pub fn name(self) -> String {
+        match self.or {
+            Some(b) => format!("{} | {}", self.code.as_str(), b.as_str()),
+            None => self.code.as_str().to_string(),
+        }
+    }
+}
+
+/// Pairs of verdicts the rays of one mistake fit equally well: the second is named beside the
+/// first as one cause.
+const SAME_RAYS: &[(Code, Code)] = &[
+    // Leaving glass with the outward normal and the entering indices bends the ray exactly as
+    // either mistake alone would in some other place: the ray cannot say which of the two it was.
+    (Code::RefractionNormalNotFlipped, Code::RefractionIndicesNotSwapped),
+];
+
+/// Verdicts that are one mistake wherever they show: merged into the first as one cause.
+const SAME_MISTAKE: &[(Code, Code)] = &[
+    // A one-sided triangle test lets camera, secondary and shadow rays alike through back faces.
+    (Code::ShadowOneSidedTriangle, Code::HitOneSidedTriangle),
+];
+
+/// True when a wrong verdict on a ray can explain verdicts on the rays cast from its hit.
+fn handed_down(code: Code) -> bool {
+    !code.is_tie() && !matches!(code, Code::RefractionTirInvented) && !code.as_str().starts_with("shading.")
+}
+
+/// The cause a ray's wrong verdicts stand for, with how many of its other verdicts follow from it.
+fn cause_of(own: &[&Finding]) -> Cause {
+    let code = own[0].code;
+    let or = own[1..]
+        .iter()
+        .map(|f| f.code)
+        .find(|&c| SAME_RAYS.contains(&(code, c)) || SAME_RAYS.contains(&(c, code)));
+    merged(Cause { code, or })
+}
+
+/// The cause under which a verdict that is one mistake with another is counted.
+fn merged(c: Cause) -> Cause {
+    match SAME_MISTAKE.iter().find(|(a, b)| c.or.is_none() && (c.code == *a || c.code == *b)) {
+        Some(&(a, b)) => Cause { code: a, or: Some(b) },
+        None => c,
+    }
+}
+
+/// What one pixel sample's verdicts come to.
+#[derive(Debug, Default)]
+pub struct SampleCauses {
+    /// Rays that are a cause: (ray, cause).
+    pub roots: Vec<(usize, Cause)>,
+    /// Wrong verdicts that follow from a cause: (cause, code).
+    pub consequences: Vec<(Cause, Code)>,
+}
+
+impl SampleCauses {
+    /// The distinct causes of the sample.
+    #[must_use]
+    pub fn distinct(&self) -> Vec<Cause> {
+        let mut seen = FxHashSet::default();
+        self.roots.iter().map(|r| r.1).filter(|c| seen.insert(*c)).collect()
+    }
+}
+
+/// Finds the causes among a sample's verdicts: `order` lists the rays parents first, `parent`
+/// links them, `findings` holds each ray's verdicts in the order they were found (how the ray
+/// was made before what it met).
+#[must_use]
+pub fn causes(order: &[usize], parent: &[Option<usize>], findings: &[Vec<Finding>]) -> SampleCauses {
+    let mut out = SampleCauses::default();
+    // The cause each ray hands down to the rays cast from its hit.
+    let mut blame: Vec<Option<Cause>> = vec![None; findings.len()];
+    for &i in order {
+        let inherited = parent[i].and_then(|p| blame[p]);
+        let wrong: Vec<&Finding> = findings[i].iter().filter(|f| !f.code.is_tie()).collect();
+        if wrong.is_empty() {
+            blame[i] = inherited;
+            continue;
+        }
+        if let Some(c) = inherited {
+            out.consequences.extend(wrong.iter().map(|f| (c, f.code)));
+            blame[i] = Some(c);
+            continue;
+        }
+        let c = cause_of(&wrong);
+        out.roots.push((i, c));
+        out.consequences.extend(
+            wrong[1..]
+                .iter()
+                .filter(|f| Some(f.code) != c.or && f.code != c.code)
+                .map(|f| (c, f.code)),
+        );
+        blame[i] = handed_down(c.code).then_some(c);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::log::LoggedRay;
+
+    fn finding(code: Code) -> Finding {
+        let r = LoggedRay::for_tests([0, 0], 0, 1);
+        Finding {
+            code,
+            line: r.line,
+            pixel: r.pixel,
+            sample: r.sample,
+            id: None,
+            kind: "ray".into(),
+            detail: String::new(),
+            values: vec![],
+        }
+    }
+
+    #[test]
+    fn verdicts_below_a_wrong_ray_are_its_consequences() {
+        // camera ray 0 with a wrong normal; its shadow ray 1 and reflection 2 go wrong with it;
+        // reflection 2's own child 3 too.
+        let parent = [None, Some(0), Some(0), Some(2)];
+        let findings = vec![
+            vec![finding(Code::HitNormalNotUnit)],
+            vec![finding(Code::ShadowPhantomBlocker)],
+            vec![finding(Code::ReflectionNotMirror), finding(Code::HitPhantom)],
+            vec![finding(Code::HitMissed)],
+        ];
+        let c = causes(&[0, 1, 2, 3], &parent, &findings);
+        let root = Cause {
+            code: Code::HitNormalNotUnit,
+            or: None,
+        };
+        assert_eq!(c.roots, vec![(0, root)]);
+        assert_eq!(c.consequences.len(), 4);
+        assert!(c.consequences.iter().all(|(k, _)| *k == root));
+    }
+
+    #[test]
+    fn separate_branches_are_separate_causes_and_ties_blame_nothing() {
+        let parent = [None, Some(0), Some(0), Some(1)];
+        let findings = vec![
+            vec![finding(Code::TieGrazing)],
+            vec![finding(Code::SecondaryAcne), finding(Code::HitFarther)],
+            vec![finding(Code::ShadowAcne)],
+            vec![finding(Code::HitMissed)],
+        ];
+        let c = causes(&[0, 1, 2, 3], &parent, &findings);
+        let codes: Vec<Code> = c.roots.iter().map(|r| r.1.code).collect();
+        assert_eq!(codes, vec![Code::SecondaryAcne, Code::ShadowAcne]);
+        assert_eq!(c.consequences.len(), 2, "{:?}", c.consequences);
+    }
+
+    #[test]
+    fn verdicts_the_rays_cannot_tell_apart_are_one_cause_with_both_names() {
+        let parent = [None, Some(0)];
+        let findings = vec![
+            vec![],
+            vec![
+                finding(Code::RefractionNormalNotFlipped),
+                finding(Code::RefractionIndicesNotSwapped),
+                finding(Code::SecondaryOffsetWrongSide),
+                finding(Code::SecondaryAcne),
+            ],
+        ];
+        let c = causes(&[0, 1], &parent, &findings);
+        assert_eq!(
+            c.roots,
+            vec![(
+                1,
+                Cause {
+                    code: Code::RefractionNormalNotFlipped,
+                    or: Some(Code::RefractionIndicesNotSwapped)
+                }
+            )]
+        );
+        let follow: Vec<Code> = c.consequences.iter().map(|x| x.1).collect();
+        assert_eq!(follow, vec![Code::SecondaryOffsetWrongSide, Code::SecondaryAcne]);
+    }
+
+    #[test]
+    fn a_one_sided_triangle_test_is_one_cause_for_every_kind_of_ray() {
+        let parent = [None, None];
+        let findings = vec![
+            vec![finding(Code::HitOneSidedTriangle)],
+            vec![finding(Code::ShadowOneSidedTriangle)],
+        ];
+        let c = causes(&[0, 1], &parent, &findings);
+        assert_eq!(c.distinct().len(), 1, "{:?}", c.roots);
+    }
+
+    #[test]
+    fn a_colour_verdict_does_not_blame_the_rays_below() {
+        // A verdict on how the colour was mixed leaves the children to be judged on their own.
+        let parent = [None, Some(0)];
+        let findings = vec![vec![finding(Code::RefractionTirInvented)], vec![finding(Code::HitMissed)]];
+        let c = causes(&[0, 1], &parent, &findings);
+        assert_eq!(c.roots.len(), 2);
+    }
+}
