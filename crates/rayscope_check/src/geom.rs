@@ -72,6 +72,27 @@ impl<'a> Geometry<'a> {
         (d3(t.v0()), d3(t.e1()), d3(t.e2()))
     }
 
+    /// For a triangle, how far `p` lies inside it as a share of its smallest altitude (0 on an
+    /// edge, 1/3 at the centroid, negative outside); `None` for other primitives.
+    #[must_use]
+    pub fn edge_share(&self, prim: PrimRef, p: DVec3) -> Option<f64> {
+        let PrimRef::Triangle(i) = prim else {
+            return None;
+        };
+        let (v0, e1, e2) = self.triangle(i);
+        let vs = [v0, v0 + e1, v0 + e2];
+        let area2 = e1.cross(e2).length();
+        let n = e1.cross(e2) / area2;
+        let mut share = f64::INFINITY;
+        for k in 0..3 {
+            let (a, b) = (vs[k], vs[(k + 1) % 3]);
+            let edge = b - a;
+            // In-plane distance from the edge's line over the altitude onto that edge.
+            share = share.min(edge.cross(p - a).dot(n) / area2);
+        }
+        Some(share)
+    }
+
     /// The primitive's own unit normal at `p` (outward for spheres, (v1 − v0) × (v2 − v0) for
     /// triangles, the scene's normal for planes).
     #[must_use]

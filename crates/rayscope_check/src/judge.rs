@@ -126,6 +126,15 @@ pub struct Tally {
     pub outward: (u64, Vec<Finding>),
     /// Back-face hits whose normal faces the ray, with the first examples.
     pub facing: (u64, Vec<Finding>),
+    /// Back-face triangle misses a little inside an edge, and well inside: with front-face
+    /// misses near edges and none well inside, the back-face ones are the same too strict
+    /// inside test, not a one-sided one.
+    pub back_near_edge: u64,
+    /// Back-face triangle misses well inside the triangle.
+    pub back_inside: u64,
+    /// Refracted rays into glass with no verdict: where they exist the tracer's ratio of
+    /// indices is right on the way in.
+    pub entering_refracted_ok: u64,
     /// Per root cause: the pixel samples and rays it is the first mistake of, what follows
     /// from it, and its first examples.
     pub causes: BTreeMap<Cause, CauseCount>,
@@ -192,6 +201,84 @@ impl Tally {
         }
     }
 
+    /// Moves the cause `from` into `to`: its examples take `to`'s code, and the rays it counted
+    /// under the code it loses are no longer counted there.
+    fn recast(&mut self, from: Cause, to: Cause) {
+        let Some(mut moved) = self.causes.remove(&from) else {
+            return;
+        };
+        for f in &mut moved.examples {
+            f.code = to.code;
+        }
+        for lost in from.codes().into_iter().filter(|c| !to.codes().contains(c)) {
+            if let Some(e) = self.codes.get_mut(&lost) {
+                e.0 = e.0.saturating_sub(moved.rays);
+                e.1.retain(|f| moved.examples.iter().all(|m| m.line != f.line));
+                if e.0 == 0 {
+                    self.codes.remove(&lost);
+                }
+            }
+        }
+        let keep = self.keep;
+        self.causes.entry(to).or_default().merge(moved, keep);
+    }
+
+    /// Reflections at glass a ray entering should have refracted through, where the ratio of
+    /// indices upside down would also be past the critical angle: the rest of the log decides.
+    /// Refracted rays into glass bent with that ratio make it the ratio; correct ones make it the
+    /// critical-angle test; with neither, both stay named.
+    fn tir_test_or_ratio(&mut self) {
+        let both = Cause {
+            code: Code::RefractionTirInvented,
+            or: Some(Code::RefractionIndicesNotSwapped),
+        };
+        let ratio = Cause {
+            code: Code::RefractionIndicesNotSwapped,
+            or: None,
+        };
+        if self.causes.contains_key(&ratio) {
+            self.recast(both, ratio);
+        } else if self.entering_refracted_ok > 0 {
+            self.recast(
+                both,
+                Cause {
+                    code: Code::RefractionTirInvented,
+                    or: None,
+                },
+            );
+        }
+    }
+
+    /// A tracer that misses triangles near their edges on the front face, and on the back face
+    /// only near edges too, has an inside test that is too strict, not a one-sided one: its
+    /// back-face misses are counted as such.
+    fn one_sided_or_edges(&mut self) {
+        let edge = Cause {
+            code: Code::HitTriangleEdge,
+            or: None,
+        };
+        if !self.causes.contains_key(&edge) || self.back_near_edge == 0 || self.back_inside > 0 {
+            return;
+        }
+        for code in [Code::HitOneSidedTriangle, Code::ShadowOneSidedTriangle] {
+            if let Some((n, mut ex)) = self.codes.remove(&code) {
+                for f in &mut ex {
+                    f.code = Code::HitTriangleEdge;
+                }
+                let e = self.codes.entry(Code::HitTriangleEdge).or_default();
+                e.0 += n;
+                keep_first(&mut e.1, ex, self.keep);
+            }
+        }
+        self.recast(
+            Cause {
+                code: Code::ShadowOneSidedTriangle,
+                or: Some(Code::HitOneSidedTriangle),
+            },
+            edge,
+        );
+    }
+
     fn add_causes(&mut self, sample: &causes::SampleCauses, findings: &[Vec<Finding>]) {
         for c in sample.distinct() {
             self.causes.entry(c).or_default().samples += 1;
@@ -219,6 +306,9 @@ impl Tally {
         self.camera += o.camera;
         self.camera_disagree += o.camera_disagree;
         self.orphans += o.orphans;
+        self.back_near_edge += o.back_near_edge;
+        self.back_inside += o.back_inside;
+        self.entering_refracted_ok += o.entering_refracted_ok;
         let keep = self.keep.max(o.keep);
         self.keep = keep;
         for (c, (n, ex)) in o.codes {
@@ -239,6 +329,8 @@ impl Tally {
     /// Turns the normal conventions into a verdict: when back-face hits use both, the rarer one
     /// is inconsistent with the rest. Those rays are counted as disagreeing.
     pub fn finish(&mut self) {
+        self.one_sided_or_edges();
+        self.tir_test_or_ratio();
         let (out, fac) = (self.outward.0, self.facing.0);
         if out == 0 || fac == 0 {
             return;
@@ -348,6 +440,11 @@ pub struct Judge<'a> {
     /// The tolerances in use.
     pub tol: Tolerances,
 }
+
+/// Share of a triangle's altitude within which a miss counts as near its edge: a tenth, far
+/// beyond rounding (which [`Tolerances::tie`] covers) and within the margins too strict inside
+/// tests use.
+const EDGE_SHARE: f64 = 0.1;
 
 /// The smallest share of a sample a missing refracted ray must carry to be a verdict.
 const MIN_SHARE: f64 = 0.01;
@@ -516,6 +613,16 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, &parent, &evals, &kinds, &mut findings);
+        tally.entering_refracted_ok += (0..n)
+            .filter(|&i| {
+                kinds[i] == Kind::Refraction
+                    && findings[i].is_empty()
+                    && parent[i]
+                        .and_then(|p| evals[p])
+                        .and_then(|e| e.leave())
+                        .is_some_and(|lv| lv.front)
+            })
+            .count() as u64;
         tally.add_causes(&causes::causes(&order, &parent, &findings), &findings);
         let mut out = Vec::with_capacity(if keep { n } else { 0 });
         for (i, f) in findings.into_iter().enumerate() {
@@ -569,13 +676,50 @@ impl<'a> Judge<'a> {
             let share = self.path_weight(p, parent, evals, kinds) * (1.0 - glass_fresnel(&lv, ior));
             if sin2_t < 1.0 - 1e-3 && share >= MIN_SHARE {
                 let t = refract(lv.parent_dir, lv.facing, eta).unwrap_or(DVec3::ZERO);
+                // With the index ratio upside down the ray is past the critical angle: that is
+                // the mistake, and the reflection only its consequence.
+                let sin2_inverted = (1.0 - cos_i * cos_i) / (eta * eta);
+                if sin2_inverted > 1.0 + 1e-3 {
+                    // Entering, this ray alone cannot tell a ratio upside down from a critical-
+                    // angle test with the leaving side's ratio: both are named, and the log's
+                    // other refracted rays decide (see `Tally::finish`).
+                    findings[k].push(self.finding(
+                        &rays[k],
+                        &kinds[k],
+                        Code::RefractionTirInvented,
+                        format!(
+                            "entering '{}' your tracer reflected only, as if past the critical angle; sin²θt = {sin2_t:.4} < 1, so the ray refracts",
+                            self.name(lv.entity)
+                        ),
+                        vec![],
+                    ));
+                    findings[k].push(self.finding(
+                        &rays[k],
+                        &kinds[k],
+                        Code::RefractionIndicesNotSwapped,
+                        format!(
+                            "{} '{}' (index {}) your tracer reflected only, as η = {:.4} would have it (sin²θt = {sin2_inverted:.4} > 1, past the critical angle); with η = n1 / n2 = {eta:.4} sin²θt = {sin2_t:.4} and the ray refracts",
+                            if lv.front { "entering" } else { "leaving" },
+                            self.name(lv.entity),
+                            m.value,
+                            1.0 / eta
+                        ),
+                        vec![Value {
+                            what: "refracted direction".into(),
+                            yours: json!("none"),
+                            rayscope: vjson(t),
+                        }],
+                    ));
+                    continue;
+                }
                 let f = self.finding(
                     &rays[k],
                     &kinds[k],
                     Code::RefractionTirInvented,
                     format!(
-                        "at '{}' (index {ior}) sin²θt = {sin2_t:.4} < 1, so the ray refracts; your tracer cast this reflection and no refracted ray",
-                        self.name(lv.entity)
+                        "at '{}' (index {}) sin²θt = {sin2_t:.4} < 1, so the ray refracts; your tracer cast this reflection and no refracted ray",
+                        self.name(lv.entity),
+                        m.value
                     ),
                     vec![Value {
                         what: "refracted direction".into(),
@@ -713,7 +857,7 @@ impl<'a> Judge<'a> {
         if kind == Kind::Shadow {
             if let (Some(li), blocked) = (light, r.blocked_by) {
                 if blocked != Answer::NotLogged {
-                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, blocked, leave, f);
+                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, blocked, leave, f, tally);
                 }
             }
         }
@@ -1104,6 +1248,8 @@ impl<'a> Judge<'a> {
                         format!("passes {m:.2e} from the edge of '{}'", self.name(h.entity)),
                         v,
                     ));
+                } else if let Some(share) = self.triangle_miss(h, tally) {
+                    f.push(self.finding(r, kind, Code::HitTriangleEdge, self.edge_detail(h, share, "trace"), v));
                 } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
                     f.push(self.finding(
                         r,
@@ -1192,6 +1338,25 @@ impl<'a> Judge<'a> {
         if let Some(lv) = leave {
             let same = c.entity.map_or((ps - lv.point).length() <= pos, |e| e == lv.entity);
             let genuine = rs.is_some_and(|h| h.entity == lv.entity && h.t <= pos);
+            let sigma = (o - lv.point).dot(lv.facing);
+            let heading = d.dot(lv.facing);
+            // From an origin offset the way the ray goes, the surface it leaves lies behind it:
+            // a hit there at t clearly below 0 is a root behind the origin that the intersection
+            // test accepted, not rounding.
+            if same && ts < -SURFACE_ROUNDING * l && sigma * heading > 0.0 {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::HitBehindOrigin,
+                    format!(
+                        "it hits '{}', the surface it leaves, at t = {ts:.2e}, behind its origin, which is correctly offset {:.2e} off that surface: the intersection test accepted a root behind the ray (for a sphere, the near root of a ray that starts inside it)",
+                        self.name(lv.entity),
+                        sigma.abs()
+                    ),
+                    v(),
+                ));
+                return;
+            }
             if same && ts <= pos && !genuine {
                 let code = if *kind == Kind::Shadow {
                     Code::ShadowAcne
@@ -1317,6 +1482,17 @@ impl<'a> Judge<'a> {
                 format!("the ray grazes the edge of '{}'", self.name(h.entity)),
                 v(),
             ));
+        } else if let Some(share) = self.triangle_miss(h, tally) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitTriangleEdge,
+                format!(
+                    "{}, before the hit it reports at t = {ts:.6}",
+                    self.edge_detail(h, share, "trace")
+                ),
+                v(),
+            ));
         } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
             f.push(self.finding(
                 r,
@@ -1342,6 +1518,33 @@ impl<'a> Judge<'a> {
                 v(),
             ));
         }
+    }
+
+    /// A triangle rayscope's trace meets and the tracer did not: a miss a little inside an
+    /// edge on its front face is the inside test's margin (`Some` with the share of the altitude
+    /// it passes inside); one on the back face is counted for the log-wide decision between a
+    /// too strict inside test and a one-sided one (see [`Tally::finish`]).
+    fn triangle_miss(&self, h: &RsHit, tally: &mut Tally) -> Option<f64> {
+        let share = self.geo.edge_share(h.prim, h.point)?;
+        let near = share < EDGE_SHARE;
+        if h.front {
+            return near.then_some(share);
+        }
+        if near {
+            tally.back_near_edge += 1;
+        } else {
+            tally.back_inside += 1;
+        }
+        None
+    }
+
+    fn edge_detail(&self, h: &RsHit, share: f64, kind: &str) -> String {
+        format!(
+            "rayscope's {kind} meets triangle '{}' at t = {:.6}, {:.1} % of the triangle's height inside its nearest edge; your tracer does not",
+            self.name(h.entity),
+            h.t,
+            100.0 * share
+        )
     }
 
     fn acne_detail(&self, r: &LoggedRay, lv: &Leave, ts: f64) -> String {
@@ -1451,6 +1654,7 @@ impl<'a> Judge<'a> {
         blocked: Answer<u32>,
         leave: Option<&Leave>,
         f: &mut Vec<Finding>,
+        tally: &mut Tally,
     ) {
         let (o_trace, d) = (r.origin, r.direction);
         let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
@@ -1487,6 +1691,18 @@ impl<'a> Judge<'a> {
                         kind,
                         Code::TieGrazing,
                         format!("the shadow ray grazes the edge of '{}'", self.name(b.entity)),
+                        v,
+                    ));
+                } else if let Some(share) = self.triangle_miss(&b, tally) {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitTriangleEdge,
+                        format!(
+                            "{}, between the point and light '{}'",
+                            self.edge_detail(&b, share, "shadow ray"),
+                            self.light_name(li)
+                        ),
                         v,
                     ));
                 } else if matches!(b.prim, PrimRef::Triangle(_)) && !b.front {
@@ -1731,15 +1947,23 @@ impl<'a> Judge<'a> {
         let err = angle(r.direction, want);
         if err > self.tol.direction + 2.0 * lv.un {
             let into = r.direction.dot(lv.facing) < 0.0;
+            // The formula a student most often gets wrong, r = d − (d · n) n: the factor 2 lost.
+            let no_two = (lv.parent_dir - lv.facing * lv.parent_dir.dot(lv.facing)).normalize_or_zero();
+            let fits = if angle(r.direction, no_two) <= self.tol.direction + 2.0 * lv.un {
+                "; it fits d − (d · n) n, the formula without its factor 2"
+            } else if into {
+                "; it goes into the surface"
+            } else {
+                ""
+            };
             f.push(self.finding(
                 r,
                 kind,
                 Code::ReflectionNotMirror,
                 format!(
-                    "{:.3}° from the mirror direction at '{}'{}",
+                    "{:.3}° from the mirror direction at '{}'{fits}",
                     err.to_degrees(),
                     self.name(lv.entity),
-                    if into { "; it goes into the surface" } else { "" }
                 ),
                 vec![Value {
                     what: "direction".into(),

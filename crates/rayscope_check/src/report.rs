@@ -200,8 +200,14 @@ impl Report {
         let mut v = serde_json::to_value(self).unwrap_or_default();
         let examples: [(&str, Vec<&[Finding]>); 3] = [
             ("causes", self.causes.iter().map(|g| g.examples.as_slice()).collect()),
-            ("verdicts", self.verdicts.iter().map(|g| g.examples.as_slice()).collect()),
-            ("tie_verdicts", self.tie_verdicts.iter().map(|g| g.examples.as_slice()).collect()),
+            (
+                "verdicts",
+                self.verdicts.iter().map(|g| g.examples.as_slice()).collect(),
+            ),
+            (
+                "tie_verdicts",
+                self.tie_verdicts.iter().map(|g| g.examples.as_slice()).collect(),
+            ),
         ];
         for (list, src) in examples {
             let Some(groups) = v.get_mut(list).and_then(|g| g.as_array_mut()) else {
@@ -310,7 +316,11 @@ impl Report {
                 let _ = writeln!(s, "  … and {} more", c.rays - c.examples.len() as u64);
             }
             if !c.consequences.is_empty() {
-                let list: Vec<String> = c.consequences.iter().map(|k| format!("{} {}", k.count, k.code.as_str())).collect();
+                let list: Vec<String> = c
+                    .consequences
+                    .iter()
+                    .map(|k| format!("{} {}", k.count, k.code.as_str()))
+                    .collect();
                 for l in wrap(
                     &format!(
                         "follows from it (rays below it, or beside it on the same ray; fix the cause first): {}",

@@ -94,9 +94,12 @@ codes! {
     HitPointOffRay = "hit.point-off-ray", false,
         "hit point is not origin + t · direction",
         "The point you log is not where your own t puts it on your own ray. Usually the direction used to compute t was not normalised, or the point was computed from a different ray.";
+    HitTriangleEdge = "hit.triangle-edge", false,
+        "missed a triangle near its edge",
+        "rayscope's trace of your ray meets a triangle a little inside one of its edges, and your tracer does not: its inside test rejects hits near the edges (a margin in the barycentric test such as u > ε or u + v < 1 − ε, or an epsilon scaled the wrong way), which leaves cracks along triangle edges and between a mesh's triangles. Accept 0 ≤ u, 0 ≤ v, u + v ≤ 1 exactly; the details say how far inside the edge the ray passes.";
     HitBehindOrigin = "hit.behind-origin", false,
         "hit behind the ray's origin",
-        "Your tracer accepts a hit with t < 0, behind where the ray starts. Only hits with t > 0 (or t > a small epsilon) are in front of the ray; for spheres, discard negative roots.";
+        "Your tracer accepts a hit with t < 0, behind where the ray starts. Only hits with t > 0 (or t > a small epsilon) are in front of the ray; for spheres, discard negative roots: a ray that starts inside a sphere (a refracted ray in glass) has one root behind it and one ahead, and the one ahead is the hit.";
     HitNormalNotUnit = "hit.normal-not-unit", false,
         "normal not of unit length",
         "The normal at this hit is not normalised. Lambert's cosine and the reflection and refraction formulas assume a unit normal: normalise it.";
@@ -131,8 +134,8 @@ codes! {
         "refraction leaving glass used the outward normal",
         "Where the ray leaves the glass (it hits the inside of the surface), your refraction used the outward normal instead of the normal flipped to face the ray. With Snell's formula t = η d + (η cos θi − cos θt) n this bends the ray back into the glass. When d · n > 0, negate n (and swap the indices) before refracting.";
     RefractionIndicesNotSwapped = "refraction.indices-not-swapped", false,
-        "refraction leaving glass did not swap the indices",
-        "Your refracted ray bends as if going from air into glass when it is leaving the glass (or the other way round): η must be n_glass / n_air on the way out and n_air / n_glass on the way in. Swap the indices when the ray hits the inside of the surface.";
+        "refraction used the index ratio of the other side",
+        "Your refracted ray bends with η = n2 / n1 where Snell's law needs n1 / n2 (n1 the side the ray comes from): η = n_air / n_glass = 1 / n on the way into the glass and n_glass / n_air = n on the way out. Usually the indices are not swapped when the ray hits the inside of the surface; the details say whether the ray was entering or leaving, and if it was entering, the ratio is upside down there. Entering with η = n also makes rays look past the critical angle, so your tracer may reflect them instead.";
     RefractionSnell = "refraction.snell", false,
         "refracted ray breaks Snell's law",
         "The refracted direction does not satisfy Snell's law, sin θt = (n1 / n2) sin θi, for the material's index. The details give the ratio your ray bends by. Check the formula t = η d + (η cos θi − √(1 − η² (1 − cos² θi))) n, with unit d and n and n facing the ray.";

@@ -392,3 +392,91 @@ fn refracted_rays_leaving_a_mirror_are_named() {
         &[],
     );
 }
+
+/// A mistake that must be the report's one headline, whatever verdicts follow from it.
+fn assert_one_headline(run: Run<'_>, code: Code) {
+    let Some(r) = run.check() else {
+        return;
+    };
+    let t = text(&r);
+    assert!(
+        t.lines().next().is_some_and(|l| l.contains(code.as_str())),
+        "bug '{}': the first line does not name {}:\n{t}",
+        run.bug,
+        code.as_str()
+    );
+    assert_eq!(r.causes.len(), 1, "bug '{}' has more than one headline:\n{t}", run.bug);
+    assert!(r.causes[0].code == code || r.causes[0].or == Some(code), "{t}");
+}
+
+/// Mistakes whose consequences outnumber them: each is the report's one headline, and what it
+/// causes below it is listed under it, not as mistakes of its own.
+#[test]
+fn a_mistake_heads_the_report_above_its_consequences() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for (bug, code) in [
+        ("reflect-no-2", Code::ReflectionNotMirror),
+        ("sphere-normal-unnormalised", Code::HitNormalNotUnit),
+        ("eta-inverted", Code::RefractionIndicesNotSwapped),
+        ("near-root-inside", Code::HitBehindOrigin),
+    ] {
+        assert_one_headline(
+            Run {
+                bug,
+                ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+            },
+            code,
+        );
+    }
+}
+
+#[test]
+fn a_too_strict_triangle_test_is_named_as_such_not_as_one_sided() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for scene in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+        assert_named(
+            Run {
+                bug: "strict-edges",
+                ..Run::new(course.scene(scene), 40, 40)
+            },
+            Code::HitTriangleEdge,
+            &[],
+        );
+    }
+}
+
+/// A mistake no catalogue has (a sphere test that compares with r, not r²): the report's first
+/// line is a truthful description of the first wrong ray — a hit on a sphere that is not there or
+/// not where the tracer says — with the tracer's numbers beside rayscope's.
+#[test]
+fn an_uncatalogued_mistake_gets_a_truthful_headline_with_the_numbers() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = (Run {
+        bug: "radius-not-squared",
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    })
+    .check() else {
+        return;
+    };
+    let t = text(&r);
+    let first = &r.causes[0];
+    assert!(
+        [Code::HitPhantom, Code::HitMissed, Code::HitWrongT].contains(&first.code),
+        "{t}"
+    );
+    let ex = &first.examples[0];
+    let entity = ex.values.iter().find(|v| v.what == "entity").expect("entity values");
+    assert!(
+        [&entity.yours, &entity.rayscope]
+            .iter()
+            .any(|v| v.as_str().is_some_and(|s| s.ends_with("Sphere"))),
+        "the first example is not about a sphere:\n{t}"
+    );
+    assert!(ex.values.iter().any(|v| v.what == "t" && v.yours != v.rayscope), "{t}");
+}

@@ -45,6 +45,9 @@ const SAME_RAYS: &[(Code, Code)] = &[
     // Leaving glass with the outward normal and the entering indices bends the ray exactly as
     // either mistake alone would in some other place: the ray cannot say which of the two it was.
     (Code::RefractionNormalNotFlipped, Code::RefractionIndicesNotSwapped),
+    // Entering glass, a reflection where the ray refracts fits a critical-angle test with the
+    // leaving side's ratio and a ratio upside down alike (the log as a whole decides).
+    (Code::RefractionTirInvented, Code::RefractionIndicesNotSwapped),
 ];
 
 /// Verdicts that are one mistake wherever they show: merged into the first as one cause.
@@ -70,7 +73,10 @@ fn cause_of(own: &[&Finding]) -> Cause {
 
 /// The cause under which a verdict that is one mistake with another is counted.
 fn merged(c: Cause) -> Cause {
-    match SAME_MISTAKE.iter().find(|(a, b)| c.or.is_none() && (c.code == *a || c.code == *b)) {
+    match SAME_MISTAKE
+        .iter()
+        .find(|(a, b)| c.or.is_none() && (c.code == *a || c.code == *b))
+    {
         Some(&(a, b)) => Cause { code: a, or: Some(b) },
         None => c,
     }
@@ -224,7 +230,10 @@ mod tests {
     fn a_colour_verdict_does_not_blame_the_rays_below() {
         // A verdict on how the colour was mixed leaves the children to be judged on their own.
         let parent = [None, Some(0)];
-        let findings = vec![vec![finding(Code::RefractionTirInvented)], vec![finding(Code::HitMissed)]];
+        let findings = vec![
+            vec![finding(Code::RefractionTirInvented)],
+            vec![finding(Code::HitMissed)],
+        ];
         let c = causes(&[0, 1], &parent, &findings);
         assert_eq!(c.roots.len(), 2);
     }

@@ -19,6 +19,13 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   tir-entering       the critical-angle test applied when entering glass as well
   blocker-name       shadow rays name the surface being shaded as their blocker
   mirror-as-glass    Reflective materials fall through into the glass branch
+  reflect-no-2       the reflection formula without its factor 2: d - (d.n) n
+  sphere-normal-unnormalised  the sphere normal is point - centre, not divided by the radius
+  eta-inverted       eta = n2 / n1 instead of n1 / n2 on both sides of the glass
+  near-root-inside   the sphere test returns the near root whenever the far one is ahead,
+                     even when the near one is behind the origin (rays starting inside)
+  strict-edges       the triangle's inside test rejects hits within 0.02 of an edge
+  radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
        [--log rays.jsonl] [--image out.ppm]
@@ -32,6 +39,9 @@ import sys
 
 EPS = 1e-5
 MAX_DEPTH = 8
+# Mistakes in how rays meet surfaces and leave them.
+GEOMETRY_BUGS = ("reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
+                 "strict-edges", "radius-not-squared")
 
 
 def add(a, b):
@@ -119,11 +129,13 @@ class Tracer:
         if e.kind == "sphere":
             oc = sub(o, e.c)
             b = dot(oc, d)
-            c = dot(oc, oc) - e.r * e.r
+            c = dot(oc, oc) - (e.r if self.bug == "radius-not-squared" else e.r * e.r)
             disc = b * b - c
             if disc < 0:
                 return None
             s = math.sqrt(disc)
+            if self.bug == "near-root-inside" and -b + s > 0:
+                return -b - s
             for t in (-b - s, -b + s):
                 if t > 0:
                     return t
@@ -139,11 +151,12 @@ class Tracer:
         inv = 1.0 / det
         s = sub(o, e.v0)
         u = dot(s, p) * inv
-        if u < 0 or u > 1:
+        m = 0.02 if self.bug == "strict-edges" else 0.0
+        if u < m or u > 1 - m:
             return None
         q = cross(s, e.e1)
         v = dot(d, q) * inv
-        if v < 0 or u + v > 1:
+        if v < m or u + v > 1 - m:
             return None
         t = dot(e.e2, q) * inv
         return t if t > 0 else None
@@ -165,6 +178,8 @@ class Tracer:
 
     def normal(self, e, p):
         if e.kind == "sphere":
+            if self.bug == "sphere-normal-unnormalised":
+                return sub(p, e.c)
             return normalize(sub(p, e.c))
         return e.n
 
@@ -201,7 +216,7 @@ class Tracer:
         if depth >= MAX_DEPTH:
             return (0.0, 0.0, 0.0)
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
-            r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
+            r = normalize(sub(d, mul(nf, (1 if self.bug == "reflect-no-2" else 2) * dot(d, nf))))
             return self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
         return self.glass(d, p, n, nf, front, m, depth, rid)
 
@@ -223,6 +238,8 @@ class Tracer:
     def glass(self, d, p, n, nf, front, m, depth, rid):
         ior = m["value"] if m["type"] == "Refractive" else 1.5
         n1, n2 = (1.0, ior) if front or self.bug == "indices-not-swapped" else (ior, 1.0)
+        if self.bug == "eta-inverted":
+            n1, n2 = n2, n1
         nn = n if self.bug == "refraction-normal" else nf
         eta = n1 / n2
         cosi = -dot(d, nn)
@@ -261,7 +278,8 @@ def main():
     args = ap.parse_args()
     if args.bug not in ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided",
                         "aspect", "no-tir", "pixel-corner", "plane-distance", "subpixel-grid",
-                        "indices-not-swapped", "tir-entering", "blocker-name", "mirror-as-glass"):
+                        "indices-not-swapped", "tir-entering", "blocker-name", "mirror-as-glass") \
+            and args.bug not in GEOMETRY_BUGS:
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
     x0, y0, x1, y1 = 0, 0, w, h
