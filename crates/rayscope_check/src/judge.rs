@@ -20,6 +20,8 @@ use crate::geom::{angle, d3, reflect, refract, Geometry};
 use crate::log::{Answer, HitClaim, Kind, LoggedRay};
 use crate::verdict::Code;
 
+mod shading;
+
 /// The tolerances verdicts are decided with. Lengths are relative: each is multiplied by the
 /// ray's scale, max(1, the largest absolute coordinate of its origin and hit point), because
 /// rounding error grows with the size of the coordinates.
@@ -124,6 +126,11 @@ pub struct Tally {
     pub facing: (u64, Vec<Finding>),
     /// Examples kept per code.
     pub keep: usize,
+    /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
+    pub shaded_judged: u64,
+    /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
+    /// material the course's stage-2 rules do not cover).
+    pub shaded_unjudged: u64,
 }
 
 fn keep_first(v: &mut Vec<Finding>, more: Vec<Finding>, keep: usize) {
@@ -170,6 +177,8 @@ impl Tally {
         self.camera += o.camera;
         self.camera_disagree += o.camera_disagree;
         self.orphans += o.orphans;
+        self.shaded_judged += o.shaded_judged;
+        self.shaded_unjudged += o.shaded_unjudged;
         let keep = self.keep.max(o.keep);
         self.keep = keep;
         for (c, (n, ex)) in o.codes {
@@ -455,6 +464,7 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, &parent, &evals, &kinds, &mut findings);
+        self.shading(rays, &parent, &evals, &kinds, &mut findings, tally);
         let mut out = Vec::with_capacity(if keep { n } else { 0 });
         for (i, f) in findings.into_iter().enumerate() {
             if keep {

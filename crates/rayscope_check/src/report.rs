@@ -53,6 +53,11 @@ pub struct Report {
     pub camera_disagree: u64,
     /// Rays naming a parent that was not among the rays of their pixel sample.
     pub orphans: u64,
+    /// Surface decisions whose colour was judged.
+    pub shaded_judged: u64,
+    /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
+    /// material the course's stage-2 rules do not cover).
+    pub shaded_unjudged: u64,
     /// Malformed lines skipped under `--lenient`.
     pub skipped_lines: u64,
     /// The first skipped line's diagnostic.
@@ -99,6 +104,8 @@ impl Report {
             camera_rays: t.camera,
             camera_disagree: t.camera_disagree,
             orphans: t.orphans,
+            shaded_judged: t.shaded_judged,
+            shaded_unjudged: t.shaded_unjudged,
             skipped_lines: skipped,
             first_skipped,
             verdicts,
@@ -150,6 +157,13 @@ impl Report {
             "checked {} rays ({} camera rays): {} agree, {} disagree, {} ties (not counted against you)",
             self.rays, self.camera_rays, self.agree, self.disagree, self.ties
         );
+        if self.shaded_judged + self.shaded_unjudged > 0 {
+            let _ = writeln!(
+                s,
+                "colours: {} surface decisions judged; {} not judged (no colour logged, a ray missing, or a material stage 2 does not cover)",
+                self.shaded_judged, self.shaded_unjudged
+            );
+        }
         if self.skipped_lines > 0 {
             let _ = writeln!(
                 s,
