@@ -188,6 +188,10 @@ struct Children {
     reflection: Vec<usize>,
     refraction: Vec<usize>,
     other: usize,
+    /// A refracted child breaks Snell's law or the total-internal-reflection test: the
+    /// tracer's Fresnel weight then follows from the same mistaken angles or indices, which that
+    /// child's verdict already names.
+    refraction_wrong: bool,
 }
 
 /// What the group's rays say about what the tracer logs.
@@ -218,7 +222,10 @@ impl Judge<'_> {
                 match kinds[i] {
                     Kind::Shadow => kids[p].shadow.push(i),
                     Kind::Reflection => kids[p].reflection.push(i),
-                    Kind::Refraction => kids[p].refraction.push(i),
+                    Kind::Refraction => {
+                        kids[p].refraction.push(i);
+                        kids[p].refraction_wrong |= findings[i].iter().any(|f| !f.code.is_tie());
+                    }
                     _ => kids[p].other += 1,
                 }
             }
@@ -467,7 +474,7 @@ impl Judge<'_> {
         let name = self.name(lv.entity);
         let guess = if fits(c, unclamped, slack) {
             Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
-        } else if fits(c, falloff, slack / 4.0) {
+        } else if fits(c, falloff, slack) {
             Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
         } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, exact + albedo * k, slack)) {
             Some(format!(
@@ -580,7 +587,7 @@ impl Judge<'_> {
         let Some(c) = r.color else {
             return Decision::Unjudged;
         };
-        if (sin2_t - 1.0).abs() <= CRITICAL || kids.other > 0 {
+        if (sin2_t - 1.0).abs() <= CRITICAL || kids.other > 0 || kids.refraction_wrong {
             return Decision::Unjudged;
         }
         let colour = |k: &[usize]| match k {

@@ -19,9 +19,21 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   tir-entering       the critical-angle test applied when entering glass as well
   blocker-name       shadow rays name the surface being shaded as their blocker
   mirror-as-glass    Reflective materials fall through into the glass branch
+  no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
+  fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
+  schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
+  fresnel-half       glass mixes reflection and refraction half and half
+  no-clamp           N.L not clamped at 0, and the shadow test skips the surface being shaded
+  falloff            each light divided by its squared distance
+  ambient            an ambient term of 0.1 x albedo added to every diffuse hit
+  skip-shadow-ray    the loop over lights stops before the last one (no shadow ray to it)
+  no-reflection-ray  glass casts no reflected ray and drops the reflected share
+  cos-twice          the diffuse term multiplied by N.L twice
+
+Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
-       [--log rays.jsonl] [--image out.ppm]
+       [--log rays.jsonl] [--image out.ppm] [--no-colors]
 """
 
 import argparse
@@ -32,6 +44,11 @@ import sys
 
 EPS = 1e-5
 MAX_DEPTH = 8
+AMBIENT = 0.1
+BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
+        "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
+        "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice")
 
 
 def add(a, b):
@@ -103,6 +120,9 @@ class Tracer:
         self.materials, self.lights, self.entities = scene
         self.bug = args.bug
         self.log = log
+        self.colors = args.colors
+        # The current sample's records: a ray's colour is known only once its children are traced.
+        self.pending = []
         self.next_id = 0
         self.pixel = (0, 0)
         self.sample = 0
@@ -156,8 +176,10 @@ class Tracer:
                 best = (t, e)
         return best
 
-    def blocker(self, o, d, dist):
+    def blocker(self, o, d, dist, skip=None):
         for e in self.entities:
+            if e is skip:
+                continue
             t = self.intersect(e, o, d)
             if t is not None and t < dist:
                 return e
@@ -177,7 +199,17 @@ class Tracer:
         if self.log:
             rec["pixel"] = list(self.pixel)
             rec["sample"] = self.sample
+            self.pending.append(rec)
+
+    def flush(self):
+        for rec in self.pending:
             self.log.write(json.dumps(rec) + "\n")
+        self.pending = []
+
+    def colored(self, rec, col):
+        if self.colors:
+            rec["color"] = list(col)
+        return col
 
     # --- shading ------------------------------------------------------------------------
     def trace(self, o, d, depth, parent, kind):
@@ -187,7 +219,7 @@ class Tracer:
         if h is None:
             rec["hit"] = None
             self.emit(rec)
-            return (0.0, 0.0, 0.0)
+            return self.colored(rec, (0.0, 0.0, 0.0))
         t, e = h
         p = add(o, mul(d, t))
         n = self.normal(e, p)
@@ -197,27 +229,35 @@ class Tracer:
         self.emit(rec)
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
-            return self.diffuse(p, nf, m, rid, e)
+            return self.colored(rec, self.diffuse(p, nf, m, rid, e))
         if depth >= MAX_DEPTH:
-            return (0.0, 0.0, 0.0)
+            return self.colored(rec, (0.0, 0.0, 0.0))
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
-            return self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
-        return self.glass(d, p, n, nf, front, m, depth, rid)
+            return self.colored(rec, self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"))
+        return self.colored(rec, self.glass(d, p, n, nf, front, m, depth, rid))
 
     def diffuse(self, p, nf, m, rid, shaded):
         col = (0.0, 0.0, 0.0)
-        for light in self.lights:
+        lights = self.lights[:-1] if self.bug == "skip-shadow-ray" else self.lights
+        for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
             to = sub(light["pos"], so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
-            b = self.blocker(so, ldir, dist)
+            b = self.blocker(so, ldir, dist, shaded if self.bug == "no-clamp" else None)
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
             if b is None:
-                col = add(col, mul(hadamard(m["color"], light["color"]), max(0.0, dot(nf, ldir))))
+                cos = dot(nf, ldir) if self.bug == "no-clamp" else max(0.0, dot(nf, ldir))
+                if self.bug == "cos-twice":
+                    cos *= cos
+                if self.bug == "falloff":
+                    cos /= dist * dist
+                col = add(col, mul(hadamard(m["color"], light["color"]), cos))
+        if self.bug == "ambient":
+            col = add(col, mul(m["color"], AMBIENT))
         return col
 
     def glass(self, d, p, n, nf, front, m, depth, rid):
@@ -231,13 +271,26 @@ class Tracer:
         ci = abs(cosi)
         if k < 0:
             kr = 1.0
+        elif self.bug == "no-fresnel":
+            kr = 0.0
+        elif self.bug == "fresnel-half":
+            kr = 0.5
+        elif self.bug == "schlick":
+            r0 = ((n1 - n2) / (n1 + n2)) ** 2
+            kr = r0 + (1 - r0) * (1 - ci) ** 5
         else:
             ct = math.sqrt(k)
             rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct)
-            rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
+            if self.bug == "fresnel-swapped":
+                rp = (n2 * ct - n1 * ci) / (n2 * ct + n1 * ci)
+            else:
+                rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
             kr = 0.5 * (rs * rs + rp * rp)
         r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
-        col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
+        if self.bug == "no-reflection-ray":
+            col = (0.0, 0.0, 0.0)
+        else:
+            col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
         if k < 0 and self.bug != "no-tir":
             return col
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
@@ -258,10 +311,9 @@ def main():
     ap.add_argument("--bug", default="none")
     ap.add_argument("--log", default="-")
     ap.add_argument("--image", default=None)
+    ap.add_argument("--no-colors", dest="colors", action="store_false")
     args = ap.parse_args()
-    if args.bug not in ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided",
-                        "aspect", "no-tir", "pixel-corner", "plane-distance", "subpixel-grid",
-                        "indices-not-swapped", "tir-entering", "blocker-name", "mirror-as-glass"):
+    if args.bug not in BUGS:
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
     x0, y0, x1, y1 = 0, 0, w, h
@@ -288,6 +340,8 @@ def main():
                     z = 2.0 if args.bug == "plane-distance" else 1.0
                     d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, z))
                     total = add(total, tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera"))
+                    if log:
+                        tr.flush()
             image[(x, y)] = mul(total, 1 / (n * n))
     if log is not sys.stdout:
         log.close()
