@@ -409,7 +409,9 @@ impl Judge<'_> {
             }
         }
         let facing = |li: usize| lv.facing.dot((light_pos(li) - lv.point).normalize_or_zero());
-        let untested: Vec<usize> = (0..lights.len()).filter(|&li| !tested[li] && facing(li) > 1e-6).collect();
+        let untested: Vec<usize> = (0..lights.len())
+            .filter(|&li| !tested[li] && facing(li) > 1e-6)
+            .collect();
         if logs.shadow && weight >= MIN_SHARE {
             for &li in &untested {
                 f.push(self.finding(
@@ -625,7 +627,10 @@ impl Judge<'_> {
         let want = rc * exact + tc * (1.0 - exact);
         let kr_value = |k: Option<f64>| Value {
             what: "reflected share kr".into(),
-            yours: k.map_or(json!("not determined (the reflected and refracted colours are alike)"), njson),
+            yours: k.map_or(
+                json!("not determined (the reflected and refracted colours are alike)"),
+                njson,
+            ),
             rayscope: njson(exact),
         };
         let (code, detail, values) = match classify_glass(c, rc, tc, ci, n1, n2, unc) {
@@ -667,7 +672,6 @@ impl Judge<'_> {
     }
 }
 
-
 /// The logged colour beside the one the course's rule gives.
 fn colour_value(yours: DVec3, want: DVec3) -> Value {
     Value {
@@ -704,9 +708,19 @@ mod tests {
 
     #[test]
     fn the_exact_share_is_accepted_entering_and_leaving() {
-        for (ci, n1, n2) in [(1.0, 1.0, 1.4), (0.6, 1.0, 1.4), (0.1, 1.0, 1.4), (0.9, 1.4, 1.0), (0.75, 1.5, 1.0)] {
+        for (ci, n1, n2) in [
+            (1.0, 1.0, 1.4),
+            (0.6, 1.0, 1.4),
+            (0.1, 1.0, 1.4),
+            (0.9, 1.4, 1.0),
+            (0.75, 1.5, 1.0),
+        ] {
             let k = fresnel(ci, n1, n2);
-            assert_eq!(classify_glass(mixed(k), R, T, ci, n1, n2, 1e-6), GlassFit::Exact, "{ci} {n1} {n2}");
+            assert_eq!(
+                classify_glass(mixed(k), R, T, ci, n1, n2, 1e-6),
+                GlassFit::Exact,
+                "{ci} {n1} {n2}"
+            );
         }
     }
 
@@ -770,7 +784,11 @@ mod tests {
     #[test]
     fn colours_within_f32_rounding_fit_and_a_visible_difference_does_not() {
         let c = DVec3::new(0.25, 0.0, 3.0);
-        assert!(fits(c.as_vec3().as_dvec3() + DVec3::new(0.0, 5e-6, 0.0), c, DVec3::ZERO));
+        assert!(fits(
+            c.as_vec3().as_dvec3() + DVec3::new(0.0, 5e-6, 0.0),
+            c,
+            DVec3::ZERO
+        ));
         assert!(!fits(c + DVec3::new(0.0, 0.0, 1e-3), c, DVec3::ZERO));
         assert!(!fits(DVec3::splat(f64::NAN), c, DVec3::ZERO));
     }
