@@ -38,6 +38,7 @@ struct Run<'a> {
     bug: &'a str,
     colors: bool,
     examples: usize,
+    stage: Stage,
 }
 
 impl Run<'_> {
@@ -50,6 +51,7 @@ impl Run<'_> {
             bug: "none",
             colors: true,
             examples: 3,
+            stage: Stage::Two,
         }
     }
 
@@ -89,7 +91,7 @@ impl Run<'_> {
             width: self.w,
             height: self.h,
             aa: self.aa,
-            stage: Stage::Two,
+            stage: self.stage,
             ..RenderSettings::default()
         };
         let judge = Judge::new(&scene, &settings);
@@ -154,6 +156,12 @@ fn correct_tracer_with_colours_gets_no_verdict_and_its_colours_are_judged() {
         },
         Run::new(course_scene("sample_scene_1.txt").unwrap_or_default(), 30, 30),
         Run::new(root().join("crates/rayscope_check/tests/scenes/glass_cube.txt"), 40, 30),
+        Run::new(course_scene("sample_scene_2_2021.txt").unwrap_or_default(), 30, 30),
+        // The full renderer (`check`'s default) shades these scenes as stage 2 does.
+        Run {
+            stage: Stage::Full,
+            ..Run::new(course_scene("sample_scene_2.txt").unwrap_or_default(), 30, 30)
+        },
     ] {
         let Some((_, r)) = run.check() else {
             return;
@@ -351,5 +359,42 @@ fn rayscope_own_colours_are_judged_without_a_verdict() {
         // Left unjudged: glass hits deep in the tree whose reflected ray rayscope pruned (under
         // 1/4096 of the sample): 4 % in scene 2, 6 % in the glass cube.
         assert!(r.shaded_unjudged * 10 <= r.shaded_judged, "{}", text(&r));
+    }
+}
+
+#[test]
+fn a_recursion_that_stops_early_or_is_not_black_at_the_limit_is_named() {
+    let (Some(scene2), Some(scene2021)) = (
+        course_scene("sample_scene_2.txt"),
+        course_scene("sample_scene_2_2021.txt"),
+    ) else {
+        return;
+    };
+    let Some(r) = assert_named(
+        Run {
+            bug: "depth-4",
+            ..Run::new(scene2, 40, 40)
+        },
+        Code::MissingSecondary,
+        &[],
+    ) else {
+        return;
+    };
+    for d in details(&r, Code::MissingSecondary) {
+        assert!(d.contains("after 4 bounces, below the depth limit of 8"), "{d}");
+    }
+    // The 2021 scene's mirror and glass are white: returned at the limit, they are not black.
+    let Some(r) = assert_named(
+        Run {
+            bug: "limit-colour",
+            ..Run::new(scene2021, 40, 40)
+        },
+        Code::ShadingDepthLimit,
+        &[],
+    ) else {
+        return;
+    };
+    for d in details(&r, Code::ShadingDepthLimit) {
+        assert!(d.contains("after 8 bounces, at the depth limit of 8"), "{d}");
     }
 }

@@ -29,6 +29,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   skip-shadow-ray    the loop over lights stops before the last one (no shadow ray to it)
   no-reflection-ray  glass casts no reflected ray and drops the reflected share
   cos-twice          the diffuse term multiplied by N.L twice
+  depth-4            the recursion stops after 4 bounces instead of 8
+  limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
 
 Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
@@ -48,7 +50,8 @@ AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
-        "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice")
+        "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
+        "limit-colour")
 
 
 def add(a, b):
@@ -230,8 +233,8 @@ class Tracer:
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
             return self.colored(rec, self.diffuse(p, nf, m, rid, e))
-        if depth >= MAX_DEPTH:
-            return self.colored(rec, (0.0, 0.0, 0.0))
+        if depth >= (4 if self.bug == "depth-4" else MAX_DEPTH):
+            return self.colored(rec, m["color"] if self.bug == "limit-colour" else (0.0, 0.0, 0.0))
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
             return self.colored(rec, self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"))
