@@ -183,10 +183,10 @@ enum Decision {
 
 /// One ray's children by kind.
 #[derive(Default)]
-struct Children {
-    shadow: Vec<usize>,
-    reflection: Vec<usize>,
-    refraction: Vec<usize>,
+struct Children<'a> {
+    shadow: &'a [usize],
+    reflection: &'a [usize],
+    refraction: &'a [usize],
     other: usize,
     /// A refracted child breaks Snell's law or the total-internal-reflection test: the
     /// tracer's Fresnel weight then follows from the same mistaken angles or indices, which that
@@ -216,20 +216,44 @@ impl Judge<'_> {
             return;
         }
         let n = rays.len();
-        let mut kids: Vec<Children> = (0..n).map(|_| Children::default()).collect();
+        // Each ray's children, together in `kids` from `start[i]` and sorted by kind, so that a
+        // group costs three allocations however many rays it has.
+        let rank = |k: usize| match kinds[k] {
+            Kind::Shadow => 0,
+            Kind::Reflection => 1,
+            Kind::Refraction => 2,
+            _ => 3,
+        };
+        let mut start = vec![0usize; n + 1];
+        for p in parent.iter().flatten() {
+            start[p + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut kids = vec![0usize; start[n]];
         for (i, p) in parent.iter().enumerate() {
             if let Some(p) = *p {
-                match kinds[i] {
-                    Kind::Shadow => kids[p].shadow.push(i),
-                    Kind::Reflection => kids[p].reflection.push(i),
-                    Kind::Refraction => {
-                        kids[p].refraction.push(i);
-                        kids[p].refraction_wrong |= findings[i].iter().any(|f| !f.code.is_tie());
-                    }
-                    _ => kids[p].other += 1,
-                }
+                kids[next[p]] = i;
+                next[p] += 1;
             }
         }
+        for i in 0..n {
+            kids[start[i]..start[i + 1]].sort_by_key(|&k| rank(k));
+        }
+        let children = |i: usize, findings: &[Vec<Finding>]| {
+            let all = &kids[start[i]..start[i + 1]];
+            let upto = |r: u8| all.partition_point(|&k| rank(k) < r);
+            let (a, b, c) = (upto(1), upto(2), upto(3));
+            Children {
+                shadow: &all[..a],
+                reflection: &all[a..b],
+                refraction: &all[b..c],
+                other: all.len() - c,
+                refraction_wrong: all[b..c].iter().any(|&k| findings[k].iter().any(|f| !f.code.is_tie())),
+            }
+        };
         let logs = Logs {
             shadow: kinds.contains(&Kind::Shadow),
             secondary: kinds.iter().any(|k| matches!(k, Kind::Reflection | Kind::Refraction)),
@@ -241,7 +265,8 @@ impl Judge<'_> {
             let Some(ev) = evals[i].filter(|e| e.sound) else {
                 continue;
             };
-            let d = self.decision(i, rays, parent, evals, kinds, &ev, &kids[i], &logs, &mut findings[i]);
+            let ch = children(i, findings);
+            let d = self.decision(i, rays, parent, evals, kinds, &ev, &ch, &logs, &mut findings[i]);
             if matches!(d, Decision::Judged) {
                 tally.shaded_judged += 1;
             } else {
@@ -282,25 +307,27 @@ impl Judge<'_> {
             return Decision::Judged;
         };
         let m = &self.scene.materials[lv.material as usize];
-        let weight = self.path_weight(i, parent, evals, kinds);
+        // The share of the sample this hit carries, needed only where a ray is missing.
+        let weight = || self.path_weight(i, parent, evals, kinds);
         let full = self.settings.stage == Stage::Full;
         match m.kind {
             MaterialKind::Diffuse => {
                 // Stage 3 lights a diffuse hit by emitters and ambient light as well.
-                let emitters = self
-                    .scene
-                    .materials
-                    .iter()
-                    .any(|m| m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0);
-                if full && (self.settings.ambient || emitters) {
+                let emitters = || {
+                    self.scene
+                        .materials
+                        .iter()
+                        .any(|m| m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0)
+                };
+                if full && (self.settings.ambient || emitters()) {
                     return Decision::Unjudged;
                 }
-                self.diffuse(r, &kinds[i], &lv, rays, kids, logs, weight, f)
+                self.diffuse(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
             }
             MaterialKind::Reflective | MaterialKind::Refractive => {
                 let depth = depth_of(i, parent);
                 if kids.reflection.is_empty() && kids.refraction.is_empty() && kids.other == 0 {
-                    return self.no_children(r, &kinds[i], &lv, depth, logs, weight, f);
+                    return self.no_children(r, &kinds[i], &lv, depth, logs, &weight, f);
                 }
                 if m.kind == MaterialKind::Reflective {
                     self.mirror(r, &kinds[i], &lv, rays, kids, f)
@@ -308,7 +335,7 @@ impl Judge<'_> {
                     // Beer's law absorbs inside coloured glass in the full renderer.
                     Decision::Unjudged
                 } else {
-                    self.glass(r, &kinds[i], &lv, rays, kids, logs, weight, f)
+                    self.glass(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
                 }
             }
             MaterialKind::Emissive | MaterialKind::Glossy => Decision::Unjudged,
@@ -324,7 +351,7 @@ impl Judge<'_> {
         lv: &Leave,
         depth: u32,
         logs: &Logs,
-        weight: f64,
+        weight: &dyn Fn() -> f64,
         f: &mut Vec<Finding>,
     ) -> Decision {
         let limit = self.settings.max_depth;
@@ -346,7 +373,8 @@ impl Judge<'_> {
             }
             return Decision::Judged;
         }
-        if logs.secondary && weight >= MIN_SHARE {
+        let share = if logs.secondary { weight() } else { 0.0 };
+        if share >= MIN_SHARE {
             f.push(self.finding(
                 r,
                 kind,
@@ -354,7 +382,7 @@ impl Judge<'_> {
                 format!(
                     "'{}' is hit after {depth} bounces, below the depth limit of {limit}, and carries {:.1} % of the sample, but no ray leaves it",
                     self.name(lv.entity),
-                    weight * 100.0
+                    share * 100.0
                 ),
                 vec![Value {
                     what: "rays cast from this hit".into(),
@@ -380,7 +408,7 @@ impl Judge<'_> {
         rays: &[LoggedRay],
         kids: &Children,
         logs: &Logs,
-        weight: f64,
+        weight: &dyn Fn() -> f64,
         f: &mut Vec<Finding>,
     ) -> Decision {
         let lights = &self.scene.lights;
@@ -397,7 +425,7 @@ impl Judge<'_> {
         let mut tested = vec![false; lights.len()];
         let mut reached = vec![false; lights.len()];
         let mut unknown = false;
-        for &k in &kids.shadow {
+        for &k in kids.shadow {
             let Some(li) = aimed(k).filter(|&li| li < lights.len()) else {
                 continue;
             };
@@ -412,7 +440,7 @@ impl Judge<'_> {
         let untested: Vec<usize> = (0..lights.len())
             .filter(|&li| !tested[li] && facing(li) > 1e-6)
             .collect();
-        if logs.shadow && weight >= MIN_SHARE {
+        if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {
             for &li in &untested {
                 f.push(self.finding(
                     r,
@@ -524,7 +552,7 @@ impl Judge<'_> {
         kids: &Children,
         f: &mut Vec<Finding>,
     ) -> Decision {
-        let ([k], [], 0) = (kids.reflection.as_slice(), kids.refraction.as_slice(), kids.other) else {
+        let ([k], [], 0) = (kids.reflection, kids.refraction, kids.other) else {
             return Decision::Unjudged;
         };
         let (Some(c), Some(rc)) = (r.color, rays[*k].color) else {
@@ -561,7 +589,7 @@ impl Judge<'_> {
         rays: &[LoggedRay],
         kids: &Children,
         logs: &Logs,
-        weight: f64,
+        weight: &dyn Fn() -> f64,
         f: &mut Vec<Finding>,
     ) -> Decision {
         let ior = f64::from(self.scene.materials[lv.material as usize].value);
@@ -570,14 +598,19 @@ impl Judge<'_> {
         let exact = fresnel(ci, n1, n2);
         let sin2_t = (n1 / n2).powi(2) * (1.0 - ci * ci);
         let name = self.name(lv.entity);
-        if kids.reflection.is_empty() && logs.secondary && weight * exact >= MIN_SHARE {
+        let share = if kids.reflection.is_empty() && logs.secondary {
+            weight() * exact
+        } else {
+            0.0
+        };
+        if share >= MIN_SHARE {
             f.push(self.finding(
                 r,
                 kind,
                 Code::MissingReflection,
                 format!(
                     "at '{name}' the Fresnel reflectance is {exact:.4} ({:.1} % of the sample), but no reflected ray was cast",
-                    weight * exact * 100.0
+                    share * 100.0
                 ),
                 vec![Value {
                     what: "reflected share kr".into(),
@@ -598,7 +631,7 @@ impl Judge<'_> {
         };
         if sin2_t >= 1.0 {
             // Total internal reflection: everything is reflected.
-            let (Some(rc), true) = (colour(&kids.reflection), kids.refraction.is_empty()) else {
+            let (Some(rc), true) = (colour(kids.reflection), kids.refraction.is_empty()) else {
                 return Decision::Unjudged;
             };
             if !fits(c, rc, DVec3::ZERO) {
@@ -614,7 +647,7 @@ impl Judge<'_> {
             }
             return Decision::Judged;
         }
-        let (Some(rc), Some(tc)) = (colour(&kids.reflection), colour(&kids.refraction)) else {
+        let (Some(rc), Some(tc)) = (colour(kids.reflection), colour(kids.refraction)) else {
             return Decision::Unjudged;
         };
         // The exact share's uncertainty, from the normal's (the share is steep near the
