@@ -422,6 +422,7 @@ impl Judge<'_> {
                 })
             })
         };
+        let facing = |li: usize| lv.facing.dot((light_pos(li) - lv.point).normalize_or_zero());
         let mut tested = vec![false; lights.len()];
         let mut reached = vec![false; lights.len()];
         let mut unknown = false;
@@ -433,37 +434,43 @@ impl Judge<'_> {
             match rays[k].blocked_by {
                 Answer::Nothing => reached[li] = true,
                 Answer::Found(_) => {}
-                Answer::NotLogged => unknown = true,
+                // Only a light in front of the surface can add to its colour.
+                Answer::NotLogged => unknown |= facing(li) > 0.0,
             }
         }
-        let facing = |li: usize| lv.facing.dot((light_pos(li) - lv.point).normalize_or_zero());
+        // A light this close to the surface's plane adds under 0.1 % of its colour: a tracer
+        // that skips it by its own rounding of N·L loses nothing visible.
         let untested: Vec<usize> = (0..lights.len())
-            .filter(|&li| !tested[li] && facing(li) > 1e-6)
+            .filter(|&li| !tested[li] && facing(li) > 1e-3)
             .collect();
         if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {
-            for &li in &untested {
-                f.push(self.finding(
-                    r,
-                    kind,
-                    Code::MissingShadowRay,
-                    format!(
-                        "light '{}' faces this point of '{}' (N·L = {:.4}) but no shadow ray was cast toward it",
-                        self.light_name(li as u32),
-                        self.name(lv.entity),
-                        facing(li)
-                    ),
-                    vec![Value {
-                        what: "shadow ray toward".into(),
-                        yours: json!("none"),
-                        rayscope: json!(self.light_name(li as u32)),
-                    }],
-                ));
-            }
+            let names: Vec<String> = untested
+                .iter()
+                .map(|&li| format!("'{}' (N·L = {:.4})", self.light_name(li as u32), facing(li)))
+                .collect();
+            f.push(self.finding(
+                r,
+                kind,
+                Code::MissingShadowRay,
+                format!(
+                    "light {} faces this point of '{}' but no shadow ray was cast toward it",
+                    names.join(", light "),
+                    self.name(lv.entity)
+                ),
+                vec![Value {
+                    what: "shadow rays toward".into(),
+                    yours: json!("none"),
+                    rayscope: json!(untested.iter().map(|&li| self.light_name(li as u32)).collect::<Vec<_>>()),
+                }],
+            ));
         }
         let Some(c) = r.color else {
             return Decision::Unjudged;
         };
-        if unknown || !untested.is_empty() || kids.shadow.is_empty() && !logs.shadow {
+        // A reflected or refracted ray off a diffuse surface is named on that ray; the colour
+        // then mixes in what it brought back.
+        let secondary = !kids.reflection.is_empty() || !kids.refraction.is_empty() || kids.other > 0;
+        if unknown || secondary || !untested.is_empty() || kids.shadow.is_empty() && !logs.shadow {
             return Decision::Unjudged;
         }
         let m = &self.scene.materials[lv.material as usize];
