@@ -192,13 +192,13 @@ codes! {
         "After the maximum number of mirror and glass bounces rayscope stops: a Reflective or Refractive hit at the limit returns black and casts no ray (diffuse hits are still shaded). Your tracer cast no ray there but returned a colour. Return black when the recursion stops, not the material colour or the last diffuse value.";
     MissingReflection = "missing.reflection", false,
         "glass hit without its reflected ray",
-        "Glass reflects a share of the light by the Fresnel equations whichever way the ray goes, and all of it past the critical angle: a glass hit casts a reflected ray as well as the refracted one. Your tracer cast no reflected ray at a glass hit where the reflected share is at least 1 % of the sample. Trace the reflection and mix: kr·R + (1 − kr)·T.";
+        "Glass reflects a share of the light by the Fresnel equations whichever way the ray goes, and all of it past the critical angle: a glass hit casts a reflected ray as well as the refracted one. Your log has no reflected ray at a glass hit where the reflected share is at least 1 % of the sample, although it logs refracted rays. Trace the reflection and mix: kr·R + (1 − kr)·T (or, if your tracer does cast it, log it).";
     MissingShadowRay = "missing.shadow-ray", false,
         "diffuse hit without a shadow ray to a light that faces it",
-        "A diffuse hit is lit by every light in front of it (N·L > 0) that nothing blocks, so it needs a shadow ray to each of them. Your tracer cast none toward the light named in the details: check the loop over the scene's lights (an off-by-one in its bound skips the last one).";
+        "A diffuse hit is lit by every light in front of it (N·L > 0) that nothing blocks, so it needs a shadow ray to each of them. Your log has none toward the light named in the details, although it logs shadow rays: check the loop over the scene's lights (an off-by-one in its bound skips the last one), and that every shadow ray cast is logged.";
     MissingSecondary = "missing.secondary", false,
         "mirror or glass hit without any ray before the depth limit",
-        "A Reflective or Refractive hit casts its reflected (and refracted) ray until the depth limit is reached; this one cast none although it lies above the limit (rayscope's is --max-depth, 8 by default; the course's images need 7 to 12). Check your recursion's depth test (off by one, or a limit that is too low) and that every mirror and glass hit recurses.";
+        "A Reflective or Refractive hit casts its reflected (and refracted) ray until the depth limit is reached; this one has none in your log although it lies above the limit (rayscope's is --max-depth, 8 by default; the course's images need 7 to 12). Check your recursion's depth test (off by one, or a limit that is too low) and that every mirror and glass hit recurses.";
     TieEdge = "tie.edge", true,
         "two surfaces meet where the ray hits (a genuine tie)",
         "The ray hits where two entities meet, at the same distance (an edge of a box, a seam between two triangles): either answer is right, and which one a tracer returns is rounding. Not counted against you.";

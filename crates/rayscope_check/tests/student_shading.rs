@@ -39,6 +39,8 @@ struct Run<'a> {
     colors: bool,
     examples: usize,
     stage: Stage,
+    /// Rays of this kind are taken out of the log, as a tracer that does not log them writes it.
+    unlogged: Option<&'a str>,
 }
 
 impl Run<'_> {
@@ -52,6 +54,7 @@ impl Run<'_> {
             colors: true,
             examples: 3,
             stage: Stage::Two,
+            unlogged: None,
         }
     }
 
@@ -85,6 +88,16 @@ impl Run<'_> {
             "tracer failed: {}",
             String::from_utf8_lossy(&out.stderr)
         );
+        if let Some(kind) = self.unlogged {
+            let text = std::fs::read_to_string(&log).expect("read log");
+            let kept: String = text
+                .lines()
+                .filter(|l| !l.contains(&format!("\"kind\": \"{kind}\"")))
+                .map(|l| format!("{l}\n"))
+                .collect();
+            assert!(kept.len() < text.len(), "no {kind} ray to take out");
+            std::fs::write(&log, kept).expect("write log");
+        }
         let file = rayscope_scene::load(&self.scene).expect("scene");
         let scene = Scene::from_file(&file);
         let settings = RenderSettings {
@@ -397,4 +410,29 @@ fn a_recursion_that_stops_early_or_is_not_black_at_the_limit_is_named() {
     for d in details(&r, Code::ShadingDepthLimit) {
         assert!(d.contains("after 8 bounces, at the depth limit of 8"), "{d}");
     }
+}
+
+/// A tracer that logs no shadow ray at all is not told that every diffuse hit lacks them, and its
+/// diffuse colours, which depend on them, are left unjudged.
+#[test]
+fn a_log_without_shadow_rays_gets_no_missing_shadow_ray_verdict() {
+    let Some(scene) = course_scene("sample_scene_2.txt") else {
+        return;
+    };
+    let Some((_, all)) = Run::new(scene.clone(), 30, 30).check() else {
+        return;
+    };
+    let Some((_, r)) = Run {
+        unlogged: Some("shadow"),
+        ..Run::new(scene, 30, 30)
+    }
+    .check() else {
+        return;
+    };
+    assert_eq!(r.disagree, 0, "{}", text(&r));
+    assert_eq!(
+        r.shaded_judged + r.shaded_unjudged,
+        all.shaded_judged + all.shaded_unjudged
+    );
+    assert!(r.shaded_unjudged > r.camera_rays / 2, "{}", text(&r));
 }
