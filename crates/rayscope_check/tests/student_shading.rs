@@ -436,3 +436,36 @@ fn a_log_without_shadow_rays_gets_no_missing_shadow_ray_verdict() {
     );
     assert!(r.shaded_unjudged > r.camera_rays / 2, "{}", text(&r));
 }
+
+#[test]
+fn a_tinted_mirror_and_a_background_colour_are_named() {
+    let (Some(scene1), Some(scene2)) = (course_scene("sample_scene_1.txt"), course_scene("sample_scene_2.txt")) else {
+        return;
+    };
+    // Scene 2's mirror material is black: multiplied in, it makes the mirror black.
+    let Some(r) = assert_named(
+        Run {
+            bug: "mirror-tint",
+            ..Run::new(scene2, 40, 40)
+        },
+        Code::ShadingMirror,
+        &[],
+    ) else {
+        return;
+    };
+    for d in details(&r, Code::ShadingMirror) {
+        assert!(
+            d.contains("'MirrorSphere'") && d.contains("multiplied by the material colour"),
+            "{d}"
+        );
+    }
+    // Scene 1 has sky above its plane.
+    assert_named(
+        Run {
+            bug: "background",
+            ..Run::new(scene1, 40, 40)
+        },
+        Code::ShadingMissNotBlack,
+        &[],
+    );
+}

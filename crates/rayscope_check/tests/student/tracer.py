@@ -31,6 +31,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   cos-twice          the diffuse term multiplied by N.L twice
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
+  mirror-tint        a mirror multiplies what it reflects by its material colour
+  background         a ray that hits nothing brings back a grey background
 
 Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
@@ -51,7 +53,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
         "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
-        "limit-colour")
+        "limit-colour", "mirror-tint", "background")
 
 
 def add(a, b):
@@ -222,7 +224,7 @@ class Tracer:
         if h is None:
             rec["hit"] = None
             self.emit(rec)
-            return self.colored(rec, (0.0, 0.0, 0.0))
+            return self.colored(rec, (0.2, 0.2, 0.2) if self.bug == "background" else (0.0, 0.0, 0.0))
         t, e = h
         p = add(o, mul(d, t))
         n = self.normal(e, p)
@@ -237,7 +239,8 @@ class Tracer:
             return self.colored(rec, m["color"] if self.bug == "limit-colour" else (0.0, 0.0, 0.0))
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
-            return self.colored(rec, self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"))
+            col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
+            return self.colored(rec, hadamard(col, m["color"]) if self.bug == "mirror-tint" else col)
         return self.colored(rec, self.glass(d, p, n, nf, front, m, depth, rid))
 
     def diffuse(self, p, nf, m, rid, shaded):
