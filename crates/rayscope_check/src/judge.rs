@@ -23,6 +23,7 @@ use crate::verdict::Code;
 pub mod causes;
 
 pub use causes::Cause;
+mod shading;
 
 /// The tolerances verdicts are decided with. Lengths are relative: each is multiplied by the
 /// ray's scale, max(1, the largest absolute coordinate of its origin and hit point), because
@@ -140,6 +141,11 @@ pub struct Tally {
     pub causes: BTreeMap<Cause, CauseCount>,
     /// Examples kept per code.
     pub keep: usize,
+    /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
+    pub shaded_judged: u64,
+    /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
+    /// material the course's stage-2 rules do not cover).
+    pub shaded_unjudged: u64,
 }
 
 /// One root cause's counts.
@@ -309,6 +315,8 @@ impl Tally {
         self.back_near_edge += o.back_near_edge;
         self.back_inside += o.back_inside;
         self.entering_refracted_ok += o.entering_refracted_ok;
+        self.shaded_judged += o.shaded_judged;
+        self.shaded_unjudged += o.shaded_unjudged;
         let keep = self.keep.max(o.keep);
         self.keep = keep;
         for (c, (n, ex)) in o.codes {
@@ -623,6 +631,7 @@ impl<'a> Judge<'a> {
                         .is_some_and(|lv| lv.front)
             })
             .count() as u64;
+        self.shading(rays, &parent, &evals, &kinds, &mut findings, tally);
         tally.add_causes(&causes::causes(&order, &parent, &findings), &findings);
         let mut out = Vec::with_capacity(if keep { n } else { 0 });
         for (i, f) in findings.into_iter().enumerate() {

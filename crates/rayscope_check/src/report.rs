@@ -126,6 +126,11 @@ pub struct Report {
     pub camera_disagree: u64,
     /// Rays naming a parent that was not among the rays of their pixel sample.
     pub orphans: u64,
+    /// Surface decisions whose colour was judged.
+    pub shaded_judged: u64,
+    /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
+    /// material the course's stage-2 rules do not cover).
+    pub shaded_unjudged: u64,
     /// Malformed lines skipped under `--lenient`.
     pub skipped_lines: u64,
     /// The first skipped line's diagnostic.
@@ -178,6 +183,8 @@ impl Report {
             camera_rays: t.camera,
             camera_disagree: t.camera_disagree,
             orphans: t.orphans,
+            shaded_judged: t.shaded_judged,
+            shaded_unjudged: t.shaded_unjudged,
             skipped_lines: skipped,
             first_skipped,
             causes,
@@ -248,8 +255,16 @@ impl Report {
             )
         } else if self.rays == 0 {
             "no ray was judged: the log has none".to_string()
+        } else if self.shaded_judged == 0 {
+            "no mistake found in the rays: every ray agrees with rayscope; no colour was logged, so shading (diffuse sums, Fresnel, mirrors) was not judged: log \"color\" to have it judged".to_string()
+        } else if self.shaded_unjudged > self.shaded_judged / 10 {
+            format!(
+                "no mistake found: every ray agrees with rayscope; {} of {} surface colours could not be judged (see below)",
+                self.shaded_unjudged,
+                self.shaded_judged + self.shaded_unjudged
+            )
         } else {
-            "no mistake found: every ray agrees with rayscope".to_string()
+            "no mistake found: every ray and every logged colour agrees with rayscope".to_string()
         }
     }
 
@@ -263,6 +278,13 @@ impl Report {
             "checked {} rays ({} camera rays): {} agree, {} disagree, {} ties (not counted against you)",
             self.rays, self.camera_rays, self.agree, self.disagree, self.ties
         );
+        if self.shaded_judged + self.shaded_unjudged > 0 {
+            let _ = writeln!(
+                s,
+                "colours: {} surface decisions judged; {} not judged (no colour logged, a ray missing, or a material stage 2 does not cover)",
+                self.shaded_judged, self.shaded_unjudged
+            );
+        }
         if self.skipped_lines > 0 {
             let _ = writeln!(
                 s,

@@ -49,6 +49,8 @@ fn sample_lines(integ: &Integrator<'_>, x: u32, y: u32, s: u32, out: &mut String
                 }
                 None => out.push_str(",\"hit\":null"),
             }
+            // What the ray brought back, before its parent's weight.
+            let _ = write!(out, ",\"color\":{}", v(n.value));
         }
         out.push_str("}\n");
     }

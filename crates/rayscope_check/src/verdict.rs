@@ -163,6 +163,45 @@ codes! {
     ShadowWrongBlocker = "shadow.wrong-blocker", false,
         "light blocked, but not by the entity named",
         "The light is blocked, but the entity your tracer names is not on the shadow ray. The answer (in shadow) is right; the entity you report comes from somewhere else, perhaps an earlier ray.";
+    ShadingDiffuse = "shading.diffuse", false,
+        "diffuse colour does not follow the course's formula",
+        "A diffuse hit's colour is albedo × Σ light colour × max(0, N·L) over the lights its shadow rays reach, with N the unit normal facing the incoming ray and L the unit direction to the light: no fall-off with distance, no ambient term, nothing for a light whose shadow ray is blocked. The details compare your colour with that sum over your own shadow rays and name the likely mistake when it fits one: N·L not clamped at 0 (lights behind the surface subtract), divided by the squared distance, a constant ambient term added, or the albedo or the light's colour left out. Fix the diffuse term in your shading function.";
+    ShadingMirror = "shading.mirror", false,
+        "mirror colour is not its reflected ray's colour",
+        "A Reflective hit brings back exactly what its reflected ray brought back: the course's mirror is perfect and its material colour plays no part at stage 2. Your colour differs from your own reflected ray's; the details say whether it fits the reflected colour multiplied by the material colour. Return the reflected ray's colour unchanged.";
+    ShadingFresnelSchlick = "shading.fresnel-schlick", false,
+        "glass mixed by Schlick's approximation instead of the Fresnel equations",
+        "Your glass mixes its reflected and refracted colours as kr·R + (1 − kr)·T with kr from Schlick's approximation, R0 + (1 − R0)(1 − cos θ)⁵. The course asks for the exact unpolarised Fresnel equations: kr = (rs² + rp²) / 2 with rs = (n1 cos θi − n2 cos θt) / (n1 cos θi + n2 cos θt) and rp = (n2 cos θi − n1 cos θt) / (n2 cos θi + n1 cos θt). The two agree near normal incidence and part at grazing angles.";
+    ShadingFresnelSwappedCosines = "shading.fresnel-swapped-cosines", false,
+        "Fresnel reflectance with cos θi and cos θt exchanged in one term",
+        "Your glass's reflected share fits the Fresnel equations with cos θi and cos θt (or n1 and n2) exchanged in one of the two reflectances, so that kr comes out as rs² or rp² instead of their mean. Write rs = (n1 cos θi − n2 cos θt) / (n1 cos θi + n2 cos θt) and rp = (n2 cos θi − n1 cos θt) / (n2 cos θi + n1 cos θt), then kr = (rs² + rp²) / 2. (Exchanging the cosines in both terms gives the same kr, and is fine.)";
+    ShadingFresnelHalf = "shading.fresnel-half", false,
+        "glass mixes reflection and refraction half and half",
+        "Your glass brings back (R + T) / 2, an equal mix of its reflected and refracted colours. The share of reflection depends on the angle by the Fresnel equations: kr = (rs² + rp²) / 2 (about 3 % head-on for index 1.4, rising to 1 at grazing angles and past the critical angle); the colour is kr·R + (1 − kr)·T.";
+    ShadingFresnelNone = "shading.fresnel-none", false,
+        "glass brings back its refracted colour only (no Fresnel reflection)",
+        "Your glass brings back only what its refracted ray brought back, as if nothing were reflected (kr = 0), although it cast a reflected ray. Glass reflects a share kr of the light by the Fresnel equations, kr = (rs² + rp²) / 2, and transmits the rest: the colour is kr·R + (1 − kr)·T. Without it glass looks too clear and loses its rim reflections.";
+    ShadingFresnel = "shading.fresnel", false,
+        "glass reflects a share the Fresnel equations do not give",
+        "Your glass mixes its reflected and refracted colours with a reflected share kr that is not the Fresnel reflectance at this angle, nor one of the usual mistakes rayscope knows. The details give the share your colour implies beside the exact one. Check cos θi (from the normal facing the ray, positive), cos θt = √(1 − η²(1 − cos² θi)), which index is n1 (the side the ray comes from), and that past the critical angle kr = 1.";
+    ShadingGlass = "shading.glass", false,
+        "glass colour is not a mix of its reflected and refracted colours",
+        "A glass hit brings back kr·R + (1 − kr)·T, a weighted mix of what its reflected ray (R) and refracted ray (T) brought back, with weights that sum to 1; at stage 2 the glass's own colour plays no part. Your colour is no such mix: check for the material colour multiplied in, weights that do not sum to 1, or a term added twice.";
+    ShadingMissNotBlack = "shading.miss-not-black", false,
+        "a ray that hits nothing brings back a colour",
+        "A ray that leaves the scene hits nothing and brings back black at stage 2: there is no background colour or sky. Return (0, 0, 0) on a miss.";
+    ShadingDepthLimit = "shading.depth-limit", false,
+        "mirror or glass at the depth limit does not return black",
+        "After the maximum number of mirror and glass bounces rayscope stops: a Reflective or Refractive hit at the limit returns black and casts no ray (diffuse hits are still shaded). Your tracer cast no ray there but returned a colour. Return black when the recursion stops, not the material colour or the last diffuse value.";
+    MissingReflection = "missing.reflection", false,
+        "glass hit without its reflected ray",
+        "Glass reflects a share of the light by the Fresnel equations whichever way the ray goes, and all of it past the critical angle: a glass hit casts a reflected ray as well as the refracted one. Your log has no reflected ray at a glass hit where the reflected share is at least 1 % of the sample, although it logs refracted rays. Trace the reflection and mix: kr·R + (1 − kr)·T (or, if your tracer does cast it, log it).";
+    MissingShadowRay = "missing.shadow-ray", false,
+        "diffuse hit without a shadow ray to a light that faces it",
+        "A diffuse hit is lit by every light in front of it (N·L > 0) that nothing blocks, so it needs a shadow ray to each of them. Your log has none toward the light named in the details, although it logs shadow rays: check the loop over the scene's lights (an off-by-one in its bound skips the last one), and that every shadow ray cast is logged.";
+    MissingSecondary = "missing.secondary", false,
+        "mirror or glass hit without any ray before the depth limit",
+        "A Reflective or Refractive hit casts its reflected (and refracted) ray until the depth limit is reached; this one has none in your log although it lies above the limit (rayscope's is --max-depth, 8 by default; the course's images need 7 to 12). Check your recursion's depth test (off by one, or a limit that is too low) and that every mirror and glass hit recurses.";
     TieEdge = "tie.edge", true,
         "two surfaces meet where the ray hits (a genuine tie)",
         "The ray hits where two entities meet, at the same distance (an edge of a box, a seam between two triangles): either answer is right, and which one a tracer returns is rounding. Not counted against you.";

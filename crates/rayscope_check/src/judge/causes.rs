@@ -58,7 +58,10 @@ const SAME_MISTAKE: &[(Code, Code)] = &[
 
 /// True when a wrong verdict on a ray can explain verdicts on the rays cast from its hit.
 fn handed_down(code: Code) -> bool {
-    !code.is_tie() && !matches!(code, Code::RefractionTirInvented) && !code.as_str().starts_with("shading.")
+    !code.is_tie()
+        && !matches!(code, Code::RefractionTirInvented)
+        && !code.as_str().starts_with("shading.")
+        && !code.as_str().starts_with("missing.")
 }
 
 /// The cause a ray's wrong verdicts stand for, with how many of its other verdicts follow from it.

@@ -26,9 +26,25 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      even when the near one is behind the origin (rays starting inside)
   strict-edges       the triangle's inside test rejects hits within 0.02 of an edge
   radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
+  no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
+  fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
+  schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
+  fresnel-half       glass mixes reflection and refraction half and half
+  no-clamp           N.L not clamped at 0, and the shadow test skips the surface being shaded
+  falloff            each light divided by its squared distance
+  ambient            an ambient term of 0.1 x albedo added to every diffuse hit
+  skip-shadow-ray    the loop over lights stops before the last one (no shadow ray to it)
+  no-reflection-ray  glass casts no reflected ray and drops the reflected share
+  cos-twice          the diffuse term multiplied by N.L twice
+  depth-4            the recursion stops after 4 bounces instead of 8
+  limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
+  mirror-tint        a mirror multiplies what it reflects by its material colour
+  background         a ray that hits nothing brings back a grey background
+
+Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
-       [--log rays.jsonl] [--image out.ppm]
+       [--log rays.jsonl] [--image out.ppm] [--no-colors]
 """
 
 import argparse
@@ -39,6 +55,12 @@ import sys
 
 EPS = 1e-5
 MAX_DEPTH = 8
+AMBIENT = 0.1
+BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
+        "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
+        "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
+        "limit-colour", "mirror-tint", "background")
 # Mistakes in how rays meet surfaces and leave them.
 GEOMETRY_BUGS = ("reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared")
@@ -113,6 +135,9 @@ class Tracer:
         self.materials, self.lights, self.entities = scene
         self.bug = args.bug
         self.log = log
+        self.colors = args.colors
+        # The current sample's records: a ray's colour is known only once its children are traced.
+        self.pending = []
         self.next_id = 0
         self.pixel = (0, 0)
         self.sample = 0
@@ -169,8 +194,10 @@ class Tracer:
                 best = (t, e)
         return best
 
-    def blocker(self, o, d, dist):
+    def blocker(self, o, d, dist, skip=None):
         for e in self.entities:
+            if e is skip:
+                continue
             t = self.intersect(e, o, d)
             if t is not None and t < dist:
                 return e
@@ -192,7 +219,17 @@ class Tracer:
         if self.log:
             rec["pixel"] = list(self.pixel)
             rec["sample"] = self.sample
+            self.pending.append(rec)
+
+    def flush(self):
+        for rec in self.pending:
             self.log.write(json.dumps(rec) + "\n")
+        self.pending = []
+
+    def colored(self, rec, col):
+        if self.colors:
+            rec["color"] = list(col)
+        return col
 
     # --- shading ------------------------------------------------------------------------
     def trace(self, o, d, depth, parent, kind):
@@ -202,7 +239,7 @@ class Tracer:
         if h is None:
             rec["hit"] = None
             self.emit(rec)
-            return (0.0, 0.0, 0.0)
+            return self.colored(rec, (0.2, 0.2, 0.2) if self.bug == "background" else (0.0, 0.0, 0.0))
         t, e = h
         p = add(o, mul(d, t))
         n = self.normal(e, p)
@@ -212,27 +249,36 @@ class Tracer:
         self.emit(rec)
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
-            return self.diffuse(p, nf, m, rid, e)
-        if depth >= MAX_DEPTH:
-            return (0.0, 0.0, 0.0)
+            return self.colored(rec, self.diffuse(p, nf, m, rid, e))
+        if depth >= (4 if self.bug == "depth-4" else MAX_DEPTH):
+            return self.colored(rec, m["color"] if self.bug == "limit-colour" else (0.0, 0.0, 0.0))
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, (1 if self.bug == "reflect-no-2" else 2) * dot(d, nf))))
-            return self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
-        return self.glass(d, p, n, nf, front, m, depth, rid)
+            col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
+            return self.colored(rec, hadamard(col, m["color"]) if self.bug == "mirror-tint" else col)
+        return self.colored(rec, self.glass(d, p, n, nf, front, m, depth, rid))
 
     def diffuse(self, p, nf, m, rid, shaded):
         col = (0.0, 0.0, 0.0)
-        for light in self.lights:
+        lights = self.lights[:-1] if self.bug == "skip-shadow-ray" else self.lights
+        for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
             to = sub(light["pos"], so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
-            b = self.blocker(so, ldir, dist)
+            b = self.blocker(so, ldir, dist, shaded if self.bug == "no-clamp" else None)
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
             if b is None:
-                col = add(col, mul(hadamard(m["color"], light["color"]), max(0.0, dot(nf, ldir))))
+                cos = dot(nf, ldir) if self.bug == "no-clamp" else max(0.0, dot(nf, ldir))
+                if self.bug == "cos-twice":
+                    cos *= cos
+                if self.bug == "falloff":
+                    cos /= dist * dist
+                col = add(col, mul(hadamard(m["color"], light["color"]), cos))
+        if self.bug == "ambient":
+            col = add(col, mul(m["color"], AMBIENT))
         return col
 
     def glass(self, d, p, n, nf, front, m, depth, rid):
@@ -248,13 +294,26 @@ class Tracer:
         ci = abs(cosi)
         if k < 0:
             kr = 1.0
+        elif self.bug == "no-fresnel":
+            kr = 0.0
+        elif self.bug == "fresnel-half":
+            kr = 0.5
+        elif self.bug == "schlick":
+            r0 = ((n1 - n2) / (n1 + n2)) ** 2
+            kr = r0 + (1 - r0) * (1 - ci) ** 5
         else:
             ct = math.sqrt(k)
             rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct)
-            rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
+            if self.bug == "fresnel-swapped":
+                rp = (n2 * ct - n1 * ci) / (n2 * ct + n1 * ci)
+            else:
+                rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
             kr = 0.5 * (rs * rs + rp * rp)
         r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
-        col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
+        if self.bug == "no-reflection-ray":
+            col = (0.0, 0.0, 0.0)
+        else:
+            col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
         if k < 0 and self.bug != "no-tir":
             return col
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
@@ -275,11 +334,9 @@ def main():
     ap.add_argument("--bug", default="none")
     ap.add_argument("--log", default="-")
     ap.add_argument("--image", default=None)
+    ap.add_argument("--no-colors", dest="colors", action="store_false")
     args = ap.parse_args()
-    if args.bug not in ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided",
-                        "aspect", "no-tir", "pixel-corner", "plane-distance", "subpixel-grid",
-                        "indices-not-swapped", "tir-entering", "blocker-name", "mirror-as-glass") \
-            and args.bug not in GEOMETRY_BUGS:
+    if args.bug not in BUGS and args.bug not in GEOMETRY_BUGS:
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
     x0, y0, x1, y1 = 0, 0, w, h
@@ -306,6 +363,8 @@ def main():
                     z = 2.0 if args.bug == "plane-distance" else 1.0
                     d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, z))
                     total = add(total, tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera"))
+                    if log:
+                        tr.flush()
             image[(x, y)] = mul(total, 1 / (n * n))
     if log is not sys.stdout:
         log.close()

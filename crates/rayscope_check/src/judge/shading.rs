@@ -1,0 +1,835 @@
+//! Colours: each surface decision (what a ray brought back from its hit) against the course's
+//! stage-2 rules, computed in f64 from the tracer's own logged children, the scene's materials and
+//! its lights; and the rays a hit should have cast that the log does not have.
+//!
+//! A decision is judged from the children as logged, so a wrong colour gives one verdict where it
+//! is made, not one at every ancestor that passed it on.
+
+use glam::DVec3;
+use rayscope_core::Stage;
+use rayscope_scene::MaterialKind;
+use serde_json::json;
+
+use super::{njson, vjson, Eval, Finding, Judge, Leave, Tally, Value, MIN_SHARE};
+use crate::geom::angle;
+use crate::log::{Answer, Kind, LoggedRay};
+use crate::verdict::Code;
+
+/// Relative tolerance on a logged colour channel: a thousand times f32's rounding.
+const REL: f64 = 1e-4;
+/// Absolute tolerance on a logged colour channel, for channels near zero.
+const ABS: f64 = 1e-5;
+/// Smallest difference between the reflected and refracted colours in a channel for that channel
+/// to tell the reflected share apart.
+const SPLIT: f64 = 1e-3;
+/// Distance from the critical angle (in sin²θt) within which glass is not judged: whether the
+/// ray is totally reflected there is rounding.
+const CRITICAL: f64 = 1e-3;
+
+/// True when `yours` is `want` to within f32 rounding plus `slack`, channel by channel.
+fn fits(yours: DVec3, want: DVec3, slack: DVec3) -> bool {
+    (0..3).all(|c| (yours[c] - want[c]).abs() <= REL * yours[c].abs().max(want[c].abs()) + ABS + slack[c])
+}
+
+/// cos θt for a ray meeting a surface at cos θi from the medium of index `n1` into that of `n2`;
+/// `None` under total internal reflection.
+fn cos_t(ci: f64, n1: f64, n2: f64) -> Option<f64> {
+    let sin2_t = (n1 / n2).powi(2) * (1.0 - ci * ci).max(0.0);
+    (sin2_t < 1.0).then(|| (1.0 - sin2_t).sqrt())
+}
+
+/// The exact unpolarised Fresnel reflectance, the course's rule.
+pub(super) fn fresnel(ci: f64, n1: f64, n2: f64) -> f64 {
+    let Some(ct) = cos_t(ci, n1, n2) else {
+        return 1.0;
+    };
+    let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
+    let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
+    0.5 * (rs * rs + rp * rp)
+}
+
+/// A way of computing glass's reflected share, right or wrong.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Formula {
+    Exact,
+    /// Schlick's approximation with the larger angle's cosine (rayscope's own form).
+    Schlick,
+    /// Schlick's approximation with cos θi on the way out as well.
+    SchlickIncident,
+    /// rs² alone: cos θi and cos θt exchanged in rp.
+    RsOnly,
+    /// rp² alone: cos θi and cos θt exchanged in rs.
+    RpOnly,
+    Half,
+    NoFresnel,
+}
+
+impl Formula {
+    /// Every mistaken formula, in the order they are tried.
+    const MISTAKES: [Formula; 6] = [
+        Formula::Schlick,
+        Formula::SchlickIncident,
+        Formula::RsOnly,
+        Formula::RpOnly,
+        Formula::Half,
+        Formula::NoFresnel,
+    ];
+
+    /// The reflected share by this formula; 1 past the critical angle.
+    fn kr(self, ci: f64, n1: f64, n2: f64) -> f64 {
+        let Some(ct) = cos_t(ci, n1, n2) else {
+            return 1.0;
+        };
+        let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
+        let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
+        let r0 = ((n1 - n2) / (n1 + n2)).powi(2);
+        match self {
+            Formula::Exact => 0.5 * (rs * rs + rp * rp),
+            Formula::Schlick => {
+                let c = if n1 <= n2 { ci } else { ct };
+                r0 + (1.0 - r0) * (1.0 - c).powi(5)
+            }
+            Formula::SchlickIncident => r0 + (1.0 - r0) * (1.0 - ci).powi(5),
+            Formula::RsOnly => rs * rs,
+            Formula::RpOnly => rp * rp,
+            Formula::Half => 0.5,
+            Formula::NoFresnel => 0.0,
+        }
+    }
+
+    fn code(self) -> Code {
+        match self {
+            Formula::Exact => Code::ShadingFresnel,
+            Formula::Schlick | Formula::SchlickIncident => Code::ShadingFresnelSchlick,
+            Formula::RsOnly | Formula::RpOnly => Code::ShadingFresnelSwappedCosines,
+            Formula::Half => Code::ShadingFresnelHalf,
+            Formula::NoFresnel => Code::ShadingFresnelNone,
+        }
+    }
+
+    fn describe(self) -> &'static str {
+        match self {
+            Formula::Exact => "the Fresnel equations",
+            Formula::Schlick => "Schlick's approximation",
+            Formula::SchlickIncident => "Schlick's approximation with cos θi on the way out as well",
+            Formula::RsOnly => "rs² alone (cos θi and cos θt exchanged in rp)",
+            Formula::RpOnly => "rp² alone (cos θi and cos θt exchanged in rs)",
+            Formula::Half => "half and half",
+            Formula::NoFresnel => "no reflection at all",
+        }
+    }
+}
+
+/// What a glass hit's colour says about the reflected share it was mixed with.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum GlassFit {
+    /// The exact Fresnel weight.
+    Exact,
+    /// A known mistake, with the share the colour implies.
+    Mistake(Formula, Option<f64>),
+    /// Another share, when the colours tell it.
+    Other(Option<f64>),
+    /// No weighted mix of the two colours.
+    NotAMix,
+}
+
+/// The reflected share `kr` for which `c = kr·r + (1 − kr)·t` fits best, from the channels where
+/// `r` and `t` differ enough to tell; `None` where none does.
+fn solve_kr(c: DVec3, r: DVec3, t: DVec3) -> Option<f64> {
+    let (mut num, mut den) = (0.0, 0.0);
+    for i in 0..3 {
+        let d = r[i] - t[i];
+        if d.abs() > SPLIT {
+            num += (c[i] - t[i]) * d;
+            den += d * d;
+        }
+    }
+    (den > 0.0).then(|| num / den)
+}
+
+/// Which formula's share mixes `r` and `t` into `c` at cos θi `ci` from index `n1` into `n2`,
+/// with `unc` the uncertainty of the exact share (from the normal's).
+fn classify_glass(c: DVec3, r: DVec3, t: DVec3, ci: f64, n1: f64, n2: f64, unc: f64) -> GlassFit {
+    let spread = (r - t).abs();
+    let mix = |kr: f64| r * kr + t * (1.0 - kr);
+    if fits(c, mix(Formula::Exact.kr(ci, n1, n2)), spread * unc) {
+        return GlassFit::Exact;
+    }
+    let solved = solve_kr(c, r, t);
+    let best = Formula::MISTAKES
+        .iter()
+        .map(|&f| (f, f.kr(ci, n1, n2)))
+        .filter(|&(_, k)| fits(c, mix(k), spread * unc))
+        .min_by(|a, b| {
+            let off = |k: f64| solved.map_or(0.0, |s| (s - k).abs());
+            off(a.1).total_cmp(&off(b.1))
+        });
+    if let Some((f, _)) = best {
+        return GlassFit::Mistake(f, solved);
+    }
+    match solved {
+        Some(k) if fits(c, mix(k), DVec3::ZERO) => GlassFit::Other(Some(k)),
+        _ => GlassFit::NotAMix,
+    }
+}
+
+/// The verdict on one surface decision, for the counts.
+enum Decision {
+    /// Its colour was judged.
+    Judged,
+    /// Its colour could not be judged.
+    Unjudged,
+}
+
+/// One ray's children by kind.
+#[derive(Default)]
+struct Children<'a> {
+    shadow: &'a [usize],
+    reflection: &'a [usize],
+    refraction: &'a [usize],
+    other: usize,
+    /// A refracted child breaks Snell's law or the total-internal-reflection test: the
+    /// tracer's Fresnel weight then follows from the same mistaken angles or indices, which that
+    /// child's verdict already names.
+    refraction_wrong: bool,
+}
+
+/// What the group's rays say about what the tracer logs.
+struct Logs {
+    shadow: bool,
+    secondary: bool,
+}
+
+impl Judge<'_> {
+    /// Judges the colour of every surface decision of one pixel sample and names the rays its
+    /// hits should have cast and did not, adding findings to the ray whose hit it is.
+    pub(super) fn shading(
+        &self,
+        rays: &[LoggedRay],
+        parent: &[Option<usize>],
+        evals: &[Option<Eval>],
+        kinds: &[Kind],
+        findings: &mut [Vec<Finding>],
+        tally: &mut Tally,
+    ) {
+        if self.settings.stage == Stage::One {
+            return;
+        }
+        let n = rays.len();
+        // Each ray's children, together in `kids` from `start[i]` and sorted by kind, so that a
+        // group costs three allocations however many rays it has.
+        let rank = |k: usize| match kinds[k] {
+            Kind::Shadow => 0,
+            Kind::Reflection => 1,
+            Kind::Refraction => 2,
+            _ => 3,
+        };
+        let mut start = vec![0usize; n + 1];
+        for p in parent.iter().flatten() {
+            start[p + 1] += 1;
+        }
+        for i in 0..n {
+            start[i + 1] += start[i];
+        }
+        let mut next = start.clone();
+        let mut kids = vec![0usize; start[n]];
+        for (i, p) in parent.iter().enumerate() {
+            if let Some(p) = *p {
+                kids[next[p]] = i;
+                next[p] += 1;
+            }
+        }
+        for i in 0..n {
+            kids[start[i]..start[i + 1]].sort_by_key(|&k| rank(k));
+        }
+        let children = |i: usize, findings: &[Vec<Finding>]| {
+            let all = &kids[start[i]..start[i + 1]];
+            let upto = |r: u8| all.partition_point(|&k| rank(k) < r);
+            let (a, b, c) = (upto(1), upto(2), upto(3));
+            Children {
+                shadow: &all[..a],
+                reflection: &all[a..b],
+                refraction: &all[b..c],
+                other: all.len() - c,
+                refraction_wrong: all[b..c].iter().any(|&k| findings[k].iter().any(|f| !f.code.is_tie())),
+            }
+        };
+        let logs = Logs {
+            shadow: kinds.contains(&Kind::Shadow),
+            secondary: kinds.iter().any(|k| matches!(k, Kind::Reflection | Kind::Refraction)),
+        };
+        for i in 0..n {
+            if kinds[i] == Kind::Shadow {
+                continue;
+            }
+            let Some(ev) = evals[i].filter(|e| e.sound) else {
+                continue;
+            };
+            let ch = children(i, findings);
+            let d = self.decision(i, rays, parent, evals, kinds, &ev, &ch, &logs, &mut findings[i]);
+            if matches!(d, Decision::Judged) {
+                tally.shaded_judged += 1;
+            } else {
+                tally.shaded_unjudged += 1;
+            }
+        }
+    }
+
+    /// Judges ray `i`'s surface decision.
+    #[allow(clippy::too_many_arguments)]
+    fn decision(
+        &self,
+        i: usize,
+        rays: &[LoggedRay],
+        parent: &[Option<usize>],
+        evals: &[Option<Eval>],
+        kinds: &[Kind],
+        ev: &Eval,
+        kids: &Children,
+        logs: &Logs,
+        f: &mut Vec<Finding>,
+    ) -> Decision {
+        let r = &rays[i];
+        let Some(lv) = ev.leave() else {
+            // rayscope's trace misses too: a miss brings back black.
+            let Some(c) = r.color else {
+                return Decision::Unjudged;
+            };
+            if !fits(c, DVec3::ZERO, DVec3::ZERO) {
+                f.push(self.finding(
+                    r,
+                    &kinds[i],
+                    Code::ShadingMissNotBlack,
+                    "this ray hits nothing, so it brings back black; yours brought back a colour".into(),
+                    vec![colour_value(c, DVec3::ZERO)],
+                ));
+            }
+            return Decision::Judged;
+        };
+        let m = &self.scene.materials[lv.material as usize];
+        // The share of the sample this hit carries, needed only where a ray is missing.
+        let weight = || self.path_weight(i, parent, evals, kinds);
+        let full = self.settings.stage == Stage::Full;
+        match m.kind {
+            MaterialKind::Diffuse => {
+                // Stage 3 lights a diffuse hit by emitters and ambient light as well.
+                let emitters = || {
+                    self.scene
+                        .materials
+                        .iter()
+                        .any(|m| m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0)
+                };
+                if full && (self.settings.ambient || emitters()) {
+                    return Decision::Unjudged;
+                }
+                self.diffuse(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
+            }
+            MaterialKind::Reflective | MaterialKind::Refractive => {
+                let depth = depth_of(i, parent);
+                if kids.reflection.is_empty() && kids.refraction.is_empty() && kids.other == 0 {
+                    return self.no_children(r, &kinds[i], &lv, depth, logs, &weight, f);
+                }
+                if m.kind == MaterialKind::Reflective {
+                    self.mirror(r, &kinds[i], &lv, rays, kids, f)
+                } else if full && m.color != glam::Vec3::ZERO {
+                    // Beer's law absorbs inside coloured glass in the full renderer.
+                    Decision::Unjudged
+                } else {
+                    self.glass(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
+                }
+            }
+            MaterialKind::Emissive | MaterialKind::Glossy => Decision::Unjudged,
+        }
+    }
+
+    /// A mirror or glass hit that cast no ray: black at the depth limit, a missing ray above it.
+    #[allow(clippy::too_many_arguments)]
+    fn no_children(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        lv: &Leave,
+        depth: u32,
+        logs: &Logs,
+        weight: &dyn Fn() -> f64,
+        f: &mut Vec<Finding>,
+    ) -> Decision {
+        let limit = self.settings.max_depth;
+        if depth >= limit {
+            let Some(c) = r.color else {
+                return Decision::Unjudged;
+            };
+            if !fits(c, DVec3::ZERO, DVec3::ZERO) {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::ShadingDepthLimit,
+                    format!(
+                        "'{}' is hit after {depth} bounces, at the depth limit of {limit}: it casts no ray and brings back black; yours cast none but brought back a colour",
+                        self.name(lv.entity)
+                    ),
+                    vec![colour_value(c, DVec3::ZERO)],
+                ));
+            }
+            return Decision::Judged;
+        }
+        let share = if logs.secondary { weight() } else { 0.0 };
+        if share >= MIN_SHARE {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::MissingSecondary,
+                format!(
+                    "'{}' is hit after {depth} bounces, below the depth limit of {limit}, and carries {:.1} % of the sample, but no ray leaves it",
+                    self.name(lv.entity),
+                    share * 100.0
+                ),
+                vec![Value {
+                    what: "rays cast from this hit".into(),
+                    yours: json!("none"),
+                    rayscope: json!(if self.scene.materials[lv.material as usize].is_glass() {
+                        "reflection and refraction"
+                    } else {
+                        "reflection"
+                    }),
+                }],
+            ));
+        }
+        Decision::Unjudged
+    }
+
+    /// A diffuse hit: the shadow rays it needs, and its colour from those it cast.
+    #[allow(clippy::too_many_arguments)]
+    fn diffuse(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        lv: &Leave,
+        rays: &[LoggedRay],
+        kids: &Children,
+        logs: &Logs,
+        weight: &dyn Fn() -> f64,
+        f: &mut Vec<Finding>,
+    ) -> Decision {
+        let lights = &self.scene.lights;
+        let light_pos = |li: usize| lights[li].position.as_dvec3();
+        // Which light each shadow ray tests: the one it names, else the one it points at.
+        let aimed = |k: usize| -> Option<usize> {
+            let s = &rays[k];
+            s.light.map(|l| l as usize).or_else(|| {
+                (0..lights.len()).min_by(|&a, &b| {
+                    angle(s.direction, light_pos(a) - s.origin).total_cmp(&angle(s.direction, light_pos(b) - s.origin))
+                })
+            })
+        };
+        let facing = |li: usize| lv.facing.dot((light_pos(li) - lv.point).normalize_or_zero());
+        let mut tested = vec![false; lights.len()];
+        let mut reached = vec![false; lights.len()];
+        let mut unknown = false;
+        for &k in kids.shadow {
+            let Some(li) = aimed(k).filter(|&li| li < lights.len()) else {
+                continue;
+            };
+            tested[li] = true;
+            match rays[k].blocked_by {
+                Answer::Nothing => reached[li] = true,
+                Answer::Found(_) => {}
+                // Only a light in front of the surface can add to its colour.
+                Answer::NotLogged => unknown |= facing(li) > 0.0,
+            }
+        }
+        // A light this close to the surface's plane adds under 0.1 % of its colour: a tracer
+        // that skips it by its own rounding of N·L loses nothing visible.
+        let untested: Vec<usize> = (0..lights.len())
+            .filter(|&li| !tested[li] && facing(li) > 1e-3)
+            .collect();
+        if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {
+            let names: Vec<String> = untested
+                .iter()
+                .map(|&li| format!("'{}' (N·L = {:.4})", self.light_name(li as u32), facing(li)))
+                .collect();
+            f.push(self.finding(
+                r,
+                kind,
+                Code::MissingShadowRay,
+                format!(
+                    "light {} faces this point of '{}' but no shadow ray was cast toward it",
+                    names.join(", light "),
+                    self.name(lv.entity)
+                ),
+                vec![Value {
+                    what: "shadow rays toward".into(),
+                    yours: json!("none"),
+                    rayscope: json!(untested.iter().map(|&li| self.light_name(li as u32)).collect::<Vec<_>>()),
+                }],
+            ));
+        }
+        let Some(c) = r.color else {
+            return Decision::Unjudged;
+        };
+        // A reflected or refracted ray off a diffuse surface is named on that ray; the colour
+        // then mixes in what it brought back.
+        let secondary = !kids.reflection.is_empty() || !kids.refraction.is_empty() || kids.other > 0;
+        if unknown || secondary || !untested.is_empty() || kids.shadow.is_empty() && !logs.shadow {
+            return Decision::Unjudged;
+        }
+        let m = &self.scene.materials[lv.material as usize];
+        let albedo = m.color.as_dvec3();
+        // Each reached light's term, by the course's rule and by the usual mistakes.
+        let mut exact = DVec3::ZERO;
+        let mut unclamped = DVec3::ZERO;
+        let mut falloff = DVec3::ZERO;
+        let mut no_albedo = DVec3::ZERO;
+        let mut no_light = DVec3::ZERO;
+        let mut slack = DVec3::ZERO;
+        for (li, _) in reached.iter().enumerate().filter(|(_, &x)| x) {
+            let to = light_pos(li) - lv.point;
+            let cos = lv.facing.dot(to.normalize_or_zero());
+            let cl = lights[li].color.as_dvec3();
+            let term = albedo * cl;
+            exact += term * cos.max(0.0);
+            unclamped += term * cos;
+            falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
+            no_albedo += cl * cos.max(0.0);
+            no_light += albedo * cos.max(0.0);
+            // The light's direction may be taken from the offset origin of the shadow ray, and
+            // the normal is known to its rounding.
+            let from_origin = kids
+                .shadow
+                .iter()
+                .filter(|&&k| rays[k].light.is_none_or(|l| l as usize == li))
+                .map(|&k| (cos - lv.facing.dot((light_pos(li) - rays[k].origin).normalize_or_zero())).abs())
+                .fold(0.0, f64::max);
+            slack += term.abs() * (from_origin + 2.0 * lv.un + 1e-6);
+        }
+        if fits(c, exact, slack) {
+            return Decision::Judged;
+        }
+        let diff = c - exact;
+        let ambient_k = (albedo.length_squared() > 0.0).then(|| diff.dot(albedo) / albedo.length_squared());
+        let constant = (diff.x + diff.y + diff.z) / 3.0;
+        let name = self.name(lv.entity);
+        let guess = if fits(c, unclamped, slack) {
+            Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
+        } else if fits(c, falloff, slack) {
+            Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
+        } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, exact + albedo * k, slack)) {
+            Some(format!(
+                "it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2"
+            ))
+        } else if constant > 1e-4 && fits(c, exact + DVec3::splat(constant), slack) {
+            Some(format!(
+                "it fits a constant {constant:.4} added to every channel: the course has no ambient term at stage 2"
+            ))
+        } else if fits(c, no_albedo, slack) {
+            Some("it fits the lights' colour without the surface's albedo".into())
+        } else if fits(c, no_light, slack) {
+            Some("it fits the albedo without the lights' colour".into())
+        } else {
+            None
+        };
+        let lit: Vec<&str> = reached
+            .iter()
+            .enumerate()
+            .filter(|(_, &x)| x)
+            .map(|(li, _)| self.light_name(li as u32))
+            .collect();
+        let from = if lit.is_empty() {
+            "no light (every shadow ray is blocked), so it is black".to_string()
+        } else {
+            format!("light{} {}", if lit.len() == 1 { "" } else { "s" }, lit.join(", "))
+        };
+        let detail = match guess {
+            Some(g) => format!("diffuse '{name}' lit by {from}: {g}"),
+            None => format!(
+                "diffuse '{name}' lit by {from}: your colour is not albedo × Σ light colour × max(0, N·L), nor any of the usual mistakes"
+            ),
+        };
+        f.push(self.finding(r, kind, Code::ShadingDiffuse, detail, vec![colour_value(c, exact)]));
+        Decision::Judged
+    }
+
+    /// A mirror hit: its colour is its reflected ray's.
+    fn mirror(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        lv: &Leave,
+        rays: &[LoggedRay],
+        kids: &Children,
+        f: &mut Vec<Finding>,
+    ) -> Decision {
+        let ([k], [], 0) = (kids.reflection, kids.refraction, kids.other) else {
+            return Decision::Unjudged;
+        };
+        let (Some(c), Some(rc)) = (r.color, rays[*k].color) else {
+            return Decision::Unjudged;
+        };
+        if fits(c, rc, DVec3::ZERO) {
+            return Decision::Judged;
+        }
+        let tint = self.scene.materials[lv.material as usize].color.as_dvec3();
+        let detail = if fits(c, rc * tint, DVec3::ZERO) {
+            format!(
+                "mirror '{}': your colour is the reflected colour multiplied by the material colour {:?}; the course's mirror has no colour of its own",
+                self.name(lv.entity),
+                tint.to_array()
+            )
+        } else {
+            format!(
+                "mirror '{}': your colour is not what your reflected ray (line {}) brought back",
+                self.name(lv.entity),
+                rays[*k].line
+            )
+        };
+        f.push(self.finding(r, kind, Code::ShadingMirror, detail, vec![colour_value(c, rc)]));
+        Decision::Judged
+    }
+
+    /// A glass hit: the missing reflected ray, and the reflected share its colour was mixed with.
+    #[allow(clippy::too_many_arguments)]
+    fn glass(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        lv: &Leave,
+        rays: &[LoggedRay],
+        kids: &Children,
+        logs: &Logs,
+        weight: &dyn Fn() -> f64,
+        f: &mut Vec<Finding>,
+    ) -> Decision {
+        let ior = f64::from(self.scene.materials[lv.material as usize].value);
+        let (n1, n2) = if lv.front { (1.0, ior) } else { (ior, 1.0) };
+        let ci = (-lv.parent_dir.dot(lv.facing)).clamp(0.0, 1.0);
+        let exact = fresnel(ci, n1, n2);
+        let sin2_t = (n1 / n2).powi(2) * (1.0 - ci * ci);
+        let name = self.name(lv.entity);
+        let share = if kids.reflection.is_empty() && logs.secondary {
+            weight() * exact
+        } else {
+            0.0
+        };
+        if share >= MIN_SHARE {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::MissingReflection,
+                format!(
+                    "at '{name}' the Fresnel reflectance is {exact:.4} ({:.1} % of the sample), but no reflected ray was cast",
+                    share * 100.0
+                ),
+                vec![Value {
+                    what: "reflected share kr".into(),
+                    yours: json!("no reflected ray"),
+                    rayscope: njson(exact),
+                }],
+            ));
+        }
+        let Some(c) = r.color else {
+            return Decision::Unjudged;
+        };
+        if (sin2_t - 1.0).abs() <= CRITICAL || kids.other > 0 || kids.refraction_wrong {
+            return Decision::Unjudged;
+        }
+        let colour = |k: &[usize]| match k {
+            [k] => rays[*k].color,
+            _ => None,
+        };
+        if sin2_t >= 1.0 {
+            // Total internal reflection: everything is reflected.
+            let (Some(rc), true) = (colour(kids.reflection), kids.refraction.is_empty()) else {
+                return Decision::Unjudged;
+            };
+            if !fits(c, rc, DVec3::ZERO) {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::ShadingFresnel,
+                    format!(
+                        "at '{name}' the ray is past the critical angle (sin²θt = {sin2_t:.4} > 1), so all light is reflected (kr = 1); your colour is not your reflected ray's"
+                    ),
+                    vec![colour_value(c, rc)],
+                ));
+            }
+            return Decision::Judged;
+        }
+        let (Some(rc), Some(tc)) = (colour(kids.reflection), colour(kids.refraction)) else {
+            return Decision::Unjudged;
+        };
+        // The exact share's uncertainty, from the normal's (the share is steep near the
+        // critical angle).
+        let delta = 2.0 * lv.un + 1e-6;
+        let sin_i = (1.0 - ci * ci).max(0.0).sqrt();
+        let lo = fresnel((ci - delta * sin_i).clamp(0.0, 1.0), n1, n2);
+        let hi = fresnel((ci + delta * sin_i).clamp(0.0, 1.0), n1, n2);
+        let unc = (lo - exact).abs().max((hi - exact).abs()) + 1e-6;
+        let want = rc * exact + tc * (1.0 - exact);
+        let kr_value = |k: Option<f64>| Value {
+            what: "reflected share kr".into(),
+            yours: k.map_or(
+                json!("not determined (the reflected and refracted colours are alike)"),
+                njson,
+            ),
+            rayscope: njson(exact),
+        };
+        let (code, detail, values) = match classify_glass(c, rc, tc, ci, n1, n2, unc) {
+            GlassFit::Exact => return Decision::Judged,
+            GlassFit::Mistake(formula, k) => (
+                formula.code(),
+                format!(
+                    "at '{name}' ({}, cos θi = {ci:.4}) your colour mixes the reflected and refracted colours by {}: kr = {:.4}; the Fresnel equations give {exact:.4}",
+                    if lv.front { "entering" } else { "leaving" },
+                    formula.describe(),
+                    formula.kr(ci, n1, n2)
+                ),
+                vec![kr_value(k), colour_value(c, want)],
+            ),
+            GlassFit::Other(k) => (
+                Code::ShadingFresnel,
+                format!(
+                    "at '{name}' ({}, cos θi = {ci:.4}) your colour mixes the reflected and refracted colours with kr = {:.4}; the Fresnel equations give {exact:.4}",
+                    if lv.front { "entering" } else { "leaving" },
+                    k.unwrap_or(f64::NAN)
+                ),
+                vec![kr_value(k), colour_value(c, want)],
+            ),
+            GlassFit::NotAMix => (
+                Code::ShadingGlass,
+                format!("at '{name}' your colour is no mix kr·R + (1 − kr)·T of your reflected and refracted rays' colours"),
+                vec![
+                    colour_value(c, want),
+                    Value {
+                        what: "reflected colour R, refracted colour T".into(),
+                        yours: json!([vjson(rc), vjson(tc)]),
+                        rayscope: json!([vjson(rc), vjson(tc)]),
+                    },
+                ],
+            ),
+        };
+        f.push(self.finding(r, kind, code, detail, values));
+        Decision::Judged
+    }
+}
+
+/// The logged colour beside the one the course's rule gives.
+fn colour_value(yours: DVec3, want: DVec3) -> Value {
+    Value {
+        what: "colour".into(),
+        yours: vjson(yours),
+        rayscope: vjson(want),
+    }
+}
+
+/// Mirror and glass bounces before ray `i`: the number of its ancestors.
+fn depth_of(i: usize, parent: &[Option<usize>]) -> u32 {
+    let (mut d, mut k) = (0, i);
+    while let Some(p) = parent[k] {
+        d += 1;
+        if d > 64 {
+            break;
+        }
+        k = p;
+    }
+    d
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const R: DVec3 = DVec3::new(0.8, 0.2, 0.5);
+    const T: DVec3 = DVec3::new(0.1, 0.6, 0.3);
+
+    /// The colour a tracer mixing by `kr` brings back, rounded to f32 as such a tracer logs it.
+    fn mixed(kr: f64) -> DVec3 {
+        (R * kr + T * (1.0 - kr)).as_vec3().as_dvec3()
+    }
+
+    #[test]
+    fn the_exact_share_is_accepted_entering_and_leaving() {
+        for (ci, n1, n2) in [
+            (1.0, 1.0, 1.4),
+            (0.6, 1.0, 1.4),
+            (0.1, 1.0, 1.4),
+            (0.9, 1.4, 1.0),
+            (0.75, 1.5, 1.0),
+        ] {
+            let k = fresnel(ci, n1, n2);
+            assert_eq!(
+                classify_glass(mixed(k), R, T, ci, n1, n2, 1e-6),
+                GlassFit::Exact,
+                "{ci} {n1} {n2}"
+            );
+        }
+    }
+
+    #[test]
+    fn each_mistaken_share_is_recognised() {
+        // Entering at 69.5° from the normal; leaving at 41.4°, short of the critical angle.
+        for (ci, n1, n2) in [(0.35, 1.0, 1.4), (0.75, 1.4, 1.0)] {
+            for (f, code) in [
+                (Formula::Schlick, Code::ShadingFresnelSchlick),
+                (Formula::RsOnly, Code::ShadingFresnelSwappedCosines),
+                (Formula::RpOnly, Code::ShadingFresnelSwappedCosines),
+                (Formula::Half, Code::ShadingFresnelHalf),
+                (Formula::NoFresnel, Code::ShadingFresnelNone),
+            ] {
+                let k = f.kr(ci, n1, n2);
+                match classify_glass(mixed(k), R, T, ci, n1, n2, 1e-6) {
+                    GlassFit::Mistake(g, Some(solved)) => {
+                        assert_eq!(g.code(), code, "{f:?} from {n1} into {n2}");
+                        assert!((solved - k).abs() < 1e-5, "{f:?}: solved {solved}, used {k}");
+                    }
+                    other => panic!("{f:?} from {n1} into {n2}: {other:?}"),
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn exchanging_both_cosines_is_the_exact_share() {
+        // rs and rp with cos θi and cos θt exchanged are −rp and −rs: their mean square is the same.
+        let (ci, n1, n2) = (0.4_f64, 1.0, 1.4);
+        let ct = cos_t(ci, n1, n2).unwrap();
+        let rs = (n1 * ct - n2 * ci) / (n1 * ct + n2 * ci);
+        let rp = (n2 * ct - n1 * ci) / (n2 * ct + n1 * ci);
+        assert!((0.5 * (rs * rs + rp * rp) - fresnel(ci, n1, n2)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn another_share_is_given_with_its_value_and_a_non_mix_is_named() {
+        let (ci, n1, n2) = (0.5, 1.0, 1.4);
+        match classify_glass(mixed(0.3), R, T, ci, n1, n2, 1e-6) {
+            GlassFit::Other(Some(k)) => assert!((k - 0.3).abs() < 1e-5),
+            other => panic!("{other:?}"),
+        }
+        // The glass colour multiplied in: no weights summing to 1 give it.
+        let tinted = mixed(fresnel(ci, n1, n2)) * DVec3::new(1.0, 0.5, 0.5);
+        assert_eq!(classify_glass(tinted, R, T, ci, n1, n2, 1e-6), GlassFit::NotAMix);
+    }
+
+    #[test]
+    fn total_internal_reflection_reflects_everything() {
+        // Leaving glass of index 1.4 at cos θi = 0.5 (60°) is past the critical angle (45.6°).
+        assert_eq!(cos_t(0.5, 1.4, 1.0), None);
+        assert_eq!(fresnel(0.5, 1.4, 1.0), 1.0);
+        assert_eq!(classify_glass(R, R, T, 0.5, 1.4, 1.0, 1e-6), GlassFit::Exact);
+        assert!(matches!(
+            classify_glass(T, R, T, 0.5, 1.4, 1.0, 1e-6),
+            GlassFit::Mistake(Formula::NoFresnel, _) | GlassFit::Other(_)
+        ));
+    }
+
+    #[test]
+    fn colours_within_f32_rounding_fit_and_a_visible_difference_does_not() {
+        let c = DVec3::new(0.25, 0.0, 3.0);
+        assert!(fits(
+            c.as_vec3().as_dvec3() + DVec3::new(0.0, 5e-6, 0.0),
+            c,
+            DVec3::ZERO
+        ));
+        assert!(!fits(c + DVec3::new(0.0, 0.0, 1e-3), c, DVec3::ZERO));
+        assert!(!fits(DVec3::splat(f64::NAN), c, DVec3::ZERO));
+    }
+}
