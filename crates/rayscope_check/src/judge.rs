@@ -688,7 +688,7 @@ impl<'a> Judge<'a> {
                 // With the index ratio upside down the ray is past the critical angle: that is
                 // the mistake, and the reflection only its consequence.
                 let sin2_inverted = (1.0 - cos_i * cos_i) / (eta * eta);
-                if sin2_inverted > 1.0 + 1e-3 {
+                if sin2_inverted >= 1.0 - 1e-3 {
                     // Entering, this ray alone cannot tell a ratio upside down from a critical-
                     // angle test with the leaving side's ratio: both are named, and the log's
                     // other refracted rays decide (see `Tally::finish`).

@@ -1054,7 +1054,7 @@ function raysOnSummary(s) {
   if (j.causes.length) codes.append(el("div", { class: "rays-headline" }, j.headline));
   for (const c of j.causes) {
     const follows = c.consequences ? `; ${c.consequences} verdicts below it follow from it` : "";
-    codes.append(el("span", { title: `${c.summary}${follows}` }, el("b", {}, c.name), ` × ${c.samples} samples`));
+    codes.append(el("span", { title: `${c.summary}${follows}` }, el("b", {}, c.name), ` × ${c.samples} sample${c.samples === 1 ? "" : "s"}`));
   }
   for (const v of j.tie_verdicts) codes.append(el("span", { title: v.summary + " (not counted against you)" }, v.code, ` × ${v.count}`));
   if (j.job !== rays.mapJob) {
