@@ -374,6 +374,9 @@ struct RsHit {
     front: bool,
     /// Uncertainty of `own` in radians, from the rounding of the point it is computed at.
     un: f64,
+    /// The normal shading uses, on the side of `own`: a mesh's interpolated vertex normal where
+    /// it has them, else `own`.
+    shade: DVec3,
 }
 
 /// The surface a secondary ray leaves: rayscope's hit of its parent ray.
@@ -382,6 +385,8 @@ struct Leave {
     point: DVec3,
     /// Unit normal facing the parent ray.
     facing: DVec3,
+    /// Unit shading normal facing the parent ray (the interpolated normal of a smooth mesh).
+    shade: DVec3,
     front: bool,
     entity: u32,
     material: u32,
@@ -408,6 +413,7 @@ impl Eval {
         Some(Leave {
             point: h.point,
             facing: if h.front { h.own } else { -h.own },
+            shade: if h.front { h.shade } else { -h.shade },
             front: h.front,
             entity: h.entity,
             material: h.material,
@@ -548,6 +554,10 @@ impl<'a> Judge<'a> {
         let point = o + d * t;
         let own = self.geo.own_normal(h.prim, point);
         let un = self.geo.normal_uncertainty(h.prim, d, own, scale(&[o, point]));
+        let shade = self
+            .geo
+            .shading_normal(h.prim, point)
+            .map_or(own, |s| if s.dot(own) < 0.0 { -s } else { s });
         Some(RsHit {
             prim: h.prim,
             entity,
@@ -557,6 +567,7 @@ impl<'a> Judge<'a> {
             own,
             front: own.dot(d) < 0.0,
             un,
+            shade,
         })
     }
 
@@ -1799,6 +1810,24 @@ impl<'a> Judge<'a> {
                     return;
                 }
                 if let Some(b) = b {
+                    // Named after an entity beyond the light: the blocker test accepts hits past
+                    // the light, and this one came first in the tracer's list.
+                    if let Some((t, _)) = self.geo.entity_intersect(e, o_trace, d, dist + pos, f64::INFINITY) {
+                        f.push(self.finding(
+                            r,
+                            kind,
+                            Code::ShadowBlockedBeyondLight,
+                            format!(
+                                "your tracer names '{}', which is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6} ('{}' does block it, at t = {:.6})",
+                                self.name(e),
+                                self.light_name(li),
+                                self.name(b.entity),
+                                b.t
+                            ),
+                            v,
+                        ));
+                        return;
+                    }
                     f.push(self.finding(
                         r,
                         kind,

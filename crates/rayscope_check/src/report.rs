@@ -56,6 +56,8 @@ pub struct CauseGroup {
     pub consequences: Vec<Consequence>,
     /// The first rays it is the cause on, by line.
     pub examples: Vec<Finding>,
+    /// Mistakes of rayscope's catalogue (`rayscope mistakes`) that show as this verdict.
+    pub catalogue: Vec<&'static str>,
 }
 
 /// Verdicts of one code that follow from a cause.
@@ -86,7 +88,14 @@ impl CauseGroup {
             .map(|(code, count)| Consequence { code, count })
             .collect();
         consequences.sort_by_key(|c| (std::cmp::Reverse(c.count), c.code));
+        let catalogue = rayscope_core::Mistake::ALL
+            .into_iter()
+            .map(rayscope_core::Mistake::info)
+            .filter(|i| i.check.iter().any(|k| c.codes().iter().any(|x| x.as_str() == *k)))
+            .map(|i| i.name)
+            .collect();
         CauseGroup {
+            catalogue,
             code: c.code,
             or: c.or,
             samples: n.samples,
@@ -96,6 +105,12 @@ impl CauseGroup {
             consequences,
             examples: n.examples,
         }
+    }
+
+    /// The cause's verdicts, the one it leads with first.
+    #[must_use]
+    pub fn codes(&self) -> Vec<Code> {
+        std::iter::once(self.code).chain(self.or).collect()
     }
 
     /// The cause's name: `code` or `code | other`.
@@ -336,6 +351,22 @@ impl Report {
             }
             if c.rays > c.examples.len() as u64 {
                 let _ = writeln!(s, "  … and {} more", c.rays - c.examples.len() as u64);
+            }
+            if !c.catalogue.is_empty() {
+                let names: Vec<String> = c.catalogue.iter().map(|n| format!("'{n}'")).collect();
+                for l in wrap(
+                    &format!(
+                        "rayscope's catalogue of common mistakes has {} that show{} this way: see what {} does to the picture with `rayscope -f SCENE -o out.png --mistake {}` (rayscope mistakes describes {})",
+                        names.join(", "),
+                        if names.len() == 1 { "s" } else { "" },
+                        if names.len() == 1 { "it" } else { "each" },
+                        c.catalogue[0],
+                        if names.len() == 1 { "it" } else { "them" },
+                    ),
+                    96,
+                ) {
+                    let _ = writeln!(s, "  {l}");
+                }
             }
             if !c.consequences.is_empty() {
                 let list: Vec<String> = c

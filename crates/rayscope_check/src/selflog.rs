@@ -5,20 +5,32 @@ use std::io::{self, Write};
 
 use rayon::prelude::*;
 use rayscope_core::integrator::{Counters, Integrator};
-use rayscope_core::{RayRecorder, RenderSettings, Scene};
+use rayscope_core::{RayNode, RayRecorder, RenderSettings, Scene};
 
 fn json_str(s: &str) -> String {
     serde_json::to_string(s).unwrap_or_else(|_| "\"?\"".into())
 }
 
-/// Appends the log lines of sample `s` of pixel (`x`, `y`) to `out`.
-fn sample_lines(integ: &Integrator<'_>, x: u32, y: u32, s: u32, out: &mut String) {
+/// Appends the log lines of sample `s` of pixel (`x`, `y`) to `out`. With mistakes in the
+/// settings the sample is traced as a tracer making them would (the course's mistakes as
+/// `--mistake` renders them), so the log is the one such a tracer writes.
+fn sample_lines(integ: &Integrator<'_>, settings: &RenderSettings, x: u32, y: u32, s: u32, out: &mut String) {
+    let nodes = if settings.mistakes.is_empty() {
+        let mut rec = RayRecorder::default();
+        let mut c = Counters::default();
+        integ.sample(x, y, s, &mut rec, &mut c);
+        rec.nodes
+    } else {
+        rayscope_core::trace_pixel(integ.scene, settings, x, y, s).nodes
+    };
+    node_lines(&nodes, x, y, s, out);
+}
+
+/// Appends the log lines of one sample's recorded rays to `out`.
+fn node_lines(nodes: &[RayNode], x: u32, y: u32, s: u32, out: &mut String) {
     use std::fmt::Write as _;
-    let mut rec = RayRecorder::default();
-    let mut c = Counters::default();
-    integ.sample(x, y, s, &mut rec, &mut c);
     let v = |a: [f32; 3]| format!("[{},{},{}]", a[0], a[1], a[2]);
-    for n in &rec.nodes {
+    for n in nodes {
         let _ = write!(
             out,
             "{{\"pixel\":[{x},{y}],\"sample\":{s},\"id\":{},\"parent\":{},\"kind\":\"{}\",\"origin\":{},\"direction\":{}",
@@ -76,7 +88,7 @@ pub fn write_log(
                 let mut s = String::new();
                 for x in 0..settings.width {
                     for k in 0..spp {
-                        sample_lines(&integ, x, y, k, &mut s);
+                        sample_lines(&integ, settings, x, y, k, &mut s);
                     }
                 }
                 s

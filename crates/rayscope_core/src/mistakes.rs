@@ -80,6 +80,9 @@ pub struct MistakeInfo {
     pub looks: &'static str,
     /// The part of the course's marking the mistake costs.
     pub rubric: &'static str,
+    /// The `rayscope check` verdicts a ray log of a tracer with the mistake is headed by; empty
+    /// where a log cannot show it (it is in how colours become bytes).
+    pub check: &'static [&'static str],
 }
 
 const CAMERA: &str = "Stage 1: camera rays through the pixel grid";
@@ -272,6 +275,33 @@ impl Mistake {
             wrong,
             looks,
             rubric,
+            check: self.check_codes(),
+        }
+    }
+
+    /// The `rayscope check` verdicts the mistake shows as (see [`MistakeInfo::check`]).
+    fn check_codes(self) -> &'static [&'static str] {
+        match self {
+            Mistake::FovVertical => &["camera.fov-axis"],
+            Mistake::AspectIgnored => &["camera.aspect"],
+            Mistake::PixelCorners => &["camera.pixel-corner"],
+            Mistake::ImageFlipped => &["camera.flipped"],
+            Mistake::NoShadowOffset => &["shadow.acne"],
+            Mistake::HugeShadowOffset => &["secondary.origin-not-at-hit"],
+            Mistake::OneSidedTriangles => &["shadow.one-sided-triangle", "hit.one-sided-triangle"],
+            Mistake::ReversedNormals => &["hit.normal-reversed-winding"],
+            Mistake::RefractionNoNormalFlip => &["refraction.normal-not-flipped"],
+            Mistake::RefractionNoIndexSwap => &["refraction.indices-not-swapped"],
+            Mistake::NoTir => &["missing.secondary"],
+            Mistake::NoFresnel => &["missing.reflection", "shading.fresnel-none"],
+            Mistake::FresnelHalf => &["shading.fresnel-half"],
+            Mistake::Schlick => &["shading.fresnel-schlick"],
+            Mistake::RecursionLimit3 => &["missing.secondary", "shading.depth-limit"],
+            Mistake::LightFalloff | Mistake::AmbientTerm | Mistake::ObjFlatNormals => &["shading.diffuse"],
+            Mistake::ShadowPastLight => &["shadow.blocked-beyond-light"],
+            Mistake::FirstLightOnly => &["missing.shadow-ray"],
+            Mistake::RoundedColours | Mistake::Gamma => &[],
+            Mistake::ObjNoZFlip => &["hit.wrong-t", "hit.missed", "hit.phantom"],
         }
     }
 
@@ -457,8 +487,16 @@ pub fn catalogue_text() -> String {
     for m in Mistake::ALL {
         let i = m.info();
         out.push_str(&format!(
-            "{}\n  wrong: {}\n  looks: {}\n  costs: {}\n",
-            i.name, i.wrong, i.looks, i.rubric
+            "{}\n  wrong: {}\n  looks: {}\n  costs: {}\n  check: {}\n",
+            i.name,
+            i.wrong,
+            i.looks,
+            i.rubric,
+            if i.check.is_empty() {
+                "a ray log cannot show it (compare your image with `rayscope diagnose`)".to_string()
+            } else {
+                i.check.join(", ")
+            }
         ));
     }
     out

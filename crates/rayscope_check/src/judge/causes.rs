@@ -56,6 +56,11 @@ const SAME_MISTAKE: &[(Code, Code)] = &[
     (Code::ShadowOneSidedTriangle, Code::HitOneSidedTriangle),
 ];
 
+/// Causes on sibling rays (cast from the same hit) that one mistake at that hit explains: the
+/// first is counted as a consequence of the second. Leaving glass with the outward normal both
+/// offsets the reflected ray behind the surface and bends the refracted ray back in.
+const SAME_HIT: &[(Code, Code)] = &[(Code::SecondaryOffsetWrongSide, Code::RefractionNormalNotFlipped)];
+
 /// True when a wrong verdict on a ray can explain verdicts on the rays cast from its hit.
 fn handed_down(code: Code) -> bool {
     !code.is_tie()
@@ -133,7 +138,55 @@ pub fn causes(order: &[usize], parent: &[Option<usize>], findings: &[Vec<Finding
         );
         blame[i] = handed_down(c.code).then_some(c);
     }
+    fold_siblings(&mut out, parent);
+    fold_missing_reflection(&mut out, parent);
     out
+}
+
+/// Folds a root into a sibling's cause where one mistake at their parent's hit explains both.
+fn fold_siblings(out: &mut SampleCauses, parent: &[Option<usize>]) {
+    let mut k = 0;
+    while k < out.roots.len() {
+        let (i, c) = out.roots[k];
+        let by = out.roots.iter().find(|&&(j, d)| {
+            j != i && parent[j].is_some() && parent[j] == parent[i] && SAME_HIT.contains(&(c.code, d.code))
+        });
+        match by {
+            Some(&(_, d)) => {
+                out.consequences.push((d, c.code));
+                for x in &mut out.consequences {
+                    if x.0 == c {
+                        x.0 = d;
+                    }
+                }
+                out.roots.remove(k);
+            }
+            None => k += 1,
+        }
+    }
+}
+
+/// A missing reflected ray at glass whose refracted ray bends wrong: the tracer's Fresnel weight
+/// comes from the same wrong indices or normal, so the missing ray follows from the refraction.
+fn fold_missing_reflection(out: &mut SampleCauses, parent: &[Option<usize>]) {
+    let mut k = 0;
+    while k < out.roots.len() {
+        let (i, c) = out.roots[k];
+        let by = (c.code == Code::MissingReflection)
+            .then(|| {
+                out.roots
+                    .iter()
+                    .find(|&&(j, d)| parent[j] == Some(i) && d.code.as_str().starts_with("refraction."))
+            })
+            .flatten();
+        match by {
+            Some(&(_, d)) => {
+                out.consequences.push((d, c.code));
+                out.roots.remove(k);
+            }
+            None => k += 1,
+        }
+    }
 }
 
 #[cfg(test)]
@@ -227,6 +280,22 @@ mod tests {
         ];
         let c = causes(&[0, 1], &parent, &findings);
         assert_eq!(c.distinct().len(), 1, "{:?}", c.roots);
+    }
+
+    #[test]
+    fn one_mistake_at_a_hit_that_shows_on_both_children_is_one_cause() {
+        // Leaving glass with the outward normal: the reflection starts behind the surface, the
+        // refraction bends back in.
+        let parent = [None, Some(0), Some(0)];
+        let findings = vec![
+            vec![],
+            vec![finding(Code::SecondaryOffsetWrongSide)],
+            vec![finding(Code::RefractionNormalNotFlipped)],
+        ];
+        let c = causes(&[0, 1, 2], &parent, &findings);
+        let codes: Vec<Code> = c.roots.iter().map(|r| r.1.code).collect();
+        assert_eq!(codes, vec![Code::RefractionNormalNotFlipped]);
+        assert_eq!(c.consequences.len(), 1);
     }
 
     #[test]

@@ -422,7 +422,7 @@ impl Judge<'_> {
                 })
             })
         };
-        let facing = |li: usize| lv.facing.dot((light_pos(li) - lv.point).normalize_or_zero());
+        let facing = |li: usize| lv.shade.dot((light_pos(li) - lv.point).normalize_or_zero());
         let mut tested = vec![false; lights.len()];
         let mut reached = vec![false; lights.len()];
         let mut unknown = false;
@@ -481,10 +481,11 @@ impl Judge<'_> {
         let mut falloff = DVec3::ZERO;
         let mut no_albedo = DVec3::ZERO;
         let mut no_light = DVec3::ZERO;
+        let mut flat = DVec3::ZERO;
         let mut slack = DVec3::ZERO;
         for (li, _) in reached.iter().enumerate().filter(|(_, &x)| x) {
             let to = light_pos(li) - lv.point;
-            let cos = lv.facing.dot(to.normalize_or_zero());
+            let cos = lv.shade.dot(to.normalize_or_zero());
             let cl = lights[li].color.as_dvec3();
             let term = albedo * cl;
             exact += term * cos.max(0.0);
@@ -492,13 +493,14 @@ impl Judge<'_> {
             falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
             no_albedo += cl * cos.max(0.0);
             no_light += albedo * cos.max(0.0);
+            flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
             // The light's direction may be taken from the offset origin of the shadow ray, and
             // the normal is known to its rounding.
             let from_origin = kids
                 .shadow
                 .iter()
                 .filter(|&&k| rays[k].light.is_none_or(|l| l as usize == li))
-                .map(|&k| (cos - lv.facing.dot((light_pos(li) - rays[k].origin).normalize_or_zero())).abs())
+                .map(|&k| (cos - lv.shade.dot((light_pos(li) - rays[k].origin).normalize_or_zero())).abs())
                 .fold(0.0, f64::max);
             slack += term.abs() * (from_origin + 2.0 * lv.un + 1e-6);
         }
@@ -509,14 +511,31 @@ impl Judge<'_> {
         let ambient_k = (albedo.length_squared() > 0.0).then(|| diff.dot(albedo) / albedo.length_squared());
         let constant = (diff.x + diff.y + diff.z) / 3.0;
         let name = self.name(lv.entity);
-        let guess = if fits(c, unclamped, slack) {
+        let lit: Vec<&str> = reached
+            .iter()
+            .enumerate()
+            .filter(|(_, &x)| x)
+            .map(|(li, _)| self.light_name(li as u32))
+            .collect();
+        let smooth = (lv.shade - lv.facing).length() > 1e-9;
+        let guess = if smooth && fits(c, flat, slack) {
+            Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
+        } else if fits(c, unclamped, slack) {
             Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
         } else if fits(c, falloff, slack) {
             Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
         } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, exact + albedo * k, slack)) {
-            Some(format!(
-                "it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2"
-            ))
+            Some(if lit.is_empty() {
+                format!(
+                    "it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2"
+                )
+            } else {
+                // Lit by white lights, any error in N·L also scales the albedo: only a term that
+                // is the same on every hit is an ambient term.
+                format!(
+                    "it fits an ambient term of {k:.4} × the albedo added, if that is the same on every hit (the course has none at stage 2); one that varies from hit to hit is a wrong N·L instead"
+                )
+            })
         } else if constant > 1e-4 && fits(c, exact + DVec3::splat(constant), slack) {
             Some(format!(
                 "it fits a constant {constant:.4} added to every channel: the course has no ambient term at stage 2"
@@ -528,12 +547,6 @@ impl Judge<'_> {
         } else {
             None
         };
-        let lit: Vec<&str> = reached
-            .iter()
-            .enumerate()
-            .filter(|(_, &x)| x)
-            .map(|(li, _)| self.light_name(li as u32))
-            .collect();
         let from = if lit.is_empty() {
             "no light (every shadow ray is blocked), so it is black".to_string()
         } else {
