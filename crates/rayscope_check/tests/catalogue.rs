@@ -48,7 +48,7 @@ fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     };
     let mistaken = RenderSettings {
         mistakes: Mistakes::NONE.with(m),
-        ..correct.clone()
+        ..correct
     };
     let dir = tempfile::tempdir().expect("temp dir");
     let log = dir.path().join("rays.jsonl");
