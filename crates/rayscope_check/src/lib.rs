@@ -11,6 +11,7 @@
 pub mod geom;
 pub mod judge;
 pub mod log;
+pub mod oracle;
 pub mod pixels;
 pub mod probe_answer;
 pub mod report;
