@@ -294,8 +294,8 @@ impl Oracle {
         o
     }
 
-    /// Fills node `n` for `items` (which it reorders), splitting at the median of the centres
-    /// along the widest axis of their spread.
+    /// Fills node `n` for `items` (which it reorders), split where the surface area heuristic
+    /// says ([`sah_split`]).
     fn build(&mut self, n: usize, items: &mut [Item]) {
         let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         let (mut clo, mut chi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
@@ -315,16 +315,7 @@ impl Oracle {
             self.refs.extend(items.iter().map(|it| it.r));
             return;
         }
-        let spread = chi - clo;
-        let axis = if spread.x >= spread.y && spread.x >= spread.z {
-            0
-        } else if spread.y >= spread.z {
-            1
-        } else {
-            2
-        };
-        let mid = items.len() / 2;
-        items.select_nth_unstable_by(mid, |a, b| a.c[axis].total_cmp(&b.c[axis]));
+        let (axis, mid) = sah_split(items, clo, chi);
         let child = self.nodes.len();
         let blank = self.nodes[n];
         self.nodes.push(blank);
@@ -562,6 +553,76 @@ impl Oracle {
         });
         best
     }
+}
+
+/// Bins the surface area heuristic sorts centres into along each axis.
+const BINS: usize = 16;
+
+/// Surface area of a box (half of it: only ratios matter).
+fn area(lo: DVec3, hi: DVec3) -> f64 {
+    let e = (hi - lo).max(DVec3::ZERO);
+    e.x * e.y + e.y * e.z + e.z * e.x
+}
+
+/// Orders `items` (more than [`LEAF`] of them, centres within `clo`..`chi`) so that the first
+/// `mid` go to one child and the rest to the other, choosing the axis and the plane among
+/// [`BINS`] bins that give the cheapest children by the surface area heuristic; at the median
+/// of the widest axis when the centres do not spread.
+fn sah_split(items: &mut [Item], clo: DVec3, chi: DVec3) -> (usize, usize) {
+    let spread = chi - clo;
+    let bin = |c: DVec3, axis: usize| (((c[axis] - clo[axis]) / spread[axis] * BINS as f64) as usize).min(BINS - 1);
+    // The cheapest split: its cost, axis, and the first bin of its second child.
+    let mut best: Option<(f64, usize, usize)> = None;
+    for axis in 0..3 {
+        if spread[axis] <= 0.0 {
+            continue;
+        }
+        let mut boxes = [(DVec3::INFINITY, DVec3::NEG_INFINITY, 0usize); BINS];
+        for it in items.iter() {
+            let b = &mut boxes[bin(it.c, axis)];
+            (b.0, b.1, b.2) = (b.0.min(it.lo), b.1.max(it.hi), b.2 + 1);
+        }
+        // Costs of the planes after bins 0..BINS-1: the left side swept forwards, then the
+        // right side backwards.
+        let mut left = [0.0; BINS];
+        let (mut lo, mut hi, mut count) = (DVec3::INFINITY, DVec3::NEG_INFINITY, 0);
+        for (k, b) in boxes.iter().enumerate().take(BINS - 1) {
+            (lo, hi, count) = (lo.min(b.0), hi.max(b.1), count + b.2);
+            left[k] = if count == 0 { 0.0 } else { area(lo, hi) * count as f64 };
+        }
+        let (mut lo, mut hi, mut count) = (DVec3::INFINITY, DVec3::NEG_INFINITY, 0);
+        for k in (1..BINS).rev() {
+            let b = &boxes[k];
+            (lo, hi, count) = (lo.min(b.0), hi.max(b.1), count + b.2);
+            let right = if count == 0 { 0.0 } else { area(lo, hi) * count as f64 };
+            let cost = left[k - 1] + right;
+            if count > 0 && count < items.len() && best.is_none_or(|(c, _, _)| cost < c) {
+                best = Some((cost, axis, k));
+            }
+        }
+    }
+    if let Some((_, axis, k)) = best {
+        let mut mid = 0;
+        for i in 0..items.len() {
+            if bin(items[i].c, axis) < k {
+                items.swap(i, mid);
+                mid += 1;
+            }
+        }
+        if mid > 0 && mid < items.len() {
+            return (axis, mid);
+        }
+    }
+    let axis = if spread.x >= spread.y && spread.x >= spread.z {
+        0
+    } else if spread.y >= spread.z {
+        1
+    } else {
+        2
+    };
+    let mid = items.len() / 2;
+    items.select_nth_unstable_by(mid, |a, b| a.c[axis].total_cmp(&b.c[axis]));
+    (axis, mid)
 }
 
 /// The course's pinhole camera in double precision, for the regular `-x N` grid (jittered and

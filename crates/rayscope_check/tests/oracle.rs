@@ -146,7 +146,7 @@ fn renderer_and_oracle_agree_on_what_every_ray_hits() {
                 for _ in 0..6 {
                     let d = rng.unit();
                     let side = if d.dot(n) >= 0.0 { n } else { -n };
-                    let o = p + side * (1e-4 * scale);
+                    let o = p + side * (1e-5 * scale);
                     t.compare(
                         &scene,
                         &oracle,
@@ -158,7 +158,7 @@ fn renderer_and_oracle_agree_on_what_every_ray_hits() {
                 // Shadow rays: does anything lie between the hit and each light?
                 for light in &scene.lights {
                     let lp = light.position.as_dvec3();
-                    let o = p + n * (1e-4 * scale);
+                    let o = p + n * (1e-5 * scale);
                     let to = lp - o;
                     if to.length() > 1e-3 {
                         t.compare(
