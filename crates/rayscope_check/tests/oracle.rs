@@ -98,6 +98,7 @@ impl Tally {
             let eps = ROUNDING * od.abs().max_element().max(far).max(1.0);
             match oracle.near_boundary(od, dd, 0.0, t_max, eps) {
                 Some(n) => {
+                    // ORACLE_DEBUG=1 lists these rays, to see what kind of tie each is.
                     if std::env::var("ORACLE_DEBUG").is_ok() {
                         eprintln!(
                             "near {n:?} eps {eps:e}: {od} → {dd} t<{t_max}: rs {rs_entity:?} {:?} oracle {:?} {:?}",
@@ -258,6 +259,10 @@ fn oracle_camera_gives_rayscopes_camera_rays() {
         // f32 rounding of the image position, the rotation and the normalisation: a few ulps of
         // a unit vector, far below the checker's camera tolerance (2e-5 rad) and the spacing
         // of neighbouring samples (1.2e-4 rad at 400 × 3).
+        eprintln!(
+            "{}×{} -x {} axis {}: worst angle {worst:.2e} rad",
+            s.width, s.height, s.aa, s.camera.axis
+        );
         assert!(
             worst < 1e-6,
             "{}×{} -x {} {:?}: worst angle {worst:e}",
