@@ -273,3 +273,72 @@ fn oracle_camera_gives_rayscopes_camera_rays() {
         );
     }
 }
+
+#[test]
+fn rays_through_the_bunnys_shared_edges_never_slip_through() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = load(&course.scene("sample_scene_obj.txt"));
+    let oracle = Oracle::new(&scene);
+    let bunny = scene
+        .entities
+        .iter()
+        .position(|e| e.kind == "ObjModel")
+        .expect("the bunny") as u32;
+    // Edges by their corners' bits: an edge two triangles share has the same corners in both.
+    let key = |a: DVec3, b: DVec3| {
+        let (a, b) = (a.to_array().map(f64::to_bits), b.to_array().map(f64::to_bits));
+        if a < b {
+            (a, b)
+        } else {
+            (b, a)
+        }
+    };
+    let mut edges: BTreeMap<_, (DVec3, DVec3, Vec<DVec3>)> = BTreeMap::new();
+    for i in 0..scene.triangles.len() as u32 {
+        if scene.triangle_info[i as usize].entity != bunny {
+            continue;
+        }
+        let v = oracle.triangle(i);
+        let n = (v[1] - v[0]).cross(v[2] - v[0]);
+        for k in 0..3 {
+            let (a, b) = (v[k], v[(k + 1) % 3]);
+            edges.entry(key(a, b)).or_insert((a, b, Vec::new())).2.push(n);
+        }
+    }
+    let shared: Vec<_> = edges.values().filter(|e| e.2.len() == 2).collect();
+    // The bunny has 4968 triangles and 7715 edges, all but the rims of its holes shared by two.
+    assert!(shared.len() > 7000, "{} shared edges of {}", shared.len(), edges.len());
+    let mut rays = 0;
+    for &(a, b, n) in &shared {
+        for w in [0.5, 1.0 / 3.0, 0.9] {
+            let p = a + (b - a) * w;
+            // From the camera, and from beside the bunny through the edge.
+            for o in [DVec3::ZERO, p + DVec3::new(0.37, 0.21, -0.5)] {
+                let d = (p - o).normalize();
+                let dist = (p - o).length();
+                if n[0].dot(d).signum() != n[1].dot(d).signum() {
+                    // A silhouette: both triangles lie on one side of the edge as the ray sees
+                    // them, so a ray along it may genuinely pass between.
+                    continue;
+                }
+                let h = oracle
+                    .closest(o, d, 0.0, f64::INFINITY)
+                    .expect("the ray meets the bunny");
+                rays += 1;
+                assert!(
+                    h.t <= dist * (1.0 + 1e-12),
+                    "ray {o} → {p} through a shared edge meets '{}' at t = {} beyond the edge at {dist}",
+                    scene.entities[h.entity as usize].name,
+                    h.t
+                );
+            }
+        }
+    }
+    eprintln!(
+        "{} shared edges of {}; {rays} rays through them",
+        shared.len(),
+        edges.len()
+    );
+}
