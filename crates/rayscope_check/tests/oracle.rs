@@ -308,8 +308,10 @@ fn rays_through_the_bunnys_shared_edges_never_slip_through() {
         }
     }
     let shared: Vec<_> = edges.values().filter(|e| e.2.len() == 2).collect();
-    // The bunny has 4968 triangles and 7715 edges, all but the rims of its holes shared by two.
-    assert!(shared.len() > 7000, "{} shared edges of {}", shared.len(), edges.len());
+    // The bunny has 4968 triangles and 7715 edges, all but the 526 on the rims of its holes
+    // shared by two; with corners left off the f32 grid (v0 + the scene's f32 edge), 88 of
+    // them would differ in the last bits from one triangle to the other.
+    assert_eq!((shared.len(), edges.len()), (7189, 7715));
     let mut rays = 0;
     for &(a, b, n) in &shared {
         for w in [0.5, 1.0 / 3.0, 0.9] {
