@@ -7,6 +7,8 @@ use glam::{DVec3, Vec3A};
 use rayscope_core::scene::PrimRef;
 use rayscope_core::Scene;
 
+use crate::oracle::{corners, hit_plane, hit_sphere, OracleRay};
+
 /// A [`Vec3A`] in double precision.
 #[must_use]
 #[inline]
@@ -68,8 +70,8 @@ impl<'a> Geometry<'a> {
     }
 
     fn triangle(&self, i: u32) -> (DVec3, DVec3, DVec3) {
-        let t = &self.scene.triangles[i as usize];
-        (d3(t.v0()), d3(t.e1()), d3(t.e2()))
+        let [v0, v1, v2] = corners(&self.scene.triangles[i as usize]);
+        (v0, v1 - v0, v2 - v0)
     }
 
     /// For a triangle, how far `p` lies inside it as a share of its smallest altitude (0 on an
@@ -160,97 +162,19 @@ impl<'a> Geometry<'a> {
     /// primitive, both sides of surfaces counting.
     #[must_use]
     pub fn intersect(&self, prim: PrimRef, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<f64> {
-        let ok = |t: f64| t > t_min && t < t_max;
         match prim {
             PrimRef::Plane(i) => {
                 let pl = &self.scene.planes[i as usize];
-                let n = d3(pl.normal);
-                let den = n.dot(d);
-                if den == 0.0 {
-                    return None;
-                }
-                let t = (d3(pl.point) - o).dot(n) / den;
-                ok(t).then_some(t)
+                hit_plane(d3(pl.point), d3(pl.normal), o, d, t_min, t_max)
             }
             PrimRef::Sphere(i) => {
                 let s = &self.scene.spheres[i as usize];
-                let f = o - d3(s.center);
-                let b = -f.dot(d);
-                let l = f + d * b;
-                let r = f64::from(s.radius);
-                let disc = r * r - l.length_squared();
-                if disc < 0.0 {
-                    return None;
-                }
-                let q = disc.sqrt();
-                let (t0, t1) = (b - q, b + q);
-                if ok(t0) {
-                    Some(t0)
-                } else {
-                    ok(t1).then_some(t1)
-                }
+                hit_sphere(d3(s.center), f64::from(s.radius), o, d, t_min, t_max)
             }
             PrimRef::Triangle(i) => {
-                let (v0, e1, e2) = self.triangle(i);
-                let p = d.cross(e2);
-                let det = e1.dot(p);
-                if det == 0.0 {
-                    return None;
-                }
-                let inv = 1.0 / det;
-                let s = o - v0;
-                let u = s.dot(p) * inv;
-                let q = s.cross(e1);
-                let v = d.dot(q) * inv;
-                if u < 0.0 || v < 0.0 || u + v > 1.0 {
-                    return None;
-                }
-                let t = e2.dot(q) * inv;
-                ok(t).then_some(t)
+                OracleRay::new(o, d).triangle(&corners(&self.scene.triangles[i as usize]), t_min, t_max)
             }
         }
-    }
-
-    /// The ray's distance to the primitive's surface nearest to `guess`, in double precision
-    /// (rayscope's f32 distance is imprecise for rays that graze a sphere); `guess` when the
-    /// double-precision ray misses.
-    #[must_use]
-    pub fn refine(&self, prim: PrimRef, o: DVec3, d: DVec3, guess: f64) -> f64 {
-        let t = match prim {
-            PrimRef::Sphere(i) => {
-                let s = &self.scene.spheres[i as usize];
-                let f = o - d3(s.center);
-                let b = -f.dot(d);
-                let l = f + d * b;
-                let r = f64::from(s.radius);
-                let disc = r * r - l.length_squared();
-                (disc >= 0.0).then(|| {
-                    let q = disc.sqrt();
-                    if (b - q - guess).abs() <= (b + q - guess).abs() {
-                        b - q
-                    } else {
-                        b + q
-                    }
-                })
-            }
-            _ => {
-                let (n, p) = match prim {
-                    PrimRef::Plane(i) => {
-                        let pl = &self.scene.planes[i as usize];
-                        (d3(pl.normal), d3(pl.point))
-                    }
-                    PrimRef::Triangle(i) => {
-                        let (v0, e1, e2) = self.triangle(i);
-                        (e1.cross(e2), v0)
-                    }
-                    PrimRef::Sphere(_) => unreachable!("handled above"),
-                };
-                let den = n.dot(d);
-                (den != 0.0).then(|| (p - o).dot(n) / den)
-            }
-        };
-        t.filter(|t| t.is_finite() && (t - guess).abs() <= 1e-3 * guess.abs().max(1.0))
-            .unwrap_or(guess)
     }
 
     /// How uncertain a normal computed from a point found along a ray is, in radians, when the

@@ -11,13 +11,14 @@ use std::collections::BTreeMap;
 use glam::{DMat3, DVec3, Vec3A};
 use rayscope_core::integrator::Integrator;
 use rayscope_core::scene::PrimRef;
-use rayscope_core::{FovAxis, Ray, RenderSettings, Scene, Stage};
+use rayscope_core::{FovAxis, RenderSettings, Scene, Stage};
 use rustc_hash::FxHashMap;
 use serde::Serialize;
 use serde_json::json;
 
 use crate::geom::{angle, d3, reflect, refract, Geometry};
 use crate::log::{Answer, HitClaim, Kind, LoggedRay};
+use crate::oracle::{Oracle, OracleCamera};
 use crate::verdict::Code;
 
 pub mod causes;
@@ -442,8 +443,11 @@ struct CamGuess {
 pub struct Judge<'a> {
     scene: &'a Scene,
     settings: &'a RenderSettings,
-    integ: Integrator<'a>,
     geo: Geometry<'a>,
+    /// The checker's own visibility.
+    oracle: Oracle,
+    /// The checker's own camera.
+    cam: OracleCamera,
     rot: DMat3,
     cam_origin: DVec3,
     pinhole: bool,
@@ -494,22 +498,22 @@ impl<'a> Judge<'a> {
         let integ = Integrator::new(scene, settings);
         let spp = integ.samples_per_pixel();
         let grid = if spp == 1 { 1 } else { settings.aa.max(1) };
-        let m = integ.camera.rotation;
-        let rot = DMat3::from_cols(d3(m.x_axis), d3(m.y_axis), d3(m.z_axis));
+        let cam = OracleCamera::new(settings);
         let pinhole = !(settings.stage == Stage::Full && settings.camera.aperture_radius > 0.0);
         let jitter = integ.stochastic;
         let tol = Tolerances::default();
         // A twentieth of the angle between neighbouring samples at the image centre, at most the
         // default: tight enough to tell grid positions apart on any image size.
-        let spacing = 2.0 * f64::from(integ.camera.half.x) / (f64::from(settings.width) * f64::from(grid));
+        let spacing = 2.0 * cam.half.0 / (f64::from(settings.width) * f64::from(grid));
         let cam_tol = tol.camera.min(0.05 * spacing);
         Self {
             scene,
             settings,
-            cam_origin: d3(integ.camera.origin),
-            integ,
+            cam_origin: cam.origin,
+            rot: cam.rotation,
+            cam,
             geo: Geometry::new(scene),
-            rot,
+            oracle: Oracle::new(scene),
             pinhole,
             jitter,
             grid,
@@ -545,27 +549,22 @@ impl<'a> Judge<'a> {
         self.scene.light_names.get(l as usize).map_or("?", String::as_str)
     }
 
-    /// rayscope's closest hit of `o + t d` with `t_min < t < t_max`, as a distance from `from`.
+    /// The oracle's closest hit of `o + t d` with `t_min < t < t_max`, as a distance from `from`.
     fn trace(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64, from: DVec3) -> Option<RsHit> {
-        let ray = Ray::new(Vec3A::from(o.as_vec3()), Vec3A::from(d.as_vec3()).normalize());
-        let h = self.scene.intersect(&ray, t_min as f32, t_max as f32)?;
-        let (entity, material) = self.scene.prim_info(h.prim);
-        let t = self.geo.refine(h.prim, o, d, f64::from(h.t));
-        let point = o + d * t;
-        let own = self.geo.own_normal(h.prim, point);
-        let un = self.geo.normal_uncertainty(h.prim, d, own, scale(&[o, point]));
+        let h = self.oracle.closest(o, d, t_min, t_max)?;
+        let un = self.geo.normal_uncertainty(h.prim, d, h.normal, scale(&[o, h.point]));
         let shade = self
             .geo
-            .shading_normal(h.prim, point)
-            .map_or(own, |s| if s.dot(own) < 0.0 { -s } else { s });
+            .shading_normal(h.prim, h.point)
+            .map_or(h.normal, |s| if s.dot(h.normal) < 0.0 { -s } else { s });
         Some(RsHit {
             prim: h.prim,
-            entity,
-            material,
-            t: (point - from).dot(d),
-            point,
-            own,
-            front: own.dot(d) < 0.0,
+            entity: h.entity,
+            material: h.material,
+            t: (h.point - from).dot(d),
+            point: h.point,
+            own: h.normal,
+            front: h.front,
             un,
             shade,
         })
@@ -940,10 +939,7 @@ impl<'a> Judge<'a> {
         if self.jitter {
             return;
         }
-        let rs_dir = |s: u32| {
-            let ray = self.integ.camera_ray(x, y, s, &mut self.integ.sample_rng(x, y, s));
-            d3(ray.dir).normalize()
-        };
+        let rs_dir = |s: u32| self.cam.ray(x, y, s).1;
         let d = r.direction;
         let candidates: Vec<u32> = match r.sample {
             Some(s) => vec![s],

@@ -1,6 +1,7 @@
 //! Check a student's own ray tracer: read the rays it logged, re-trace every one against the
-//! scene with rayscope's intersection, and judge both the tracer's answers and the rays
-//! themselves, each verdict with a stable code and a plain-English explanation.
+//! scene with the checker's own double-precision geometry and camera ([`oracle`], kept apart
+//! from rayscope's renderer so each checks the other), and judge both the tracer's answers and
+//! the rays themselves, each verdict with a stable code and a plain-English explanation.
 //!
 //! The pieces are separate so the debugger can use them one at a time: [`log`] reads a log into
 //! [`log::LoggedRay`]s, [`Judge`] judges the rays of a pixel sample, and [`check`] runs both over
@@ -11,6 +12,7 @@
 pub mod geom;
 pub mod judge;
 pub mod log;
+pub mod oracle;
 pub mod pixels;
 pub mod probe_answer;
 pub mod report;
