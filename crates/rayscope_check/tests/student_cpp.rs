@@ -203,6 +203,7 @@ fn correct_stage_1_tracer_gets_no_verdict_on_every_course_scene() {
     };
     for name in [
         "sample_scene_1.txt",
+        "sample_scene_2.txt",
         "sample_scene_2_2021.txt",
         "sample_scene_obj.txt",
     ] {
@@ -320,7 +321,9 @@ fn an_obj_without_its_z_flip_is_described_on_the_bunny() {
     let ex = &first.examples[0];
     let entity = ex.values.iter().find(|v| v.what == "entity").expect("entity values");
     assert!(
-        [&entity.yours, &entity.rayscope].iter().any(|v| v.as_str() == Some("Bunny")),
+        [&entity.yours, &entity.rayscope]
+            .iter()
+            .any(|v| v.as_str() == Some("Bunny")),
         "{t}"
     );
     assert!(ex.values.iter().any(|v| v.what == "t" && v.yours != v.rayscope), "{t}");
@@ -343,14 +346,84 @@ fn an_uncatalogued_triangle_mistake_gets_a_truthful_headline() {
     };
     let t = text(&r);
     for c in &r.causes {
-        assert!(
-            [Code::HitPhantom, Code::ShadowPhantomBlocker].contains(&c.code),
-            "{t}"
-        );
+        assert!([Code::HitPhantom, Code::ShadowPhantomBlocker].contains(&c.code), "{t}");
         let ex = &c.examples[0];
         let v = &ex.values[0];
         assert_eq!(v.yours.as_str(), Some("Triangle"), "{t}");
         assert_ne!(v.yours, v.rayscope, "{t}");
     }
-    assert!(t.lines().next().is_some_and(|l| l.contains(r.causes[0].code.as_str())), "{t}");
+    assert!(
+        t.lines().next().is_some_and(|l| l.contains(r.causes[0].code.as_str())),
+        "{t}"
+    );
+}
+
+/// The check of a single pixel of the correct tracer's image, `aa` samples a side; `None`
+/// without g++.
+fn check_pixel(scene: PathBuf, w: u32, h: u32, aa: u32, [x, y]: [u32; 2]) -> Option<Report> {
+    let exe = tracer()?;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("rays.jsonl");
+    let out = Command::new(exe)
+        .arg("-f")
+        .arg(&scene)
+        .args(["-w", &w.to_string(), "-h", &h.to_string(), "-x", &aa.to_string()])
+        .args(["--region", &format!("{x},{y},{},{}", x + 1, y + 1)])
+        .arg("--log")
+        .arg(&log)
+        .output()
+        .expect("run the C++ tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let file = rayscope_scene::load(&scene).expect("scene");
+    let scene = Scene::from_file(&file);
+    let settings = RenderSettings {
+        width: w,
+        height: h,
+        aa,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let judge = Judge::new(&scene, &settings);
+    let ctx = LogContext::new(&scene, w, h, judge.samples_per_pixel(), aa);
+    let mut src = open(&log, ctx, false, &[]).expect("open log");
+    Some(check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check"))
+}
+
+/// Where a camera ray meets the box's floor or roof exactly on its edge with a wall, the shadow
+/// rays (offset along the floor's or roof's normal) start on the wall, and the tracer's t > 0 test
+/// finds the wall at t ≈ 1e-16: rounding, which check excuses as a tie when the light is reached
+/// otherwise, but not when something else blocks it too (shadow.wrong-blocker), nor when the
+/// camera ray's tie went to the other surface (shadow.acne). Found by bench/check_course_scenes.sh.
+#[test]
+#[ignore = "check names rounding at the box's edges shadow.wrong-blocker and shadow.acne (reported to the lead)"]
+fn shadow_rays_from_the_edges_of_the_box_are_ties() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for (w, h, aa, pixel) in [
+        (400, 400, 1, [84, 315]),
+        (400, 400, 4, [358, 41]),
+        (400, 300, 4, [318, 268]),
+    ] {
+        let Some(r) = check_pixel(course.scene("sample_scene_2.txt"), w, h, aa, pixel) else {
+            return;
+        };
+        assert_eq!(r.disagree, 0, "pixel {pixel:?}:\n{}", text(&r));
+    }
+}
+
+/// A camera ray through the edge two of the bunny's triangles share: the tracer (f64) hits one
+/// 3e-6 of its barycentric range inside the edge; rayscope's trace slips through to the bunny's
+/// far side, and check calls it hit.wrong-t instead of a tie. Found by bench/check_course_scenes.sh.
+#[test]
+#[ignore = "check calls a hit on the bunny's shared edge hit.wrong-t (reported to the lead)"]
+fn a_ray_through_a_shared_edge_of_the_bunny_is_a_tie() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = check_pixel(course.scene("sample_scene_obj.txt"), 400, 400, 4, [206, 351]) else {
+        return;
+    };
+    // Only the hit: the diffuse colours there are judged with the flat normal (see above).
+    assert!(!r.verdicts.iter().any(|v| v.code == Code::HitWrongT), "{}", text(&r));
 }
