@@ -1780,6 +1780,42 @@ impl<'a> Judge<'a> {
                     ));
                     return;
                 }
+                // The origin lies on the named surface too (the point it leaves is where two
+                // surfaces meet, an edge of the box): whether that surface blocks the ray at
+                // t ≈ 0 is rounding.
+                let on_named = self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l
+                    && self
+                        .geo
+                        .entity_intersect(e, r.origin, d, -SURFACE_ROUNDING * l, SURFACE_ROUNDING * l)
+                        .is_some();
+                if on_named && leave.is_some_and(|lv| lv.entity != e) {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieEdge,
+                        format!(
+                            "it starts where '{}' meets '{}', the surface it leaves: '{}' touches its origin within rounding",
+                            self.name(e),
+                            leave.map_or("?", |lv| self.name(lv.entity)),
+                            self.name(e)
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                if on_named && leave.is_none() && r.parent.is_some() {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieEdge,
+                        format!(
+                            "it starts on '{}', at a hit of its parent ray that is itself a tie (two surfaces meet there): which surface it leaves is rounding",
+                            self.name(e)
+                        ),
+                        v,
+                    ));
+                    return;
+                }
                 if let Some(lv) = leave {
                     if e == lv.entity && on_segment.is_none() {
                         let t_self = self.geo.entity_intersect(e, r.origin, d, -pos, dist).map(|x| x.0);
