@@ -25,6 +25,7 @@ pub mod causes;
 
 pub use causes::Cause;
 mod shading;
+mod surfaces;
 
 /// The tolerances verdicts are decided with. Lengths are relative: each is multiplied by the
 /// ray's scale, max(1, the largest absolute coordinate of its origin and hit point), because
@@ -96,6 +97,10 @@ pub struct Finding {
     pub detail: String,
     /// The tracer's numbers beside rayscope's.
     pub values: Vec<Value>,
+    /// The entity a verdict on what a ray met is about (the one the tracer and rayscope
+    /// disagree on), so verdicts that gather on one entity or one kind of surface can be told.
+    #[serde(skip)]
+    pub entity: Option<u32>,
 }
 
 fn vjson(v: DVec3) -> serde_json::Value {
@@ -160,12 +165,22 @@ pub struct CauseCount {
     pub consequences: BTreeMap<Code, u64>,
     /// The first rays it is the cause on, by line.
     pub examples: Vec<Finding>,
+    /// Rays it is the cause on, per entity they are about (verdicts on what a ray met).
+    pub entities: BTreeMap<u32, u64>,
+    /// What the cause is, where it is more particular than its code's summary.
+    pub note: Option<String>,
 }
 
 impl CauseCount {
     fn merge(&mut self, o: CauseCount, keep: usize) {
         self.samples += o.samples;
         self.rays += o.rays;
+        for (e, n) in o.entities {
+            *self.entities.entry(e).or_default() += n;
+        }
+        if self.note.is_none() {
+            self.note = o.note;
+        }
         for (c, n) in o.consequences {
             *self.consequences.entry(c).or_default() += n;
         }
@@ -293,6 +308,9 @@ impl Tally {
         for &(i, c) in &sample.roots {
             let e = self.causes.entry(c).or_default();
             e.rays += 1;
+            if let Some(ent) = findings[i].iter().find(|f| !f.code.is_tie()).and_then(|f| f.entity) {
+                *e.entities.entry(ent).or_default() += 1;
+            }
             if e.examples.len() < self.keep {
                 if let Some(f) = findings[i].iter().find(|f| !f.code.is_tie()) {
                     e.examples.push(f.clone());
@@ -553,10 +571,10 @@ impl<'a> Judge<'a> {
     fn trace(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64, from: DVec3) -> Option<RsHit> {
         let h = self.oracle.closest(o, d, t_min, t_max)?;
         let un = self.geo.normal_uncertainty(h.prim, d, h.normal, scale(&[o, h.point]));
-        let shade = self
-            .geo
-            .shading_normal(h.prim, h.point)
-            .map_or(h.normal, |s| if s.dot(h.normal) < 0.0 { -s } else { s });
+        let shade =
+            self.geo
+                .shading_normal(h.prim, h.point)
+                .map_or(h.normal, |s| if s.dot(h.normal) < 0.0 { -s } else { s });
         Some(RsHit {
             prim: h.prim,
             entity: h.entity,
@@ -580,6 +598,7 @@ impl<'a> Judge<'a> {
             kind: kind.name().to_string(),
             detail,
             values,
+            entity: None,
         }
     }
 
@@ -869,6 +888,23 @@ impl<'a> Judge<'a> {
         if let Some(claim) = claim {
             let before = f.len();
             self.hit(r, &kind, claim, rs.as_ref(), leave, f, tally);
+            let claimed = match claim {
+                Answer::Found(c) => c.entity,
+                _ => None,
+            };
+            for x in &mut f[before..] {
+                x.entity = match x.code {
+                    Code::HitPhantom
+                    | Code::HitWrongT
+                    | Code::HitPointOffRay
+                    | Code::HitBehindOrigin
+                    | Code::HitNormalWrong => claimed.or(rs.map(|h| h.entity)),
+                    Code::HitMissed | Code::HitFarther | Code::HitOneSidedTriangle | Code::HitTriangleEdge => {
+                        rs.map(|h| h.entity)
+                    }
+                    _ => None,
+                };
+            }
             // After a tie the tracer's ray may go on from the other surface: its children are
             // judged on their own answers only.
             sound &= f.len() == before;
@@ -876,7 +912,21 @@ impl<'a> Judge<'a> {
         if kind == Kind::Shadow {
             if let (Some(li), blocked) = (light, r.blocked_by) {
                 if blocked != Answer::NotLogged {
+                    let before = f.len();
                     self.blocked(r, &kind, li, rs.as_ref(), t_skip, blocked, leave, f, tally);
+                    let named = match blocked {
+                        Answer::Found(e) => Some(e),
+                        _ => None,
+                    };
+                    for x in &mut f[before..] {
+                        x.entity = match x.code {
+                            Code::ShadowPhantomBlocker | Code::ShadowWrongBlocker => named,
+                            Code::ShadowMissedBlocker | Code::ShadowOneSidedTriangle | Code::HitTriangleEdge => {
+                                rs.map(|h| h.entity)
+                            }
+                            _ => None,
+                        };
+                    }
                 }
             }
         }

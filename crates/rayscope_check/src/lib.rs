@@ -302,6 +302,7 @@ pub(crate) fn run(
         progress(done, total);
     }
     tally.finish();
+    judge.fold_surfaces(&mut tally);
     let (skipped, first) = source.skipped();
     Ok(Some(Report::new(
         tally,

@@ -72,7 +72,10 @@ pub struct Consequence {
 impl CauseGroup {
     fn new(c: Cause, n: crate::judge::CauseCount) -> Self {
         let (summary, explanation) = match c.or {
-            None => (c.code.summary().to_string(), c.code.explanation().to_string()),
+            None => (
+                n.note.clone().unwrap_or_else(|| c.code.summary().to_string()),
+                c.code.explanation().to_string(),
+            ),
             Some(b) => (
                 format!("{}, or {}", c.code.summary(), b.summary()),
                 format!(

@@ -97,6 +97,9 @@ codes! {
     HitTriangleEdge = "hit.triangle-edge", false,
         "missed a triangle near its edge",
         "rayscope's trace of your ray meets a triangle a little inside one of its edges, and your tracer does not: its inside test rejects hits near the edges (a margin in the barycentric test such as u > ε or u + v < 1 − ε, or an epsilon scaled the wrong way), which leaves cracks along triangle edges and between a mesh's triangles. Accept 0 ≤ u, 0 ≤ v, u + v ≤ 1 exactly; the details say how far inside the edge the ray passes.";
+    HitSurfaceWrong = "hit.surface-wrong", false,
+        "one entity's (or one kind of surface's) intersection is wrong",
+        "Rays that meet one entity, or every entity of one kind (all the spheres, say), go wrong in several ways at once (hits where there is nothing, misses, hits at the wrong distance, wrong blockers) and no other rays do. Your intersection test for that kind of surface, or the way you build that entity (its position, size or orientation, or for a model how its vertices are read), is wrong; the rest of your tracer is not at fault. The examples give your numbers beside rayscope's: compare your test with the course's definition of the surface.";
     HitBehindOrigin = "hit.behind-origin", false,
         "hit behind the ray's origin",
         "Your tracer accepts a hit with t < 0, behind where the ray starts. Only hits with t > 0 (or t > a small epsilon) are in front of the ray; for spheres, discard negative roots: a ray that starts inside a sphere (a refracted ray in glass) has one root behind it and one ahead, and the one ahead is the hit.";

@@ -61,10 +61,6 @@ fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check")
 }
 
-/// Mistakes that show as more than one cause in a log: a model built in the wrong place is hit
-/// at other distances, missed and hit where it is not, each a separate verdict on its own ray.
-const SEVERAL_CAUSES: &[Mistake] = &[Mistake::ObjNoZFlip];
-
 #[test]
 fn every_catalogued_mistake_heads_checks_report_with_a_verdict_the_catalogue_names() {
     let Some(course) = rayscope_testkit::course() else {
@@ -100,7 +96,7 @@ fn every_catalogued_mistake_heads_checks_report_with_a_verdict_the_catalogue_nam
                 info.check
             ));
         }
-        if r.causes.len() > 1 && !SEVERAL_CAUSES.contains(&m) {
+        if r.causes.len() > 1 {
             wrong.push(format!("{}: {} headlines\n{text}", info.name, r.causes.len()));
         }
         if !first.catalogue.contains(&info.name) {

@@ -301,7 +301,7 @@ impl Mistake {
             Mistake::ShadowPastLight => &["shadow.blocked-beyond-light"],
             Mistake::FirstLightOnly => &["missing.shadow-ray"],
             Mistake::RoundedColours | Mistake::Gamma => &[],
-            Mistake::ObjNoZFlip => &["hit.wrong-t", "hit.missed", "hit.phantom"],
+            Mistake::ObjNoZFlip => &["hit.surface-wrong"],
         }
     }
 

@@ -205,6 +205,7 @@ mod tests {
             kind: "ray".into(),
             detail: String::new(),
             values: vec![],
+            entity: None,
         }
     }
 
