@@ -1005,10 +1005,12 @@ fn search(
         })
         .collect();
     let mut ranked: Vec<&(usize, Metrics)> = confirmed.iter().filter(|(_, m)| m.score() >= baseline + 3.0).collect();
+    // Between equal scores (two renders that both match once outliers are left out) the one
+    // closer pixel for pixel comes first, so the match rule cannot hide which one the image is.
     ranked.sort_by(|x, y| {
         let sx = x.1.score() - candidates[x.0].penalty();
         let sy = y.1.score() - candidates[y.0].penalty();
-        sy.total_cmp(&sx)
+        sy.total_cmp(&sx).then(y.1.psnr.total_cmp(&x.1.psnr))
     });
     // A pair is no better an explanation than its half that does as well alone, and far
     // behind the best is no explanation at all.
@@ -1125,14 +1127,25 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
             out.push_str("What explains it (best first):\n");
             for (i, e) in d.explanations.iter().enumerate() {
                 let verb = if e.matches { "matches" } else { "comes closest to" };
-                let how = if e.robust_db.is_infinite() {
-                    format!("exactly (was {})", db(d.robust_db))
+                // What the image was before, in the measure that shows a difference.
+                let was = if d.robust_db.is_infinite() {
+                    format!("{} pixel for pixel", db(d.psnr_db))
+                } else {
+                    db(d.robust_db)
+                };
+                let how = if e.psnr_db.is_infinite() {
+                    format!("exactly (was {was})")
+                } else if e.robust_db.is_infinite() {
+                    format!(
+                        "at {} pixel for pixel, identical without the worst 1 % of pixels (was {was})",
+                        db(e.psnr_db)
+                    )
                 } else {
                     format!(
                         "at {} ({} downsampled; was {})",
                         db(e.robust_db),
                         db(e.psnr_downsampled_db),
-                        db(d.robust_db)
+                        was
                     )
                 };
                 out.push_str(&format!(
