@@ -278,6 +278,13 @@ impl Candidate {
                             format!("-x {n}"),
                             format!("-x {n} instead of -x {} (anti-aliasing)", base.aa),
                         ),
+                        SettingChange::MaxDepth(d) if base.depth_limit == DepthLimit::All => (
+                            format!("--depth-limit mirror-glass --max-depth {d}"),
+                            format!(
+                                "a recursion limit of {d} for mirrors and glass only instead of {} for every material",
+                                base.max_depth
+                            ),
+                        ),
                         SettingChange::MaxDepth(d) => (
                             format!("--max-depth {d}"),
                             if d == 3 {
