@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
 use rayscope_core::settings::Limits;
-use rayscope_core::{CameraSettings, Channel, FovAxis, RenderSettings, Stage};
+use rayscope_core::{CameraSettings, Channel, DepthLimit, Edition, FovAxis, RenderSettings, Stage};
 
 /// Renders with more samples than this (counting `-x` grid positions, 16 a pixel at 64
 /// megapixels) need `--allow-large`.
@@ -103,6 +103,26 @@ pub enum FovAxisArg {
     Horizontal,
     /// The angle spans the image height (the Unity workshop).
     Vertical,
+}
+
+/// Course edition flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum EditionArg {
+    /// The 2021 course: a glass (Refractive) colour plays no part.
+    #[value(name = "2021")]
+    Y2021,
+    /// The 2022 course, the current template: a glass colour is Beer's-law absorbance (stage 3 F).
+    #[value(name = "2022")]
+    Y2022,
+}
+
+/// Recursion-limit semantics flag.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum DepthLimitArg {
+    /// A mirror or glass hit on a ray of depth N or more returns black; other hits are shaded.
+    MirrorGlass,
+    /// Every ray of depth over N returns black, whatever it hits.
+    All,
 }
 
 /// Debug channel flag.
@@ -271,9 +291,21 @@ pub struct RenderOpts {
     /// Which image side the field of view spans.
     #[arg(long = "fov-axis", value_enum, default_value_t = FovAxisArg::Horizontal)]
     pub fov_axis: FovAxisArg,
-    /// Most secondary bounces for mirrors and glass.
-    #[arg(long = "max-depth", default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=1000))]
+    /// Most secondary bounces for mirrors and glass (N; see --depth-limit).
+    #[arg(long = "max-depth", default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=1000), value_name = "N")]
     pub max_depth: u32,
+    /// What --max-depth N stops. The camera ray has depth 0 and each reflected, refracted or
+    /// bounce ray one more than the ray whose hit sent it. mirror-glass: a mirror or glass hit on
+    /// a ray of depth N or more returns black (-l's bounces do not count). all: every ray of depth
+    /// over N returns black whatever it hits, -l's bounces counted, as `if (depth > maxDepth)
+    /// return black` at the top of Trace(ray, depth). Whitted (stage 2) images are the same
+    /// under both.
+    #[arg(long = "depth-limit", value_enum, default_value_t = DepthLimitArg::MirrorGlass, value_name = "RULE")]
+    pub depth_limit: DepthLimitArg,
+    /// The course edition the scene is read by: 2021 (a glass colour plays no part) or 2022 (a
+    /// glass colour is Beer's-law absorbance per unit distance, stage 3 F).
+    #[arg(long, value_enum, default_value_t = EditionArg::Y2022, value_name = "YEAR")]
+    pub edition: EditionArg,
     /// Seed for every random stream.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -323,6 +355,14 @@ impl RenderOpts {
             ambient: self.ambient,
             quality: self.quality,
             max_depth: self.max_depth,
+            depth_limit: match self.depth_limit {
+                DepthLimitArg::MirrorGlass => DepthLimit::MirrorGlass,
+                DepthLimitArg::All => DepthLimit::All,
+            },
+            edition: match self.edition {
+                EditionArg::Y2021 => Edition::Y2021,
+                EditionArg::Y2022 => Edition::Y2022,
+            },
             camera: CameraSettings {
                 position: self.cam_pos,
                 axis: if axis == glam::DVec3::ZERO {

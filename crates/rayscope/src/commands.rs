@@ -156,7 +156,16 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     check_writable(&out_path(farm.frames.map(|(a, _)| a))).map_err(|e| Failure::input(e.to_string()))?;
     // Before loading: the BVH build already uses the pool.
     setup_threads(opts);
-    let mut scene_file = load_file(file, opts.quiet)?;
+    // The note on what a glass colour means comes first, before the scene's warnings.
+    let mut scene_file = load_file(file, true)?;
+    if !opts.quiet {
+        if let Some(note) = rayscope_core::edition::glass_colour_note(&scene_file, &base) {
+            eprintln!("{note}");
+        }
+        for w in &scene_file.warnings {
+            eprintln!("{w}");
+        }
+    }
     let hash = match farm.part {
         Some(_) => Some(farm::scene_hash(&scene_file).map_err(Failure::input)?),
         None => None,
@@ -318,6 +327,12 @@ fn replay_flags(o: &RenderOpts) -> String {
     ));
     if o.fov_axis == crate::cli::FovAxisArg::Vertical {
         s.push_str(" --fov-axis vertical");
+    }
+    if o.depth_limit == crate::cli::DepthLimitArg::All {
+        s.push_str(" --depth-limit all");
+    }
+    if o.edition == crate::cli::EditionArg::Y2021 {
+        s.push_str(" --edition 2021");
     }
     if o.aov != crate::cli::ChannelArg::Color {
         s.push_str(&format!(" --aov {}", format!("{:?}", o.aov).to_lowercase()));

@@ -145,3 +145,117 @@ fn the_manual_lists_every_mistake() {
         );
     }
 }
+
+/// `rayscope diagnose --json` of `image` against `scene` with `flags`, expecting exit `code`.
+fn diagnosis(scene: &std::path::Path, image: &std::path::Path, flags: &[&str], code: i32) -> serde_json::Value {
+    let out = rayscope()
+        .args(["diagnose", "--json"])
+        .args(flags)
+        .arg("-f")
+        .arg(scene)
+        .arg(image)
+        .assert()
+        .code(code)
+        .get_output()
+        .stdout
+        .clone();
+    serde_json::from_slice(&out).expect("JSON")
+}
+
+#[test]
+fn a_2021_image_matches_without_flags_and_names_its_edition() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let scene = course.scene("sample_scene_2_2021.txt");
+    let old = dir.path().join("2021.png");
+    let now = dir.path().join("2022.png");
+    render(&scene, &old, &["-w", "64", "-h", "64", "--stage", "2"]);
+    render(&scene, &now, &["-w", "64", "-h", "64"]);
+
+    // A 2021 student's Whitted image: glass colour ignored, as at stage 2.
+    let d = diagnosis(&scene, &old, &[], 0);
+    assert_eq!(d["matches"], true, "{d:#}");
+    assert_eq!(d["edition"], "2021", "{d:#}");
+    assert_eq!(d["edition_changed"], true, "{d:#}");
+    rayscope()
+        .args(["diagnose", "-f"])
+        .arg(&scene)
+        .arg(&old)
+        .assert()
+        .code(0)
+        .stdout(
+            predicate::str::contains("Your image matches rayscope's render")
+                .and(predicate::str::contains("2021 edition"))
+                .and(predicate::str::contains("add --edition 2021")),
+        );
+    // The same image, diagnosed as 2021 on purpose: no advice to change the flags.
+    let d = diagnosis(&scene, &old, &["--edition", "2021"], 0);
+    assert_eq!(
+        (d["edition"].as_str(), d["edition_changed"].as_bool()),
+        (Some("2021"), Some(false))
+    );
+    // An image with Beer's law is the 2022 edition's.
+    let d = diagnosis(&scene, &now, &["--edition", "2021"], 0);
+    assert_eq!(
+        (d["edition"].as_str(), d["edition_changed"].as_bool()),
+        (Some("2022"), Some(true)),
+        "{d:#}"
+    );
+    // A scene whose glass is clear has one reading.
+    let clear = course.scene("sample_scene_2.txt");
+    let img = dir.path().join("clear.png");
+    render(&clear, &img, &["-w", "64", "-h", "64"]);
+    assert!(diagnosis(&clear, &img, &[], 0)["edition"].is_null());
+}
+
+#[test]
+fn an_every_material_depth_limit_is_explained_not_matched() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = common::scenes("whitted.txt");
+    let img = dir.path().join("all3.png");
+    let flags = ["-w", "48", "-h", "48", "-l"];
+    render(
+        &scene,
+        &img,
+        &[&flags[..], &["--depth-limit", "all", "--max-depth", "3"]].concat(),
+    );
+    let d = diagnosis(&scene, &img, &["-l", "--no-pairs"], 1);
+    assert_eq!(d["matches"], false, "{d:#}");
+    let e = &d["explanations"][0];
+    assert_eq!(e["settings"][0], "--depth-limit all --max-depth 3", "{d:#}");
+    assert!(e["psnr_db"].is_null(), "rayscope's own render is exact: {d:#}");
+    assert!(
+        e["flags"].as_str().unwrap().contains("--depth-limit all --max-depth 3"),
+        "{d:#}"
+    );
+    assert!(e["summary"].as_str().unwrap().contains("every material"), "{d:#}");
+
+    // Emissive light found by a sampled ray, through glass: at 64×64 the two limits of 3 differ
+    // in a few pixels, few enough for the match rule's 1 % allowance, which must not hide them.
+    let scene = common::scenes("beer.txt");
+    let img = dir.path().join("beer3.png");
+    let flags = ["-w", "64", "-h", "64", "--max-depth", "3"];
+    render(&scene, &img, &[&flags[..], &["--depth-limit", "all"]].concat());
+    let mirror_glass = render(&scene, &dir.path().join("mg3.png"), &flags);
+    let (_, differing) = common::psnr(&common::rgb(&img), &mirror_glass);
+    assert!(
+        (1..41).contains(&differing),
+        "under 1 % of the pixels differ: {differing}"
+    );
+    for flags in [&["--max-depth", "3"][..], &[]] {
+        let d = diagnosis(&scene, &img, flags, 1);
+        assert_eq!(d["matches"], false, "{flags:?}: {d:#}");
+        let e = &d["explanations"][0];
+        assert_eq!(e["settings"][0], "--depth-limit all --max-depth 3", "{flags:?}: {d:#}");
+        assert!(e["psnr_db"].is_null(), "{flags:?}: {d:#}");
+    }
+    rayscope()
+        .args(["diagnose", "--max-depth", "3", "-f"])
+        .arg(&scene)
+        .arg(&img)
+        .assert()
+        .code(1)
+        .stdout(predicate::str::contains("for every material").and(predicate::str::contains("exactly")));
+}

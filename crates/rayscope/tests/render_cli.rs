@@ -412,3 +412,67 @@ fn bench_rays_counts_hits_the_same_in_every_mode() {
     assert_eq!(means[1], 3.0, "{line}");
     assert!(means[0] >= 5.0, "{line}");
 }
+
+/// A stage-2 scene whose glass has a colour, as the 2021 course's scenes and many students'
+/// final scenes give it.
+const TINTED_GLASS: &str = "Material \"Glass\" Refractive (1, 1, 1) 1.4\nMaterial \"Red\" Diffuse (1, 0.2, 0.2) 1\nMaterial \"White\" Diffuse (1, 1, 1) 1\nPlane \"Floor\" (0, -1, 0) (0, 1, 0) \"White\"\nPlane \"Back\" (0, 0, 6) (0, 0, -1) \"Red\"\nSphere \"Ball\" (0, 0, 3) 0.8 \"Glass\"\nPointLight \"L\" (0, 3, 1) (1, 1, 1)\n";
+
+#[test]
+fn coloured_glass_follows_the_edition_and_the_first_line_says_which() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("tinted.txt");
+    fs::write(&scene, TINTED_GLASS).unwrap();
+    let run = |name: &str, flags: &[&str]| -> (String, image::RgbImage) {
+        let out = dir.path().join(name);
+        let o = rayscope()
+            .args(["-w", "32", "-h", "32", "-f"])
+            .arg(&scene)
+            .arg("-o")
+            .arg(&out)
+            .args(flags)
+            .assert()
+            .success()
+            .get_output()
+            .clone();
+        assert!(o.stdout.is_empty(), "stdout stays empty");
+        (String::from_utf8(o.stderr).unwrap(), common::rgb(&out))
+    };
+    let (now, beer) = run("2022.png", &[]);
+    let first = now.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with("note: glass 'Glass'") && first.contains("Beer") && first.contains("--edition 2021"),
+        "{now}"
+    );
+    let (then, clear) = run("2021.png", &["--edition", "2021"]);
+    let first = then.lines().next().unwrap_or_default();
+    assert!(
+        first.contains("plays no part") && first.contains("--edition 2022"),
+        "{then}"
+    );
+    let (quiet, stage2) = run("s2.png", &["--stage", "2", "--quiet"]);
+    assert_eq!(quiet, "");
+    assert_eq!(clear, stage2, "in 2021 the glass colour plays no part, as at stage 2");
+    assert!(common::psnr(&beer, &clear).1 > 0, "in 2022 the colour absorbs");
+
+    // Clear glass, or tinted glass in a scene that is stage 3 anyway: no doubt, no note.
+    fs::write(&scene, TINTED_GLASS.replace("(1, 1, 1) 1.4", "(0, 0, 0) 1.4")).unwrap();
+    assert!(!run("c.png", &[]).0.contains("note:"));
+    fs::write(&scene, TINTED_GLASS).unwrap();
+    assert!(!run("l.png", &["-l"]).0.contains("note:"));
+}
+
+#[test]
+fn depth_limit_all_stops_every_ray_past_the_depth() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = scenes("whitted.txt");
+    let flags = ["-w", "32", "-h", "32", "--max-depth", "3"];
+    let img = |name: &str, extra: &[&str]| render(&scene, &dir.path().join(name), &[&flags[..], extra].concat());
+    // Mirrors and glass alone: stopping them at depth 3, or every ray past depth 3, is one image.
+    assert_eq!(img("mg.png", &[]), img("all.png", &["--depth-limit", "all"]));
+    // With -l the diffuse bounces count too, and past depth 3 they bring nothing.
+    let mg = img("mgl.png", &["-l"]);
+    let all = img("alll.png", &["-l", "--depth-limit", "all"]);
+    assert!(common::psnr(&mg, &all).1 > 0, "-l bounces past depth 3 are cut");
+    let light = |i: &image::RgbImage| i.as_raw().iter().map(|&c| u64::from(c)).sum::<u64>();
+    assert!(light(&all) < light(&mg), "the cut paths' light is missing");
+}

@@ -26,6 +26,7 @@ use serde::{Serialize, Serializer};
 
 use crate::camera::FovAxis;
 use crate::compare::compare_rgb8;
+use crate::edition::edition_matters;
 use crate::film::to_byte;
 use crate::integrator::{Counters, Integrator};
 use crate::material::Material;
@@ -33,7 +34,7 @@ use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayTree};
 use crate::render::{render, trace_pixel, Mistaken};
 use crate::scene::{Intersect, Scene};
-use crate::settings::{Channel, RenderSettings, Stage};
+use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
 
 /// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
 /// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
@@ -138,8 +139,15 @@ pub struct Explanation {
 /// What [`diagnose`] found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Diagnosis {
-    /// True when the image matches rayscope's render under the given settings.
+    /// True when the image matches rayscope's render under the given settings (in
+    /// [`Self::edition`] where the search chose one).
     pub matches: bool,
+    /// The course edition the image was judged by, where the scene's coloured glass makes the
+    /// editions differ: the one whose render the image is closer to, searched whatever the
+    /// flags say ("2021" or "2022"); null where both give the same render.
+    pub edition: Option<String>,
+    /// The edition the flags asked for was not the one the image follows.
+    pub edition_changed: bool,
     /// PSNR of the image against rayscope's render (null when identical).
     #[serde(serialize_with = "ser_db")]
     pub psnr_db: f64,
@@ -206,6 +214,8 @@ pub enum DiagnoseError {
 enum SettingChange {
     Aa(u32),
     MaxDepth(u32),
+    /// `--depth-limit all --max-depth N`: every ray deeper than N returns black.
+    DepthAll(u32),
     Fov(FovAxis),
 }
 
@@ -226,7 +236,14 @@ impl Candidate {
         for a in &self.0 {
             match *a {
                 Atom::Setting(SettingChange::Aa(n)) => s.aa = n,
-                Atom::Setting(SettingChange::MaxDepth(d)) => s.max_depth = d,
+                Atom::Setting(SettingChange::MaxDepth(d)) => {
+                    s.max_depth = d;
+                    s.depth_limit = DepthLimit::MirrorGlass;
+                }
+                Atom::Setting(SettingChange::DepthAll(d)) => {
+                    s.max_depth = d;
+                    s.depth_limit = DepthLimit::All;
+                }
                 Atom::Setting(SettingChange::Fov(f)) => s.camera.fov_axis = f,
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
             }
@@ -261,6 +278,13 @@ impl Candidate {
                             format!("-x {n}"),
                             format!("-x {n} instead of -x {} (anti-aliasing)", base.aa),
                         ),
+                        SettingChange::MaxDepth(d) if base.depth_limit == DepthLimit::All => (
+                            format!("--depth-limit mirror-glass --max-depth {d}"),
+                            format!(
+                                "a recursion limit of {d} for mirrors and glass only instead of {} for every material",
+                                base.max_depth
+                            ),
+                        ),
                         SettingChange::MaxDepth(d) => (
                             format!("--max-depth {d}"),
                             if d == 3 {
@@ -272,6 +296,13 @@ impl Candidate {
                             } else {
                                 format!("a recursion limit of {d} instead of {}", base.max_depth)
                             },
+                        ),
+                        SettingChange::DepthAll(d) => (
+                            format!("--depth-limit all --max-depth {d}"),
+                            format!(
+                                "a recursion limit of {d} for every material (each ray deeper than {d} returns black, whatever it hits) instead of {} for mirrors and glass only",
+                                base.max_depth
+                            ),
                         ),
                         SettingChange::Fov(f) => {
                             let name = match f {
@@ -321,8 +352,14 @@ fn render_flags(s: &RenderSettings) -> String {
     if s.aa != 1 {
         f.push_str(&format!(" -x {}", s.aa));
     }
-    if s.max_depth != RenderSettings::default().max_depth {
+    if s.depth_limit == DepthLimit::All {
+        f.push_str(" --depth-limit all");
+    }
+    if s.max_depth != RenderSettings::default().max_depth || s.depth_limit == DepthLimit::All {
         f.push_str(&format!(" --max-depth {}", s.max_depth));
+    }
+    if s.edition != Edition::default() {
+        f.push_str(&format!(" --edition {}", s.edition.year()));
     }
     if s.camera.fov_axis == FovAxis::Vertical {
         f.push_str(" --fov-axis vertical");
@@ -338,7 +375,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
     use Mistake as M;
     let group = |x: Atom| match x {
         Atom::Setting(SettingChange::Aa(_)) => 1,
-        Atom::Setting(SettingChange::MaxDepth(_)) => 2,
+        Atom::Setting(SettingChange::MaxDepth(_) | SettingChange::DepthAll(_)) => 2,
         Atom::Setting(SettingChange::Fov(_)) => 3,
         Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
         Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick) => 5,
@@ -352,6 +389,8 @@ fn exclusive(a: Atom, b: Atom) -> bool {
 struct Contents {
     glass: bool,
     specular: bool,
+    /// Emissive or Glossy surfaces: in the full renderer their hits send rays of their own.
+    sampled: bool,
     triangles: bool,
     single_triangles: bool,
     meshes: bool,
@@ -373,6 +412,7 @@ impl Contents {
             glass: used(Material::is_glass),
             // Mirrors and glass: what sends reflection rays at stage 2.
             specular: used(|m| m.sends_reflection_rays(Stage::Two)),
+            sampled: used(|m| m.emission().is_some() || m.scatters_at_random()),
             single_triangles: file.entities.iter().any(|e| matches!(e.shape, Shape::Triangle { .. })),
             triangles: file
                 .entities
@@ -417,17 +457,7 @@ fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
             out.push(Atom::Setting(SettingChange::Aa(n)));
         }
     }
-    if contents.specular {
-        let mut depths: Vec<u32> = (1..=5).collect();
-        if base.max_depth <= 5 {
-            depths.push(8);
-        }
-        for d in depths {
-            if d != base.max_depth {
-                out.push(Atom::Setting(SettingChange::MaxDepth(d)));
-            }
-        }
-    }
+    out.extend(depth_atoms(contents, base));
     if base.width != base.height {
         let other = match base.camera.fov_axis {
             FovAxis::Horizontal => FovAxis::Vertical,
@@ -438,6 +468,37 @@ fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
     for m in Mistake::ALL {
         if contents.shows(m, base) && !base.mistakes.has(m) {
             out.push(Atom::Mistake(m));
+        }
+    }
+    out
+}
+
+/// The recursion limits worth trying: other depths for mirrors and glass, and where the full
+/// renderer sends rays from other surfaces too (`-l`, emissive or glossy surfaces), every
+/// material stopped at a depth (at stage 2 that is the same image as some mirror-glass depth).
+fn depth_atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
+    let mut out = Vec::new();
+    let mut depths: Vec<u32> = (1..=5).collect();
+    if base.max_depth <= 5 {
+        depths.push(8);
+    }
+    let mirror_glass = base.depth_limit == DepthLimit::MirrorGlass;
+    if contents.specular {
+        for &d in &depths {
+            if d != base.max_depth || !mirror_glass {
+                out.push(Atom::Setting(SettingChange::MaxDepth(d)));
+            }
+        }
+    }
+    let full = base.stage == Stage::Full;
+    if full && (base.ambient || contents.sampled) {
+        if !depths.contains(&base.max_depth) {
+            depths.push(base.max_depth);
+        }
+        for d in depths {
+            if d != base.max_depth || mirror_glass {
+                out.push(Atom::Setting(SettingChange::DepthAll(d)));
+            }
         }
     }
     out
@@ -683,7 +744,7 @@ pub fn diagnose(
     if image.rgb.len() != image.width as usize * image.height as usize * 3 {
         return Err(DiagnoseError::Buffer(image.rgb.len()));
     }
-    let base = RenderSettings {
+    let mut base = RenderSettings {
         channel: Channel::Color,
         ..*settings
     };
@@ -699,10 +760,29 @@ pub fn diagnose(
             .map(|o| o.film.to_rgb8())
             .unwrap_or_default()
     };
-    let ours = full(&scenes, &base);
+    let mut ours = full(&scenes, &base);
+    let mut m0 = Metrics::of(&ours, image.rgb, w, h, BLOCK, true);
+    // The edition is a free setting: a scene with coloured glass is judged by the edition whose
+    // render the image is closer to, whatever the flags say.
+    let edition = edition_matters(file, &base).then(|| {
+        let other = RenderSettings {
+            edition: match base.edition {
+                Edition::Y2021 => Edition::Y2022,
+                Edition::Y2022 => Edition::Y2021,
+            },
+            ..base
+        };
+        let theirs = full(&scenes, &other);
+        let m = Metrics::of(&theirs, image.rgb, w, h, BLOCK, true);
+        if (m.score(), m.psnr) > (m0.score(), m0.psnr) {
+            base = other;
+            ours = theirs;
+            m0 = m;
+        }
+        base.edition
+    });
     let cmp = compare_rgb8(&ours, image.rgb);
-    let m0 = Metrics::of(&ours, image.rgb, w, h, BLOCK, true);
-    let matches = m0.robust >= MATCH_DB;
+    let mut matches = m0.robust >= MATCH_DB;
 
     let (differing, threshold) = differing_pixels(&ours, image.rgb);
     let region = (!differing.is_empty()).then(|| {
@@ -721,21 +801,33 @@ pub fn diagnose(
         }
         r
     });
+    let mut explanations = Vec::new();
+    let mut tried = 1 + usize::from(edition.is_some());
+    if matches && m0.psnr.is_finite() {
+        // A match with pixels left over: the match rule must not hide a recursion limit, whose
+        // differences are few pixels deep in mirrors or bounces.
+        let contents = Contents::of(scenes.file);
+        let depths = depth_atoms(&contents, &base);
+        tried += depths.len();
+        if let Some(e) = closer_depth(&scenes, &base, image, &depths, &full, m0.psnr) {
+            matches = false;
+            explanations.push(e);
+        }
+    }
     let attribution = if matches {
         Vec::new()
     } else {
         attribution(scenes.get(base.mistakes), &base, &differing)
     };
-
-    let mut explanations = Vec::new();
-    let mut tried = 1;
-    if !matches {
+    if !matches && explanations.is_empty() {
         let (found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
         explanations = found;
         tried += n;
     }
     Ok(Diagnosis {
         matches,
+        edition: edition.map(|e| e.year().to_string()),
+        edition_changed: edition.is_some_and(|e| e != settings.edition),
         psnr_db: cmp.psnr,
         robust_db: m0.robust,
         psnr_downsampled_db: m0.blurred,
@@ -749,6 +841,32 @@ pub fn diagnose(
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The recursion limit among `depths` whose full render is closest to `image`, pixel for pixel,
+/// when it is at least 3 dB closer than `psnr` (the image's PSNR against `base`) and matches.
+fn closer_depth(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    depths: &[Atom],
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    psnr: f64,
+) -> Option<Explanation> {
+    let (w, h) = (base.width, base.height);
+    let tried: Vec<(Candidate, Metrics)> = depths
+        .par_iter()
+        .map(|&a| {
+            let c = Candidate(vec![a]);
+            let m = Metrics::of(&full(scenes, &c.settings(base)), image.rgb, w, h, BLOCK, true);
+            (c, m)
+        })
+        .collect();
+    let (c, m) = tried
+        .into_iter()
+        .filter(|(_, m)| m.psnr >= psnr + 3.0 && m.robust >= MATCH_DB)
+        .max_by(|a, b| (a.1.psnr - a.0.penalty()).total_cmp(&(b.1.psnr - b.0.penalty())))?;
+    Some(c.explain(base, m))
 }
 
 /// The pixels where two RGB8 images differ, as indices (row-major), and the threshold used:
@@ -894,10 +1012,12 @@ fn search(
         })
         .collect();
     let mut ranked: Vec<&(usize, Metrics)> = confirmed.iter().filter(|(_, m)| m.score() >= baseline + 3.0).collect();
+    // Between equal scores (two renders that both match once outliers are left out) the one
+    // closer pixel for pixel comes first, so the match rule cannot hide which one the image is.
     ranked.sort_by(|x, y| {
         let sx = x.1.score() - candidates[x.0].penalty();
         let sy = y.1.score() - candidates[y.0].penalty();
-        sy.total_cmp(&sx)
+        sy.total_cmp(&sx).then(y.1.psnr.total_cmp(&x.1.psnr))
     });
     // A pair is no better an explanation than its half that does as well alone, and far
     // behind the best is no explanation at all.
@@ -952,6 +1072,22 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         }
     };
     let mut out = String::new();
+    let edition = match d.edition.as_deref() {
+        Some(year) => {
+            let reading = if year == "2021" {
+                "where a glass colour plays no part"
+            } else {
+                "where a glass colour is Beer's-law absorbance"
+            };
+            let flag = if d.edition_changed {
+                format!(", not the edition the flags ask for: add --edition {year}")
+            } else {
+                String::new()
+            };
+            format!("Read as the {year} edition of the course ({reading}; --edition {year}){flag}.\n")
+        }
+        None => String::new(),
+    };
     if d.matches {
         out.push_str(&format!(
             "Your image matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
@@ -961,6 +1097,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
             d.total_pixels,
             d.threshold
         ));
+        out.push_str(&edition);
         return out;
     }
     out.push_str(&format!(
@@ -974,6 +1111,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         d.threshold,
         d.max_channel_diff
     ));
+    out.push_str(&edition);
     if let Some(r) = d.region {
         out.push_str(&format!(
             "The differences lie in columns {}–{}, rows {}–{}.\n",
@@ -996,14 +1134,25 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
             out.push_str("What explains it (best first):\n");
             for (i, e) in d.explanations.iter().enumerate() {
                 let verb = if e.matches { "matches" } else { "comes closest to" };
-                let how = if e.robust_db.is_infinite() {
-                    format!("exactly (was {})", db(d.robust_db))
+                // What the image was before, in the measure that shows a difference.
+                let was = if d.robust_db.is_infinite() {
+                    format!("{} pixel for pixel", db(d.psnr_db))
+                } else {
+                    db(d.robust_db)
+                };
+                let how = if e.psnr_db.is_infinite() {
+                    format!("exactly (was {was})")
+                } else if e.robust_db.is_infinite() {
+                    format!(
+                        "at {} pixel for pixel, identical without the worst 1 % of pixels (was {was})",
+                        db(e.psnr_db)
+                    )
                 } else {
                     format!(
                         "at {} ({} downsampled; was {})",
                         db(e.robust_db),
                         db(e.psnr_downsampled_db),
-                        db(d.robust_db)
+                        was
                     )
                 };
                 out.push_str(&format!(

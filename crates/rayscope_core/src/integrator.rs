@@ -12,6 +12,11 @@
 //! * **Whitted core.** Without stage-3 content or flags the full renderer is exactly stage 2:
 //!   point lights use the course's Σ max(0, N·L)·Cm·Cl (no attenuation), mirrors and Fresnel
 //!   glass recurse up to `max_depth`, glass splits into a reflected and a refracted ray.
+//! * **Recursion limit.** The camera ray has depth 0, every reflected, refracted or bounce ray
+//!   one more than its parent. By default ([`DepthLimit::MirrorGlass`]) a mirror or glass hit on
+//!   a ray of depth ≥ `max_depth` returns black and `-l`'s bounces do not count (Russian
+//!   roulette ends them); with [`DepthLimit::All`] every ray of depth > `max_depth` returns
+//!   black, `-l`'s bounces counted too. Whitted images are the same under both.
 //! * **Emissive (A).** Spheres and triangles with an Emissive material are two-sided area lights
 //!   whose colour is their radiance; they show that colour and are not shaded by other lights.
 //!   At every Diffuse or Glossy hit one emitter point is sampled (emitter chosen by power, a
@@ -32,7 +37,8 @@
 //!   recursively (blurred reflections of the scene, up to `max_depth`) while the base gets
 //!   direct light only; point lights are evaluated with the whole BRDF, π·f·Cl·max(0, N·L).
 //! * **Beer (F).** A ray travelling inside a Refractive object whose colour σ is non-zero is
-//!   attenuated by exp(−σ·d) per channel over the distance d it travels inside.
+//!   attenuated by exp(−σ·d) per channel over the distance d it travels inside; not in the
+//!   2021 edition ([`crate::settings::Edition`]), whose glass colour plays no part.
 //! * **Quality (`-q`).** Each of the `-x N` grid cells gets 2^q paths when a stochastic
 //!   effect is on (emissive or glossy surfaces, `-l`, or an aperture), else one; sample `s`
 //!   of a pixel is grid cell `s mod N²` and path `s div N²`, with its own random stream. With a
@@ -52,7 +58,7 @@ use crate::mistakes::Mistake;
 use crate::rng::Rng;
 pub(crate) use crate::sampling::concentric_disk;
 use crate::scene::{Intersect, Scene};
-use crate::settings::{Channel, RenderSettings, Stage};
+use crate::settings::{Channel, DepthLimit, RenderSettings, Stage};
 
 mod camera_packets;
 mod one_path;
@@ -227,7 +233,10 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             cells: Vec::new(),
             beams: Beams::default(),
             lone_spheres: Vec::new(),
-            media: scene.materials.iter().any(|m| m.absorbs(settings.stage)),
+            media: scene
+                .materials
+                .iter()
+                .any(|m| m.absorbs(settings.stage, settings.edition)),
             cancel: &NEVER_CANCELLED,
         }
         .with_point_lit()
@@ -250,7 +259,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// The engine this render's samples take, by this rule: debug channels, and intersectors
     /// whose packet queries are not faster than single rays ([`Intersect::PACKETS`]: the parry3d
-    /// reference, renders with mistakes), go [`Engine::OnePath`]; a render with nothing
+    /// reference, renders with mistakes), and `--depth-limit all` (whose rule only this engine
+    /// applies) go [`Engine::OnePath`]; a render with nothing
     /// stochastic goes [`Engine::Packets`]; a stochastic one (only the full stage has stochastic
     /// effects) goes [`Engine::Waves`]. The render loop turns `Waves` into
     /// [`Engine::CameraPackets`] for the remaining tiles when the first tiles' waves shaded too
@@ -258,7 +268,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// Recorded samples ([`crate::render::trace_pixel`]) always go one path at a time.
     #[must_use]
     pub fn engine(&self) -> Engine {
-        if !I::PACKETS || self.settings.channel != Channel::Color {
+        if !I::PACKETS || self.settings.channel != Channel::Color || self.settings.depth_limit == DepthLimit::All {
             Engine::OnePath
         } else if self.stochastic {
             Engine::Waves

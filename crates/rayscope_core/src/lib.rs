@@ -9,6 +9,7 @@ pub mod bsdf;
 pub mod camera;
 pub mod compare;
 pub mod diagnose;
+pub mod edition;
 pub mod farm;
 pub(crate) mod film;
 pub mod geometry;
@@ -38,4 +39,4 @@ pub use observer::{
 };
 pub use render::{render, render_tiles_of, render_with, trace_pixel, trace_pixel_with, Cancelled, RenderOutput};
 pub use scene::Scene;
-pub use settings::{Channel, RenderSettings, Stage};
+pub use settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};

@@ -10,7 +10,7 @@ use glam::{Vec3, Vec3A};
 use rayscope_scene::{MaterialDef, MaterialKind};
 use serde::Serialize;
 
-use crate::settings::Stage;
+use crate::settings::{Edition, Stage};
 
 /// A material as the integrators use it.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
@@ -71,11 +71,12 @@ impl Material {
     }
 
     /// True when light passing through this material is absorbed along the way (Beer's law,
-    /// from the colour) at `stage`: coloured glass in the full renderer.
+    /// from the colour) at `stage` in `edition`: coloured glass in the full renderer, from the
+    /// 2022 course on (in 2021 the glass colour played no part).
     #[must_use]
-    pub(crate) fn absorbs(&self, stage: Stage) -> bool {
+    pub(crate) fn absorbs(&self, stage: Stage, edition: Edition) -> bool {
         match self.kind {
-            MaterialKind::Refractive => stage == Stage::Full && self.color != Vec3::ZERO,
+            MaterialKind::Refractive => stage == Stage::Full && edition != Edition::Y2021 && self.color != Vec3::ZERO,
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive | MaterialKind::Glossy => false,
         }
     }
@@ -149,10 +150,15 @@ mod tests {
     #[test]
     fn only_coloured_glass_absorbs_and_only_in_the_full_renderer() {
         let tinted = material(MaterialKind::Refractive, Vec3::new(0.5, 0.0, 0.0));
-        assert!(tinted.absorbs(Stage::Full));
-        assert!(!tinted.absorbs(Stage::Two), "stage 2 glass is the course's, clear");
-        assert!(!material(MaterialKind::Refractive, Vec3::ZERO).absorbs(Stage::Full));
-        assert!(!material(MaterialKind::Diffuse, Vec3::ONE).absorbs(Stage::Full));
+        let now = Edition::Y2022;
+        assert!(tinted.absorbs(Stage::Full, now));
+        assert!(!tinted.absorbs(Stage::Two, now), "stage 2 glass is the course's, clear");
+        assert!(
+            !tinted.absorbs(Stage::Full, Edition::Y2021),
+            "the 2021 course's glass colour plays no part"
+        );
+        assert!(!material(MaterialKind::Refractive, Vec3::ZERO).absorbs(Stage::Full, now));
+        assert!(!material(MaterialKind::Diffuse, Vec3::ONE).absorbs(Stage::Full, now));
     }
 
     #[test]

@@ -18,6 +18,70 @@ pub enum Stage {
     Full,
 }
 
+/// Which year's course a scene is read by: the editions differ in what a glass colour means.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+pub enum Edition {
+    /// The 2021 course: a Refractive material's colour plays no part (clear glass).
+    #[serde(rename = "2021")]
+    Y2021,
+    /// The 2022 course (the current template): a Refractive material's colour is its Beer's-law
+    /// absorbance per channel (stage 3 F).
+    #[default]
+    #[serde(rename = "2022")]
+    Y2022,
+}
+
+impl Edition {
+    /// The edition's year, as `--edition` takes it.
+    #[must_use]
+    pub fn year(self) -> u32 {
+        match self {
+            Edition::Y2021 => 2021,
+            Edition::Y2022 => 2022,
+        }
+    }
+
+    /// True for the default edition (2022).
+    #[must_use]
+    pub fn is_default(&self) -> bool {
+        *self == Edition::default()
+    }
+}
+
+/// Which hits the recursion limit (`--max-depth N`) turns black.
+///
+/// The camera ray has depth 0 and every reflected, refracted or bounce ray one more than the ray
+/// whose hit sent it (shadow rays have none).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum DepthLimit {
+    /// A Reflective or Refractive hit on a ray of depth N or more returns black; other hits are
+    /// shaded whatever their depth, and `-l`'s diffuse bounces do not count.
+    #[default]
+    MirrorGlass,
+    /// Any ray of depth over N returns black, whatever it hits: a student's
+    /// `if (depth > maxDepth) return black` at the top of `Trace(ray, depth)`, called with depth
+    /// 0 for the camera ray and depth + 1 for every ray a hit sends on, `-l`'s bounces included.
+    All,
+}
+
+impl DepthLimit {
+    /// The flag's value: `mirror-glass` or `all`.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            DepthLimit::MirrorGlass => "mirror-glass",
+            DepthLimit::All => "all",
+        }
+    }
+
+    /// True when this is the default.
+    #[must_use]
+    pub fn is_default(&self) -> bool {
+        *self == DepthLimit::default()
+    }
+}
+
 /// What a pixel shows.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -52,8 +116,14 @@ pub struct RenderSettings {
     pub ambient: bool,
     /// Quality level for stochastic effects (`-q`).
     pub quality: u32,
-    /// Most secondary bounces for mirrors and glass.
+    /// Most secondary bounces for mirrors and glass (see [`DepthLimit`]).
     pub max_depth: u32,
+    /// Which hits the recursion limit turns black.
+    #[serde(default, skip_serializing_if = "DepthLimit::is_default")]
+    pub depth_limit: DepthLimit,
+    /// The course edition the scene is read by (what a glass colour means).
+    #[serde(default, skip_serializing_if = "Edition::is_default")]
+    pub edition: Edition,
     /// Camera.
     pub camera: CameraSettings,
     /// Seed of every random stream.
@@ -75,6 +145,8 @@ impl Default for RenderSettings {
             ambient: false,
             quality: 0,
             max_depth: 8,
+            depth_limit: DepthLimit::MirrorGlass,
+            edition: Edition::Y2022,
             camera: CameraSettings::default(),
             seed: 0,
             channel: Channel::Color,

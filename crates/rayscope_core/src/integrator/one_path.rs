@@ -13,7 +13,7 @@ use crate::observer::{BranchFate, GlassBranch, GlassDecision, NoObserver, RayKin
 use crate::rng::Rng;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
 use crate::scene::{Hit, Intersect, Material};
-use crate::settings::{Channel, Stage};
+use crate::settings::{Channel, DepthLimit, Stage};
 use crate::surface::Surface;
 use rayscope_scene::MaterialKind;
 
@@ -166,6 +166,10 @@ impl<I: Intersect> Integrator<'_, I> {
         if stage == Stage::One {
             return Li::reflected(m.color.into());
         }
+        let every_material = self.settings.depth_limit == DepthLimit::All;
+        if every_material && path.depth > self.settings.max_depth {
+            return Li::default();
+        }
         let full = stage == Stage::Full;
         let out = match m.kind {
             MaterialKind::Emissive if full => Li {
@@ -193,14 +197,14 @@ impl<I: Intersect> Integrator<'_, I> {
                 ))
             }
             MaterialKind::Reflective => {
-                if path.depth >= self.settings.max_depth {
+                if !every_material && path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
                 let (r, child) = Self::mirror(ray, s, path);
                 Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, cx))
             }
             MaterialKind::Refractive => {
-                if path.depth >= self.settings.max_depth {
+                if !every_material && path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
                 Li::reflected(self.refractive(ray, s, m, path, id, cx))
@@ -467,6 +471,8 @@ impl<I: Intersect> Integrator<'_, I> {
         };
         let mut want = carry.max_element() > 0.0;
         if ambient {
+            // Under `--depth-limit all` a bounce is one level deeper like any other ray.
+            child.depth += u32::from(self.settings.depth_limit == DepthLimit::All);
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
                 let p = russian_roulette_survival(child.beta);

@@ -202,7 +202,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// The media a glass hit's reflected and refracted rays travel in.
     #[inline]
     pub(super) fn glass_media(&self, s: &Surface, m: &Material, path: PathState) -> (Option<u32>, Option<u32>) {
-        let absorbing = m.absorbs(self.settings.stage);
+        let absorbing = m.absorbs(self.settings.stage, self.settings.edition);
         let this = absorbing.then_some(s.material);
         // Reflected rays stay on the incoming side; refracted rays cross into the other medium
         // (the outside of every object is air).
