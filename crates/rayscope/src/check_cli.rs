@@ -37,6 +37,34 @@ fn nothing_judged(path: &std::path::Path, report: &rayscope_check::Report) -> Fa
     Failure::input(message)
 }
 
+/// `--image`: the picture's bytes against the colours the log's camera rays brought back, read
+/// in a second pass over the log (32 bytes a pixel, within the image's own budget).
+fn picture(
+    a: &CheckArgs,
+    png: &std::path::Path,
+    judge: &Judge<'_>,
+    roles: &[IdRole],
+) -> Result<rayscope_check::image::ImageCheck, Failure> {
+    let img = crate::commands::read_rgb8(png, a.opts.allow_large)?;
+    let s = judge.settings();
+    if (img.width(), img.height()) != (s.width, s.height) {
+        return Err(Failure::input(format!(
+            "'{}' is {}×{} but the flags ask for {}×{}: give check the -w and -h the picture was rendered with",
+            png.display(),
+            img.width(),
+            img.height(),
+            s.width,
+            s.height
+        )));
+    }
+    let ctx = LogContext::new(judge.scene(), s.width, s.height, judge.samples_per_pixel(), s.aa);
+    let mut source = rayscope_check::log::open(&a.rays, ctx, a.lenient, roles).map_err(log_failure)?;
+    let mut sums = rayscope_check::image::PixelSums::new(s.width, s.height, judge.samples_per_pixel());
+    let camera = |r: &rayscope_check::LoggedRay| judge.kind_of(r) == rayscope_check::log::Kind::Camera;
+    sums.read(source.as_mut(), &camera).map_err(log_failure)?;
+    Ok(rayscope_check::image::judge(&sums, img.as_raw(), a.examples as usize))
+}
+
 /// Runs `rayscope check`: exit 0 when every ray agrees, 1 when any disagrees, 2 for bad input
 /// or a log without a ray.
 pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
@@ -74,11 +102,14 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
     };
     let report = rayscope_check::check(&judge, source.as_mut(), opts, &progress);
     bar.finish_and_clear();
-    let report = report.map_err(log_failure)?;
-    let secs = start.elapsed().as_secs_f64();
+    let mut report = report.map_err(log_failure)?;
     if report.rays == 0 {
         return Err(nothing_judged(&a.rays, &report));
     }
+    if let Some(png) = &a.image {
+        report.image = Some(picture(a, png, &judge, &roles)?);
+    }
+    let secs = start.elapsed().as_secs_f64();
 
     let flags = replay_flags(&a.opts);
     let file = a.file.display().to_string();

@@ -621,6 +621,10 @@ pub struct CheckArgs {
     /// Examples shown per verdict.
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(0..=1000))]
     pub examples: u32,
+    /// Your tracer's picture (PNG) from the same run: its bytes are checked against the colours
+    /// your camera rays logged (clamp, trunc(v · 255), samples averaged).
+    #[arg(long, value_name = "PNG")]
+    pub image: Option<PathBuf>,
     #[command(flatten)]
     pub opts: RenderOpts,
 }

@@ -210,3 +210,61 @@ fn binary_rays_files_are_read_and_judged() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("ends inside ray 48") && err.contains("log.rays"), "{err}");
 }
+
+/// `--image`: the picture a tracer wrote beside its log. Camera rays whose logged colour is
+/// (0.5, 0.5, 0.5) make bytes 127 by the course's rule; a picture with 186 there is that colour
+/// gamma-corrected, which is the report's first line (exit 1); one of another size is refused.
+#[test]
+fn the_picture_is_checked_against_the_logged_colours() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("rays.jsonl");
+    let mut text = String::new();
+    let scene = scene1();
+    // Rays that hit something bring back grey; misses black, as the course has them.
+    let mut hits = [[false; 4]; 4];
+    for y in 0..4 {
+        for x in 0..4 {
+            let ray = camera_ray(4, 4, x, y);
+            hits[y as usize][x as usize] = scene.intersect(&ray, 0.0, f32::INFINITY).is_some();
+            let v = if hits[y as usize][x as usize] { 0.5 } else { 0.0 };
+            let d = ray.dir;
+            text.push_str(&format!(
+                "{{\"pixel\": [{x}, {y}], \"kind\": \"camera\", \"origin\": [0, 0, 0], \"direction\": [{}, {}, {}], \"color\": [{v}, {v}, {v}]}}\n",
+                d.x, d.y, d.z
+            ));
+        }
+    }
+    assert!(hits.iter().flatten().any(|&h| h), "no camera ray hits the scene");
+    write(&log, &text);
+    let picture = |grey: u8| {
+        image::RgbImage::from_fn(4, 4, |x, y| {
+            image::Rgb([if hits[y as usize][x as usize] { grey } else { 0 }; 3])
+        })
+    };
+    let png = dir.path().join("gamma.png");
+    picture(186).save(&png).expect("png");
+    let cmd = |w: &str| {
+        let mut c = rayscope();
+        c.arg("check")
+            .arg("-f")
+            .arg(rayscope_testkit::scene("basic.txt"))
+            .arg("--rays")
+            .arg(&log)
+            .args(["-w", w, "-h", "4", "--quiet", "--image"]);
+        c
+    };
+    let out = cmd("4").arg(&png).assert().code(1).get_output().stdout.clone();
+    let stdout = String::from_utf8_lossy(&out);
+    assert!(
+        stdout.lines().next().is_some_and(|l| l.contains("image.gamma")),
+        "{stdout}"
+    );
+    let right = dir.path().join("right.png");
+    picture(127).save(&right).expect("png");
+    cmd("4").arg(&right).assert().code(0);
+    cmd("5")
+        .arg(&right)
+        .assert()
+        .code(2)
+        .stderr(predicates::str::contains("4×4 but the flags ask for 5×4"));
+}

@@ -10,6 +10,7 @@
 //! a cap), for the debugger's verdict map and its side-by-side ray trees.
 
 pub mod geom;
+pub mod image;
 pub mod judge;
 pub mod log;
 pub mod oracle;

@@ -159,6 +159,8 @@ pub struct Report {
     pub verdicts: Vec<VerdictGroup>,
     /// Genuine ties, most frequent first.
     pub tie_verdicts: Vec<VerdictGroup>,
+    /// The tracer's picture against its logged colours (`check --image`).
+    pub image: Option<crate::image::ImageCheck>,
     /// The tolerances used.
     pub tolerances: Tolerances,
     /// Time spent.
@@ -208,6 +210,7 @@ impl Report {
             causes,
             verdicts,
             tie_verdicts: ties,
+            image: None,
             tolerances,
             timing,
         }
@@ -216,7 +219,12 @@ impl Report {
     /// True when no ray disagrees.
     #[must_use]
     pub fn passed(&self) -> bool {
-        self.disagree == 0
+        self.disagree == 0 && self.image.as_ref().is_none_or(|i| i.verdict.is_none())
+    }
+
+    /// The picture's verdict, when `--image` found one.
+    fn image_verdict(&self) -> Option<(Code, &crate::image::ImageCheck)> {
+        self.image.as_ref().and_then(|i| i.verdict.map(|c| (c, i)))
     }
 
     /// The report as JSON, each example with the command that shows rayscope's ray tree.
@@ -258,8 +266,11 @@ impl Report {
     /// The report's first line: the cause the most pixel samples share, or that none was found.
     #[must_use]
     pub fn headline(&self) -> String {
+        if let (None, Some((code, i))) = (self.causes.first(), self.image_verdict()) {
+            return format!("mistake: {} [{}]: {}", code.summary(), code.as_str(), i.detail);
+        }
         if let Some(c) = self.causes.first() {
-            let more = match self.causes.len() - 1 {
+            let more = match self.causes.len() - 1 + usize::from(self.image_verdict().is_some()) {
                 0 => String::new(),
                 1 => "; 1 other cause below".to_string(),
                 n => format!("; {n} other causes below"),
@@ -386,6 +397,22 @@ impl Report {
                 ) {
                     let _ = writeln!(s, "  {l}");
                 }
+            }
+        }
+        if let Some(i) = &self.image {
+            let _ = writeln!(s, "\nyour picture: {}", i.detail);
+            if let Some(code) = i.verdict {
+                let _ = writeln!(s, "\n{} — {}", code.as_str(), code.summary());
+                for l in wrap(code.explanation(), 96) {
+                    let _ = writeln!(s, "  {l}");
+                }
+            }
+            for e in &i.examples {
+                let _ = writeln!(
+                    s,
+                    "  pixel ({}, {}): your bytes {:?}, the course's conversion of your logged colour ({:.6}, {:.6}, {:.6}) is {:?}",
+                    e.pixel[0], e.pixel[1], e.yours, e.colour[0], e.colour[1], e.colour[2], e.expected
+                );
             }
         }
         if !self.tie_verdicts.is_empty() {

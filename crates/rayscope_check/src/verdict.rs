@@ -205,6 +205,27 @@ codes! {
     MissingSecondary = "missing.secondary", false,
         "mirror or glass hit without any ray before the depth limit",
         "A Reflective or Refractive hit casts its reflected (and refracted) ray until the depth limit is reached; this one has none in your log although it lies above the limit (rayscope's is --max-depth, 8 by default; the course's images need 7 to 12). Check your recursion's depth test (off by one, or a limit that is too low) and that every mirror and glass hit recurses.";
+    ImageRounded = "image.rounded", false,
+        "colours rounded to bytes instead of truncated",
+        "Your picture's bytes are your logged colours rounded to the nearest byte. The course's template truncates: byte = (byte)(Math.Min(v, 1) * 255), so 0.999 · 255 = 254.7 becomes 254. About half the pixels come out one level too bright; invisible by eye, but not an exact match.";
+    ImageGamma = "image.gamma", false,
+        "colours gamma-corrected before they are written",
+        "Your picture's bytes are your logged colours raised to 1/2.2 (gamma-corrected) before the conversion. The course writes linear values: byte = (byte)(Math.Min(v, 1) * 255). Remove the gamma correction; the picture is brighter and washed out with it.";
+    ImageUnclamped = "image.unclamped", false,
+        "colours over 1 not clamped: the byte wraps around",
+        "Where a colour is over 1, your picture's byte wraps around (1.2 · 255 = 306 becomes 50) instead of saturating at 255: clamp each channel to at most 1 before multiplying by 255, as the template's Math.Min(v, 1) does. Bright spots come out dark.";
+    ImageByteAverage = "image.byte-average", false,
+        "samples averaged after their conversion to bytes",
+        "Your picture's bytes are the average of each sample's bytes, not the bytes of the samples' average colour: with -x N, add the N×N samples' colours, divide by N², and only then clamp and convert. Where a sample is brighter than 1 the two differ (the clamp cuts it before the average).";
+    ImageFlipped = "image.flipped", false,
+        "picture written upside down",
+        "Your picture's rows are in the opposite order to the pixels your camera rays logged: row 0 of the image is the top row. Either the rows are written bottom-up, or the camera and the output disagree on which way y goes.";
+    ImageChannels = "image.channels", false,
+        "red and blue exchanged in the picture",
+        "Your picture's red and blue bytes are exchanged relative to the colours your camera rays logged (BGR order): write red, green, blue in that order.";
+    ImageDiffers = "image.differs", false,
+        "picture not made from the logged colours",
+        "Your picture's bytes are not your logged camera-ray colours turned into bytes by the course's rule (average the samples, clamp to [0, 1], byte = trunc(v · 255)), nor by any usual mistake. Either the picture comes from another run than the log (other flags, older code), or the colour your tracer logs is not the one it writes. The examples give your bytes beside the conversion of the logged colour.";
     TieEdge = "tie.edge", true,
         "two surfaces meet where the ray hits (a genuine tie)",
         "The ray hits where two entities meet, at the same distance (an edge of a box, a seam between two triangles): either answer is right, and which one a tracer returns is rounding. Not counted against you.";

@@ -3,6 +3,7 @@
 //! `check` must name the mistake on the report's first line with one of the verdicts the
 //! catalogue says it shows as — or, where the catalogue says a log cannot show it, find nothing.
 
+use rayscope_check::image::PixelSums;
 use rayscope_check::log::open;
 use rayscope_check::selflog::write_log;
 use rayscope_check::{check, CheckOptions, Judge, LogContext, Report};
@@ -57,8 +58,24 @@ fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     drop(f);
     let judge = Judge::new(&scene, &correct);
     let ctx = LogContext::new(&scene, w, h, judge.samples_per_pixel(), 1);
+    let mut src = open(&log, ctx.clone(), false, &[]).expect("open");
+    let mut report = check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check");
+    // The tracer's picture: its film as the mistaken output writes it, in the course's bytes.
+    let cancel = std::sync::atomic::AtomicBool::new(false);
+    let film = rayscope_core::render(&traced, &mistaken, &|_, _| {}, &cancel)
+        .expect("render")
+        .film;
+    let bytes: Vec<u8> = film
+        .pixels
+        .iter()
+        .flat_map(|p| p.to_array().map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8))
+        .collect();
+    let mut sums = PixelSums::new(w, h, judge.samples_per_pixel());
     let mut src = open(&log, ctx, false, &[]).expect("open");
-    check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check")
+    sums.read(src.as_mut(), &|r| judge.kind_of(r) == rayscope_check::log::Kind::Camera)
+        .expect("read");
+    report.image = Some(rayscope_check::image::judge(&sums, &bytes, 3));
+    report
 }
 
 #[test]
@@ -71,22 +88,31 @@ fn every_catalogued_mistake_heads_checks_report_with_a_verdict_the_catalogue_nam
         let info = m.info();
         let r = check_mistake(&course, m);
         let text = r.to_text(&|_| None);
-        let Some(first) = r.causes.first() else {
-            if !info.check.is_empty() {
+        if let Some(code) = r.image.as_ref().and_then(|i| i.verdict) {
+            if !info.check.contains(&code.as_str()) || !r.causes.is_empty() {
                 wrong.push(format!(
-                    "{}: no verdict, the catalogue says {:?}\n{text}",
-                    info.name, info.check
+                    "{}: picture judged {}, the catalogue says {:?}\n{text}",
+                    info.name,
+                    code.as_str(),
+                    info.check
+                ));
+            }
+            if !text.lines().next().is_some_and(|l| l.contains(code.as_str())) {
+                wrong.push(format!(
+                    "{}: the first line does not name {}\n{text}",
+                    info.name,
+                    code.as_str()
                 ));
             }
             continue;
-        };
-        if info.check.is_empty() {
+        }
+        let Some(first) = r.causes.first() else {
             wrong.push(format!(
-                "{}: the catalogue says a log cannot show it\n{text}",
-                info.name
+                "{}: no verdict, the catalogue says {:?}\n{text}",
+                info.name, info.check
             ));
             continue;
-        }
+        };
         let named = first.codes().iter().any(|c| info.check.contains(&c.as_str()));
         if !named {
             wrong.push(format!(
@@ -143,14 +169,12 @@ fn the_manual_says_how_check_shows_each_mistake() {
     for m in Mistake::ALL {
         let i = m.info();
         let codes: Vec<String> = i.check.iter().map(|c| format!("`{c}`")).collect();
+        let image = i.check.iter().any(|c| c.starts_with("image."));
         let row = format!(
-            "| `{}` | {} |",
+            "| `{}` | {}{} |",
             i.name,
-            if codes.is_empty() {
-                "— (a log cannot show it: use `diagnose`)".to_string()
-            } else {
-                codes.join(", ")
-            }
+            codes.join(", "),
+            if image { " (with `--image`)" } else { "" }
         );
         assert!(doc.contains(&row), "docs/mistakes.md lacks or differs on:\n{row}");
         for c in i.check {

@@ -487,3 +487,67 @@ fn an_uncatalogued_mistake_gets_a_truthful_headline_with_the_numbers() {
         );
     }
 }
+
+/// The student's picture beside its log (`check --image`): written by the course's rule it gets
+/// no verdict; each usual mistake in turning colours into bytes is named, and a picture from
+/// other colours (no catalogue has it) is said not to be made from the logged ones.
+#[test]
+fn the_picture_is_judged_against_the_logged_colours() {
+    let Some(py) = python() else {
+        return;
+    };
+    let scene = root().join("crates/rayscope_check/tests/scenes/bright.txt");
+    let file = rayscope_scene::load(&scene).expect("scene");
+    let sc = Scene::from_file(&file);
+    let settings = RenderSettings {
+        width: 40,
+        height: 30,
+        aa: 2,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let judge = Judge::new(&sc, &settings);
+    for (bug, want) in [
+        ("none", None),
+        ("gamma-out", Some(Code::ImageGamma)),
+        ("rounded-out", Some(Code::ImageRounded)),
+        ("unclamped-out", Some(Code::ImageUnclamped)),
+        ("byte-average-out", Some(Code::ImageByteAverage)),
+        ("flipped-out", Some(Code::ImageFlipped)),
+        ("bgr-out", Some(Code::ImageChannels)),
+        ("stale-image", Some(Code::ImageDiffers)),
+    ] {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
+        let out = Command::new(py)
+            .arg(root().join("crates/rayscope_check/tests/student/tracer.py"))
+            .arg("-f")
+            .arg(&scene)
+            .args(["-w", "40", "-h", "30", "-x", "2", "--bug", bug, "--log"])
+            .arg(&log)
+            .arg("--image")
+            .arg(&ppm)
+            .output()
+            .expect("run the student tracer");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        // The tracer writes plain PPM (P3): a header of three numbers, then the bytes.
+        let text = std::fs::read_to_string(&ppm).expect("picture");
+        let bytes: Vec<u8> = text
+            .split_whitespace()
+            .skip(4)
+            .map(|t| t.parse().expect("a byte"))
+            .collect();
+        assert_eq!(bytes.len(), 40 * 30 * 3);
+        let ctx = LogContext::new(&sc, 40, 30, judge.samples_per_pixel(), 2);
+        let mut src = open(&log, ctx, false, &[]).expect("open");
+        let mut sums = rayscope_check::image::PixelSums::new(40, 30, judge.samples_per_pixel());
+        sums.read(src.as_mut(), &|r| judge.kind_of(r) == rayscope_check::log::Kind::Camera)
+            .expect("read");
+        let j = rayscope_check::image::judge(&sums, &bytes, 3);
+        assert_eq!(j.compared, 1200, "{bug}: {}", j.detail);
+        assert_eq!(j.verdict, want, "{bug}: {}", j.detail);
+        if want == Some(Code::ImageDiffers) {
+            assert!(!j.examples.is_empty(), "{bug}: no example");
+        }
+    }
+}

@@ -80,8 +80,8 @@ pub struct MistakeInfo {
     pub looks: &'static str,
     /// The part of the course's marking the mistake costs.
     pub rubric: &'static str,
-    /// The `rayscope check` verdicts a ray log of a tracer with the mistake is headed by; empty
-    /// where a log cannot show it (it is in how colours become bytes).
+    /// The `rayscope check` verdicts a ray log of a tracer with the mistake is headed by (the
+    /// `image.*` ones with the tracer's picture given to `check --image`).
     pub check: &'static [&'static str],
 }
 
@@ -300,7 +300,8 @@ impl Mistake {
             Mistake::LightFalloff | Mistake::AmbientTerm | Mistake::ObjFlatNormals => &["shading.diffuse"],
             Mistake::ShadowPastLight => &["shadow.blocked-beyond-light"],
             Mistake::FirstLightOnly => &["missing.shadow-ray"],
-            Mistake::RoundedColours | Mistake::Gamma => &[],
+            Mistake::RoundedColours => &["image.rounded"],
+            Mistake::Gamma => &["image.gamma"],
             Mistake::ObjNoZFlip => &["hit.surface-wrong"],
         }
     }
@@ -492,11 +493,7 @@ pub fn catalogue_text() -> String {
             i.wrong,
             i.looks,
             i.rubric,
-            if i.check.is_empty() {
-                "a ray log cannot show it (compare your image with `rayscope diagnose`)".to_string()
-            } else {
-                i.check.join(", ")
-            }
+            i.check.join(", ")
         ));
     }
     out

@@ -26,6 +26,10 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      even when the near one is behind the origin (rays starting inside)
   strict-edges       the triangle's inside test rejects hits within 0.02 of an edge
   radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
+  gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out
+                     the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
+                     samples averaged as bytes, rows upside down, red and blue swapped
+  stale-image        the picture is not made of the logged colours (no catalogue has it)
   no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
   schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
@@ -62,6 +66,9 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
         "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "background")
 # Mistakes in how rays meet surfaces and leave them.
+# Mistakes in turning colours into the picture's bytes (--image).
+OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
+               "stale-image")
 GEOMETRY_BUGS = ("reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared")
 
@@ -324,6 +331,32 @@ class Tracer:
         return add(col, mul(sub_col, 1 - kr))
 
 
+def to_byte(v):
+    """The course's conversion: clamp to [0, 1], then truncate v * 255."""
+    return int(min(max(v, 0.0), 1.0) * 255)
+
+
+def out_pixel(c, bug):
+    if bug == "bgr-out":
+        return (c[2], c[1], c[0])
+    if bug == "stale-image":
+        # The picture of an older run: every colour a little darker than the one logged.
+        return tuple(v * 0.9 for v in c)
+    return c
+
+
+def out_byte(v, bug):
+    if bug == "byte-average-out":
+        return v
+    if bug == "gamma-out":
+        return to_byte(max(v, 0.0) ** (1 / 2.2))
+    if bug == "rounded-out":
+        return int(round(min(max(v, 0.0), 1.0) * 255))
+    if bug == "unclamped-out":
+        return int(max(v, 0.0) * 255) % 256
+    return to_byte(v)
+
+
 def main():
     ap = argparse.ArgumentParser(add_help=False)
     ap.add_argument("-f", required=True)
@@ -336,7 +369,7 @@ def main():
     ap.add_argument("--image", default=None)
     ap.add_argument("--no-colors", dest="colors", action="store_false")
     args = ap.parse_args()
-    if args.bug not in BUGS and args.bug not in GEOMETRY_BUGS:
+    if args.bug not in BUGS and args.bug not in GEOMETRY_BUGS and args.bug not in OUTPUT_BUGS:
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
     x0, y0, x1, y1 = 0, 0, w, h
@@ -354,6 +387,7 @@ def main():
     for y in range(y0, y1):
         for x in range(x0, x1):
             total = (0.0, 0.0, 0.0)
+            byte_total = [0, 0, 0]
             for j in range(n):
                 for i in range(n):
                     tr.pixel, tr.sample = (x, y), (i * n + j if args.bug == "subpixel-grid" else j * n + i)
@@ -362,17 +396,22 @@ def main():
                     v = (y + (j + c) / n) / h
                     z = 2.0 if args.bug == "plane-distance" else 1.0
                     d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, z))
-                    total = add(total, tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera"))
+                    col = tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera")
+                    total = add(total, col)
+                    byte_total = [b + to_byte(v) for b, v in zip(byte_total, col)]
                     if log:
                         tr.flush()
             image[(x, y)] = mul(total, 1 / (n * n))
+            if args.bug == "byte-average-out":
+                image[(x, y)] = tuple(b // (n * n) for b in byte_total)
     if log is not sys.stdout:
         log.close()
     if args.image:
         with open(args.image, "w") as f:
             f.write(f"P3\n{x1 - x0} {y1 - y0}\n255\n")
-            for y in range(y0, y1):
-                f.write(" ".join(" ".join(str(int(min(c, 1.0) * 255)) for c in image[(x, y)])
+            rows = range(y1 - 1, y0 - 1, -1) if args.bug == "flipped-out" else range(y0, y1)
+            for y in rows:
+                f.write(" ".join(" ".join(str(out_byte(c, args.bug)) for c in out_pixel(image[(x, y)], args.bug))
                                  for x in range(x0, x1)) + "\n")
 
 

@@ -1,0 +1,343 @@
+//! The last step of a tracer: the colours its camera rays brought back, turned into the bytes of
+//! its picture. With the tracer's PNG beside its log, each fully logged pixel's bytes are
+//! recomputed from the logged colours by the course's rule (the samples' colours averaged, each
+//! channel clamped to [0, 1], then `trunc(v · 255)`), and where the picture follows another rule
+//! the one it follows is named.
+
+use serde::Serialize;
+
+use crate::log::{LogError, LoggedRay, RaySource};
+use crate::verdict::Code;
+
+/// The logged colours of each pixel's camera rays, summed.
+#[derive(Debug, Clone)]
+pub struct PixelSums {
+    width: u32,
+    height: u32,
+    spp: u32,
+    /// Sum of the samples' colours.
+    sum: Vec<[f64; 3]>,
+    /// Sum of the samples' colours each turned into bytes by the course's rule.
+    bytes: Vec<[u32; 3]>,
+    /// Samples with a colour.
+    n: Vec<u32>,
+}
+
+impl PixelSums {
+    /// Empty sums for a `width` × `height` image of `spp` samples a pixel (the caller bounds the
+    /// size: 32 bytes a pixel).
+    #[must_use]
+    pub fn new(width: u32, height: u32, spp: u32) -> Self {
+        let len = width as usize * height as usize;
+        Self {
+            width,
+            height,
+            spp,
+            sum: vec![[0.0; 3]; len],
+            bytes: vec![[0; 3]; len],
+            n: vec![0; len],
+        }
+    }
+
+    /// Adds a camera ray's colour to its pixel; rays without a pixel or colour are left out.
+    pub fn add(&mut self, r: &LoggedRay) {
+        let (Some([x, y]), Some(c)) = (r.pixel, r.color) else {
+            return;
+        };
+        if x >= self.width || y >= self.height {
+            return;
+        }
+        let i = (y * self.width + x) as usize;
+        for ((sum, bytes), v) in self.sum[i].iter_mut().zip(&mut self.bytes[i]).zip(c.to_array()) {
+            *sum += v;
+            *bytes += u32::from(course_byte(v));
+        }
+        self.n[i] += 1;
+    }
+
+    /// Reads every ray of `src`, adding those `camera` says are camera rays.
+    pub fn read(&mut self, src: &mut dyn RaySource, camera: &dyn Fn(&LoggedRay) -> bool) -> Result<(), LogError> {
+        let mut batch = Vec::new();
+        loop {
+            batch.clear();
+            let more = src.next_batch(&mut batch)?;
+            for r in batch.iter().filter(|r| camera(r)) {
+                self.add(r);
+            }
+            if !more {
+                return Ok(());
+            }
+        }
+    }
+}
+
+/// The course's byte: clamped to [0, 1], times 255, truncated (the template's
+/// `(byte)(Math.Min(v, 1) * 255)` on a non-negative colour).
+fn course_byte(v: f64) -> u8 {
+    (v.clamp(0.0, 1.0) * 255.0) as u8
+}
+
+/// A rule that turns a pixel's logged colours into its bytes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Conversion {
+    /// The course's: colours averaged, clamped, `trunc(v · 255)`.
+    Course,
+    /// Rounded to the nearest byte.
+    Rounded,
+    /// Gamma-corrected, `v^(1/2.2)`, before the conversion.
+    Gamma,
+    /// Not clamped: a value over 1 wraps around a byte.
+    Unclamped,
+    /// Each sample turned into bytes, then the bytes averaged.
+    ByteAverage,
+    /// Rows upside down.
+    Flipped,
+    /// Red and blue exchanged.
+    Bgr,
+}
+
+impl Conversion {
+    const ALL: [Conversion; 7] = [
+        Conversion::Course,
+        Conversion::Rounded,
+        Conversion::Gamma,
+        Conversion::Unclamped,
+        Conversion::ByteAverage,
+        Conversion::Flipped,
+        Conversion::Bgr,
+    ];
+
+    /// The verdict a picture following this rule gets.
+    fn code(self) -> Option<Code> {
+        match self {
+            Conversion::Course => None,
+            Conversion::Rounded => Some(Code::ImageRounded),
+            Conversion::Gamma => Some(Code::ImageGamma),
+            Conversion::Unclamped => Some(Code::ImageUnclamped),
+            Conversion::ByteAverage => Some(Code::ImageByteAverage),
+            Conversion::Flipped => Some(Code::ImageFlipped),
+            Conversion::Bgr => Some(Code::ImageChannels),
+        }
+    }
+
+    /// Pixel `i`'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
+    fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
+        let at = |x: u32, y: u32| (y * s.width + x) as usize;
+        let (x, y) = if self == Conversion::Flipped {
+            (x, s.height - 1 - y)
+        } else {
+            (x, y)
+        };
+        let i = at(x, y);
+        let n = s.n[i];
+        if n != s.spp || n == 0 {
+            return None;
+        }
+        let avg = s.sum[i].map(|v| v / f64::from(n));
+        let one = |v: f64| -> u8 {
+            match self {
+                Conversion::Course | Conversion::Flipped | Conversion::Bgr => course_byte(v),
+                Conversion::Rounded => (v.clamp(0.0, 1.0) * 255.0).round() as u8,
+                Conversion::Gamma => (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8,
+                // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
+                Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
+                Conversion::ByteAverage => 0,
+            }
+        };
+        let mut b = if self == Conversion::ByteAverage {
+            s.bytes[i].map(|v| (v / n) as u8)
+        } else {
+            avg.map(one)
+        };
+        if self == Conversion::Bgr {
+            b.swap(0, 2);
+        }
+        Some(b)
+    }
+}
+
+/// One pixel whose bytes are not the course's conversion of its logged colours.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PixelExample {
+    /// The pixel.
+    pub pixel: [u32; 2],
+    /// The picture's bytes.
+    pub yours: [u8; 3],
+    /// The course's conversion of the logged colours.
+    pub expected: [u8; 3],
+    /// The logged colour, averaged over the pixel's samples.
+    pub colour: [f64; 3],
+}
+
+/// How a picture's bytes follow from the logged colours.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ImageCheck {
+    /// Pixels whose every sample logged a colour, compared.
+    pub compared: u64,
+    /// Of those, pixels whose bytes are the course's conversion (each channel within 1).
+    pub course: u64,
+    /// The rule most pixels follow, and how many.
+    pub best: (Conversion, u64),
+    /// The verdict: the rule the picture follows instead of the course's, or `image.differs`.
+    pub verdict: Option<Code>,
+    /// What differs, in words.
+    pub detail: String,
+    /// The first pixels that differ from the course's conversion, by row.
+    pub examples: Vec<PixelExample>,
+}
+
+/// Share of compared pixels a rule must fit to be the one a picture follows.
+const FOLLOWS: f64 = 0.98;
+
+/// Compares `image` (RGB bytes, row by row, the sums' size) with the logged colours.
+#[must_use]
+pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
+    let mut fits = [0u64; Conversion::ALL.len()];
+    let mut exact = [0u64; Conversion::ALL.len()];
+    let mut compared = 0;
+    let mut examples = Vec::new();
+    let close = |a: [u8; 3], b: [u8; 3]| a.iter().zip(b).all(|(&p, q)| p.abs_diff(q) <= 1);
+    for y in 0..s.height {
+        for x in 0..s.width {
+            let Some(expected) = Conversion::Course.bytes(s, x, y) else {
+                continue;
+            };
+            let o = 3 * (y * s.width + x) as usize;
+            let Some(yours) = image.get(o..o + 3).map(|b| [b[0], b[1], b[2]]) else {
+                continue;
+            };
+            compared += 1;
+            for (k, c) in Conversion::ALL.iter().enumerate() {
+                let b = c.bytes(s, x, y);
+                fits[k] += u64::from(b.is_some_and(|b| close(b, yours)));
+                exact[k] += u64::from(b == Some(yours));
+            }
+            if !close(expected, yours) && examples.len() < keep {
+                let i = (y * s.width + x) as usize;
+                examples.push(PixelExample {
+                    pixel: [x, y],
+                    yours,
+                    expected,
+                    colour: s.sum[i].map(|v| v / f64::from(s.n[i])),
+                });
+            }
+        }
+    }
+    let share = |n: u64| n as f64 / compared.max(1) as f64;
+    let top = |f: &[u64]| {
+        let (k, &n) = f
+            .iter()
+            .enumerate()
+            .max_by_key(|(k, &n)| (n, std::cmp::Reverse(*k)))
+            .unwrap_or((0, &0));
+        (k, n)
+    };
+    // Bytes a tracer computed from the colour it logged are exact; within one level they allow
+    // for a colour logged with fewer digits than it was computed with. Exact fits decide first,
+    // so rounding (at most one level off) is told from truncation.
+    let (ek, en) = top(&exact);
+    let (bk, bn, course) = if share(en) >= FOLLOWS {
+        (ek, en, exact[0])
+    } else {
+        let (k, n) = top(&fits);
+        (k, n, fits[0])
+    };
+    let best = Conversion::ALL[bk];
+    let (verdict, detail) = if compared == 0 {
+        (
+            None,
+            "no pixel had a colour logged for every sample, so the picture was not compared".to_string(),
+        )
+    } else if share(course) >= FOLLOWS {
+        (
+            None,
+            format!("{course} of {compared} pixels are your logged colours turned into bytes as the course does"),
+        )
+    } else if best != Conversion::Course && share(bn) >= FOLLOWS {
+        (
+            best.code(),
+            format!(
+                "{bn} of {compared} pixels are your logged colours converted that way; {course} as the course converts them"
+            ),
+        )
+    } else {
+        (
+            Some(Code::ImageDiffers),
+            format!(
+                "only {course} of {compared} pixels are your logged colours turned into bytes as the course does, and no usual mistake explains the rest: the picture is not made from the colours your camera rays logged"
+            ),
+        )
+    };
+    ImageCheck {
+        compared,
+        course,
+        best: (best, bn),
+        verdict,
+        detail,
+        examples,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use glam::DVec3;
+
+    use super::*;
+
+    fn sums(colours: &[[f64; 3]], w: u32, h: u32) -> PixelSums {
+        let mut s = PixelSums::new(w, h, 1);
+        for (i, c) in colours.iter().enumerate() {
+            let mut r = LoggedRay::for_tests([i as u32 % w, i as u32 / w], 0, 1);
+            r.color = Some(DVec3::from_array(*c));
+            s.add(&r);
+        }
+        s
+    }
+
+    fn picture(s: &PixelSums, c: Conversion) -> Vec<u8> {
+        let mut out = Vec::new();
+        for y in 0..s.height {
+            for x in 0..s.width {
+                out.extend(c.bytes(s, x, y).unwrap_or([0; 3]));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn each_rule_is_recognised_and_the_courses_gets_no_verdict() {
+        let colours: Vec<[f64; 3]> = (0..64)
+            .map(|i| {
+                let v = f64::from(i) / 40.0;
+                [v, 0.3 * v + 0.05, 1.2 - v / 2.0]
+            })
+            .collect();
+        let s = sums(&colours, 8, 8);
+        for c in Conversion::ALL {
+            let j = judge(&s, &picture(&s, c), 3);
+            // One sample a pixel: averaging bytes is averaging colours.
+            let want = if c == Conversion::ByteAverage { None } else { c.code() };
+            assert_eq!(j.verdict, want, "{c:?}: {}", j.detail);
+        }
+        // Two samples a pixel, one dark and one bright: the bytes' average is not the colours'.
+        let mut two = PixelSums::new(8, 8, 2);
+        for (i, c) in colours.iter().enumerate() {
+            for (k, f) in [0.37, 1.63].into_iter().enumerate() {
+                let mut r = LoggedRay::for_tests([i as u32 % 8, i as u32 / 8], k as u32, 1);
+                r.color = Some(DVec3::from_array(*c) * f);
+                two.add(&r);
+            }
+        }
+        let j = judge(&two, &picture(&two, Conversion::ByteAverage), 3);
+        assert_eq!(j.verdict, Some(Code::ImageByteAverage), "{}", j.detail);
+    }
+
+    #[test]
+    fn a_picture_from_other_colours_is_said_to_differ() {
+        let s = sums(&[[0.5, 0.5, 0.5]; 16], 4, 4);
+        let j = judge(&s, &[200; 48], 3);
+        assert_eq!(j.verdict, Some(Code::ImageDiffers));
+        assert_eq!(j.examples[0].expected, [127; 3]);
+    }
+}
