@@ -1,33 +1,16 @@
 //! `check` against a student-style Python tracer (tests/student/tracer.py) with one realistic
 //! mistake at a time: each must be named, and the correct tracer must get no verdict.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 use std::process::Command;
 
-use rayscope_check::log::{open, IdRole};
+use common::{check_log, python, root, text};
+
+use rayscope_check::log::open;
 use rayscope_check::{check, CheckOptions, Code, Judge, LogContext, Report};
 use rayscope_core::{RenderSettings, Scene, Stage};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// python3, or `None` (loudly) when it is missing outside CI.
-fn python() -> Option<&'static str> {
-    let ok = Command::new("python3")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if ok {
-        return Some("python3");
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "python3 is required for the student-tracer tests in CI"
-    );
-    eprintln!("SKIPPED: python3 not found; the student-tracer tests did not run");
-    None
-}
 
 struct Run<'a> {
     scene: PathBuf,
@@ -79,8 +62,6 @@ impl Run<'_> {
             "tracer failed: {}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let file = rayscope_scene::load(&self.scene).expect("scene");
-        let scene = Scene::from_file(&file);
         let settings = RenderSettings {
             width: self.w,
             height: self.h,
@@ -88,15 +69,8 @@ impl Run<'_> {
             stage: Stage::Two,
             ..RenderSettings::default()
         };
-        let judge = Judge::new(&scene, &settings);
-        let ctx = LogContext::new(&scene, self.w, self.h, judge.samples_per_pixel(), self.aa);
-        let mut src = open(&log, ctx, false, &[IdRole::X, IdRole::Y]).expect("open log");
-        Some(check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check"))
+        Some(check_log(&self.scene, settings, &log, 3))
     }
-}
-
-fn text(r: &Report) -> String {
-    r.to_text(&|_| None)
 }
 
 /// The correct tracer: no verdict at all.

@@ -2,18 +2,17 @@
 //! correct tracer gets no verdict on any of the course's scenes, every pixel logged, and each of
 //! its switchable mistakes is named on the report's first line.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+use common::{check_log, have, root, text};
 use std::sync::OnceLock;
 use std::time::Instant;
 
-use rayscope_check::log::{open, IdRole};
-use rayscope_check::{check, CheckOptions, Code, Judge, LogContext, Report};
-use rayscope_core::{RenderSettings, Scene, Stage};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
+use rayscope_check::{Code, Report};
+use rayscope_core::{RenderSettings, Stage};
 
 /// The tracer, compiled once per test run with `g++ -O2 -std=c++17`; `None` (loudly) when g++ is
 /// missing outside CI.
@@ -21,16 +20,7 @@ fn tracer() -> Option<&'static Path> {
     static BUILT: OnceLock<Option<PathBuf>> = OnceLock::new();
     BUILT
         .get_or_init(|| {
-            let ok = Command::new("g++")
-                .arg("--version")
-                .output()
-                .is_ok_and(|o| o.status.success());
-            if !ok {
-                assert!(
-                    std::env::var("CI").as_deref() != Ok("true"),
-                    "g++ is required for the C++ student-tracer tests in CI"
-                );
-                eprintln!("SKIPPED: g++ not found; the C++ student-tracer tests did not run");
+            if !have("g++", "the C++ student-tracer tests") {
                 return None;
             }
             let dir = tempfile::tempdir().expect("temp dir").keep();
@@ -109,8 +99,6 @@ impl Run<'_> {
             String::from_utf8_lossy(&out.stderr)
         );
         let traced = start.elapsed().as_secs_f64();
-        let file = rayscope_scene::load(&self.scene).expect("scene");
-        let scene = Scene::from_file(&file);
         let settings = RenderSettings {
             width: self.w,
             height: self.h,
@@ -118,10 +106,7 @@ impl Run<'_> {
             stage: self.stage,
             ..RenderSettings::default()
         };
-        let judge = Judge::new(&scene, &settings);
-        let ctx = LogContext::new(&scene, self.w, self.h, judge.samples_per_pixel(), self.aa);
-        let mut src = open(&log, ctx, false, &[IdRole::X, IdRole::Y]).expect("open log");
-        let r = check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check");
+        let r = check_log(&self.scene, settings, &log, 3);
         eprintln!(
             "{} {}x{} -x {} stage {stage} rows {:?} bug {}: {} rays, traced in {traced:.2} s, checked in {:.2} s",
             self.scene.file_name().unwrap_or_default().to_string_lossy(),
@@ -135,10 +120,6 @@ impl Run<'_> {
         );
         Some(r)
     }
-}
-
-fn text(r: &Report) -> String {
-    r.to_text(&|_| None)
 }
 
 /// The correct tracer: no verdict, and every camera ray of the image (or of its rows) logged.
@@ -374,8 +355,6 @@ fn check_pixel(scene: PathBuf, w: u32, h: u32, aa: u32, [x, y]: [u32; 2]) -> Opt
         .output()
         .expect("run the C++ tracer");
     assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-    let file = rayscope_scene::load(&scene).expect("scene");
-    let scene = Scene::from_file(&file);
     let settings = RenderSettings {
         width: w,
         height: h,
@@ -383,10 +362,7 @@ fn check_pixel(scene: PathBuf, w: u32, h: u32, aa: u32, [x, y]: [u32; 2]) -> Opt
         stage: Stage::Two,
         ..RenderSettings::default()
     };
-    let judge = Judge::new(&scene, &settings);
-    let ctx = LogContext::new(&scene, w, h, judge.samples_per_pixel(), aa);
-    let mut src = open(&log, ctx, false, &[]).expect("open log");
-    Some(check(&judge, src.as_mut(), CheckOptions::default(), &|_, _| {}).expect("check"))
+    Some(check_log(&scene, settings, &log, 3))
 }
 
 /// Where a camera ray meets the box's floor or roof exactly on its edge with a wall, the shadow

@@ -2,33 +2,16 @@
 //! colour every ray brought back, with one shading mistake at a time. Each must be named on the
 //! ray whose colour it makes, and the correct tracer must get no verdict.
 
-use std::path::{Path, PathBuf};
+mod common;
+
+use std::path::PathBuf;
 use std::process::Command;
 
-use rayscope_check::log::{open, IdRole};
+use common::{check_log, python, root};
+
+use rayscope_check::log::open;
 use rayscope_check::{check, CheckOptions, Code, Judge, LogContext, Report};
 use rayscope_core::{RenderSettings, Scene, Stage};
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-/// python3, or `None` (loudly) when it is missing outside CI.
-fn python() -> Option<&'static str> {
-    let ok = Command::new("python3")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if ok {
-        return Some("python3");
-    }
-    assert!(
-        std::env::var("CI").as_deref() != Ok("true"),
-        "python3 is required for the student-tracer tests in CI"
-    );
-    eprintln!("SKIPPED: python3 not found; the student-tracer tests did not run");
-    None
-}
 
 struct Run<'a> {
     scene: PathBuf,
@@ -98,8 +81,6 @@ impl Run<'_> {
             assert!(kept.len() < text.len(), "no {kind} ray to take out");
             std::fs::write(&log, kept).expect("write log");
         }
-        let file = rayscope_scene::load(&self.scene).expect("scene");
-        let scene = Scene::from_file(&file);
         let settings = RenderSettings {
             width: self.w,
             height: self.h,
@@ -107,13 +88,7 @@ impl Run<'_> {
             stage: self.stage,
             ..RenderSettings::default()
         };
-        let judge = Judge::new(&scene, &settings);
-        let ctx = LogContext::new(&scene, self.w, self.h, judge.samples_per_pixel(), self.aa);
-        let mut src = open(&log, ctx, false, &[IdRole::X, IdRole::Y]).expect("open log");
-        let opts = CheckOptions {
-            examples: self.examples,
-        };
-        let report = check(&judge, src.as_mut(), opts, &|_, _| {}).expect("check");
+        let report = check_log(&self.scene, settings, &log, self.examples);
         let lines = std::fs::read_to_string(&log)
             .expect("read log")
             .lines()
