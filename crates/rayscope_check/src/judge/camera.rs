@@ -1,0 +1,261 @@
+//! Camera rays against the checker's own camera for their pixel and sample: where a ray should
+//! start and point, and which of the usual camera mistakes its direction fits.
+
+use super::*;
+
+/// A sample offset or image-plane half extents, with the mistake it stands for (none: rayscope's).
+type Guess = ((f64, f64), Option<(Code, &'static str)>);
+
+/// A position-and-projection guess for a camera ray.
+#[derive(Debug, Clone, Copy)]
+struct CamGuess {
+    /// Offset of the sample in its pixel.
+    off: (f64, f64),
+    /// Half extents of the image plane (signs flip the image).
+    half: (f64, f64),
+    pos_code: Option<(Code, &'static str)>,
+    proj_code: Option<(Code, &'static str)>,
+}
+
+impl Judge<'_> {
+    /// The camera ray against rayscope's camera for its pixel and sample.
+    pub(super) fn camera(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>) {
+        let Some([x, y]) = r.pixel else {
+            return;
+        };
+        if !self.pinhole {
+            return;
+        }
+        let l = scale(&[r.origin, self.cam_origin]);
+        if (r.origin - self.cam_origin).length() > self.tol.position * l {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::CameraOrigin,
+                format!(
+                    "starts {:.3e} away from the camera",
+                    (r.origin - self.cam_origin).length()
+                ),
+                vec![Value {
+                    what: "origin".into(),
+                    yours: vjson(r.origin),
+                    rayscope: vjson(self.cam_origin),
+                }],
+            ));
+            return;
+        }
+        if self.jitter {
+            return;
+        }
+        let rs_dir = |s: u32| self.cam.ray(x, y, s).1;
+        let d = r.direction;
+        let candidates: Vec<u32> = match r.sample {
+            Some(s) => vec![s],
+            None => (0..self.spp).collect(),
+        };
+        let (s, err) = candidates
+            .iter()
+            .map(|&s| (s, angle(d, rs_dir(s))))
+            .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+        if err <= self.cam_tol {
+            return;
+        }
+        let rs = rs_dir(s);
+        let dc = (self.rot.transpose() * d).normalize();
+        let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
+        let t = (f64::from(self.settings.camera.fov_deg).to_radians() * 0.5).tan();
+        let aspect = w / h;
+        let horizontal = self.settings.camera.fov_axis == FovAxis::Horizontal;
+        let half = if horizontal { (t, t / aspect) } else { (t * aspect, t) };
+        let n = f64::from(self.grid);
+        let (i, j) = (f64::from(s % self.grid), f64::from(s / self.grid));
+        let mut offs: Vec<Guess> = vec![
+            (((i + 0.5) / n, (j + 0.5) / n), None),
+            (
+                (i / n, j / n),
+                Some((
+                    Code::CameraPixelCorner,
+                    "through the top-left corner of its pixel (or sub-pixel cell), not the centre",
+                )),
+            ),
+        ];
+        if self.grid > 1 {
+            offs.push((
+                ((j + 0.5) / n, (i + 0.5) / n),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "with the sample's row and column swapped (rayscope numbers samples row by row: i = s mod N, j = s div N)",
+                )),
+            ));
+            offs.push((
+                (0.5, 0.5),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "through the pixel centre instead of sample s's grid cell",
+                )),
+            ));
+            offs.push((
+                (i / (n - 1.0), j / (n - 1.0)),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "on a grid that spans the pixel's corners instead of cell centres",
+                )),
+            ));
+        }
+        let mut projs: Vec<Guess> = vec![(half, None)];
+        if self.settings.width != self.settings.height {
+            let swapped = if horizontal { (t * aspect, t) } else { (t, t / aspect) };
+            projs.push((
+                swapped,
+                Some((
+                    Code::CameraFovAxis,
+                    if horizontal {
+                        "with a vertical field of view: the 60° spans the image height instead of its width"
+                    } else {
+                        "with a horizontal field of view where --fov-axis vertical was asked for"
+                    },
+                )),
+            ));
+            projs.push((
+                (t, t),
+                Some((
+                    Code::CameraAspect,
+                    "with the aspect ratio ignored: a square image plane on a non-square image",
+                )),
+            ));
+            let inverted = if horizontal { (t, t * aspect) } else { (t / aspect, t) };
+            projs.push((
+                inverted,
+                Some((
+                    Code::CameraAspect,
+                    "with the aspect ratio the wrong way round (height / width instead of width / height)",
+                )),
+            ));
+        }
+        projs.push((
+            (half.0, -half.1),
+            Some((Code::CameraFlipped, "with the image upside down (row 0 at the bottom)")),
+        ));
+        projs.push((
+            (-half.0, half.1),
+            Some((Code::CameraFlipped, "with the image mirrored left to right")),
+        ));
+        let dir_of = |g: &CamGuess| {
+            let u = (f64::from(x) + g.off.0) / w;
+            let v = (f64::from(y) + g.off.1) / h;
+            DVec3::new((2.0 * u - 1.0) * g.half.0, (1.0 - 2.0 * v) * g.half.1, 1.0).normalize()
+        };
+        let mut best: Option<(f64, CamGuess)> = None;
+        for &(off, pc) in &offs {
+            for &(hh, qc) in &projs {
+                if pc.is_none() && qc.is_none() {
+                    continue;
+                }
+                let g = CamGuess {
+                    off,
+                    half: hh,
+                    pos_code: pc,
+                    proj_code: qc,
+                };
+                let e = angle(dir_of(&g), dc);
+                if best.is_none_or(|(b, _)| e < b) {
+                    best = Some((e, g));
+                }
+            }
+        }
+        // Where the tracer's ray crosses rayscope's image plane.
+        let (us, vs) = if dc.z > 0.0 {
+            ((dc.x / dc.z / half.0 + 1.0) * 0.5, (1.0 - dc.y / dc.z / half.1) * 0.5)
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        let rs_uv = {
+            let (ox, oy) = offs[0].0;
+            ((f64::from(x) + ox) / w, (f64::from(y) + oy) / h)
+        };
+        let values = vec![
+            Value {
+                what: "direction".into(),
+                yours: vjson(d),
+                rayscope: vjson(rs),
+            },
+            Value {
+                what: "image position (u, v)".into(),
+                yours: if us.is_finite() {
+                    json!([(us * 1e6).round() / 1e6, (vs * 1e6).round() / 1e6])
+                } else {
+                    json!("behind the camera")
+                },
+                rayscope: json!([(rs_uv.0 * 1e6).round() / 1e6, (rs_uv.1 * 1e6).round() / 1e6]),
+            },
+        ];
+        let off_by = format!("{:.4}° off", err.to_degrees());
+        if let Some((_, g)) = best.filter(|(e, _)| *e <= self.cam_tol) {
+            for (code, why) in [g.pos_code, g.proj_code].into_iter().flatten() {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    code,
+                    format!("{off_by}; it fits a camera ray {why}"),
+                    values.clone(),
+                ));
+            }
+            return;
+        }
+        if dc.z <= 0.0 {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::CameraDirection,
+                "points backwards, away from the image plane: the course's camera looks along +z".into(),
+                values,
+            ));
+            return;
+        }
+        // A uniformly scaled image plane: another distance to the plane, or another FOV.
+        let p = dir_of(&CamGuess {
+            off: offs[0].0,
+            half,
+            pos_code: None,
+            proj_code: None,
+        });
+        let (xr, yr) = (p.x / p.z, p.y / p.z);
+        let (xs, ys) = (dc.x / dc.z, dc.y / dc.z);
+        let k = (xs * xr + ys * yr) / (xr * xr + yr * yr).max(1e-300);
+        let fit = DVec3::new(k * xr, k * yr, 1.0).normalize();
+        if (k - 1.0).abs() > 1e-4 && k > 0.0 && angle(fit, dc) <= self.cam_tol {
+            let fov = 2.0 * (k * if horizontal { half.0 } else { half.1 }).atan();
+            f.push(self.finding(
+                r,
+                kind,
+                Code::CameraPlaneDistance,
+                format!(
+                    "{off_by}; it fits an image plane at distance {:.4} instead of 1 (or a field of view of {:.2}° instead of {}°)",
+                    1.0 / k,
+                    fov.to_degrees(),
+                    self.settings.camera.fov_deg
+                ),
+                values,
+            ));
+            return;
+        }
+        let (px, py) = ((us * w).floor(), (vs * h).floor());
+        let detail = if px == f64::from(x) && py == f64::from(y) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::CameraSubpixelGrid,
+                format!(
+                    "{off_by}; it passes through its own pixel, but not where rayscope puts sample {s} (random jitter, or another sub-pixel layout)"
+                ),
+                values,
+            ));
+            return;
+        } else if px.is_finite() {
+            format!("{off_by}; it passes through pixel ({px}, {py}) of rayscope's image instead of ({x}, {y})")
+        } else {
+            off_by
+        };
+        f.push(self.finding(r, kind, Code::CameraDirection, detail, values));
+    }
+}

@@ -1,0 +1,486 @@
+//! What a ray met against what the oracle finds: missed and phantom hits, the wrong surface or
+//! distance, self-intersection, ties at edges, and the normal logged at the hit.
+
+use super::*;
+
+impl Judge<'_> {
+    /// A `from`/`to` segment's end as a claimed hit, when it lies on a surface of the scene.
+    pub(super) fn segment_claim(&self, r: &LoggedRay, end: DVec3, t_max: f64) -> Option<Answer<HitClaim>> {
+        let len = r.dir_len;
+        let l = scale(&[r.origin, end]);
+        let w = self.tol.position * l;
+        if len > t_max {
+            return None;
+        }
+        self.trace(r.origin, r.direction, (len - w).max(0.0), len + w, r.origin)
+            .map(|_| {
+                Answer::Found(HitClaim {
+                    t: Some(1.0),
+                    point: Some(end),
+                    normal: None,
+                    entity: None,
+                })
+            })
+    }
+
+    /// The tracer's hit (or miss) against rayscope's.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn hit(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        claim: Answer<HitClaim>,
+        rs: Option<&RsHit>,
+        leave: Option<&Leave>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let (o, d) = (r.origin, r.direction);
+        let hit_values = |ts: Option<f64>, ps: Option<DVec3>, es: Option<u32>| {
+            let mut v = vec![Value {
+                what: "entity".into(),
+                yours: es.map_or(
+                    if ps.is_some() || ts.is_some() {
+                        json!("(not logged)")
+                    } else {
+                        json!("nothing")
+                    },
+                    |e| json!(self.name(e)),
+                ),
+                rayscope: rs.map_or(json!("nothing"), |h| json!(self.name(h.entity))),
+            }];
+            if ts.is_some() || rs.is_some() {
+                v.push(Value {
+                    what: "t".into(),
+                    yours: ts.map_or(json!(null), njson),
+                    rayscope: rs.map_or(json!(null), |h| njson(h.t)),
+                });
+            }
+            if ps.is_some() || rs.is_some() {
+                v.push(Value {
+                    what: "point".into(),
+                    yours: ps.map_or(json!(null), vjson),
+                    rayscope: rs.map_or(json!(null), |h| vjson(h.point)),
+                });
+            }
+            v
+        };
+        let c = match claim {
+            Answer::NotLogged => return,
+            Answer::Nothing => {
+                let Some(h) = rs else {
+                    return;
+                };
+                let m = self.geo.margin(h.prim, o, d, h.point);
+                let l = scale(&[o, h.point]);
+                let v = hit_values(None, None, None);
+                if m <= self.tol.tie * l {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieGrazing,
+                        format!("passes {m:.2e} from the edge of '{}'", self.name(h.entity)),
+                        v,
+                    ));
+                } else if let Some(share) = self.triangle_miss(h, tally) {
+                    f.push(self.finding(r, kind, Code::HitTriangleEdge, self.edge_detail(h, share, "trace"), v));
+                } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitOneSidedTriangle,
+                        format!(
+                            "rayscope hits the back face of triangle '{}' at t = {:.6}; your tracer reports no hit",
+                            self.name(h.entity),
+                            h.t
+                        ),
+                        v,
+                    ));
+                } else {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitMissed,
+                        format!(
+                            "rayscope hits '{}' at t = {:.6}; your tracer reports no hit",
+                            self.name(h.entity),
+                            h.t
+                        ),
+                        v,
+                    ));
+                }
+                return;
+            }
+            Answer::Found(c) => c,
+        };
+        let ts = c.t.map(|t| t * r.dir_len).or_else(|| c.point.map(|p| (p - o).dot(d)));
+        let Some(ts) = ts else {
+            // Only an entity (or a normal): judge the entity.
+            if let (Some(e), Some(h)) = (c.entity, rs) {
+                if e != h.entity {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitFarther,
+                        format!(
+                            "your tracer names '{}' but the nearest hit is '{}' at t = {:.6}",
+                            self.name(e),
+                            self.name(h.entity),
+                            h.t
+                        ),
+                        hit_values(None, None, Some(e)),
+                    ));
+                }
+            }
+            return;
+        };
+        let ps = c.point.unwrap_or(o + d * ts);
+        let l = scale(&[o, ps]);
+        let pos = self.tol.position * l;
+        let v = || hit_values(Some(ts), Some(ps), c.entity);
+        if let (Some(p), Some(t)) = (c.point, c.t) {
+            let on_ray = o + d * (t * r.dir_len);
+            if (p - on_ray).length() > pos {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::HitPointOffRay,
+                    format!(
+                        "the point is {:.3e} from origin + t · direction (t = {t})",
+                        (p - on_ray).length()
+                    ),
+                    vec![Value {
+                        what: "point".into(),
+                        yours: vjson(p),
+                        rayscope: vjson(on_ray),
+                    }],
+                ));
+                return;
+            }
+        }
+        if ts < -pos {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitBehindOrigin,
+                format!("t = {ts:.6} is behind the ray's origin"),
+                v(),
+            ));
+            return;
+        }
+        // Self-intersection: the surface the ray leaves, at t ≈ 0.
+        if let Some(lv) = leave {
+            let same = c.entity.map_or((ps - lv.point).length() <= pos, |e| e == lv.entity);
+            let genuine = rs.is_some_and(|h| h.entity == lv.entity && h.t <= pos);
+            let sigma = (o - lv.point).dot(lv.facing);
+            let heading = d.dot(lv.facing);
+            // From an origin offset the way the ray goes, the surface it leaves lies behind it:
+            // a hit there at t clearly below 0 is a root behind the origin that the intersection
+            // test accepted, not rounding.
+            if same && ts < -SURFACE_ROUNDING * l && sigma * heading > 0.0 {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::HitBehindOrigin,
+                    format!(
+                        "it hits '{}', the surface it leaves, at t = {ts:.2e}, behind its origin, which is correctly offset {:.2e} off that surface: the intersection test accepted a root behind the ray (for a sphere, the near root of a ray that starts inside it)",
+                        self.name(lv.entity),
+                        sigma.abs()
+                    ),
+                    v(),
+                ));
+                return;
+            }
+            if same && ts <= pos && !genuine {
+                let code = if *kind == Kind::Shadow {
+                    Code::ShadowAcne
+                } else {
+                    Code::SecondaryAcne
+                };
+                f.push(self.finding(r, kind, code, self.acne_detail(r, lv, ts), v()));
+                return;
+            }
+        }
+        let Some(h) = rs else {
+            let on = c.entity.map(|e| self.geo.entity_distance(e, ps));
+            if let Some((dist, Some(prim))) = on {
+                if dist <= pos && self.geo.margin(prim, o, d, ps) <= self.tol.tie * l {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieGrazing,
+                        format!("the ray grazes the edge of '{}'", self.name(c.entity.unwrap_or(0))),
+                        v(),
+                    ));
+                    return;
+                }
+            }
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitPhantom,
+                format!(
+                    "your tracer reports {} at t = {ts:.6}; rayscope's trace of this ray hits nothing",
+                    c.entity.map_or("a hit".to_string(), |e| format!("'{}'", self.name(e)))
+                ),
+                v(),
+            ));
+            return;
+        };
+        let cos = h.own.dot(d).abs().max(1e-3);
+        let same_t = (ts - h.t).abs() <= pos / cos;
+        let same_entity = c.entity.is_none_or(|e| e == h.entity);
+        if same_entity && same_t {
+            if let Some(n) = c.normal {
+                self.normal(r, kind, n, h, f, tally);
+            }
+            return;
+        }
+        let l2 = scale(&[o, ps, h.point]);
+        let tie = self.tol.tie * l2;
+        if !same_entity {
+            let e = c.entity.unwrap_or(h.entity);
+            let (dist, prim) = self.geo.entity_distance(e, ps);
+            if same_t && dist <= pos {
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::TieEdge,
+                    format!(
+                        "'{}' and '{}' meet where the ray hits, at the same distance",
+                        self.name(e),
+                        self.name(h.entity)
+                    ),
+                    v(),
+                ));
+                return;
+            }
+            if ts < h.t {
+                if dist <= pos && prim.is_some_and(|p| self.geo.margin(p, o, d, ps) <= tie) {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieGrazing,
+                        format!("the ray grazes the edge of '{}'", self.name(e)),
+                        v(),
+                    ));
+                } else {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitPhantom,
+                        format!(
+                            "your tracer reports '{}' at t = {ts:.6}, but {} there; rayscope's nearest hit is '{}' at t = {:.6}",
+                            self.name(e),
+                            if dist <= pos { "the ray misses it" } else { "it is not" },
+                            self.name(h.entity),
+                            h.t
+                        ),
+                        v(),
+                    ));
+                }
+                return;
+            }
+        } else if ts < h.t && c.entity.is_none() {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitPhantom,
+                format!(
+                    "your tracer reports a hit at t = {ts:.6}; rayscope's nearest is '{}' at t = {:.6}",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v(),
+            ));
+            return;
+        }
+        // The tracer's hit lies beyond rayscope's nearest one.
+        if c.entity == Some(h.entity) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitWrongT,
+                format!(
+                    "'{}' is hit at t = {:.6}, your tracer says t = {ts:.6}",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v(),
+            ));
+        } else if self.geo.margin(h.prim, o, d, h.point) <= tie {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieGrazing,
+                format!("the ray grazes the edge of '{}'", self.name(h.entity)),
+                v(),
+            ));
+        } else if let Some(share) = self.triangle_miss(h, tally) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitTriangleEdge,
+                format!(
+                    "{}, before the hit it reports at t = {ts:.6}",
+                    self.edge_detail(h, share, "trace")
+                ),
+                v(),
+            ));
+        } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitOneSidedTriangle,
+                format!(
+                    "the ray passes through the back face of triangle '{}' at t = {:.6} before the hit your tracer reports",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v(),
+            ));
+        } else {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitFarther,
+                format!(
+                    "'{}' at t = {:.6} is nearer than the hit your tracer reports at t = {ts:.6}",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v(),
+            ));
+        }
+    }
+
+    /// A triangle rayscope's trace meets and the tracer did not: a miss a little inside an
+    /// edge on its front face is the inside test's margin (`Some` with the share of the altitude
+    /// it passes inside); one on the back face is counted for the log-wide decision between a
+    /// too strict inside test and a one-sided one (see [`Tally::finish`]).
+    pub(super) fn triangle_miss(&self, h: &RsHit, tally: &mut Tally) -> Option<f64> {
+        let share = self.geo.edge_share(h.prim, h.point)?;
+        let near = share < EDGE_SHARE;
+        if h.front {
+            return near.then_some(share);
+        }
+        if near {
+            tally.back_near_edge += 1;
+        } else {
+            tally.back_inside += 1;
+        }
+        None
+    }
+
+    pub(super) fn edge_detail(&self, h: &RsHit, share: f64, kind: &str) -> String {
+        format!(
+            "rayscope's {kind} meets triangle '{}' at t = {:.6}, {:.1} % of the triangle's height inside its nearest edge; your tracer does not",
+            self.name(h.entity),
+            h.t,
+            100.0 * share
+        )
+    }
+
+    pub(super) fn acne_detail(&self, r: &LoggedRay, lv: &Leave, ts: f64) -> String {
+        let sigma = (r.origin - lv.point).dot(lv.facing);
+        let where_ = if sigma.abs() <= 1e-9 * scale(&[lv.point]) {
+            "it starts exactly on the surface (no offset)".to_string()
+        } else if sigma * r.direction.dot(lv.facing) < 0.0 {
+            format!(
+                "its origin is offset {:.2e} to the wrong side of the surface",
+                sigma.abs()
+            )
+        } else {
+            format!("its origin is only {:.2e} off the surface", sigma.abs())
+        };
+        format!(
+            "it hits '{}', the surface it leaves, at t = {ts:.2e}: {where_}",
+            self.name(lv.entity)
+        )
+    }
+
+    /// The logged normal against the surface's two acceptable normals.
+    pub(super) fn normal(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        n: DVec3,
+        h: &RsHit,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let len = n.length();
+        let values = vec![Value {
+            what: "normal".into(),
+            yours: vjson(n),
+            rayscope: vjson(if h.front { h.own } else { -h.own }),
+        }];
+        if len.is_nan() || len <= 0.0 {
+            f.push(self.finding(r, kind, Code::HitNormalWrong, "the normal is zero".into(), values));
+            return;
+        }
+        if (len - 1.0).abs() > self.tol.unit {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitNormalNotUnit,
+                format!("the normal has length {len:.6}"),
+                values.clone(),
+            ));
+        }
+        let nh = n / len;
+        let own = self.geo.shading_normal(h.prim, h.point).unwrap_or(h.own);
+        let (a_plus, a_minus) = (
+            angle(nh, own).min(angle(nh, h.own)),
+            angle(nh, -own).min(angle(nh, -h.own)),
+        );
+        let tol = self.tol.normal;
+        if a_plus.min(a_minus) > tol {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitNormalWrong,
+                format!(
+                    "{:.3}° from the surface's normal at this point",
+                    a_plus.min(a_minus).to_degrees()
+                ),
+                values,
+            ));
+            return;
+        }
+        let outward = a_plus <= tol;
+        if h.front && !outward {
+            let code = if matches!(h.prim, PrimRef::Triangle(i) if self.scene.vertex_normals(i).is_none()) {
+                Code::HitNormalReversedWinding
+            } else {
+                Code::HitNormalWrong
+            };
+            f.push(self.finding(
+                r,
+                kind,
+                code,
+                format!(
+                    "on the front of '{}' the normal points away from the ray and is not the outward normal",
+                    self.name(h.entity)
+                ),
+                values,
+            ));
+            return;
+        }
+        if !h.front {
+            // A back-face hit: the outward normal or the facing one, as long as it is always the same.
+            let detail = if outward {
+                format!("on the back of '{}' this normal is the outward one, while most of your back-face normals face the ray", self.name(h.entity))
+            } else {
+                format!("on the back of '{}' this normal faces the ray, while most of your back-face normals are the outward ones", self.name(h.entity))
+            };
+            let fnd = self.finding(r, kind, Code::HitNormalInconsistent, detail, values);
+            // Counted on the side; `Tally::finish` decides which convention is the odd one out.
+            let side = if outward { &mut tally.outward } else { &mut tally.facing };
+            side.0 += 1;
+            if side.1.len() < tally.keep {
+                side.1.push(fnd);
+            }
+        }
+    }
+}

@@ -1,0 +1,329 @@
+//! Shadow rays: the light each aims at, and whether what the tracer says blocks it is what lies
+//! between the point and the light.
+
+use super::*;
+
+impl Judge<'_> {
+    /// Which light a shadow ray aims at; a verdict when it aims at none (or not at the one named).
+    pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>) -> Option<u32> {
+        let lights = &self.scene.lights;
+        let to = |li: u32| d3(Vec3A::from(lights[li as usize].position)) - r.origin;
+        let off = |li: u32| {
+            let v = to(li);
+            if v.length_squared() == 0.0 {
+                0.0
+            } else {
+                angle(r.direction, v)
+            }
+        };
+        let pick = match r.light {
+            Some(li) => Some((li, off(li))),
+            None => (0..lights.len() as u32)
+                .map(|li| (li, off(li)))
+                .fold(None, |a: Option<(u32, f64)>, b| match a {
+                    Some(a) if a.1 <= b.1 => Some(a),
+                    _ => Some(b),
+                }),
+        };
+        let (li, err) = pick?;
+        if err <= self.tol.direction {
+            return Some(li);
+        }
+        let target = to(li);
+        let backwards = angle(r.direction, -target) <= self.tol.direction;
+        let detail = if backwards {
+            format!(
+                "points straight away from light '{}': the direction looks like point − light instead of light − point",
+                self.light_name(li)
+            )
+        } else {
+            format!(
+                "{:.3}° away from the direction to light '{}'{}",
+                err.to_degrees(),
+                self.light_name(li),
+                if r.light.is_none() { " (the nearest light)" } else { "" }
+            )
+        };
+        f.push(self.finding(
+            r,
+            kind,
+            Code::ShadowNotAtLight,
+            detail,
+            vec![Value {
+                what: "direction".into(),
+                yours: vjson(r.direction),
+                rayscope: vjson(target.normalize()),
+            }],
+        ));
+        None
+    }
+
+    /// A shadow ray's blocker (or none) against rayscope's segment to the light.
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn blocked(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        rs: Option<&RsHit>,
+        t_skip: f64,
+        blocked: Answer<u32>,
+        leave: Option<&Leave>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let (o_trace, d) = (r.origin, r.direction);
+        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
+        let dist = (light - o_trace).length();
+        // `rs` is the ray's closest hit on the segment to this light.
+        let b = rs.copied();
+        let l = scale(&[r.origin, light]);
+        let pos = self.tol.position * l;
+        let values = |yours: Option<u32>, rs: Option<u32>| {
+            vec![Value {
+                what: format!("blocker of light '{}'", self.light_name(li)),
+                yours: yours.map_or(json!("none: light reached"), |e| json!(self.name(e))),
+                rayscope: rs.map_or(json!("none: light reached"), |e| json!(self.name(e))),
+            }]
+        };
+        match blocked {
+            Answer::NotLogged => {}
+            Answer::Nothing => {
+                let Some(b) = b else {
+                    return;
+                };
+                let v = values(None, Some(b.entity));
+                if (b.t - dist).abs() <= pos {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieLightOnSurface,
+                        format!("light '{}' lies on '{}'", self.light_name(li), self.name(b.entity)),
+                        v,
+                    ));
+                } else if self.geo.margin(b.prim, o_trace, d, b.point) <= self.tol.tie * l {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieGrazing,
+                        format!("the shadow ray grazes the edge of '{}'", self.name(b.entity)),
+                        v,
+                    ));
+                } else if let Some(share) = self.triangle_miss(&b, tally) {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::HitTriangleEdge,
+                        format!(
+                            "{}, between the point and light '{}'",
+                            self.edge_detail(&b, share, "shadow ray"),
+                            self.light_name(li)
+                        ),
+                        v,
+                    ));
+                } else if matches!(b.prim, PrimRef::Triangle(_)) && !b.front {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::ShadowOneSidedTriangle,
+                        format!(
+                            "triangle '{}' lies between the point and light '{}' (t = {:.6} of {:.6}) and the ray meets its back face",
+                            self.name(b.entity),
+                            self.light_name(li),
+                            b.t,
+                            dist
+                        ),
+                        v,
+                    ));
+                } else {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::ShadowMissedBlocker,
+                        format!(
+                            "'{}' lies between the point and light '{}' (t = {:.6} of {:.6})",
+                            self.name(b.entity),
+                            self.light_name(li),
+                            b.t,
+                            dist
+                        ),
+                        v,
+                    ));
+                }
+            }
+            Answer::Found(e) => {
+                if b.is_some_and(|b| b.entity == e) {
+                    return;
+                }
+                let on_segment = self.geo.entity_intersect(e, o_trace, d, t_skip, dist);
+                if on_segment.is_some() && b.is_some() {
+                    return;
+                }
+                let v = values(Some(e), b.map(|b| b.entity));
+                if let (Some((t, _)), None) = (on_segment, b) {
+                    // On the segment in double precision, not in rayscope's f32 trace: rounding.
+                    let touching = t <= pos;
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        if touching { Code::TieEdge } else { Code::TieGrazing },
+                        format!(
+                            "'{}' {} the shadow ray within rounding",
+                            self.name(e),
+                            if touching {
+                                "touches the point it leaves, at"
+                            } else {
+                                "grazes"
+                            }
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                // The origin lies on the named surface too (the point it leaves is where two
+                // surfaces meet, an edge of the box): whether that surface blocks the ray at
+                // t ≈ 0 is rounding.
+                let on_named = self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l
+                    && self
+                        .geo
+                        .entity_intersect(e, r.origin, d, -SURFACE_ROUNDING * l, SURFACE_ROUNDING * l)
+                        .is_some();
+                if on_named && leave.is_some_and(|lv| lv.entity != e) {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieEdge,
+                        format!(
+                            "it starts where '{}' meets '{}', the surface it leaves: '{}' touches its origin within rounding",
+                            self.name(e),
+                            leave.map_or("?", |lv| self.name(lv.entity)),
+                            self.name(e)
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                if on_named && leave.is_none() && r.parent.is_some() {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieEdge,
+                        format!(
+                            "it starts on '{}', at a hit of its parent ray that is itself a tie (two surfaces meet there): which surface it leaves is rounding",
+                            self.name(e)
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                if let Some(lv) = leave {
+                    if e == lv.entity && on_segment.is_none() {
+                        let t_self = self.geo.entity_intersect(e, r.origin, d, -pos, dist).map(|x| x.0);
+                        // Acne only if the ray meets the surface it leaves at t ≈ 0 from its
+                        // origin (no offset, or one within rounding); from an offset origin the
+                        // name is wrong for another reason, judged below.
+                        if t_self.is_some_and(|t| t >= -SURFACE_ROUNDING * l) {
+                            let t_self = t_self.unwrap_or(0.0);
+                            f.push(self.finding(r, kind, Code::ShadowAcne, self.acne_detail(r, lv, t_self), v));
+                            return;
+                        }
+                    }
+                } else if on_segment.is_none() && self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l {
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::ShadowAcne,
+                        format!(
+                            "it is blocked by '{}', the surface its origin lies on (no offset?)",
+                            self.name(e)
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                if let Some(b) = b {
+                    // Named after an entity beyond the light: the blocker test accepts hits past
+                    // the light, and this one came first in the tracer's list.
+                    if let Some((t, _)) = self.geo.entity_intersect(e, o_trace, d, dist + pos, f64::INFINITY) {
+                        f.push(self.finding(
+                            r,
+                            kind,
+                            Code::ShadowBlockedBeyondLight,
+                            format!(
+                                "your tracer names '{}', which is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6} ('{}' does block it, at t = {:.6})",
+                                self.name(e),
+                                self.light_name(li),
+                                self.name(b.entity),
+                                b.t
+                            ),
+                            v,
+                        ));
+                        return;
+                    }
+                    f.push(self.finding(
+                        r,
+                        kind,
+                        Code::ShadowWrongBlocker,
+                        format!(
+                            "'{}' is not on the shadow ray; '{}' blocks it (t = {:.6})",
+                            self.name(e),
+                            self.name(b.entity),
+                            b.t
+                        ),
+                        v,
+                    ));
+                    return;
+                }
+                match self.geo.entity_intersect(e, o_trace, d, t_skip, f64::INFINITY) {
+                    Some((t, _)) if (t - dist).abs() <= pos => f.push(self.finding(
+                        r,
+                        kind,
+                        Code::TieLightOnSurface,
+                        format!("light '{}' lies on '{}'", self.light_name(li), self.name(e)),
+                        v,
+                    )),
+                    Some((t, _)) => f.push(self.finding(
+                        r,
+                        kind,
+                        Code::ShadowBlockedBeyondLight,
+                        format!(
+                            "'{}' is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6}",
+                            self.name(e),
+                            self.light_name(li)
+                        ),
+                        v,
+                    )),
+                    None => {
+                        let (_, prim) = self.geo.entity_distance(e, o_trace);
+                        let graze = prim.is_some_and(|p| {
+                            // Where the ray's line meets the primitive's surface, against its edge.
+                            let t = self.geo.intersect(p, o_trace, d, f64::MIN, f64::MAX).unwrap_or(0.0);
+                            self.geo.margin(p, o_trace, d, o_trace + d * t) <= self.tol.tie * l
+                        });
+                        if graze {
+                            f.push(self.finding(
+                                r,
+                                kind,
+                                Code::TieGrazing,
+                                format!("the shadow ray grazes the edge of '{}'", self.name(e)),
+                                v,
+                            ));
+                        } else {
+                            f.push(self.finding(
+                                r,
+                                kind,
+                                Code::ShadowPhantomBlocker,
+                                format!(
+                                    "'{}' is not on the segment to light '{}'; rayscope finds nothing in the way",
+                                    self.name(e),
+                                    self.light_name(li)
+                                ),
+                                v,
+                            ));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}
