@@ -36,78 +36,12 @@ impl Judge<'_> {
         tally: &mut Tally,
     ) {
         let (o, d) = (r.origin, r.direction);
-        let hit_values = |ts: Option<f64>, ps: Option<DVec3>, es: Option<u32>| {
-            let mut v = vec![Value {
-                what: "entity".into(),
-                yours: es.map_or(
-                    if ps.is_some() || ts.is_some() {
-                        json!("(not logged)")
-                    } else {
-                        json!("nothing")
-                    },
-                    |e| json!(self.name(e)),
-                ),
-                rayscope: rs.map_or(json!("nothing"), |h| json!(self.name(h.entity))),
-            }];
-            if ts.is_some() || rs.is_some() {
-                v.push(Value {
-                    what: "t".into(),
-                    yours: ts.map_or(json!(null), njson),
-                    rayscope: rs.map_or(json!(null), |h| njson(h.t)),
-                });
-            }
-            if ps.is_some() || rs.is_some() {
-                v.push(Value {
-                    what: "point".into(),
-                    yours: ps.map_or(json!(null), vjson),
-                    rayscope: rs.map_or(json!(null), |h| vjson(h.point)),
-                });
-            }
-            v
-        };
+        let hit_values = |ts, ps, es| self.hit_values(rs, ts, ps, es);
         let c = match claim {
             Answer::NotLogged => return,
             Answer::Nothing => {
-                let Some(h) = rs else {
-                    return;
-                };
-                let m = self.geo.margin(h.prim, o, d, h.point);
-                let l = scale(&[o, h.point]);
-                let v = hit_values(None, None, None);
-                if m <= self.tol.tie * l {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::TieGrazing,
-                        format!("passes {m:.2e} from the edge of '{}'", self.name(h.entity)),
-                        v,
-                    ));
-                } else if let Some(share) = self.triangle_miss(h, tally) {
-                    f.push(self.finding(r, kind, Code::HitTriangleEdge, self.edge_detail(h, share, "trace"), v));
-                } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::HitOneSidedTriangle,
-                        format!(
-                            "rayscope hits the back face of triangle '{}' at t = {:.6}; your tracer reports no hit",
-                            self.name(h.entity),
-                            h.t
-                        ),
-                        v,
-                    ));
-                } else {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::HitMissed,
-                        format!(
-                            "rayscope hits '{}' at t = {:.6}; your tracer reports no hit",
-                            self.name(h.entity),
-                            h.t
-                        ),
-                        v,
-                    ));
+                if let Some(h) = rs {
+                    self.reported_nothing(r, kind, h, f, tally);
                 }
                 return;
             }
@@ -201,6 +135,102 @@ impl Judge<'_> {
                 return;
             }
         }
+        self.against_oracle(r, kind, &c, ts, ps, rs, f, tally);
+    }
+
+    /// The tracer's entity, distance and point beside the oracle's, for a verdict on a hit.
+    fn hit_values(&self, rs: Option<&RsHit>, ts: Option<f64>, ps: Option<DVec3>, es: Option<u32>) -> Vec<Value> {
+        let mut v = vec![Value {
+            what: "entity".into(),
+            yours: es.map_or(
+                if ps.is_some() || ts.is_some() {
+                    json!("(not logged)")
+                } else {
+                    json!("nothing")
+                },
+                |e| json!(self.name(e)),
+            ),
+            rayscope: rs.map_or(json!("nothing"), |h| json!(self.name(h.entity))),
+        }];
+        if ts.is_some() || rs.is_some() {
+            v.push(Value {
+                what: "t".into(),
+                yours: ts.map_or(json!(null), njson),
+                rayscope: rs.map_or(json!(null), |h| njson(h.t)),
+            });
+        }
+        if ps.is_some() || rs.is_some() {
+            v.push(Value {
+                what: "point".into(),
+                yours: ps.map_or(json!(null), vjson),
+                rayscope: rs.map_or(json!(null), |h| vjson(h.point)),
+            });
+        }
+        v
+    }
+
+    /// The tracer reports no hit where the oracle finds `h`.
+    fn reported_nothing(&self, r: &LoggedRay, kind: &Kind, h: &RsHit, f: &mut Vec<Finding>, tally: &mut Tally) {
+        let (o, d) = (r.origin, r.direction);
+        let hit_values = |ts, ps, es| self.hit_values(Some(h), ts, ps, es);
+        let m = self.geo.margin(h.prim, o, d, h.point);
+        let l = scale(&[o, h.point]);
+        let v = hit_values(None, None, None);
+        if m <= self.tol.tie * l {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieGrazing,
+                format!("passes {m:.2e} from the edge of '{}'", self.name(h.entity)),
+                v,
+            ));
+        } else if let Some(share) = self.triangle_miss(h, tally) {
+            f.push(self.finding(r, kind, Code::HitTriangleEdge, self.edge_detail(h, share, "trace"), v));
+        } else if matches!(h.prim, PrimRef::Triangle(_)) && !h.front {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitOneSidedTriangle,
+                format!(
+                    "rayscope hits the back face of triangle '{}' at t = {:.6}; your tracer reports no hit",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v,
+            ));
+        } else {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitMissed,
+                format!(
+                    "rayscope hits '{}' at t = {:.6}; your tracer reports no hit",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v,
+            ));
+        }
+    }
+
+    /// A hit the tracer reports (at `ts`, point `ps`) that is not on the surface it leaves,
+    /// against the oracle's nearest hit `rs`.
+    #[allow(clippy::too_many_arguments)]
+    fn against_oracle(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        c: &HitClaim,
+        ts: f64,
+        ps: DVec3,
+        rs: Option<&RsHit>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let (o, d) = (r.origin, r.direction);
+        let l = scale(&[o, ps]);
+        let pos = self.tol.position * l;
+        let v = || self.hit_values(rs, Some(ts), Some(ps), c.entity);
         let Some(h) = rs else {
             let on = c.entity.map(|e| self.geo.entity_distance(e, ps));
             if let Some((dist, Some(prim))) = on {
@@ -295,6 +325,25 @@ impl Judge<'_> {
             ));
             return;
         }
+        self.beyond_nearest(r, kind, c, ts, ps, h, f, tally);
+    }
+
+    /// The tracer's hit lies beyond the oracle's nearest one, `h`.
+    #[allow(clippy::too_many_arguments)]
+    fn beyond_nearest(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        c: &HitClaim,
+        ts: f64,
+        ps: DVec3,
+        h: &RsHit,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let (o, d) = (r.origin, r.direction);
+        let tie = self.tol.tie * scale(&[o, ps, h.point]);
+        let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
         // The tracer's hit lies beyond rayscope's nearest one.
         if c.entity == Some(h.entity) {
             f.push(self.finding(
