@@ -525,3 +525,27 @@ fn the_picture_is_judged_against_the_logged_colours() {
         }
     }
 }
+
+/// A shadow test whose plane intersection accepts t < 0 (the tester's "shadow rays that hit a
+/// plane behind their origin"): never excused as a tie, named as a blocker that is not in the
+/// way, and each example says the plane lies behind the ray's origin.
+#[test]
+fn a_blocker_behind_the_shadow_rays_origin_is_no_tie() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = (Run {
+        bug: "plane-behind",
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    })
+    .check() else {
+        return;
+    };
+    let t = text(&r);
+    assert_eq!(r.causes.len(), 1, "{t}");
+    assert_eq!(r.causes[0].code, Code::ShadowPhantomBlocker, "{t}");
+    for ex in &r.causes[0].examples {
+        assert!(ex.detail.contains("behind its origin"), "{t}");
+    }
+    assert!(r.ties < 50, "rays excused as ties:\n{t}");
+}

@@ -274,54 +274,83 @@ impl Judge<'_> {
                     ));
                     return;
                 }
-                match self.geo.entity_intersect(e, o_trace, d, t_skip, f64::INFINITY) {
-                    Some((t, _)) if (t - dist).abs() <= pos => f.push(self.finding(
+                self.blocker_off_segment(r, kind, li, e, t_skip, v, f);
+            }
+        }
+    }
+
+    /// A blocker the tracer names that is not on the segment to the light.
+    #[allow(clippy::too_many_arguments)]
+    fn blocker_off_segment(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        e: u32,
+        t_skip: f64,
+        v: Vec<Value>,
+        f: &mut Vec<Finding>,
+    ) {
+        let (o_trace, d) = (r.origin, r.direction);
+        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
+        let dist = (light - o_trace).length();
+        let l = scale(&[r.origin, light]);
+        let pos = self.tol.position * l;
+        match self.geo.entity_intersect(e, o_trace, d, t_skip, f64::INFINITY) {
+            Some((t, _)) if (t - dist).abs() <= pos => f.push(self.finding(
+                r,
+                kind,
+                Code::TieLightOnSurface,
+                format!("light '{}' lies on '{}'", self.light_name(li), self.name(e)),
+                v,
+            )),
+            Some((t, _)) => f.push(self.finding(
+                r,
+                kind,
+                Code::ShadowBlockedBeyondLight,
+                format!(
+                    "'{}' is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6}",
+                    self.name(e),
+                    self.light_name(li)
+                ),
+                v,
+            )),
+            None => {
+                let (_, prim) = self.geo.entity_distance(e, o_trace);
+                let graze = prim.is_some_and(|p| {
+                    // Where the ray's line meets the primitive's surface, against its edge.
+                    // Only ahead of the origin: a surface the line meets behind the ray is not in its way.
+                    self.geo
+                        .intersect(p, o_trace, d, -pos, f64::MAX)
+                        .is_some_and(|t| self.geo.margin(p, o_trace, d, o_trace + d * t) <= self.tol.tie * l)
+                });
+                if graze {
+                    f.push(self.finding(
                         r,
                         kind,
-                        Code::TieLightOnSurface,
-                        format!("light '{}' lies on '{}'", self.light_name(li), self.name(e)),
+                        Code::TieGrazing,
+                        format!("the shadow ray grazes the edge of '{}'", self.name(e)),
                         v,
-                    )),
-                    Some((t, _)) => f.push(self.finding(
+                    ));
+                } else {
+                    f.push(self.finding(
                         r,
                         kind,
-                        Code::ShadowBlockedBeyondLight,
-                        format!(
-                            "'{}' is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6}",
+                        Code::ShadowPhantomBlocker,
+                        match self.geo.entity_intersect(e, o_trace, d, f64::MIN, -SURFACE_ROUNDING * l) {
+                        Some((t, _)) => format!(
+                            "'{}' is on the ray's line only behind its origin, at t = {t:.6}: your blocker test accepts t < 0; rayscope finds nothing between the point and light '{}'",
                             self.name(e),
                             self.light_name(li)
                         ),
+                        None => format!(
+                            "'{}' is not on the segment to light '{}'; rayscope finds nothing in the way",
+                            self.name(e),
+                            self.light_name(li)
+                        ),
+                    },
                         v,
-                    )),
-                    None => {
-                        let (_, prim) = self.geo.entity_distance(e, o_trace);
-                        let graze = prim.is_some_and(|p| {
-                            // Where the ray's line meets the primitive's surface, against its edge.
-                            let t = self.geo.intersect(p, o_trace, d, f64::MIN, f64::MAX).unwrap_or(0.0);
-                            self.geo.margin(p, o_trace, d, o_trace + d * t) <= self.tol.tie * l
-                        });
-                        if graze {
-                            f.push(self.finding(
-                                r,
-                                kind,
-                                Code::TieGrazing,
-                                format!("the shadow ray grazes the edge of '{}'", self.name(e)),
-                                v,
-                            ));
-                        } else {
-                            f.push(self.finding(
-                                r,
-                                kind,
-                                Code::ShadowPhantomBlocker,
-                                format!(
-                                    "'{}' is not on the segment to light '{}'; rayscope finds nothing in the way",
-                                    self.name(e),
-                                    self.light_name(li)
-                                ),
-                                v,
-                            ));
-                        }
-                    }
+                    ));
                 }
             }
         }

@@ -26,6 +26,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      even when the near one is behind the origin (rays starting inside)
   strict-edges       the triangle's inside test rejects hits within 0.02 of an edge
   radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
+  plane-behind       the shadow test's plane intersection accepts t < 0: planes behind the point
+                     block the light
   gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out
                      the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
                      samples averaged as bytes, rows upside down, red and blue swapped
@@ -69,7 +71,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image")
-GEOMETRY_BUGS = ("reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
+GEOMETRY_BUGS = ("plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared")
 
 
@@ -206,6 +208,10 @@ class Tracer:
             if e is skip:
                 continue
             t = self.intersect(e, o, d)
+            if self.bug == "plane-behind" and e.kind == "plane" and dot(e.n, d) != 0:
+                # The plane test without its t > 0 check: planes behind the point block too.
+                t = dot(sub(e.p, o), e.n) / dot(e.n, d)
+                t = t if abs(t) > 1e-9 else None
             if t is not None and t < dist:
                 return e
         return None
