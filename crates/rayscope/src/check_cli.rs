@@ -37,6 +37,10 @@ fn nothing_judged(path: &std::path::Path, report: &rayscope_check::Report) -> Fa
     Failure::input(message)
 }
 
+/// Largest picture `check --image` compares: its colour sums take 40 bytes a pixel (160 MiB at
+/// this size), far past any course image (400×400) and a 2560×1600 screen.
+const MAX_PICTURE_PIXELS: u64 = 1 << 22;
+
 /// `--image`: the picture's bytes against the colours the log's camera rays brought back, read
 /// in a second pass over the log (32 bytes a pixel, within the image's own budget).
 fn picture(
@@ -45,8 +49,17 @@ fn picture(
     judge: &Judge<'_>,
     roles: &[IdRole],
 ) -> Result<rayscope_check::image::ImageCheck, Failure> {
-    let img = crate::commands::read_rgb8(png, a.opts.allow_large)?;
     let s = judge.settings();
+    let pixels = u64::from(s.width) * u64::from(s.height);
+    if pixels > MAX_PICTURE_PIXELS {
+        return Err(Failure::input(format!(
+            "--image: a {}×{} picture is over check's {} megapixels (its colour sums take 40 bytes a pixel); check a region of it rendered on its own",
+            s.width,
+            s.height,
+            MAX_PICTURE_PIXELS >> 20
+        )));
+    }
+    let img = crate::commands::read_rgb8(png, a.opts.allow_large)?;
     if (img.width(), img.height()) != (s.width, s.height) {
         return Err(Failure::input(format!(
             "'{}' is {}×{} but the flags ask for {}×{}: give check the -w and -h the picture was rendered with",

@@ -268,3 +268,25 @@ fn the_picture_is_checked_against_the_logged_colours() {
         .code(2)
         .stderr(predicates::str::contains("4×4 but the flags ask for 5×4"));
 }
+
+/// `--image` with flags for a picture past check's budget is refused before anything is read.
+#[test]
+fn a_picture_past_the_budget_is_refused_from_the_flags() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let log = dir.path().join("rays.jsonl");
+    write(
+        &log,
+        "{\"pixel\": [0, 0], \"kind\": \"camera\", \"origin\": [0, 0, 0], \"direction\": [0, 0, 1]}\n",
+    );
+    rayscope()
+        .arg("check")
+        .arg("-f")
+        .arg(rayscope_testkit::scene("basic.txt"))
+        .arg("--rays")
+        .arg(&log)
+        .args(["-w", "4096", "-h", "2048", "--quiet", "--image"])
+        .arg(dir.path().join("absent.png"))
+        .assert()
+        .code(2)
+        .stderr(predicates::str::contains("over check's 4 megapixels"));
+}

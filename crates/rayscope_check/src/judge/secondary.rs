@@ -6,15 +6,7 @@ use super::*;
 /// Fresnel reflectance (unpolarised) where the parent ray meets glass of index `ior`.
 pub(super) fn glass_fresnel(lv: &Leave, ior: f64) -> f64 {
     let (n1, n2) = if lv.front { (1.0, ior) } else { (ior, 1.0) };
-    let cos_i = (-lv.parent_dir.dot(lv.facing)).clamp(0.0, 1.0);
-    let sin2_t = (n1 / n2).powi(2) * (1.0 - cos_i * cos_i);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
-    let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
-    0.5 * (rs * rs + rp * rp)
+    shading::fresnel((-lv.parent_dir.dot(lv.facing)).clamp(0.0, 1.0), n1, n2)
 }
 
 impl Judge<'_> {
