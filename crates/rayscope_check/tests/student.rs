@@ -549,3 +549,22 @@ fn a_blocker_behind_the_shadow_rays_origin_is_no_tie() {
     }
     assert!(r.ties < 50, "rays excused as ties:\n{t}");
 }
+
+/// A shadow test given an unnormalised direction (no catalogue has it): only shadow rays go
+/// wrong, so the first line is about shadow rays, never that the spheres' intersection is wrong.
+#[test]
+fn a_mistake_in_the_shadow_test_alone_is_not_blamed_on_the_surfaces() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = (Run {
+        bug: "shadow-unnormalised",
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    })
+    .check() else {
+        return;
+    };
+    let t = text(&r);
+    assert!(!r.causes.is_empty(), "{t}");
+    assert!(r.causes.iter().all(|c| c.code.as_str().starts_with("shadow.")), "{t}");
+}

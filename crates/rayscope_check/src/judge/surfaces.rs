@@ -47,7 +47,9 @@ impl Judge<'_> {
     /// entity or one kind of surface.
     pub fn fold_surfaces(&self, t: &mut Tally) {
         let met: Vec<Cause> = t.causes.keys().copied().filter(|c| MET.contains(&c.code)).collect();
-        if met.len() < 2 {
+        // Verdicts on shadow rays alone point at the shadow test (its own intersection call, a
+        // direction left unnormalised there), not at the surface: only hits make it the surface.
+        if met.len() < 2 || met.iter().all(|c| c.code.as_str().starts_with("shadow.")) {
             return;
         }
         let mut entities: BTreeMap<u32, u64> = BTreeMap::new();

@@ -28,6 +28,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
   plane-behind       the shadow test's plane intersection accepts t < 0: planes behind the point
                      block the light
+  shadow-unnormalised the shadow test is given light - point unnormalised, so its spheres' t is
+                     off (it logs the normalised direction; no catalogue has it)
   gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out
                      the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
                      samples averaged as bytes, rows upside down, red and blue swapped
@@ -71,7 +73,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image")
-GEOMETRY_BUGS = ("plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
+GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared")
 
 
@@ -279,7 +281,7 @@ class Tracer:
             to = sub(light["pos"], so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
-            b = self.blocker(so, ldir, dist, shaded if self.bug == "no-clamp" else None)
+            b = self.blocker(so, to if self.bug == "shadow-unnormalised" else ldir, dist, shaded if self.bug == "no-clamp" else None)
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
