@@ -89,66 +89,8 @@ impl Judge<'_> {
         match blocked {
             Answer::NotLogged => {}
             Answer::Nothing => {
-                let Some(b) = b else {
-                    return;
-                };
-                let v = values(None, Some(b.entity));
-                if (b.t - dist).abs() <= pos {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::TieLightOnSurface,
-                        format!("light '{}' lies on '{}'", self.light_name(li), self.name(b.entity)),
-                        v,
-                    ));
-                } else if self.geo.margin(b.prim, o_trace, d, b.point) <= self.tol.tie * l {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::TieGrazing,
-                        format!("the shadow ray grazes the edge of '{}'", self.name(b.entity)),
-                        v,
-                    ));
-                } else if let Some(share) = self.triangle_miss(&b, tally) {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::HitTriangleEdge,
-                        format!(
-                            "{}, between the point and light '{}'",
-                            self.edge_detail(&b, share, "shadow ray"),
-                            self.light_name(li)
-                        ),
-                        v,
-                    ));
-                } else if matches!(b.prim, PrimRef::Triangle(_)) && !b.front {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::ShadowOneSidedTriangle,
-                        format!(
-                            "triangle '{}' lies between the point and light '{}' (t = {:.6} of {:.6}) and the ray meets its back face",
-                            self.name(b.entity),
-                            self.light_name(li),
-                            b.t,
-                            dist
-                        ),
-                        v,
-                    ));
-                } else {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::ShadowMissedBlocker,
-                        format!(
-                            "'{}' lies between the point and light '{}' (t = {:.6} of {:.6})",
-                            self.name(b.entity),
-                            self.light_name(li),
-                            b.t,
-                            dist
-                        ),
-                        v,
-                    ));
+                if let Some(b) = b {
+                    self.reported_reached(r, kind, li, &b, values(None, Some(b.entity)), f, tally);
                 }
             }
             Answer::Found(e) => {
@@ -180,40 +122,7 @@ impl Judge<'_> {
                     ));
                     return;
                 }
-                // The origin lies on the named surface too (the point it leaves is where two
-                // surfaces meet, an edge of the box): whether that surface blocks the ray at
-                // t ≈ 0 is rounding.
-                let on_named = self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l
-                    && self
-                        .geo
-                        .entity_intersect(e, r.origin, d, -SURFACE_ROUNDING * l, SURFACE_ROUNDING * l)
-                        .is_some();
-                if on_named && leave.is_some_and(|lv| lv.entity != e) {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::TieEdge,
-                        format!(
-                            "it starts where '{}' meets '{}', the surface it leaves: '{}' touches its origin within rounding",
-                            self.name(e),
-                            leave.map_or("?", |lv| self.name(lv.entity)),
-                            self.name(e)
-                        ),
-                        v,
-                    ));
-                    return;
-                }
-                if on_named && leave.is_none() && r.parent.is_some() {
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::TieEdge,
-                        format!(
-                            "it starts on '{}', at a hit of its parent ray that is itself a tie (two surfaces meet there): which surface it leaves is rounding",
-                            self.name(e)
-                        ),
-                        v,
-                    ));
+                if self.starts_on_named(r, kind, e, leave, l, &v, f) {
                     return;
                 }
                 if let Some(lv) = leave {
@@ -354,5 +263,134 @@ impl Judge<'_> {
                 }
             }
         }
+    }
+
+    /// The tracer says the light is reached where the oracle finds `b` in the way.
+    #[allow(clippy::too_many_arguments)]
+    fn reported_reached(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        b: &RsHit,
+        v: Vec<Value>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let (o_trace, d) = (r.origin, r.direction);
+        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
+        let dist = (light - o_trace).length();
+        let l = scale(&[r.origin, light]);
+        let pos = self.tol.position * l;
+        if (b.t - dist).abs() <= pos {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieLightOnSurface,
+                format!("light '{}' lies on '{}'", self.light_name(li), self.name(b.entity)),
+                v,
+            ));
+        } else if self.geo.margin(b.prim, o_trace, d, b.point) <= self.tol.tie * l {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieGrazing,
+                format!("the shadow ray grazes the edge of '{}'", self.name(b.entity)),
+                v,
+            ));
+        } else if let Some(share) = self.triangle_miss(b, tally) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitTriangleEdge,
+                format!(
+                    "{}, between the point and light '{}'",
+                    self.edge_detail(b, share, "shadow ray"),
+                    self.light_name(li)
+                ),
+                v,
+            ));
+        } else if matches!(b.prim, PrimRef::Triangle(_)) && !b.front {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::ShadowOneSidedTriangle,
+                format!(
+                    "triangle '{}' lies between the point and light '{}' (t = {:.6} of {:.6}) and the ray meets its back face",
+                    self.name(b.entity),
+                    self.light_name(li),
+                    b.t,
+                    dist
+                ),
+                v,
+            ));
+        } else {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::ShadowMissedBlocker,
+                format!(
+                    "'{}' lies between the point and light '{}' (t = {:.6} of {:.6})",
+                    self.name(b.entity),
+                    self.light_name(li),
+                    b.t,
+                    dist
+                ),
+                v,
+            ));
+        }
+    }
+
+    /// A named blocker the ray's origin lies on too (it starts where two surfaces meet): a tie,
+    /// pushed, and true. `l` is the scale of the ray and its light.
+    #[allow(clippy::too_many_arguments)]
+    fn starts_on_named(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        e: u32,
+        leave: Option<&Leave>,
+        l: f64,
+        v: &[Value],
+        f: &mut Vec<Finding>,
+    ) -> bool {
+        let d = r.direction;
+        // The origin lies on the named surface too (the point it leaves is where two
+        // surfaces meet, an edge of the box): whether that surface blocks the ray at
+        // t ≈ 0 is rounding.
+        let on_named = self.geo.entity_distance(e, r.origin).0 <= SURFACE_ROUNDING * l
+            && self
+                .geo
+                .entity_intersect(e, r.origin, d, -SURFACE_ROUNDING * l, SURFACE_ROUNDING * l)
+                .is_some();
+        if on_named && leave.is_some_and(|lv| lv.entity != e) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieEdge,
+                format!(
+                    "it starts where '{}' meets '{}', the surface it leaves: '{}' touches its origin within rounding",
+                    self.name(e),
+                    leave.map_or("?", |lv| self.name(lv.entity)),
+                    self.name(e)
+                ),
+                v.to_vec(),
+            ));
+            return true;
+        }
+        if on_named && leave.is_none() && r.parent.is_some() {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::TieEdge,
+                format!(
+                    "it starts on '{}', at a hit of its parent ray that is itself a tie (two surfaces meet there): which surface it leaves is rounding",
+                    self.name(e)
+                ),
+                v.to_vec(),
+            ));
+            return true;
+        }
+        false
     }
 }
