@@ -67,79 +67,8 @@ impl Judge<'_> {
         let aspect = w / h;
         let horizontal = self.settings.camera.fov_axis == FovAxis::Horizontal;
         let half = if horizontal { (t, t / aspect) } else { (t * aspect, t) };
-        let n = f64::from(self.grid);
-        let (i, j) = (f64::from(s % self.grid), f64::from(s / self.grid));
-        let mut offs: Vec<Guess> = vec![
-            (((i + 0.5) / n, (j + 0.5) / n), None),
-            (
-                (i / n, j / n),
-                Some((
-                    Code::CameraPixelCorner,
-                    "through the top-left corner of its pixel (or sub-pixel cell), not the centre",
-                )),
-            ),
-        ];
-        if self.grid > 1 {
-            offs.push((
-                ((j + 0.5) / n, (i + 0.5) / n),
-                Some((
-                    Code::CameraSubpixelGrid,
-                    "with the sample's row and column swapped (rayscope numbers samples row by row: i = s mod N, j = s div N)",
-                )),
-            ));
-            offs.push((
-                (0.5, 0.5),
-                Some((
-                    Code::CameraSubpixelGrid,
-                    "through the pixel centre instead of sample s's grid cell",
-                )),
-            ));
-            offs.push((
-                (i / (n - 1.0), j / (n - 1.0)),
-                Some((
-                    Code::CameraSubpixelGrid,
-                    "on a grid that spans the pixel's corners instead of cell centres",
-                )),
-            ));
-        }
-        let mut projs: Vec<Guess> = vec![(half, None)];
-        if self.settings.width != self.settings.height {
-            let swapped = if horizontal { (t * aspect, t) } else { (t, t / aspect) };
-            projs.push((
-                swapped,
-                Some((
-                    Code::CameraFovAxis,
-                    if horizontal {
-                        "with a vertical field of view: the 60° spans the image height instead of its width"
-                    } else {
-                        "with a horizontal field of view where --fov-axis vertical was asked for"
-                    },
-                )),
-            ));
-            projs.push((
-                (t, t),
-                Some((
-                    Code::CameraAspect,
-                    "with the aspect ratio ignored: a square image plane on a non-square image",
-                )),
-            ));
-            let inverted = if horizontal { (t, t * aspect) } else { (t / aspect, t) };
-            projs.push((
-                inverted,
-                Some((
-                    Code::CameraAspect,
-                    "with the aspect ratio the wrong way round (height / width instead of width / height)",
-                )),
-            ));
-        }
-        projs.push((
-            (half.0, -half.1),
-            Some((Code::CameraFlipped, "with the image upside down (row 0 at the bottom)")),
-        ));
-        projs.push((
-            (-half.0, half.1),
-            Some((Code::CameraFlipped, "with the image mirrored left to right")),
-        ));
+        let offs = self.sample_offsets(s);
+        let projs = self.projections(half, t, aspect, horizontal);
         let dir_of = |g: &CamGuess| {
             let u = (f64::from(x) + g.off.0) / w;
             let v = (f64::from(y) + g.off.1) / h;
@@ -257,5 +186,89 @@ impl Judge<'_> {
             off_by
         };
         f.push(self.finding(r, kind, Code::CameraDirection, detail, values));
+    }
+
+    /// Where sample `s` lies in its pixel by rayscope's grid, and where the usual mistakes put it.
+    fn sample_offsets(&self, s: u32) -> Vec<Guess> {
+        let n = f64::from(self.grid);
+        let (i, j) = (f64::from(s % self.grid), f64::from(s / self.grid));
+        let mut offs: Vec<Guess> = vec![
+            (((i + 0.5) / n, (j + 0.5) / n), None),
+            (
+                (i / n, j / n),
+                Some((
+                    Code::CameraPixelCorner,
+                    "through the top-left corner of its pixel (or sub-pixel cell), not the centre",
+                )),
+            ),
+        ];
+        if self.grid > 1 {
+            offs.push((
+                ((j + 0.5) / n, (i + 0.5) / n),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "with the sample's row and column swapped (rayscope numbers samples row by row: i = s mod N, j = s div N)",
+                )),
+            ));
+            offs.push((
+                (0.5, 0.5),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "through the pixel centre instead of sample s's grid cell",
+                )),
+            ));
+            offs.push((
+                (i / (n - 1.0), j / (n - 1.0)),
+                Some((
+                    Code::CameraSubpixelGrid,
+                    "on a grid that spans the pixel's corners instead of cell centres",
+                )),
+            ));
+        }
+        offs
+    }
+
+    /// The image plane's half extents `half` (from `t` = tan(fov/2), the image's `aspect` and
+    /// whether the FOV is `horizontal`), and what the usual mistakes make of them.
+    fn projections(&self, half: (f64, f64), t: f64, aspect: f64, horizontal: bool) -> Vec<Guess> {
+        let mut projs: Vec<Guess> = vec![(half, None)];
+        if self.settings.width != self.settings.height {
+            let swapped = if horizontal { (t * aspect, t) } else { (t, t / aspect) };
+            projs.push((
+                swapped,
+                Some((
+                    Code::CameraFovAxis,
+                    if horizontal {
+                        "with a vertical field of view: the 60° spans the image height instead of its width"
+                    } else {
+                        "with a horizontal field of view where --fov-axis vertical was asked for"
+                    },
+                )),
+            ));
+            projs.push((
+                (t, t),
+                Some((
+                    Code::CameraAspect,
+                    "with the aspect ratio ignored: a square image plane on a non-square image",
+                )),
+            ));
+            let inverted = if horizontal { (t, t * aspect) } else { (t / aspect, t) };
+            projs.push((
+                inverted,
+                Some((
+                    Code::CameraAspect,
+                    "with the aspect ratio the wrong way round (height / width instead of width / height)",
+                )),
+            ));
+        }
+        projs.push((
+            (half.0, -half.1),
+            Some((Code::CameraFlipped, "with the image upside down (row 0 at the bottom)")),
+        ));
+        projs.push((
+            (-half.0, half.1),
+            Some((Code::CameraFlipped, "with the image mirrored left to right")),
+        ));
+        projs
     }
 }
