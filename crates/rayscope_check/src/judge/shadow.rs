@@ -3,7 +3,27 @@
 
 use super::*;
 
+/// A shadow ray's segment to its light: its length, the scale of the ray and the light, and the
+/// position tolerance at that scale.
+#[derive(Debug, Clone, Copy)]
+struct ToLight {
+    dist: f64,
+    l: f64,
+    pos: f64,
+}
+
 impl Judge<'_> {
+    /// The segment from shadow ray `r`'s origin to light `li`.
+    fn to_light(&self, r: &LoggedRay, li: u32) -> ToLight {
+        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
+        let l = scale(&[r.origin, light]);
+        ToLight {
+            dist: (light - r.origin).length(),
+            l,
+            pos: self.tol.position * l,
+        }
+    }
+
     /// Which light a shadow ray aims at; a verdict when it aims at none (or not at the one named).
     pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>) -> Option<u32> {
         let lights = &self.scene.lights;
@@ -73,12 +93,10 @@ impl Judge<'_> {
         tally: &mut Tally,
     ) {
         let (o_trace, d) = (r.origin, r.direction);
-        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
-        let dist = (light - o_trace).length();
+        let seg = self.to_light(r, li);
+        let ToLight { dist, l, pos } = seg;
         // `rs` is the ray's closest hit on the segment to this light.
         let b = rs.copied();
-        let l = scale(&[r.origin, light]);
-        let pos = self.tol.position * l;
         let values = |yours: Option<u32>, rs: Option<u32>| {
             vec![Value {
                 what: format!("blocker of light '{}'", self.light_name(li)),
@@ -90,7 +108,7 @@ impl Judge<'_> {
             Answer::NotLogged => {}
             Answer::Nothing => {
                 if let Some(b) = b {
-                    self.reported_reached(r, kind, li, &b, values(None, Some(b.entity)), f, tally);
+                    self.reported_reached(r, kind, li, seg, &b, values(None, Some(b.entity)), f, tally);
                 }
             }
             Answer::Found(e) => {
@@ -183,7 +201,7 @@ impl Judge<'_> {
                     ));
                     return;
                 }
-                self.blocker_off_segment(r, kind, li, e, t_skip, v, f);
+                self.blocker_off_segment(r, kind, li, seg, e, t_skip, v, f);
             }
         }
     }
@@ -195,16 +213,14 @@ impl Judge<'_> {
         r: &LoggedRay,
         kind: &Kind,
         li: u32,
+        seg: ToLight,
         e: u32,
         t_skip: f64,
         v: Vec<Value>,
         f: &mut Vec<Finding>,
     ) {
         let (o_trace, d) = (r.origin, r.direction);
-        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
-        let dist = (light - o_trace).length();
-        let l = scale(&[r.origin, light]);
-        let pos = self.tol.position * l;
+        let ToLight { dist, l, pos } = seg;
         match self.geo.entity_intersect(e, o_trace, d, t_skip, f64::INFINITY) {
             Some((t, _)) if (t - dist).abs() <= pos => f.push(self.finding(
                 r,
@@ -272,16 +288,14 @@ impl Judge<'_> {
         r: &LoggedRay,
         kind: &Kind,
         li: u32,
+        seg: ToLight,
         b: &RsHit,
         v: Vec<Value>,
         f: &mut Vec<Finding>,
         tally: &mut Tally,
     ) {
         let (o_trace, d) = (r.origin, r.direction);
-        let light = d3(Vec3A::from(self.scene.lights[li as usize].position));
-        let dist = (light - o_trace).length();
-        let l = scale(&[r.origin, light]);
-        let pos = self.tol.position * l;
+        let ToLight { dist, l, pos } = seg;
         if (b.t - dist).abs() <= pos {
             f.push(self.finding(
                 r,
