@@ -596,40 +596,60 @@ impl<'a> Judge<'a> {
     }
 
     fn judge_group_inner(&self, rays: &[LoggedRay], tally: &mut Tally, keep: bool) -> Vec<Vec<Finding>> {
+        SCRATCH.with(|s| self.judge_group_with(rays, tally, keep, &mut s.borrow_mut()))
+    }
+
+    fn judge_group_with(
+        &self,
+        rays: &[LoggedRay],
+        tally: &mut Tally,
+        keep: bool,
+        s: &mut Scratch,
+    ) -> Vec<Vec<Finding>> {
         let n = rays.len();
-        let parent = parents(rays, 32);
+        let Scratch {
+            parent,
+            depth,
+            order,
+            evals,
+            kinds,
+            findings,
+        } = s;
+        parents(rays, 32, parent);
         tally.orphans += rays
             .iter()
-            .zip(&parent)
+            .zip(parent.iter())
             .filter(|(r, p)| r.parent.is_some() && p.is_none())
             .count() as u64;
         // Parents before children; a cycle of parent links is cut after 64 steps.
-        let depth: Vec<u32> = (0..n)
-            .map(|i| {
-                let (mut d, mut cur) = (0, parent[i]);
-                while let Some(p) = cur {
-                    d += 1;
-                    if d > 64 {
-                        break;
-                    }
-                    cur = parent[p];
+        depth.clear();
+        depth.extend((0..n).map(|i| {
+            let (mut d, mut cur) = (0, parent[i]);
+            while let Some(p) = cur {
+                d += 1;
+                if d > 64 {
+                    break;
                 }
-                d
-            })
-            .collect();
-        let mut order: Vec<usize> = (0..n).collect();
+                cur = parent[p];
+            }
+            d
+        }));
+        order.clear();
+        order.extend(0..n);
         order.sort_by_key(|&i| (depth[i], i));
-        let mut evals: Vec<Option<Eval>> = vec![None; n];
-        let mut findings: Vec<Vec<Finding>> = vec![Vec::new(); n];
-        let mut kinds: Vec<Kind> = Vec::with_capacity(n);
+        evals.clear();
+        evals.resize(n, None);
+        findings.clear();
+        findings.resize_with(n, Vec::new);
+        kinds.clear();
         kinds.resize(n, Kind::Camera);
-        for &i in &order {
+        for &i in order.iter() {
             let leave = parent[i].and_then(|p| evals[p]).and_then(|e| e.leave());
             let (eval, kind) = self.judge_ray(&rays[i], leave.as_ref(), &mut findings[i], tally);
             evals[i] = Some(eval);
             kinds[i] = kind;
         }
-        self.tir_invented(rays, &parent, &evals, &kinds, &mut findings);
+        self.tir_invented(rays, parent, evals, kinds, findings);
         tally.entering_refracted_ok += (0..n)
             .filter(|&i| {
                 kinds[i] == Kind::Refraction
@@ -640,10 +660,12 @@ impl<'a> Judge<'a> {
                         .is_some_and(|lv| lv.front)
             })
             .count() as u64;
-        self.shading(rays, &parent, &evals, &kinds, &mut findings, tally);
-        tally.add_causes(&causes::causes(&order, &parent, &findings), &findings);
+        self.shading(rays, parent, evals, kinds, findings, tally);
+        if findings.iter().any(|f| !f.is_empty()) {
+            tally.add_causes(&causes::causes(order, parent, findings), findings);
+        }
         let mut out = Vec::with_capacity(if keep { n } else { 0 });
-        for (i, f) in findings.into_iter().enumerate() {
+        for (i, f) in findings.drain(..).enumerate() {
             if keep {
                 out.push(f.clone());
             }
@@ -688,20 +710,9 @@ impl<'a> Judge<'a> {
         // answer compared is that of the ray the tracer meant to cast.
         // Hits closer than where the ray, followed from its logged origin, gets rayscope's own
         // offset off the surface it leaves are the rounding of that surface, not answers.
-        let mut t_skip = 0.0;
-        let mut toward_light_behind = false;
+        let (mut t_skip, mut toward_light_behind) = (0.0, false);
         if let Some(lv) = leave {
-            let side = d.dot(lv.facing);
-            let l = scale(&[lv.point, lv.parent_origin]);
-            let eps = 1e-5 * l;
-            let sigma = (o - lv.point).dot(lv.facing);
-            if side.abs() > 1e-9 {
-                let s = side.signum();
-                if sigma * s < eps {
-                    t_skip = ((s * eps - sigma) / side).clamp(0.0, self.tol.position * l);
-                }
-            }
-            toward_light_behind = kind == Kind::Shadow && side <= 0.0;
+            (t_skip, toward_light_behind) = self.leaving(r, &kind, lv);
             let before = f.len();
             self.derivation(r, &kind, lv, f);
             sound &= f.len() == before;
@@ -750,19 +761,7 @@ impl<'a> Judge<'a> {
                 Answer::Found(c) => c.entity,
                 _ => None,
             };
-            for x in &mut f[before..] {
-                x.entity = match x.code {
-                    Code::HitPhantom
-                    | Code::HitWrongT
-                    | Code::HitPointOffRay
-                    | Code::HitBehindOrigin
-                    | Code::HitNormalWrong => claimed.or(rs.map(|h| h.entity)),
-                    Code::HitMissed | Code::HitFarther | Code::HitOneSidedTriangle | Code::HitTriangleEdge => {
-                        rs.map(|h| h.entity)
-                    }
-                    _ => None,
-                };
-            }
+            hit_entities(&mut f[before..], claimed, rs.map(|h| h.entity));
             // After a tie the tracer's ray may go on from the other surface: its children are
             // judged on their own answers only.
             sound &= f.len() == before;
@@ -776,15 +775,7 @@ impl<'a> Judge<'a> {
                         Answer::Found(e) => Some(e),
                         _ => None,
                     };
-                    for x in &mut f[before..] {
-                        x.entity = match x.code {
-                            Code::ShadowPhantomBlocker | Code::ShadowWrongBlocker => named,
-                            Code::ShadowMissedBlocker | Code::ShadowOneSidedTriangle | Code::HitTriangleEdge => {
-                                rs.map(|h| h.entity)
-                            }
-                            _ => None,
-                        };
-                    }
+                    blocker_entities(&mut f[before..], named, rs.map(|h| h.entity));
                 }
             }
         }
@@ -798,29 +789,96 @@ impl<'a> Judge<'a> {
             kind,
         )
     }
+
+    /// Where rayscope traces a ray cast from its parent's hit `lv`: the distance to skip so that
+    /// the ray starts rayscope's own offset off the surface it leaves (when the logged origin lies
+    /// closer than that, or on the wrong side), and whether it is a shadow ray toward a light
+    /// behind that surface.
+    fn leaving(&self, r: &LoggedRay, kind: &Kind, lv: &Leave) -> (f64, bool) {
+        let (o, d) = (r.origin, r.direction);
+        let side = d.dot(lv.facing);
+        let l = scale(&[lv.point, lv.parent_origin]);
+        let eps = 1e-5 * l;
+        let sigma = (o - lv.point).dot(lv.facing);
+        let mut t_skip = 0.0;
+        if side.abs() > 1e-9 {
+            let s = side.signum();
+            if sigma * s < eps {
+                t_skip = ((s * eps - sigma) / side).clamp(0.0, self.tol.position * l);
+            }
+        }
+        (t_skip, *kind == Kind::Shadow && side <= 0.0)
+    }
 }
 
 /// Each ray's parent in `rays`: the last ray logged with its `parent` id, never itself. Groups
 /// of at most `scan` rays are searched directly, which for the handful of rays of a sample is
 /// sooner than building a map.
-fn parents(rays: &[LoggedRay], scan: usize) -> Vec<Option<usize>> {
+/// The entity each verdict on a hit is about: the one the tracer named where its answer is the
+/// wrong one, the one rayscope meets where the tracer missed it.
+fn hit_entities(found: &mut [Finding], claimed: Option<u32>, rayscope: Option<u32>) {
+    for x in found {
+        x.entity = match x.code {
+            Code::HitPhantom
+            | Code::HitWrongT
+            | Code::HitPointOffRay
+            | Code::HitBehindOrigin
+            | Code::HitNormalWrong => claimed.or(rayscope),
+            Code::HitMissed | Code::HitFarther | Code::HitOneSidedTriangle | Code::HitTriangleEdge => rayscope,
+            _ => None,
+        };
+    }
+}
+
+/// The entity each verdict on a shadow ray's blocker is about: the blocker the tracer named, or
+/// the one rayscope finds in the way.
+fn blocker_entities(found: &mut [Finding], named: Option<u32>, rayscope: Option<u32>) {
+    for x in found {
+        x.entity = match x.code {
+            Code::ShadowPhantomBlocker | Code::ShadowWrongBlocker => named,
+            Code::ShadowMissedBlocker | Code::ShadowOneSidedTriangle | Code::HitTriangleEdge => rayscope,
+            _ => None,
+        };
+    }
+}
+
+fn parents(rays: &[LoggedRay], scan: usize, out: &mut Vec<Option<usize>>) {
     let own = |i: usize, p: Option<usize>| p.filter(|&p| p != i);
+    out.clear();
     if rays.len() <= scan {
-        rays.iter()
-            .enumerate()
-            .map(|(i, r)| own(i, r.parent.and_then(|p| rays.iter().rposition(|q| q.id == Some(p)))))
-            .collect()
+        out.extend(
+            rays.iter()
+                .enumerate()
+                .map(|(i, r)| own(i, r.parent.and_then(|p| rays.iter().rposition(|q| q.id == Some(p))))),
+        );
     } else {
         let ids: FxHashMap<i64, usize> = rays
             .iter()
             .enumerate()
             .filter_map(|(i, r)| r.id.map(|id| (id, i)))
             .collect();
-        rays.iter()
-            .enumerate()
-            .map(|(i, r)| own(i, r.parent.and_then(|p| ids.get(&p).copied())))
-            .collect()
+        out.extend(
+            rays.iter()
+                .enumerate()
+                .map(|(i, r)| own(i, r.parent.and_then(|p| ids.get(&p).copied()))),
+        );
     }
+}
+
+/// The buffers judging one sample uses, kept per thread from sample to sample: most samples
+/// are a few rays, and allocating these for each cost more than judging them.
+#[derive(Default)]
+struct Scratch {
+    parent: Vec<Option<usize>>,
+    depth: Vec<u32>,
+    order: Vec<usize>,
+    evals: Vec<Option<Eval>>,
+    kinds: Vec<Kind>,
+    findings: Vec<Vec<Finding>>,
+}
+
+thread_local! {
+    static SCRATCH: std::cell::RefCell<Scratch> = std::cell::RefCell::default();
 }
 
 #[cfg(test)]
@@ -849,7 +907,10 @@ mod tests {
             ray(None, Some(2)),
         ];
         let want = vec![None, Some(0), Some(0), Some(2), None, None, Some(3)];
-        assert_eq!(parents(&rays, 32), want);
-        assert_eq!(parents(&rays, 0), want);
+        let mut got = Vec::new();
+        parents(&rays, 32, &mut got);
+        assert_eq!(got, want);
+        parents(&rays, 0, &mut got);
+        assert_eq!(got, want);
     }
 }

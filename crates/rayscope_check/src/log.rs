@@ -39,6 +39,14 @@ impl Kind {
     /// kept in [`printable`] form, at most [`MAX_KIND_CHARS`] characters of it.
     #[must_use]
     pub fn from_word(w: &str) -> Kind {
+        // The words tracers write, spelled as rayscope's own log spells them, decided at once.
+        match w {
+            "camera" => return Kind::Camera,
+            "shadow" => return Kind::Shadow,
+            "reflection" => return Kind::Reflection,
+            "refraction" => return Kind::Refraction,
+            _ => {}
+        }
         let is = |words: &[&str]| words.iter().any(|x| w.eq_ignore_ascii_case(x));
         if is(&["camera", "primary", "eye"]) {
             Kind::Camera
@@ -403,6 +411,10 @@ pub struct JsonlReader<R: Read> {
     total: u64,
     skipped: u64,
     first_skipped: Option<Diagnostic>,
+    /// The batch's lines and what each parsed to, kept between batches so that their memory
+    /// (megabytes) is not handed back to the system and faulted in again for every batch.
+    lines: Vec<LineSpan>,
+    parsed: Vec<Result<Option<LoggedRay>, ()>>,
 }
 
 /// A line of the batch being parsed: its number and where it lies in the buffer.
@@ -425,6 +437,8 @@ impl<R: Read> JsonlReader<R> {
             total,
             skipped: 0,
             first_skipped: None,
+            lines: Vec::new(),
+            parsed: Vec::new(),
         }
     }
 
@@ -512,30 +526,30 @@ impl<R: Read> JsonlReader<R> {
 
     /// The next lines, at most [`BATCH`] of them, each at most [`MAX_LINE`] bytes; with the
     /// line after them when that one is longer. Reads only what `fill` has made whole.
-    fn split(&self) -> (Vec<LineSpan>, Option<(u64, usize)>) {
+    fn split(&self, lines: &mut Vec<LineSpan>) -> Option<(u64, usize)> {
         let text = &self.buf[self.pos..];
-        let mut lines = Vec::with_capacity((text.len() / 128).clamp(16, BATCH));
+        lines.clear();
         let mut start = 0;
         let mut no = self.next_line;
         for nl in memchr::memchr_iter(b'\n', text) {
             if nl - start > MAX_LINE {
-                return (lines, Some((no, self.pos + start)));
+                return Some((no, self.pos + start));
             }
             lines.push((no, self.pos + start, self.pos + nl));
             start = nl + 1;
             no += 1;
             if lines.len() == BATCH {
-                return (lines, None);
+                return None;
             }
         }
         let tail = text.len() - start;
         if tail > MAX_LINE {
-            return (lines, Some((no, self.pos + start)));
+            return Some((no, self.pos + start));
         }
         if self.eof && tail > 0 {
             lines.push((no, self.pos + start, self.pos + text.len()));
         }
-        (lines, None)
+        None
     }
 }
 
@@ -548,31 +562,46 @@ impl<R: Read> RaySource for JsonlReader<R> {
         if self.pos == self.buf.len() {
             return Ok(false);
         }
-        let (lines, long) = self.split();
+        let mut lines = std::mem::take(&mut self.lines);
+        let mut parsed = std::mem::take(&mut self.parsed);
+        let long = self.split(&mut lines);
         let (ctx, path, buf) = (&self.ctx, self.path.as_path(), &self.buf);
         // A malformed line's diagnostic is dropped at once and made again for the one reported,
         // so a log of bad lines costs no memory per line.
-        let parsed: Vec<Result<Option<LoggedRay>, ()>> = lines
-            .par_iter()
-            .with_min_len(256)
-            .map(|&(n, a, b)| parse_line(&buf[a..b], n, path, ctx).map_err(drop))
-            .collect();
-        for (p, &(n, a, b)) in parsed.into_iter().zip(&lines) {
+        parsed.clear();
+        parsed.par_extend(
+            lines
+                .par_iter()
+                .with_min_len(256)
+                .map(|&(n, a, b)| parse_line(&buf[a..b], n, path, ctx).map_err(drop)),
+        );
+        out.reserve(parsed.len());
+        let mut result = Ok(());
+        for (p, &(n, a, b)) in parsed.drain(..).zip(&lines) {
             match p {
                 Ok(Some(r)) => out.push(r),
                 Ok(None) => {}
-                Err(()) => self.malformed(|me| {
-                    parse_line(&me.buf[a..b], n, &me.path, &me.ctx).map_or_else(
-                        |d| *d,
-                        |_| {
-                            // Parsing is deterministic: the line fails again.
-                            Diagnostic::error(&me.path, n as usize, "", 1, 1, "expected a JSON ray record")
-                        },
-                    )
-                })?,
+                Err(()) => {
+                    result = self.malformed(|me| {
+                        parse_line(&me.buf[a..b], n, &me.path, &me.ctx).map_or_else(
+                            |d| *d,
+                            |_| {
+                                // Parsing is deterministic: the line fails again.
+                                Diagnostic::error(&me.path, n as usize, "", 1, 1, "expected a JSON ray record")
+                            },
+                        )
+                    });
+                    if result.is_err() {
+                        break;
+                    }
+                }
             }
         }
-        if let Some(&(n, _, b)) = lines.last() {
+        self.parsed = parsed;
+        let last = lines.last().copied();
+        self.lines = lines;
+        result?;
+        if let Some((n, _, b)) = last {
             self.next_line = n + 1;
             self.pos = (b + 1).min(self.buf.len());
         }

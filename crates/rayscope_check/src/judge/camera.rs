@@ -49,18 +49,24 @@ impl Judge<'_> {
         }
         let rs_dir = |s: u32| self.cam.ray(x, y, s).1;
         let d = r.direction;
-        let candidates: Vec<u32> = match r.sample {
-            Some(s) => vec![s],
-            None => (0..self.spp).collect(),
+        let candidates = match r.sample {
+            Some(s) => s..s + 1,
+            None => 0..self.spp,
         };
         let (s, err) = candidates
-            .iter()
-            .map(|&s| (s, angle(d, rs_dir(s))))
+            .map(|s| (s, angle(d, rs_dir(s))))
             .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
         if err <= self.cam_tol {
             return;
         }
-        let rs = rs_dir(s);
+        self.camera_wrong(r, kind, (x, y, s), err, f);
+    }
+
+    /// Names what a camera ray `err` radians off rayscope's sample `s` of pixel (x, y) fits: one
+    /// of the usual camera mistakes, another distance to the image plane, another pixel, or none.
+    fn camera_wrong(&self, r: &LoggedRay, kind: &Kind, (x, y, s): (u32, u32, u32), err: f64, f: &mut Vec<Finding>) {
+        let d = r.direction;
+        let rs = self.cam.ray(x, y, s).1;
         let dc = (self.rot.transpose() * d).normalize();
         let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
         let t = (f64::from(self.settings.camera.fov_deg).to_radians() * 0.5).tan();
@@ -92,32 +98,7 @@ impl Judge<'_> {
                 }
             }
         }
-        // Where the tracer's ray crosses rayscope's image plane.
-        let (us, vs) = if dc.z > 0.0 {
-            ((dc.x / dc.z / half.0 + 1.0) * 0.5, (1.0 - dc.y / dc.z / half.1) * 0.5)
-        } else {
-            (f64::NAN, f64::NAN)
-        };
-        let rs_uv = {
-            let (ox, oy) = offs[0].0;
-            ((f64::from(x) + ox) / w, (f64::from(y) + oy) / h)
-        };
-        let values = vec![
-            Value {
-                what: "direction".into(),
-                yours: vjson(d),
-                rayscope: vjson(rs),
-            },
-            Value {
-                what: "image position (u, v)".into(),
-                yours: if us.is_finite() {
-                    json!([(us * 1e6).round() / 1e6, (vs * 1e6).round() / 1e6])
-                } else {
-                    json!("behind the camera")
-                },
-                rayscope: json!([(rs_uv.0 * 1e6).round() / 1e6, (rs_uv.1 * 1e6).round() / 1e6]),
-            },
-        ];
+        let (us, vs, values) = self.camera_values(d, rs, dc, half, (x, y, offs[0].0));
         let off_by = format!("{:.4}° off", err.to_degrees());
         if let Some((_, g)) = best.filter(|(e, _)| *e <= self.cam_tol) {
             for (code, why) in [g.pos_code, g.proj_code].into_iter().flatten() {
@@ -148,11 +129,7 @@ impl Judge<'_> {
             pos_code: None,
             proj_code: None,
         });
-        let (xr, yr) = (p.x / p.z, p.y / p.z);
-        let (xs, ys) = (dc.x / dc.z, dc.y / dc.z);
-        let k = (xs * xr + ys * yr) / (xr * xr + yr * yr).max(1e-300);
-        let fit = DVec3::new(k * xr, k * yr, 1.0).normalize();
-        if (k - 1.0).abs() > 1e-4 && k > 0.0 && angle(fit, dc) <= self.cam_tol {
+        if let Some(k) = self.plane_scale(p, dc) {
             let fov = 2.0 * (k * if horizontal { half.0 } else { half.1 }).atan();
             f.push(self.finding(
                 r,
@@ -186,6 +163,54 @@ impl Judge<'_> {
             off_by
         };
         f.push(self.finding(r, kind, Code::CameraDirection, detail, values));
+    }
+
+    /// The values shown beside a wrong camera ray: its direction and where it crosses rayscope's
+    /// image plane (u, v), against rayscope's for pixel (x, y) at sample offset `off`.
+    fn camera_values(
+        &self,
+        d: DVec3,
+        rs: DVec3,
+        dc: DVec3,
+        half: (f64, f64),
+        (x, y, (ox, oy)): (u32, u32, (f64, f64)),
+    ) -> (f64, f64, Vec<Value>) {
+        let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
+        // Where the tracer's ray crosses rayscope's image plane.
+        let (us, vs) = if dc.z > 0.0 {
+            ((dc.x / dc.z / half.0 + 1.0) * 0.5, (1.0 - dc.y / dc.z / half.1) * 0.5)
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        let rs_uv = ((f64::from(x) + ox) / w, (f64::from(y) + oy) / h);
+        let values = vec![
+            Value {
+                what: "direction".into(),
+                yours: vjson(d),
+                rayscope: vjson(rs),
+            },
+            Value {
+                what: "image position (u, v)".into(),
+                yours: if us.is_finite() {
+                    json!([(us * 1e6).round() / 1e6, (vs * 1e6).round() / 1e6])
+                } else {
+                    json!("behind the camera")
+                },
+                rayscope: json!([(rs_uv.0 * 1e6).round() / 1e6, (rs_uv.1 * 1e6).round() / 1e6]),
+            },
+        ];
+        (us, vs, values)
+    }
+
+    /// The factor `k` by which rayscope's image-plane direction `p` is scaled across the image
+    /// to give the tracer's camera-space direction `dc`, when such a scaling fits it and is not 1:
+    /// the image plane at distance 1/k, or another field of view.
+    fn plane_scale(&self, p: DVec3, dc: DVec3) -> Option<f64> {
+        let (xr, yr) = (p.x / p.z, p.y / p.z);
+        let (xs, ys) = (dc.x / dc.z, dc.y / dc.z);
+        let k = (xs * xr + ys * yr) / (xr * xr + yr * yr).max(1e-300);
+        let fit = DVec3::new(k * xr, k * yr, 1.0).normalize();
+        ((k - 1.0).abs() > 1e-4 && k > 0.0 && angle(fit, dc) <= self.cam_tol).then_some(k)
     }
 
     /// Where sample `s` lies in its pixel by rayscope's grid, and where the usual mistakes put it.

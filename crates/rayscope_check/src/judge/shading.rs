@@ -200,6 +200,13 @@ struct Logs {
     secondary: bool,
 }
 
+thread_local! {
+    /// The children lists of [`Judge::shading`]: where each ray's children start, a cursor per
+    /// ray, and the children.
+    #[allow(clippy::type_complexity)]
+    static KIDS: std::cell::RefCell<(Vec<usize>, Vec<usize>, Vec<usize>)> = std::cell::RefCell::default();
+}
+
 impl Judge<'_> {
     /// Judges the colour of every surface decision of one pixel sample and names the rays its
     /// hits should have cast and did not, adding findings to the ray whose hit it is.
@@ -215,24 +222,45 @@ impl Judge<'_> {
         if self.settings.stage == Stage::One {
             return;
         }
+        KIDS.with(|k| {
+            let (start, next, kids) = &mut *k.borrow_mut();
+            self.shading_with(rays, parent, evals, kinds, findings, tally, (start, next, kids));
+        });
+    }
+
+    /// [`Self::shading`] with the buffers for the children lists.
+    #[allow(clippy::too_many_arguments)]
+    fn shading_with(
+        &self,
+        rays: &[LoggedRay],
+        parent: &[Option<usize>],
+        evals: &[Option<Eval>],
+        kinds: &[Kind],
+        findings: &mut [Vec<Finding>],
+        tally: &mut Tally,
+        (start, next, kids): (&mut Vec<usize>, &mut Vec<usize>, &mut Vec<usize>),
+    ) {
         let n = rays.len();
-        // Each ray's children, together in `kids` from `start[i]` and sorted by kind, so that a
-        // group costs three allocations however many rays it has.
+        // Each ray's children, together in `kids` from `start[i]` and sorted by kind, in buffers
+        // kept per thread from sample to sample.
         let rank = |k: usize| match kinds[k] {
             Kind::Shadow => 0,
             Kind::Reflection => 1,
             Kind::Refraction => 2,
             _ => 3,
         };
-        let mut start = vec![0usize; n + 1];
+        start.clear();
+        start.resize(n + 1, 0);
         for p in parent.iter().flatten() {
             start[p + 1] += 1;
         }
         for i in 0..n {
             start[i + 1] += start[i];
         }
-        let mut next = start.clone();
-        let mut kids = vec![0usize; start[n]];
+        next.clear();
+        next.extend_from_slice(start);
+        kids.clear();
+        kids.resize(start[n], 0);
         for (i, p) in parent.iter().enumerate() {
             if let Some(p) = *p {
                 kids[next[p]] = i;
@@ -398,6 +426,38 @@ impl Judge<'_> {
         Decision::Unjudged
     }
 
+    /// The verdict on a diffuse hit whose shadow rays leave out lights `untested`, which face it
+    /// (`facing`: N·L of a light).
+    fn missing_shadow_rays(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        lv: &Leave,
+        untested: &[usize],
+        facing: &dyn Fn(usize) -> f64,
+        f: &mut Vec<Finding>,
+    ) {
+        let names: Vec<String> = untested
+            .iter()
+            .map(|&li| format!("'{}' (N·L = {:.4})", self.light_name(li as u32), facing(li)))
+            .collect();
+        f.push(self.finding(
+            r,
+            kind,
+            Code::MissingShadowRay,
+            format!(
+                "light {} faces this point of '{}' but no shadow ray was cast toward it",
+                names.join(", light "),
+                self.name(lv.entity)
+            ),
+            vec![Value {
+                what: "shadow rays toward".into(),
+                yours: json!("none"),
+                rayscope: json!(untested.iter().map(|&li| self.light_name(li as u32)).collect::<Vec<_>>()),
+            }],
+        ));
+    }
+
     /// A diffuse hit: the shadow rays it needs, and its colour from those it cast.
     #[allow(clippy::too_many_arguments)]
     fn diffuse(
@@ -444,25 +504,7 @@ impl Judge<'_> {
             .filter(|&li| !tested[li] && facing(li) > 1e-3)
             .collect();
         if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {
-            let names: Vec<String> = untested
-                .iter()
-                .map(|&li| format!("'{}' (N·L = {:.4})", self.light_name(li as u32), facing(li)))
-                .collect();
-            f.push(self.finding(
-                r,
-                kind,
-                Code::MissingShadowRay,
-                format!(
-                    "light {} faces this point of '{}' but no shadow ray was cast toward it",
-                    names.join(", light "),
-                    self.name(lv.entity)
-                ),
-                vec![Value {
-                    what: "shadow rays toward".into(),
-                    yours: json!("none"),
-                    rayscope: json!(untested.iter().map(|&li| self.light_name(li as u32)).collect::<Vec<_>>()),
-                }],
-            ));
+            self.missing_shadow_rays(r, kind, lv, &untested, &facing, f);
         }
         let Some(c) = r.color else {
             return Decision::Unjudged;
@@ -476,24 +518,18 @@ impl Judge<'_> {
         let m = &self.scene.materials[lv.material as usize];
         let albedo = m.color.as_dvec3();
         // Each reached light's term, by the course's rule and by the usual mistakes.
-        let mut exact = DVec3::ZERO;
-        let mut unclamped = DVec3::ZERO;
-        let mut falloff = DVec3::ZERO;
-        let mut no_albedo = DVec3::ZERO;
-        let mut no_light = DVec3::ZERO;
-        let mut flat = DVec3::ZERO;
-        let mut slack = DVec3::ZERO;
+        let mut t = DiffuseTerms::default();
         for (li, _) in reached.iter().enumerate().filter(|(_, &x)| x) {
             let to = light_pos(li) - lv.point;
             let cos = lv.shade.dot(to.normalize_or_zero());
             let cl = lights[li].color.as_dvec3();
             let term = albedo * cl;
-            exact += term * cos.max(0.0);
-            unclamped += term * cos;
-            falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
-            no_albedo += cl * cos.max(0.0);
-            no_light += albedo * cos.max(0.0);
-            flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
+            t.exact += term * cos.max(0.0);
+            t.unclamped += term * cos;
+            t.falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
+            t.no_albedo += cl * cos.max(0.0);
+            t.no_light += albedo * cos.max(0.0);
+            t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
             // The light's direction may be taken from the offset origin of the shadow ray, and
             // the normal is known to its rounding.
             let from_origin = kids
@@ -502,14 +538,11 @@ impl Judge<'_> {
                 .filter(|&&k| rays[k].light.is_none_or(|l| l as usize == li))
                 .map(|&k| (cos - lv.shade.dot((light_pos(li) - rays[k].origin).normalize_or_zero())).abs())
                 .fold(0.0, f64::max);
-            slack += term.abs() * (from_origin + 2.0 * lv.un + 1e-6);
+            t.slack += term.abs() * (from_origin + 2.0 * lv.un + 1e-6);
         }
-        if fits(c, exact, slack) {
+        if fits(c, t.exact, t.slack) {
             return Decision::Judged;
         }
-        let diff = c - exact;
-        let ambient_k = (albedo.length_squared() > 0.0).then(|| diff.dot(albedo) / albedo.length_squared());
-        let constant = (diff.x + diff.y + diff.z) / 3.0;
         let name = self.name(lv.entity);
         let lit: Vec<&str> = reached
             .iter()
@@ -517,36 +550,7 @@ impl Judge<'_> {
             .filter(|(_, &x)| x)
             .map(|(li, _)| self.light_name(li as u32))
             .collect();
-        let smooth = (lv.shade - lv.facing).length() > 1e-9;
-        let guess = if smooth && fits(c, flat, slack) {
-            Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
-        } else if fits(c, unclamped, slack) {
-            Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
-        } else if fits(c, falloff, slack) {
-            Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
-        } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, exact + albedo * k, slack)) {
-            Some(if lit.is_empty() {
-                format!(
-                    "it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2"
-                )
-            } else {
-                // Lit by white lights, any error in N·L also scales the albedo: only a term that
-                // is the same on every hit is an ambient term.
-                format!(
-                    "it fits an ambient term of {k:.4} × the albedo added, if that is the same on every hit (the course has none at stage 2); one that varies from hit to hit is a wrong N·L instead"
-                )
-            })
-        } else if constant > 1e-4 && fits(c, exact + DVec3::splat(constant), slack) {
-            Some(format!(
-                "it fits a constant {constant:.4} added to every channel: the course has no ambient term at stage 2"
-            ))
-        } else if fits(c, no_albedo, slack) {
-            Some("it fits the lights' colour without the surface's albedo".into())
-        } else if fits(c, no_light, slack) {
-            Some("it fits the albedo without the lights' colour".into())
-        } else {
-            None
-        };
+        let guess = diffuse_guess(c, &t, albedo, (lv.shade - lv.facing).length() > 1e-9, lit.is_empty());
         let from = if lit.is_empty() {
             "no light (every shadow ray is blocked), so it is black".to_string()
         } else {
@@ -558,7 +562,7 @@ impl Judge<'_> {
                 "diffuse '{name}' lit by {from}: your colour is not albedo × Σ light colour × max(0, N·L), nor any of the usual mistakes"
             ),
         };
-        f.push(self.finding(r, kind, Code::ShadingDiffuse, detail, vec![colour_value(c, exact)]));
+        f.push(self.finding(r, kind, Code::ShadingDiffuse, detail, vec![colour_value(c, t.exact)]));
         Decision::Judged
     }
 
@@ -670,22 +674,9 @@ impl Judge<'_> {
         let (Some(rc), Some(tc)) = (colour(kids.reflection), colour(kids.refraction)) else {
             return Decision::Unjudged;
         };
-        // The exact share's uncertainty, from the normal's (the share is steep near the
-        // critical angle).
-        let delta = 2.0 * lv.un + 1e-6;
-        let sin_i = (1.0 - ci * ci).max(0.0).sqrt();
-        let lo = fresnel((ci - delta * sin_i).clamp(0.0, 1.0), n1, n2);
-        let hi = fresnel((ci + delta * sin_i).clamp(0.0, 1.0), n1, n2);
-        let unc = (lo - exact).abs().max((hi - exact).abs()) + 1e-6;
+        let unc = fresnel_uncertainty(ci, n1, n2, 2.0 * lv.un + 1e-6);
         let want = rc * exact + tc * (1.0 - exact);
-        let kr_value = |k: Option<f64>| Value {
-            what: "reflected share kr".into(),
-            yours: k.map_or(
-                json!("not determined (the reflected and refracted colours are alike)"),
-                njson,
-            ),
-            rayscope: njson(exact),
-        };
+        let kr_value = |k: Option<f64>| kr_value(k, exact);
         let (code, detail, values) = match classify_glass(c, rc, tc, ci, n1, n2, unc) {
             GlassFit::Exact => return Decision::Judged,
             GlassFit::Mistake(formula, k) => (
@@ -844,5 +835,75 @@ mod tests {
         ));
         assert!(!fits(c + DVec3::new(0.0, 0.0, 1e-3), c, DVec3::ZERO));
         assert!(!fits(DVec3::splat(f64::NAN), c, DVec3::ZERO));
+    }
+}
+
+/// Each reached light's diffuse term summed by the course's rule and by the usual mistakes, and
+/// the slack a colour may differ from them by rounding.
+#[derive(Default)]
+struct DiffuseTerms {
+    exact: DVec3,
+    unclamped: DVec3,
+    falloff: DVec3,
+    no_albedo: DVec3,
+    no_light: DVec3,
+    flat: DVec3,
+    slack: DVec3,
+}
+
+/// Which usual mistake a diffuse colour `c` fits, in words (`smooth`: the hit has an
+/// interpolated normal; `unlit`: every shadow ray is blocked).
+fn diffuse_guess(c: DVec3, t: &DiffuseTerms, albedo: DVec3, smooth: bool, unlit: bool) -> Option<String> {
+    let diff = c - t.exact;
+    let ambient_k = (albedo.length_squared() > 0.0).then(|| diff.dot(albedo) / albedo.length_squared());
+    let constant = (diff.x + diff.y + diff.z) / 3.0;
+    if smooth && fits(c, t.flat, t.slack) {
+        Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
+    } else if fits(c, t.unclamped, t.slack) {
+        Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
+    } else if fits(c, t.falloff, t.slack) {
+        Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
+    } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, t.exact + albedo * k, t.slack)) {
+        Some(if unlit {
+            format!("it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2")
+        } else {
+            // Lit by white lights, any error in N·L also scales the albedo: only a term that
+            // is the same on every hit is an ambient term.
+            format!(
+                "it fits an ambient term of {k:.4} × the albedo added, if that is the same on every hit (the course has none at stage 2); one that varies from hit to hit is a wrong N·L instead"
+            )
+        })
+    } else if constant > 1e-4 && fits(c, t.exact + DVec3::splat(constant), t.slack) {
+        Some(format!(
+            "it fits a constant {constant:.4} added to every channel: the course has no ambient term at stage 2"
+        ))
+    } else if fits(c, t.no_albedo, t.slack) {
+        Some("it fits the lights' colour without the surface's albedo".into())
+    } else if fits(c, t.no_light, t.slack) {
+        Some("it fits the albedo without the lights' colour".into())
+    } else {
+        None
+    }
+}
+
+/// How far the Fresnel reflectance at cos θi = `ci` may be off when the normal is known to
+/// `delta` radians (the reflectance is steep near the critical angle).
+fn fresnel_uncertainty(ci: f64, n1: f64, n2: f64, delta: f64) -> f64 {
+    let exact = fresnel(ci, n1, n2);
+    let sin_i = (1.0 - ci * ci).max(0.0).sqrt();
+    let lo = fresnel((ci - delta * sin_i).clamp(0.0, 1.0), n1, n2);
+    let hi = fresnel((ci + delta * sin_i).clamp(0.0, 1.0), n1, n2);
+    (lo - exact).abs().max((hi - exact).abs()) + 1e-6
+}
+
+/// The reflected share kr the tracer used (when its colours tell) beside the exact one.
+fn kr_value(k: Option<f64>, exact: f64) -> Value {
+    Value {
+        what: "reflected share kr".into(),
+        yours: k.map_or(
+            json!("not determined (the reflected and refracted colours are alike)"),
+            njson,
+        ),
+        rayscope: njson(exact),
     }
 }

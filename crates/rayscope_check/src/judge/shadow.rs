@@ -78,6 +78,56 @@ impl Judge<'_> {
         None
     }
 
+    /// The verdict on a shadow ray that names `e` where rayscope finds `b` in the way and `e` is
+    /// not on the segment: `e` lies beyond the light, or it is simply the wrong blocker.
+    #[allow(clippy::too_many_arguments)]
+    fn wrong_blocker(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        seg: ToLight,
+        e: u32,
+        b: &RsHit,
+        v: Vec<Value>,
+        f: &mut Vec<Finding>,
+    ) {
+        let ToLight { dist, pos, .. } = seg;
+        // Named after an entity beyond the light: the blocker test accepts hits past
+        // the light, and this one came first in the tracer's list.
+        if let Some((t, _)) = self
+            .geo
+            .entity_intersect(e, r.origin, r.direction, dist + pos, f64::INFINITY)
+        {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::ShadowBlockedBeyondLight,
+                format!(
+                    "your tracer names '{}', which is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6} ('{}' does block it, at t = {:.6})",
+                    self.name(e),
+                    self.light_name(li),
+                    self.name(b.entity),
+                    b.t
+                ),
+                v,
+            ));
+            return;
+        }
+        f.push(self.finding(
+            r,
+            kind,
+            Code::ShadowWrongBlocker,
+            format!(
+                "'{}' is not on the shadow ray; '{}' blocks it (t = {:.6})",
+                self.name(e),
+                self.name(b.entity),
+                b.t
+            ),
+            v,
+        ));
+    }
+
     /// A shadow ray's blocker (or none) against rayscope's segment to the light.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn blocked(
@@ -169,36 +219,7 @@ impl Judge<'_> {
                     return;
                 }
                 if let Some(b) = b {
-                    // Named after an entity beyond the light: the blocker test accepts hits past
-                    // the light, and this one came first in the tracer's list.
-                    if let Some((t, _)) = self.geo.entity_intersect(e, o_trace, d, dist + pos, f64::INFINITY) {
-                        f.push(self.finding(
-                            r,
-                            kind,
-                            Code::ShadowBlockedBeyondLight,
-                            format!(
-                                "your tracer names '{}', which is on the ray at t = {t:.6}, beyond light '{}' at {dist:.6} ('{}' does block it, at t = {:.6})",
-                                self.name(e),
-                                self.light_name(li),
-                                self.name(b.entity),
-                                b.t
-                            ),
-                            v,
-                        ));
-                        return;
-                    }
-                    f.push(self.finding(
-                        r,
-                        kind,
-                        Code::ShadowWrongBlocker,
-                        format!(
-                            "'{}' is not on the shadow ray; '{}' blocks it (t = {:.6})",
-                            self.name(e),
-                            self.name(b.entity),
-                            b.t
-                        ),
-                        v,
-                    ));
+                    self.wrong_blocker(r, kind, li, seg, e, &b, v, f);
                     return;
                 }
                 self.blocker_off_segment(r, kind, li, seg, e, t_skip, v, f);

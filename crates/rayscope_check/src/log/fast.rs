@@ -11,14 +11,27 @@ use std::borrow::Cow;
 
 use super::{RawHit, RawRay};
 
-/// A position in one record, checked to be UTF-8 once so that its pieces need no checks.
+/// A position in one record. Only strings can hold bytes outside ASCII (everything else must
+/// be JSON's punctuation, literals and numbers), so each string is checked to be UTF-8 on its
+/// own, and only when it has such a byte.
 struct Cursor<'a> {
-    s: &'a str,
     b: &'a [u8],
     i: usize,
 }
 
+/// A key of up to 16 bytes as one integer, so that a field is found by one comparison.
+const fn key(k: &[u8]) -> u128 {
+    let mut v = 0u128;
+    let mut j = 0;
+    while j < k.len() {
+        v |= (k[j] as u128) << (8 * j);
+        j += 1;
+    }
+    v | ((k.len() as u128) << 120)
+}
+
 impl<'a> Cursor<'a> {
+    #[inline]
     fn skip_ws(&mut self) {
         while let Some(&c) = self.b.get(self.i) {
             if matches!(c, b' ' | b'\t' | b'\n' | b'\r') {
@@ -29,11 +42,18 @@ impl<'a> Cursor<'a> {
         }
     }
 
+    #[inline]
     fn peek(&mut self) -> Option<u8> {
-        self.skip_ws();
-        self.b.get(self.i).copied()
+        match self.b.get(self.i) {
+            Some(&c) if c > b' ' => Some(c),
+            _ => {
+                self.skip_ws();
+                self.b.get(self.i).copied()
+            }
+        }
     }
 
+    #[inline]
     fn eat(&mut self, c: u8) -> bool {
         if self.peek() == Some(c) {
             self.i += 1;
@@ -53,25 +73,79 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    /// A string without escapes, borrowed from the record.
-    fn string(&mut self) -> Option<&'a str> {
+    /// The bytes of a string without escapes, and whether they are all ASCII.
+    #[inline]
+    fn string_bytes(&mut self) -> Option<(&'a [u8], bool)> {
         if !self.eat(b'"') {
             return None;
         }
+        let b = self.b;
         let start = self.i;
-        // Keys and names are a few bytes long: a plain loop beats a vectorised search's set-up.
+        // Keys and names are a few bytes long: sixteen bytes looked at together hold most of them.
+        if let Some(w) = b.get(start..start + 16) {
+            let w = u128::from_le_bytes(w.try_into().expect("sixteen bytes"));
+            const ONES: u128 = u128::MAX / 255;
+            const HIGH: u128 = ONES * 0x80;
+            // Bytes equal to zero, flagged in their top bit: the lowest flag is exact (a false
+            // one can only sit above a true one).
+            let zero = |x: u128| x.wrapping_sub(ONES) & !x & HIGH;
+            let quote = zero(w ^ (ONES * u128::from(b'"')));
+            if quote != 0 {
+                let n = (quote.trailing_zeros() / 8) as usize;
+                let before = (1u128 << (8 * n)) - 1;
+                let control = w.wrapping_sub(ONES * 0x20) & !w & HIGH;
+                let backslash = zero(w ^ (ONES * u128::from(b'\\')));
+                if (control | backslash) & before == 0 {
+                    self.i = start + n + 1;
+                    return Some((&b[start..start + n], w & HIGH & before == 0));
+                }
+            }
+        }
         let mut end = start;
+        let mut ascii = true;
         loop {
-            match *self.b.get(end)? {
+            match *b.get(end)? {
                 b'"' => break,
                 b'\\' => return None,
                 c if c < 0x20 => return None,
-                _ => end += 1,
+                c => {
+                    ascii &= c < 0x80;
+                    end += 1;
+                }
             }
         }
         self.i = end + 1;
-        // Both ends are at ASCII quotes, so they are character boundaries.
-        self.s.get(start..end)
+        Some((&b[start..end], ascii))
+    }
+
+    /// A string without escapes, borrowed from the record.
+    #[inline]
+    fn string(&mut self) -> Option<&'a str> {
+        std::str::from_utf8(self.string_bytes()?.0).ok()
+    }
+
+    /// A key, as [`key`] packs it (longer keys, and keys outside ASCII, as 0: no field's).
+    #[inline]
+    fn key(&mut self) -> Option<u128> {
+        let end = self.i;
+        let (k, ascii) = self.string_bytes()?;
+        if !ascii {
+            std::str::from_utf8(k).ok()?;
+        }
+        if k.len() > 15 {
+            return Some(0);
+        }
+        // The sixteen bytes from the key's first one, where the record has them, masked to the
+        // key: one load instead of a loop.
+        let start = self.i - 1 - k.len();
+        debug_assert!(start > end);
+        Some(match self.b.get(start..start + 16) {
+            Some(w) => {
+                let v = u128::from_le_bytes(w.try_into().expect("sixteen bytes"));
+                (v & ((1u128 << (8 * k.len())) - 1)) | ((k.len() as u128) << 120)
+            }
+            None => key(k),
+        })
     }
 
     /// A number in JSON's grammar, as text, and whether it has a fraction or an exponent.
@@ -114,7 +188,8 @@ impl<'a> Cursor<'a> {
             real = true;
         }
         self.i = i;
-        self.s.get(start..i).map(|s| (s, real))
+        // The grammar above admits only ASCII.
+        std::str::from_utf8(&b[start..i]).ok().map(|s| (s, real))
     }
 
     /// A decimal without an exponent whose digits, read as an integer, are at most 2^53, with at
@@ -133,36 +208,20 @@ impl<'a> Cursor<'a> {
         if negative {
             i += 1;
         }
-        let mut m: u64 = 0;
-        let mut digits = 0usize;
         let int_start = i;
-        while let Some(&c) = b.get(i) {
-            if !c.is_ascii_digit() {
-                break;
-            }
-            m = m.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
-            digits += 1;
-            i += 1;
-        }
-        let int_digits = i - int_start;
+        let (mut m, int_digits) = digit_run(b, &mut i, 0);
         if int_digits == 0 || (int_digits > 1 && b[int_start] == b'0') {
             return None;
         }
+        let mut digits = int_digits;
         let mut fraction = 0usize;
         if b.get(i) == Some(&b'.') {
             i += 1;
-            while let Some(&c) = b.get(i) {
-                if !c.is_ascii_digit() {
-                    break;
-                }
-                m = m.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
-                digits += 1;
-                fraction += 1;
-                i += 1;
-            }
+            (m, fraction) = digit_run(b, &mut i, m);
             if fraction == 0 {
                 return None;
             }
+            digits += fraction;
         }
         // 19 digits cannot wrap a u64, so `m` is the exact integer they spell.
         if digits > 19 || m > 1 << 53 || fraction > 22 || matches!(b.get(i), Some(b'e' | b'E')) {
@@ -183,7 +242,28 @@ impl<'a> Cursor<'a> {
         v.is_finite().then_some(v)
     }
 
+    /// Digits at the cursor with no fraction or exponent after them, read at once, with the
+    /// cursor moved past them: `None` (and the cursor left) for anything else.
+    #[inline]
+    fn plain_integer(&mut self, most: usize) -> Option<u64> {
+        let b = self.b;
+        let mut i = self.i;
+        if !b.get(i).is_some_and(u8::is_ascii_digit) {
+            return None;
+        }
+        let (m, n) = digit_run(b, &mut i, 0);
+        if n > most || (n > 1 && b[self.i] == b'0') || matches!(b.get(i), Some(b'.' | b'e' | b'E')) {
+            return None;
+        }
+        self.i = i;
+        Some(m)
+    }
+
     fn u32(&mut self) -> Option<u32> {
+        if let Some(m) = self.plain_integer(9) {
+            // Nine digits cannot exceed a u32.
+            return Some(m as u32);
+        }
         match self.number()? {
             (s, false) if !s.starts_with('-') => s.parse().ok(),
             _ => None,
@@ -191,6 +271,10 @@ impl<'a> Cursor<'a> {
     }
 
     fn i64(&mut self) -> Option<i64> {
+        if let Some(m) = self.plain_integer(18) {
+            // Eighteen digits cannot exceed an i64.
+            return Some(m as i64);
+        }
         match self.number()? {
             (s, false) if s != "-0" => s.parse().ok(),
             _ => None,
@@ -226,8 +310,9 @@ impl<'a> Cursor<'a> {
     }
 
     /// `null` as `Some(None)`, else the value `read` reads.
+    #[inline]
     fn nullable<T>(&mut self, read: impl FnOnce(&mut Self) -> Option<T>) -> Option<Option<T>> {
-        if self.literal(b"null") {
+        if self.peek() == Some(b'n') && self.literal(b"null") {
             Some(None)
         } else {
             read(self).map(Some)
@@ -275,7 +360,8 @@ impl<'a> Cursor<'a> {
     }
 
     /// The members of an object, each key handed to `field` with the cursor on its value.
-    fn object(&mut self, mut field: impl FnMut(&mut Self, &'a str) -> Option<()>) -> Option<()> {
+    #[inline]
+    fn object(&mut self, mut field: impl FnMut(&mut Self, u128) -> Option<()>) -> Option<()> {
         if !self.eat(b'{') {
             return None;
         }
@@ -283,7 +369,7 @@ impl<'a> Cursor<'a> {
             return Some(());
         }
         loop {
-            let key = self.string()?;
+            let key = self.key()?;
             if !self.eat(b':') {
                 return None;
             }
@@ -298,7 +384,49 @@ impl<'a> Cursor<'a> {
     }
 }
 
+/// Reads the run of ASCII digits at `*i` onto `m` (`m · 10^k + digits`, wrapping), moving `*i`
+/// past them; returns the new `m` and the number of digits. Eight bytes are looked at together
+/// where the record has them: coordinates are mostly 6 to 9 digits.
+#[inline]
+fn digit_run(b: &[u8], i: &mut usize, mut m: u64) -> (u64, usize) {
+    let start = *i;
+    while let Some(chunk) = b.get(*i..*i + 8) {
+        let word = u64::from_le_bytes(chunk.try_into().expect("eight bytes"));
+        let x = word.wrapping_sub(0x3030_3030_3030_3030);
+        // A byte's top bit is set where it is not a digit; carries only run from a lower byte
+        // that is not a digit into higher ones, so the lowest flagged byte is exact.
+        let not_digit = (x | x.wrapping_add(0x7676_7676_7676_7676)) & 0x8080_8080_8080_8080;
+        let k = (not_digit.trailing_zeros() / 8) as usize;
+        if k == 0 {
+            break;
+        }
+        // The k digits, first one in the lowest byte, moved to the top so that the bytes below
+        // them read as leading zeros.
+        let mut v = x << (8 * (8 - k));
+        v = (v.wrapping_mul(10) + (v >> 8)) & 0x00FF_00FF_00FF_00FF;
+        v = (v.wrapping_mul(100) + (v >> 16)) & 0x0000_FFFF_0000_FFFF;
+        v = (v.wrapping_mul(10_000) + (v >> 32)) & 0xFFFF_FFFF;
+        m = m.wrapping_mul(POW10_U64[k]).wrapping_add(v);
+        *i += k;
+        if k < 8 {
+            return (m, *i - start);
+        }
+    }
+    while let Some(&c) = b.get(*i) {
+        if !c.is_ascii_digit() {
+            break;
+        }
+        m = m.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
+        *i += 1;
+    }
+    (m, *i - start)
+}
+
+/// 10^k for the digit counts [`digit_run`] reads at once.
+const POW10_U64: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
+
 /// Sets `slot` once; a second value for the same field is left to serde_json, which refuses it.
+#[inline]
 fn once<T>(slot: &mut Option<T>, value: Option<T>) -> Option<()> {
     if slot.is_some() {
         return None;
@@ -309,11 +437,15 @@ fn once<T>(slot: &mut Option<T>, value: Option<T>) -> Option<()> {
 
 fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
     let (mut t, mut point, mut normal, mut entity) = (None, None, None, None);
-    c.object(|c, key| match key {
-        "t" => once(&mut t, c.nullable(Cursor::f64)),
-        "point" => once(&mut point, c.nullable(Cursor::vec3)),
-        "normal" => once(&mut normal, c.nullable(Cursor::vec3)),
-        "entity" => once(&mut entity, c.nullable(|c| c.string().map(Cow::Borrowed))),
+    const T: u128 = key(b"t");
+    const POINT: u128 = key(b"point");
+    const NORMAL: u128 = key(b"normal");
+    const ENTITY: u128 = key(b"entity");
+    c.object(|c, k| match k {
+        T => once(&mut t, c.nullable(Cursor::f64)),
+        POINT => once(&mut point, c.nullable(Cursor::vec3)),
+        NORMAL => once(&mut normal, c.nullable(Cursor::vec3)),
+        ENTITY => once(&mut entity, c.nullable(|c| c.string().map(Cow::Borrowed))),
         _ => c.skip_value(0),
     })?;
     Some(RawHit {
@@ -326,29 +458,37 @@ fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
 
 /// Reads one record of the common shape, or `None` to leave it to serde_json.
 pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
-    let text = std::str::from_utf8(bytes).ok()?;
-    let mut c = Cursor {
-        s: text,
-        b: bytes,
-        i: 0,
-    };
+    const PIXEL: u128 = key(b"pixel");
+    const SAMPLE: u128 = key(b"sample");
+    const ID: u128 = key(b"id");
+    const PARENT: u128 = key(b"parent");
+    const KIND: u128 = key(b"kind");
+    const ORIGIN: u128 = key(b"origin");
+    const DIRECTION: u128 = key(b"direction");
+    const FROM: u128 = key(b"from");
+    const TO: u128 = key(b"to");
+    const HIT: u128 = key(b"hit");
+    const LIGHT: u128 = key(b"light");
+    const BLOCKED_BY: u128 = key(b"blocked_by");
+    const COLOR: u128 = key(b"color");
+    let mut c = Cursor { b: bytes, i: 0 };
     let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
     let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
     let (mut hit_, mut light, mut blocked_by, mut color) = (None, None, None, None);
-    c.object(|c, key| match key {
-        "pixel" => once(&mut pixel, c.nullable(Cursor::pixel)),
-        "sample" => once(&mut sample, c.nullable(Cursor::u32)),
-        "id" => once(&mut id, c.nullable(Cursor::i64)),
-        "parent" => once(&mut parent, c.nullable(Cursor::i64)),
-        "kind" => once(&mut kind, c.nullable(|c| c.string().map(Cow::Borrowed))),
-        "origin" => once(&mut origin, c.nullable(Cursor::vec3)),
-        "direction" => once(&mut direction, c.nullable(Cursor::vec3)),
-        "from" => once(&mut from, c.nullable(Cursor::vec3)),
-        "to" => once(&mut to, c.nullable(Cursor::vec3)),
-        "hit" => once(&mut hit_, c.nullable(hit)),
-        "light" => once(&mut light, c.nullable(|c| c.string().map(Cow::Borrowed))),
-        "blocked_by" => once(&mut blocked_by, c.nullable(|c| c.string().map(Cow::Borrowed))),
-        "color" => once(&mut color, c.nullable(Cursor::vec3)),
+    c.object(|c, k| match k {
+        PIXEL => once(&mut pixel, c.nullable(Cursor::pixel)),
+        SAMPLE => once(&mut sample, c.nullable(Cursor::u32)),
+        ID => once(&mut id, c.nullable(Cursor::i64)),
+        PARENT => once(&mut parent, c.nullable(Cursor::i64)),
+        KIND => once(&mut kind, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        ORIGIN => once(&mut origin, c.nullable(Cursor::vec3)),
+        DIRECTION => once(&mut direction, c.nullable(Cursor::vec3)),
+        FROM => once(&mut from, c.nullable(Cursor::vec3)),
+        TO => once(&mut to, c.nullable(Cursor::vec3)),
+        HIT => once(&mut hit_, c.nullable(hit)),
+        LIGHT => once(&mut light, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        BLOCKED_BY => once(&mut blocked_by, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        COLOR => once(&mut color, c.nullable(Cursor::vec3)),
         _ => c.skip_value(0),
     })?;
     c.skip_ws();
@@ -537,6 +677,42 @@ mod tests {
             if distinct {
                 prop_assert!(parse(line.as_bytes()).is_some(), "refused {line}");
             }
+        }
+    }
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// The eight-at-a-time digit reader reads what a digit-by-digit loop reads, whatever
+        /// surrounds the digits (borrows and carries between bytes included).
+        #[test]
+        fn digit_runs_read_as_one_digit_at_a_time(bytes in proptest::collection::vec(
+            prop_oneof![4 => b'0'..=b'9', 1 => any::<u8>()], 0..40), start in 0usize..40, m0 in 0u64..1_000_000) {
+            let start = start.min(bytes.len());
+            let mut i = start;
+            let got = digit_run(&bytes, &mut i, m0);
+            let (mut m, mut j) = (m0, start);
+            while j < bytes.len() && bytes[j].is_ascii_digit() {
+                m = m.wrapping_mul(10).wrapping_add(u64::from(bytes[j] - b'0'));
+                j += 1;
+            }
+            prop_assert_eq!(got, (m, j - start));
+            prop_assert_eq!(i, j);
+        }
+    }
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// Strings are read sixteen bytes at a time as they are one byte at a time: the same end,
+        /// the same refusals (escapes, control characters) and the same ASCII answer.
+        #[test]
+        fn strings_read_as_one_byte_at_a_time(body in proptest::collection::vec(
+            prop_oneof![6 => b'a'..=b'z', 1 => Just(b'"'), 1 => Just(b'\\'), 1 => any::<u8>()], 0..40)) {
+            let mut line = vec![b'"'];
+            line.extend(&body);
+            let mut c = Cursor { b: &line, i: 0 };
+            let got = c.string_bytes().map(|(s, ascii)| (s.to_vec(), ascii, c.i));
+            let want = body.iter().position(|&x| x == b'"' || x == b'\\' || x < 0x20).and_then(|n| {
+                (body[n] == b'"').then(|| (body[..n].to_vec(), body[..n].is_ascii(), n + 2))
+            });
+            prop_assert_eq!(got, want);
         }
     }
 }
