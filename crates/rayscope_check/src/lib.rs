@@ -85,6 +85,11 @@ struct Grouper {
     seen: u64,
     /// Rays in `open` and `current`.
     pending: usize,
+    /// A buffer that keeps its room from sample to sample, for the rays of a new current sample:
+    /// they are copied out at their exact count when it is parked, so that a sample costs one
+    /// allocation however many rays it has, and held samples (what a check's memory is mostly
+    /// made of) take no more room than their rays.
+    spare: Vec<LoggedRay>,
 }
 
 impl Grouper {
@@ -93,9 +98,10 @@ impl Grouper {
         let key = (r.pixel, r.sample);
         if !matches!(&self.current, Some((k, _)) if *k == key) {
             self.park();
-            // Room for one ray: many samples have only their camera ray, and held samples are
-            // what a check's memory is mostly made of.
-            let e = self.open.remove(&key).unwrap_or_else(|| (Vec::with_capacity(1), 0));
+            let e = self
+                .open
+                .remove(&key)
+                .unwrap_or_else(|| (std::mem::take(&mut self.spare), 0));
             self.current = Some((key, e));
         }
         let Some((_, entry)) = self.current.as_mut() else {
@@ -107,15 +113,29 @@ impl Grouper {
         if entry.0.len() >= MAX_GROUP {
             if let Some((_, (g, _))) = self.current.take() {
                 self.pending -= g.len();
-                ready.push(g);
+                ready.push(self.exact(g));
             }
         }
     }
 
+    /// The rays of `g` in a vector of their exact count; `g`'s room is kept as the spare buffer
+    /// when it is larger than the spare's.
+    fn exact(&mut self, mut g: Vec<LoggedRay>) -> Vec<LoggedRay> {
+        if g.capacity() == g.len() {
+            return g;
+        }
+        let rays: Vec<LoggedRay> = g.drain(..).collect();
+        if g.capacity() > self.spare.capacity() {
+            self.spare = g;
+        }
+        rays
+    }
+
     /// Moves the current sample into the map.
     fn park(&mut self) {
-        if let Some((k, e)) = self.current.take() {
-            self.open.insert(k, e);
+        if let Some((k, (g, last))) = self.current.take() {
+            let g = self.exact(g);
+            self.open.insert(k, (g, last));
         }
     }
 
