@@ -83,6 +83,11 @@ pub struct MistakeInfo {
     /// The `rayscope check` verdicts a ray log of a tracer with the mistake is headed by (the
     /// `image.*` ones with the tracer's picture given to `check --image`).
     pub check: &'static [&'static str],
+    /// The `rayscope probe` findings an intersector with the mistake gets, for mistakes of an
+    /// intersector (empty where `probe` cannot see the mistake): each a verdict code, narrowed
+    /// to a primitive and perhaps a case as `PRIMITIVE[ CASE]: VERDICT` ("triangle back-hit:
+    /// missed").
+    pub probe: &'static [&'static str],
 }
 
 const CAMERA: &str = "Stage 1: camera rays through the pixel grid";
@@ -276,6 +281,19 @@ impl Mistake {
             looks,
             rubric,
             check: self.check_codes(),
+            probe: self.probe_codes(),
+        }
+    }
+
+    /// The `rayscope probe` findings the mistake shows as (see [`MistakeInfo::probe`]).
+    fn probe_codes(self) -> &'static [&'static str] {
+        match self {
+            Mistake::OneSidedTriangles => &["triangle back-hit: missed"],
+            // Never turned towards the ray, the reversed normal faces the ray on back-face hits
+            // only: most answers follow neither convention the same way, and the front-face
+            // hits break the one the back-face hits set.
+            Mistake::ReversedNormals => &["triangle: normal-flipped"],
+            _ => &[],
         }
     }
 
@@ -495,6 +513,9 @@ pub fn catalogue_text() -> String {
             i.rubric,
             i.check.join(", ")
         ));
+        if !i.probe.is_empty() {
+            out.push_str(&format!("  probe: {}\n", i.probe.join(", ")));
+        }
     }
     out
 }
