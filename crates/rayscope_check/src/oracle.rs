@@ -170,10 +170,7 @@ impl OracleRay {
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
-        (
-            [u, v, w],
-            u * a[kz] + v * b[kz] + w * c[kz],
-        )
+        ([u, v, w], u * a[kz] + v * b[kz] + w * c[kz])
     }
 
     /// True when the ray meets the box `lo`..`hi` grown by `pad` somewhere in `t_min..=t_max`.

@@ -176,7 +176,11 @@ fn the_manual_says_how_check_shows_each_mistake() {
             i.name,
             codes.join(", "),
             if image { " (with `--image`)" } else { "" },
-            if probe.is_empty() { "—".to_string() } else { probe.join(", ") }
+            if probe.is_empty() {
+                "—".to_string()
+            } else {
+                probe.join(", ")
+            }
         );
         assert!(doc.contains(&row), "docs/mistakes.md lacks or differs on:\n{row}");
         for c in i.check {

@@ -33,8 +33,12 @@ fn probe_student(mistakes: &str) -> (PathBuf, Outcome) {
         "env".to_string(),
         format!("PROBE_MISTAKES={mistakes}"),
         "python3".into(),
-        manifest("../../examples/probe/python/probe_adapter.py").display().to_string(),
-        manifest("../rayscope/tests/probe/student_tracer.py").display().to_string(),
+        manifest("../../examples/probe/python/probe_adapter.py")
+            .display()
+            .to_string(),
+        manifest("../rayscope/tests/probe/student_tracer.py")
+            .display()
+            .to_string(),
     ]
     .into();
     let opts = Options {
@@ -78,15 +82,27 @@ fn a_catalogued_mistake_of_an_intersector_is_named_from_the_catalogue() {
         let mut text = String::new();
         outcome.text(&scene, false, &mut |part| text.push_str(part));
         let named = format!("rayscope's catalogue: '{}' ({})", info.name, info.wrong);
-        assert!(text.contains(&named), "{switch}: the report does not name {}:\n{text}", info.name);
+        assert!(
+            text.contains(&named),
+            "{switch}: the report does not name {}:\n{text}",
+            info.name
+        );
         let json: serde_json::Value = serde_json::from_str(&outcome.json(&scene, &[])).expect("JSON report");
         let named_in_json = json["findings"]
             .as_array()
             .expect("findings")
             .iter()
-            .filter(|f| f["mistakes"].as_array().is_some_and(|m| m.iter().any(|n| n == info.name)))
+            .filter(|f| {
+                f["mistakes"]
+                    .as_array()
+                    .is_some_and(|m| m.iter().any(|n| n == info.name))
+            })
             .count();
-        assert!(named_in_json > 0, "{switch}: no finding names {} in the JSON:\n{json:#}", info.name);
+        assert!(
+            named_in_json > 0,
+            "{switch}: no finding names {} in the JSON:\n{json:#}",
+            info.name
+        );
     }
 }
 
@@ -120,5 +136,8 @@ fn the_catalogue_names_only_findings_the_probe_makes() {
     ] {
         assert_eq!(parse_catalogue_code(bad), None, "{bad}");
     }
-    assert_eq!(parse_catalogue_code("wrong-root").map(|c| c.2), Some(Verdict::WrongRoot));
+    assert_eq!(
+        parse_catalogue_code("wrong-root").map(|c| c.2),
+        Some(Verdict::WrongRoot)
+    );
 }

@@ -841,9 +841,7 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
                     let p = o + u * t;
                     // Exactly on the boundary, in real arithmetic on the numbers sent, is no
                     // tie: a miss there is the inside test's, not rounding's.
-                    let exact = (0..3).any(|k| {
-                        w[k] == 0.0 && meets_edge_exactly(o, d, v[(k + 1) % 3], v[(k + 2) % 3])
-                    });
+                    let exact = (0..3).any(|k| w[k] == 0.0 && meets_edge_exactly(o, d, v[(k + 1) % 3], v[(k + 2) % 3]));
                     let tie = !exact && is_tie(dist, tie_tol, magnitude(&[o, p]));
                     (vec![t / len], margin >= 0.0, tie, NormalRule::Fixed(n))
                 }
@@ -910,7 +908,8 @@ fn meets_edge_exactly(o: DVec3, d: DVec3, a: DVec3, b: DVec3) -> bool {
         let back = s - x;
         ((x - (s - back)) + (-y - back) == 0.0).then_some(s)
     };
-    let (Some(ax), Some(ay), Some(bx), Some(by)) = (diff(a[i], o[i]), diff(a[j], o[j]), diff(b[i], o[i]), diff(b[j], o[j]))
+    let (Some(ax), Some(ay), Some(bx), Some(by)) =
+        (diff(a[i], o[i]), diff(a[j], o[j]), diff(b[i], o[i]), diff(b[j], o[j]))
     else {
         return false;
     };
@@ -958,6 +957,68 @@ mod tests {
         assert!(!e.tie && !e.miss_ok, "{e:?}");
         let beside = expect(&t, DVec3::new(0.0, 0.0, -0.5), DVec3::new(-1.0, 0.0, 0.0));
         assert!(beside.hit.is_none() && beside.miss_ok);
+    }
+
+    #[test]
+    fn an_edge_ray_is_strict_only_where_it_meets_the_edge_exactly() {
+        // Our room's right wall: 0.65, 2.4 and 1.1 are not exact in binary, so the ray through
+        // the middle of the diagonal decimal edge passes within rounding of it, and a correct
+        // double-precision intersector may miss it.
+        let wall = Shape::Triangle {
+            v: [
+                DVec3::new(1.1, -1.0, -0.6),
+                DVec3::new(1.1, 1.2, 3.4),
+                DVec3::new(1.1, 1.2, -0.6),
+            ],
+        };
+        let e = expect(&wall, DVec3::new(-0.9, 0.65, 2.4), DVec3::X);
+        assert!(e.tie && e.miss_ok && e.hit.is_some(), "{e:?}");
+        // The same on a wall whose numbers are exact: a hit is required.
+        let exact = Shape::Triangle {
+            v: [
+                DVec3::new(1.0, -1.0, -0.5),
+                DVec3::new(1.0, 1.0, 3.5),
+                DVec3::new(1.0, 1.0, -0.5),
+            ],
+        };
+        let e = expect(&exact, DVec3::new(-1.0, 0.5, 2.5), DVec3::X);
+        assert!(!e.tie && e.hit_required(), "{e:?}");
+    }
+
+    #[test]
+    fn ties_are_the_log_checkers_and_relative_to_the_coordinates() {
+        // 1e-5 inside the rim of a unit sphere five units away: within 1e-4 of the coordinates.
+        let e = expect(&sphere(), DVec3::new(1.0 - 1e-5, 0.0, 0.0), DVec3::Z);
+        assert!(e.tie && e.miss_ok, "{e:?}");
+        // A ray through the middle of a sphere shrunk by 1e-4 about the origin is no tie: the
+        // tolerance shrinks with the coordinates (no floor of 1 as in a course log).
+        let tiny = Shape::Sphere {
+            center: DVec3::new(0.0, 0.0, 5e-4),
+            radius: 1e-4,
+        };
+        let e = expect(&tiny, DVec3::ZERO, DVec3::Z);
+        assert!(!e.tie && e.hit_required(), "{e:?}");
+        assert!((e.hit.unwrap().t - 4e-4).abs() < 1e-12);
+        // A tie never excuses a hit clearly behind the origin.
+        let tangent = expect(&sphere(), DVec3::new(1.0, 0.0, 0.0), DVec3::Z);
+        let case = Case {
+            case: CaseKind::Tangent,
+            shape: sphere(),
+            source: "test".into(),
+            origin: DVec3::new(1.0, 0.0, 0.0),
+            dir: DVec3::Z,
+            expect: tangent,
+        };
+        let behind = crate::probe::judge::Answer::Hit {
+            t: Some(-5.0),
+            point: None,
+            normal: None,
+        };
+        assert!(tangent.tie);
+        assert_eq!(
+            crate::probe::judge::judge(&case, &behind).verdicts,
+            vec![crate::probe::judge::Verdict::BehindOrigin]
+        );
     }
 
     #[test]

@@ -1,8 +1,8 @@
 //! The protocol's lines, and the verdict on each answer (the answer's parser is
 //! [`crate::probe_answer`], where it can be fuzzed).
 
-use glam::DVec3;
 pub use crate::probe_answer::{parse_answer, Answer};
+use glam::DVec3;
 
 use super::battery::{Case, CaseKind, PrimKind, Shape};
 

@@ -100,7 +100,8 @@ impl Outcome {
     /// The text report, handed to `emit` a piece at a time (with `all_examples` it grows with
     /// the battery).
     pub fn text(&self, scene: &Path, all_examples: bool, emit: &mut dyn FnMut(&str)) {
-        self.report().text(&self.shown, scene, &self.sources, all_examples, emit);
+        self.report()
+            .text(&self.shown, scene, &self.sources, all_examples, emit);
     }
 
     /// The JSON report (`--json`).
@@ -251,9 +252,8 @@ pub fn catalogue_mistakes(kind: PrimKind, case: Option<CaseKind>, verdict: Verdi
         .map(Mistake::info)
         .filter(|i| {
             i.probe.iter().any(|code| {
-                parse_catalogue_code(code).is_some_and(|(k, c, v)| {
-                    v == verdict && k.is_none_or(|k| k == kind) && (c.is_none() || c == case)
-                })
+                parse_catalogue_code(code)
+                    .is_some_and(|(k, c, v)| v == verdict && k.is_none_or(|k| k == kind) && (c.is_none() || c == case))
             })
         })
         .collect()
