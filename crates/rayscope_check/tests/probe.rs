@@ -81,7 +81,10 @@ fn a_catalogued_mistake_of_an_intersector_is_named_from_the_catalogue() {
         }
         let mut text = String::new();
         outcome.text(&scene, false, &mut |part| text.push_str(part));
-        let named = format!("rayscope's catalogue: '{}' ({})", info.name, info.wrong);
+        let named = format!(
+            "rayscope's catalogue (`rayscope mistakes`): '{}', a tracer that {}",
+            info.name, info.wrong
+        );
         assert!(
             text.contains(&named),
             "{switch}: the report does not name {}:\n{text}",

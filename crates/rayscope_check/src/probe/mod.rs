@@ -647,9 +647,12 @@ impl<'a> Report<'a> {
             }
             let named = catalogue_mistakes(f.kind, f.case, f.verdict);
             if !named.is_empty() {
-                let names: Vec<String> = named.iter().map(|i| format!("'{}' ({})", i.name, i.wrong)).collect();
+                let names: Vec<String> = named
+                    .iter()
+                    .map(|i| format!("'{}', a tracer that {}", i.name, i.wrong))
+                    .collect();
                 out.push_str(&format!(
-                    "   rayscope's catalogue: {} (`rayscope mistakes` lists them all).\n",
+                    "   rayscope's catalogue (`rayscope mistakes`): {}.\n",
                     names.join("; ")
                 ));
             }
