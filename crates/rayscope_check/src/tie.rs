@@ -1,9 +1,11 @@
 //! When a disagreement with the oracle is a genuine tie, either answer right: only where the
 //! exact double-precision answer lies within rounding of a different one, a ray passing that
 //! close to a triangle's edge, a sphere's rim or a tangent. "Within rounding" is
-//! [`Tolerances::tie`](crate::Tolerances::tie) (1e-4) times the scale of the coordinates
-//! involved, because rounding error grows with their size. The log checker (`judge`) and
-//! `probe` both decide ties by [`is_tie`].
+//! [`Tolerances::tie`](crate::Tolerances::tie) (1e-4) times the size of the coordinates
+//! involved, because rounding error grows with their size: [`is_tie`]. The log checker (`judge`)
+//! measures that size as [`scale`] does (at least 1), `probe` as [`magnitude`] does (its battery
+//! shrinks primitives and rays by 1e-4 to catch absolute epsilons, where a floor of 1 would make
+//! every ray a tie).
 
 use glam::DVec3;
 

@@ -539,6 +539,28 @@ mod tests {
     use super::*;
 
     #[test]
+    fn the_printed_catalogue_says_how_check_and_probe_show_each_mistake() {
+        let text = catalogue_text();
+        for m in Mistake::ALL {
+            let i = m.info();
+            let mut entry = format!(
+                "{}\n  wrong: {}\n  looks: {}\n  costs: {}\n  check: {}\n",
+                i.name,
+                i.wrong,
+                i.looks,
+                i.rubric,
+                i.check.join(", ")
+            );
+            if !i.probe.is_empty() {
+                entry.push_str(&format!("  probe: {}\n", i.probe.join(", ")));
+            }
+            assert!(text.contains(&entry), "{entry}");
+            assert!(!text.contains(&format!("{entry}  probe:")), "{entry}");
+        }
+        assert!(text.contains("  probe: triangle back-hit: missed\n"));
+    }
+
+    #[test]
     fn names_round_trip_and_are_kebab_case() {
         for m in Mistake::ALL {
             assert_eq!(Mistake::from_name(m.name()), Some(m));
