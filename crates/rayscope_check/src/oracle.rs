@@ -129,7 +129,7 @@ impl OracleRay {
     #[must_use]
     #[inline]
     pub fn triangle(&self, v: &[DVec3; 3], t_min: f64, t_max: f64) -> Option<f64> {
-        let ([u, v, w], tz) = self.sheared(v);
+        let ([u, v, w], z) = self.sheared(v);
         if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
             return None;
         }
@@ -137,6 +137,7 @@ impl OracleRay {
         if det == 0.0 {
             return None;
         }
+        let tz = u * z[0] + v * z[1] + w * z[2];
         let t = tz * self.s.z / det;
         (t > t_min && t < t_max).then_some(t)
     }
@@ -147,18 +148,19 @@ impl OracleRay {
     /// `t`, whatever its sign. `None` for a ray parallel to the plane.
     #[must_use]
     pub fn triangle_weights(&self, v: &[DVec3; 3]) -> Option<([f64; 3], f64)> {
-        let ([u, v, w], tz) = self.sheared(v);
+        let ([u, v, w], z) = self.sheared(v);
         let det = u + v + w;
         if det == 0.0 || !det.is_finite() {
             return None;
         }
+        let tz = u * z[0] + v * z[1] + w * z[2];
         Some(([u / det, v / det, w / det], tz * self.s.z / det))
     }
 
-    /// The watertight test's scaled barycentric coordinates of the triangle `v` and its scaled
-    /// distance.
+    /// The watertight test's scaled barycentric coordinates of the triangle `v`, and its corners'
+    /// coordinates along the ray's main axis (relative to the origin).
     #[inline]
-    fn sheared(&self, v: &[DVec3; 3]) -> ([f64; 3], f64) {
+    fn sheared(&self, v: &[DVec3; 3]) -> ([f64; 3], [f64; 3]) {
         let [kx, ky, kz] = self.k;
         let (a, b, c) = (v[0] - self.o, v[1] - self.o, v[2] - self.o);
         let (ax, ay) = (a[kx] - self.s.x * a[kz], a[ky] - self.s.y * a[kz]);
@@ -170,7 +172,7 @@ impl OracleRay {
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
-        ([u, v, w], u * a[kz] + v * b[kz] + w * c[kz])
+        ([u, v, w], [a[kz], b[kz], c[kz]])
     }
 
     /// True when the ray meets the box `lo`..`hi` grown by `pad` somewhere in `t_min..=t_max`.
