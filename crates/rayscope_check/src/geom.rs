@@ -7,7 +7,7 @@ use glam::{DVec3, Vec3A};
 use rayscope_core::scene::PrimRef;
 use rayscope_core::Scene;
 
-use crate::oracle::{corners, hit_plane, hit_sphere, OracleRay};
+use crate::oracle::{corners, hit_plane, hit_sphere, rim_margin, OracleRay};
 
 /// A [`Vec3A`] in double precision.
 #[must_use]
@@ -221,9 +221,7 @@ impl<'a> Geometry<'a> {
             }
             PrimRef::Sphere(i) => {
                 let s = &self.scene.spheres[i as usize];
-                let f = d3(s.center) - o;
-                let perp = (f - d * f.dot(d)).length();
-                (f64::from(s.radius) - perp).abs()
+                rim_margin(d3(s.center), f64::from(s.radius), o, d).abs()
             }
             PrimRef::Triangle(i) => {
                 let (v0, e1, e2) = self.triangle(i);

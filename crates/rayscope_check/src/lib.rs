@@ -15,9 +15,11 @@ pub mod judge;
 pub mod log;
 pub mod oracle;
 pub mod pixels;
+pub mod probe;
 pub mod probe_answer;
 pub mod report;
 pub mod selflog;
+pub mod tie;
 pub mod verdict;
 
 use std::sync::atomic::{AtomicBool, Ordering};

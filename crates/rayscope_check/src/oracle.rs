@@ -76,6 +76,15 @@ pub fn hit_sphere(center: DVec3, radius: f64, o: DVec3, d: DVec3, t_min: f64, t_
     }
 }
 
+/// How far from the rim of the sphere (`center`, `radius`) the line `o + t d` (unit `d`) passes:
+/// the radius less the line's distance from the centre, positive where it goes through the
+/// sphere.
+#[must_use]
+pub fn rim_margin(center: DVec3, radius: f64, o: DVec3, d: DVec3) -> f64 {
+    let f = center - o;
+    radius - (f - d * f.dot(d)).length()
+}
+
 /// A ray prepared for the watertight triangle test and the box test.
 #[derive(Debug, Clone, Copy)]
 pub struct OracleRay {
@@ -120,6 +129,38 @@ impl OracleRay {
     #[must_use]
     #[inline]
     pub fn triangle(&self, v: &[DVec3; 3], t_min: f64, t_max: f64) -> Option<f64> {
+        let ([u, v, w], z) = self.sheared(v);
+        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
+            return None;
+        }
+        let det = u + v + w;
+        if det == 0.0 {
+            return None;
+        }
+        let tz = u * z[0] + v * z[1] + w * z[2];
+        let t = tz * self.s.z / det;
+        (t > t_min && t < t_max).then_some(t)
+    }
+
+    /// Where the ray's line crosses the plane of the triangle with corners `v`, by the same
+    /// computation as [`Self::triangle`]: the barycentric weights of v0, v1 and v2 (summing to
+    /// 1; all at least 0 exactly where [`Self::triangle`] hits, one exactly 0 on an edge) and
+    /// `t`, whatever its sign. `None` for a ray parallel to the plane.
+    #[must_use]
+    pub fn triangle_weights(&self, v: &[DVec3; 3]) -> Option<([f64; 3], f64)> {
+        let ([u, v, w], z) = self.sheared(v);
+        let det = u + v + w;
+        if det == 0.0 || !det.is_finite() {
+            return None;
+        }
+        let tz = u * z[0] + v * z[1] + w * z[2];
+        Some(([u / det, v / det, w / det], tz * self.s.z / det))
+    }
+
+    /// The watertight test's scaled barycentric coordinates of the triangle `v`, and its corners'
+    /// coordinates along the ray's main axis (relative to the origin).
+    #[inline]
+    fn sheared(&self, v: &[DVec3; 3]) -> ([f64; 3], [f64; 3]) {
         let [kx, ky, kz] = self.k;
         let (a, b, c) = (v[0] - self.o, v[1] - self.o, v[2] - self.o);
         let (ax, ay) = (a[kx] - self.s.x * a[kz], a[ky] - self.s.y * a[kz]);
@@ -131,16 +172,7 @@ impl OracleRay {
         let u = cx * by - cy * bx;
         let v = ax * cy - ay * cx;
         let w = bx * ay - by * ax;
-        if (u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0) {
-            return None;
-        }
-        let det = u + v + w;
-        if det == 0.0 {
-            return None;
-        }
-        let tz = u * a[kz] + v * b[kz] + w * c[kz];
-        let t = tz * self.s.z / det;
-        (t > t_min && t < t_max).then_some(t)
+        ([u, v, w], [a[kz], b[kz], c[kz]])
     }
 
     /// True when the ray meets the box `lo`..`hi` grown by `pad` somewhere in `t_min..=t_max`.

@@ -161,7 +161,7 @@ fn the_same_scenes_traced_correctly_get_no_verdict() {
     }
 }
 
-/// docs/mistakes.md says how `check` shows each mistake, as the catalogue does.
+/// docs/mistakes.md says how `check` and `probe` show each mistake, as the catalogue does.
 #[test]
 fn the_manual_says_how_check_shows_each_mistake() {
     let doc = std::fs::read_to_string(std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../docs/mistakes.md"))
@@ -170,15 +170,28 @@ fn the_manual_says_how_check_shows_each_mistake() {
         let i = m.info();
         let codes: Vec<String> = i.check.iter().map(|c| format!("`{c}`")).collect();
         let image = i.check.iter().any(|c| c.starts_with("image."));
+        let probe: Vec<String> = i.probe.iter().map(|c| format!("`{c}`")).collect();
         let row = format!(
-            "| `{}` | {}{} |",
+            "| `{}` | {}{} | {} |",
             i.name,
             codes.join(", "),
-            if image { " (with `--image`)" } else { "" }
+            if image { " (with `--image`)" } else { "" },
+            if probe.is_empty() {
+                "—".to_string()
+            } else {
+                probe.join(", ")
+            }
         );
         assert!(doc.contains(&row), "docs/mistakes.md lacks or differs on:\n{row}");
         for c in i.check {
             assert!(rayscope_check::Code::parse(c).is_some(), "{}: no verdict {c}", i.name);
+        }
+        for c in i.probe {
+            assert!(
+                rayscope_check::probe::parse_catalogue_code(c).is_some(),
+                "{}: no probe finding {c}",
+                i.name
+            );
         }
     }
 }

@@ -83,6 +83,11 @@ pub struct MistakeInfo {
     /// The `rayscope check` verdicts a ray log of a tracer with the mistake is headed by (the
     /// `image.*` ones with the tracer's picture given to `check --image`).
     pub check: &'static [&'static str],
+    /// The `rayscope probe` findings an intersector with the mistake gets, for mistakes of an
+    /// intersector (empty where `probe` cannot see the mistake): each a verdict code, narrowed
+    /// to a primitive and perhaps a case as `PRIMITIVE[ CASE]: VERDICT` ("triangle back-hit:
+    /// missed").
+    pub probe: &'static [&'static str],
 }
 
 const CAMERA: &str = "Stage 1: camera rays through the pixel grid";
@@ -276,6 +281,19 @@ impl Mistake {
             looks,
             rubric,
             check: self.check_codes(),
+            probe: self.probe_codes(),
+        }
+    }
+
+    /// The `rayscope probe` findings the mistake shows as (see [`MistakeInfo::probe`]).
+    fn probe_codes(self) -> &'static [&'static str] {
+        match self {
+            Mistake::OneSidedTriangles => &["triangle back-hit: missed"],
+            // Never turned towards the ray, the reversed normal faces the ray on back-face hits
+            // only: most answers follow neither convention the same way, and the front-face
+            // hits break the one the back-face hits set.
+            Mistake::ReversedNormals => &["triangle: normal-flipped"],
+            _ => &[],
         }
     }
 
@@ -495,6 +513,9 @@ pub fn catalogue_text() -> String {
             i.rubric,
             i.check.join(", ")
         ));
+        if !i.probe.is_empty() {
+            out.push_str(&format!("  probe: {}\n", i.probe.join(", ")));
+        }
     }
     out
 }
@@ -516,6 +537,28 @@ pub(crate) fn shadow_origin(mistakes: Mistakes, point: Vec3A, normal: Vec3A, eps
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_printed_catalogue_says_how_check_and_probe_show_each_mistake() {
+        let text = catalogue_text();
+        for m in Mistake::ALL {
+            let i = m.info();
+            let mut entry = format!(
+                "{}\n  wrong: {}\n  looks: {}\n  costs: {}\n  check: {}\n",
+                i.name,
+                i.wrong,
+                i.looks,
+                i.rubric,
+                i.check.join(", ")
+            );
+            if !i.probe.is_empty() {
+                entry.push_str(&format!("  probe: {}\n", i.probe.join(", ")));
+            }
+            assert!(text.contains(&entry), "{entry}");
+            assert!(!text.contains(&format!("{entry}  probe:")), "{entry}");
+        }
+        assert!(text.contains("  probe: triangle back-hit: missed\n"));
+    }
 
     #[test]
     fn names_round_trip_and_are_kebab_case() {

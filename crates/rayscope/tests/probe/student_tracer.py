@@ -8,6 +8,7 @@ PROBE_MISTAKES (comma-separated) picks the mistakes:
   plane-parallel-inf   the same division done the C# way: t becomes +-infinity and is returned
   triangle-strict      Moller-Trumbore with > / < where >= / <= belong (edges and corners miss)
   normal-unnormalised  sphere normal P - C, triangle normal (v1 - v0) x (v2 - v0) not normalised
+  triangle-reversed-normals  triangle normal (v2 - v0) x (v1 - v0), never turned towards the ray
 and, not a mistake,
   float32              every operation rounded to single precision, like a tracer using float
 """
@@ -129,6 +130,8 @@ class Triangle:
     def __init__(self, v0, v1, v2):
         self.v0, self.v1, self.v2 = v0, v1, v2
         n = (v1 - v0).cross(v2 - v0)
+        if "triangle-reversed-normals" in MISTAKES:
+            n = (v2 - v0).cross(v1 - v0)
         self.normal = n if "normal-unnormalised" in MISTAKES else n.normalized()
 
     def intersect(self, ray):

@@ -1,22 +1,27 @@
 //! `rayscope probe`: runs a student's own intersector as a child process, sends it a battery of
 //! rays against each of the scene's primitives, and reports the cases it gets wrong with a
-//! reproduction for each. The protocol is in the README ("Bring your own intersector").
+//! reproduction for each. The protocol is in docs/probe.md ("Bring your own intersector" in the
+//! README). The right answers are the [`crate::oracle`]'s, and a ray is a tie (either answer
+//! right) by the log checker's rule, [`crate::tie`]. The command line's `rayscope probe` is a
+//! thin wrapper around [`check_timeouts`], [`run`] and [`Outcome`].
 
-mod battery;
-mod child;
-mod judge;
+pub mod battery;
+pub mod child;
+pub mod judge;
 
 use std::collections::BTreeMap;
-use std::process::ExitCode;
+use std::path::Path;
 use std::time::Duration;
 
 use glam::DVec3;
+use rayscope_core::mistakes::{Mistake, MistakeInfo};
+use rayscope_scene::SceneFile;
 
-use crate::cli::ProbeArgs;
-use crate::commands::{load_file, Failure};
 use battery::{cases_for, nice, Case, CaseKind, Expect, PrimKind, Shape};
 use child::{ChildError, Probed};
 use judge::{Answer, Verdict};
+
+pub use child::kill_group;
 
 /// Most requests one run sends (primitives × their cases × `--rays-per-case`). Each is kept
 /// with its answer and verdicts until the report, about 450 bytes in all (84 MB at 190,000
@@ -26,79 +31,146 @@ pub const MAX_REQUESTS: u64 = 1_000_000;
 /// Longest `--timeout` and `--startup-timeout` accepted, in seconds (a day).
 pub const MAX_TIMEOUT_S: f64 = 86_400.0;
 
-/// Runs `rayscope probe`.
-pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
-    for (flag, secs) in [("--timeout", a.timeout), ("--startup-timeout", a.startup_timeout)] {
+/// What one probe run is asked to do (the command line's flags).
+#[derive(Debug, Clone)]
+pub struct Options<'a> {
+    /// The scene file's path, as given (for messages and the report).
+    pub scene: &'a Path,
+    /// The program to run and its arguments.
+    pub command: &'a [String],
+    /// Triangles of each mesh to test (`--mesh-triangles`).
+    pub mesh_triangles: u32,
+    /// Rays of each case (`--rays-per-case`, at least 1).
+    pub rays_per_case: u32,
+    /// Seed of the battery's rays (`--seed`).
+    pub seed: u64,
+    /// Seconds the program has for each answer (`--timeout`).
+    pub timeout: f64,
+    /// Seconds the program has for its first answer (`--startup-timeout`).
+    pub startup_timeout: f64,
+}
+
+/// Refuses a `--timeout` or `--startup-timeout` outside (0, [`MAX_TIMEOUT_S`]]; the message
+/// names the flag.
+pub fn check_timeouts(timeout: f64, startup_timeout: f64) -> Result<(), String> {
+    for (flag, secs) in [("--timeout", timeout), ("--startup-timeout", startup_timeout)] {
         if !(secs > 0.0 && secs <= MAX_TIMEOUT_S) {
-            return Err(Failure::input(format!(
+            return Err(format!(
                 "{flag} {} is out of range: give a number of seconds greater than 0 and at most {MAX_TIMEOUT_S} (a day)",
                 if secs.abs() >= 1e9 { format!("{secs:e}") } else { format!("{secs}") }
-            )));
+            ));
         }
     }
-    let file = load_file(&a.file, a.json)?;
+    Ok(())
+}
+
+/// A finished probe run: the battery, the program's answers and their verdicts.
+#[derive(Debug)]
+pub struct Outcome {
+    cases: Vec<Case>,
+    answers: Vec<Answer>,
+    judgements: Vec<judge::Judgement>,
+    conventions: BTreeMap<PrimKind, bool>,
+    sources: Vec<battery::Source>,
+    shown: String,
+}
+
+impl Outcome {
+    /// True when every answer is right (the exit status is 0).
+    #[must_use]
+    pub fn passed(&self) -> bool {
+        self.judgements.iter().all(|j| j.verdicts.is_empty())
+    }
+
+    /// The verdict codes of the findings, one per finding in the report's order
+    /// (primitive, case id or "all", verdict code).
+    #[must_use]
+    pub fn findings(&self) -> Vec<(&'static str, &'static str, &'static str)> {
+        self.report()
+            .findings
+            .iter()
+            .map(|f| (f.kind.name(), f.case.map_or("all", CaseKind::id), f.verdict.code()))
+            .collect()
+    }
+
+    fn report(&self) -> Report<'_> {
+        Report::new(&self.cases, &self.answers, &self.judgements, &self.conventions)
+    }
+
+    /// The text report, handed to `emit` a piece at a time (with `all_examples` it grows with
+    /// the battery).
+    pub fn text(&self, scene: &Path, all_examples: bool, emit: &mut dyn FnMut(&str)) {
+        self.report()
+            .text(&self.shown, scene, &self.sources, all_examples, emit);
+    }
+
+    /// The JSON report (`--json`).
+    #[must_use]
+    pub fn json(&self, scene: &Path, command: &[String]) -> String {
+        self.report().json(scene, command)
+    }
+}
+
+/// Runs the program of `opts` on the battery built from `file` and judges its answers.
+/// `started` is told the program's process id as soon as it runs (to stop it on Ctrl-C, with
+/// [`kill_group`]). `Err` is a message for the user: a battery too large, a scene without
+/// primitives, a program that cannot start, does not answer or answers what cannot be read.
+pub fn run(opts: &Options<'_>, file: &SceneFile, started: &mut dyn FnMut(u32)) -> Result<Outcome, String> {
+    let scene = opts.scene;
     // Counted before anything is built: the battery is held whole until the report.
-    let (requests, primitives) = battery::request_bound(&file, a.mesh_triangles as usize, a.rays_per_case as usize);
+    let (requests, primitives) =
+        battery::request_bound(file, opts.mesh_triangles as usize, opts.rays_per_case as usize);
     if requests > MAX_REQUESTS {
         // Every term of the count has --rays-per-case as a factor.
-        let fitting = MAX_REQUESTS / (requests / u64::from(a.rays_per_case)).max(1);
-        return Err(Failure::input(format!(
+        let fitting = MAX_REQUESTS / (requests / u64::from(opts.rays_per_case)).max(1);
+        return Err(format!(
             "{}: --mesh-triangles {} and --rays-per-case {} make up to {requests} requests ({primitives} primitives, each 11 to 15 cases of {} rays), more than the {MAX_REQUESTS} one run sends (every request is kept until the report).\n  Lower --rays-per-case{} or --mesh-triangles.",
-            a.file.display(),
-            a.mesh_triangles,
-            a.rays_per_case,
-            a.rays_per_case,
+            scene.display(),
+            opts.mesh_triangles,
+            opts.rays_per_case,
+            opts.rays_per_case,
             if fitting >= 1 {
                 format!(" (at most {fitting} here)")
             } else {
                 String::new()
             }
-        )));
+        ));
     }
-    let sources = battery::sources(&file, a.mesh_triangles as usize);
+    let sources = battery::sources(file, opts.mesh_triangles as usize);
     if sources.is_empty() {
-        return Err(Failure::input(format!(
-            "{} has no sphere, plane or triangle to test",
-            a.file.display()
-        )));
+        return Err(format!("{} has no sphere, plane or triangle to test", scene.display()));
     }
     let cases: Vec<Case> = sources
         .iter()
         .enumerate()
-        .flat_map(|(i, s)| battery::battery(s, i, a.rays_per_case as usize, a.seed))
+        .flat_map(|(i, s)| battery::battery(s, i, opts.rays_per_case as usize, opts.seed))
         .collect();
-    let shown = command_line(&a.command);
-    let mut child = Probed::spawn(&a.command).map_err(|e| {
-        Failure::input(format!(
+    let shown = command_line(opts.command);
+    let mut child = Probed::spawn(opts.command).map_err(|e| {
+        format!(
             "cannot start `{shown}`: {e}{}",
             if e.kind() == std::io::ErrorKind::NotFound {
                 " (is the program on PATH, and the command after `--`?)"
             } else {
                 ""
             }
-        ))
+        )
     })?;
-    {
-        // The program runs in a process group of its own, which Ctrl-C in the terminal does not
-        // reach: stop it on the way out.
-        let pid = child.id();
-        let _ = ctrlc::set_handler(move || {
-            child::kill_group(pid);
-            std::process::exit(130);
-        });
-    }
-    let startup = Duration::from_secs_f64(a.startup_timeout);
-    let timeout = Duration::from_secs_f64(a.timeout);
+    // The program runs in a process group of its own, which Ctrl-C in the terminal does not
+    // reach: the caller stops it on the way out.
+    started(child.id());
+    let startup = Duration::from_secs_f64(opts.startup_timeout);
+    let timeout = Duration::from_secs_f64(opts.timeout);
     let hello = child
         .ask(judge::HELLO, startup)
         .map_err(|e| child_failure(&mut child, &shown, e, None))?;
     check_ready(&hello).map_err(|why| {
         child.kill();
-        Failure::input(format!(
+        format!(
             "`{shown}` does not speak the probe protocol: {why}.\n  its first line: {}\n  expected: {{\"ready\":true}}, the answer to rayscope's hello {}\n  (print debugging output to stderr, never stdout; the README's \"Bring your own intersector\" has adapters for Python and C#)",
             quote(&hello),
             judge::HELLO
-        ))
+        )
     })?;
     let mut answers = Vec::with_capacity(cases.len());
     let mut judgements = Vec::with_capacity(cases.len());
@@ -109,10 +181,10 @@ pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
             .map_err(|e| child_failure(&mut child, &shown, e, Some((case, &request))))?;
         let answer = judge::parse_answer(&line, id).map_err(|why| {
             child.kill();
-            Failure::input(format!(
+            format!(
                 "`{shown}` answered request {id} with a line rayscope cannot read: {why}.\n  request: {request}\n  answer:  {}\n  expected: {{\"id\":{id},\"hit\":null}} for a miss, or {{\"id\":{id},\"hit\":{{\"t\":…,\"point\":[x,y,z],\"normal\":[x,y,z]}}}}\n  (print debugging output to stderr, never stdout)",
                 quote(&line)
-            ))
+            )
         })?;
         judgements.push(judge::judge(case, &answer));
         answers.push(answer);
@@ -134,20 +206,57 @@ pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {
         }
         conventions.insert(kind, conv.outward);
     }
-
-    let report = Report::new(&cases, &answers, &judgements, &conventions);
-    crate::set_verdict(u8::from(!report.findings.is_empty()));
-    if a.json {
-        println!("{}", report.json(&a.file, &a.command));
-    } else {
-        // Written as it is made: with --all-examples the text grows with the battery.
-        report.text(&shown, &a.file, &sources, a.all_examples, &mut |part| print!("{part}"));
-    }
-    Ok(if report.findings.is_empty() {
-        ExitCode::SUCCESS
-    } else {
-        ExitCode::from(1)
+    Ok(Outcome {
+        cases,
+        answers,
+        judgements,
+        conventions,
+        sources,
+        shown,
     })
+}
+
+/// What a catalogue entry's probe code (see [`MistakeInfo::probe`]) names: the primitive and
+/// case it is narrowed to, if any, and the verdict. `None` for a code naming a primitive, case or
+/// verdict the probe does not have, or a case the primitive does not get.
+#[must_use]
+pub fn parse_catalogue_code(code: &str) -> Option<(Option<PrimKind>, Option<CaseKind>, Verdict)> {
+    let (scope, verdict) = match code.split_once(": ") {
+        Some((scope, verdict)) => (Some(scope), verdict),
+        None => (None, code),
+    };
+    let verdict = Verdict::parse(verdict)?;
+    let Some(scope) = scope else {
+        return Some((None, None, verdict));
+    };
+    let (kind, case) = match scope.split_once(' ') {
+        Some((kind, case)) => (kind, Some(case)),
+        None => (scope, None),
+    };
+    let kind = [PrimKind::Sphere, PrimKind::Plane, PrimKind::Triangle]
+        .into_iter()
+        .find(|k| k.name() == kind)?;
+    let case = match case {
+        Some(id) => Some(*cases_for(kind).iter().find(|c| c.id() == id)?),
+        None => None,
+    };
+    Some((Some(kind), case, verdict))
+}
+
+/// The catalogue's mistakes that show as `verdict` in `case` (None: over all of a kind's
+/// hits) of a `kind`, in catalogue order.
+#[must_use]
+pub fn catalogue_mistakes(kind: PrimKind, case: Option<CaseKind>, verdict: Verdict) -> Vec<MistakeInfo> {
+    Mistake::ALL
+        .into_iter()
+        .map(Mistake::info)
+        .filter(|i| {
+            i.probe.iter().any(|code| {
+                parse_catalogue_code(code)
+                    .is_some_and(|(k, c, v)| v == verdict && k.is_none_or(|k| k == kind) && (c.is_none() || c == case))
+            })
+        })
+        .collect()
 }
 
 fn command_line(cmd: &[String]) -> String {
@@ -186,7 +295,7 @@ fn check_ready(line: &str) -> Result<(), String> {
 }
 
 /// The error for a program that did not answer, with its stderr's last lines.
-fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Case, &str)>) -> Failure {
+fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Case, &str)>) -> String {
     let what = match at {
         Some((c, _)) => format!(
             "request {} ({}: {})",
@@ -266,7 +375,7 @@ fn child_failure(child: &mut Probed, shown: &str, e: ChildError, at: Option<(&Ca
             msg.push_str(&format!("\n    | {l}"));
         }
     }
-    Failure::input(msg)
+    msg
 }
 
 /// A number of bytes, for reading.
@@ -536,6 +645,17 @@ impl<'a> Report<'a> {
             if let Some(h) = self.hint(f) {
                 out.push_str(&format!("   {h}\n"));
             }
+            let named = catalogue_mistakes(f.kind, f.case, f.verdict);
+            if !named.is_empty() {
+                let names: Vec<String> = named
+                    .iter()
+                    .map(|i| format!("'{}', a tracer that {}", i.name, i.wrong))
+                    .collect();
+                out.push_str(&format!(
+                    "   rayscope's catalogue (`rayscope mistakes`): {}.\n",
+                    names.join("; ")
+                ));
+            }
             let shown_examples = if all { f.requests.len() } else { 1 };
             for (k, &i) in f.requests.iter().take(shown_examples).enumerate() {
                 let c = &self.cases[i];
@@ -603,6 +723,10 @@ impl<'a> Report<'a> {
                     "of": f.of,
                     "summary": self.headline(f),
                     "hint": self.hint(f),
+                    "mistakes": catalogue_mistakes(f.kind, f.case, f.verdict)
+                        .iter()
+                        .map(|i| i.name)
+                        .collect::<Vec<_>>(),
                     "examples": examples,
                 })
             })

@@ -1,18 +1,19 @@
 //! The battery of rays `probe` sends for each primitive, and what a correct intersector answers.
 //!
 //! Every number sent is rounded to 7 significant digits first, so a reproduction printed in the
-//! report is short and pastes into a test unchanged. The expected answer is worked out on exactly
-//! those numbers in f64, and rayscope's own f32 routines (`rayscope_core::geometry`) are asked
-//! too: where the two disagree on hit or miss, or the ray passes within rounding of an edge or a
-//! rim, the case is a genuine tie and either answer is accepted.
+//! report is short and pastes into a test unchanged. The expected answer is the checker's oracle's
+//! on exactly those numbers, in f64; where the ray passes within rounding of an edge or a rim (the
+//! log checker's tie rule, [`crate::tie`]) the case is a genuine tie and either answer is accepted.
 
 use std::rc::Rc;
 
-use glam::{DVec3, Vec3A};
-use rayscope_core::geometry::{Plane, Primitive, Sphere, Triangle};
+use glam::DVec3;
 use rayscope_core::rng::Rng;
-use rayscope_core::Ray;
 use rayscope_scene::{SceneFile, Shape as SceneShape};
+
+use crate::oracle::{hit_plane, hit_sphere, rim_margin, OracleRay};
+use crate::tie::{is_tie, magnitude};
+use crate::Tolerances;
 
 /// Single-precision epsilon: the rounding a tracer in f32 lives with.
 const EPS32: f64 = f32::EPSILON as f64;
@@ -737,28 +738,6 @@ fn triangle_ray(dice: &mut Dice, case: CaseKind, v: [DVec3; 3]) -> (Shape, DVec3
     }
 }
 
-/// What rayscope's own f32 routine finds: `Some(t)` (in units of the direction as sent) or a miss.
-fn rayscope_f32(shape: &Shape, o: DVec3, d: DVec3) -> Option<f64> {
-    let v = |p: DVec3| Vec3A::from(p.as_vec3());
-    let dir = v(d);
-    let len = dir.length();
-    let ray = Ray::new(v(o), dir / len);
-    let hit = match *shape {
-        Shape::Sphere { center, radius } => Sphere {
-            center: v(center),
-            radius: radius as f32,
-        }
-        .intersect(&ray, 0.0, f32::INFINITY),
-        Shape::Plane { point, normal } => Plane {
-            point: v(point),
-            normal: v(normal).normalize(),
-        }
-        .intersect(&ray, 0.0, f32::INFINITY),
-        Shape::Triangle { v: [a, b, c] } => Triangle::new(v(a), v(b), v(c)).intersect(&ray, 0.0, f32::INFINITY),
-    };
-    hit.map(|h| f64::from(h.t) / f64::from(len))
-}
-
 /// How the true normal at a hit is found.
 enum NormalRule {
     /// The same everywhere (planes, triangles).
@@ -767,9 +746,12 @@ enum NormalRule {
     FromCentre(DVec3),
 }
 
-/// The right answers for a ray, worked out in f64 on the numbers as sent.
+/// The right answers for a ray, on the numbers as sent: where it meets the primitive is the
+/// oracle's (`hit_sphere`, `hit_plane`, the watertight triangle test), and whether it passes
+/// within rounding of a rim or an edge, so that a miss and a hit are both right, is the log
+/// checker's rule ([`crate::tie`]). The tolerances on t, the point and the normal admit a
+/// tracer computing in f32.
 pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
-    let t32 = rayscope_f32(shape, o, d);
     let size = match *shape {
         Shape::Sphere { radius, .. } => radius,
         Shape::Plane { .. } => 1.0,
@@ -796,72 +778,79 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
         zero: 0.0,
         normal_tol: 0.0,
     };
-    let a = d.length_squared();
+    // The oracle works along a unit direction; t as sent is in units of `d`.
+    let len = d.length();
+    let u = d / len;
+    let tie_tol = Tolerances::default().tie;
     // How much the division by the cosine of the angle of incidence magnifies rounding in t.
     let mut cond = 1.0;
-    // Roots of the ray against the surface (sorted), whether the ray's line meets the primitive
-    // at all, and the margin by which it does, relative to the primitive's size (positive
-    // inside), with the width within which that margin is rounding noise.
-    let (roots, margin, width, strict_boundary, normal_rule) = match *shape {
+    // Roots of the ray against the surface (sorted, in units of `d`), whether the ray's line
+    // meets the primitive at all, and whether it passes within rounding of its rim or an edge.
+    let (roots, inside, near_boundary, normal_rule) = match *shape {
         Shape::Sphere { center, radius } => {
-            let f = o - center;
-            let b = -f.dot(d);
-            let l = f + d * (b / a);
-            let disc = radius * radius - l.length_squared();
-            let margin = (radius - l.length()) / radius;
-            let (rel_f, rel_c) = (f.length() / radius, center.length() / radius);
-            // Careful f32 code loses EPS32·(rel_f + rel_c); the textbook b² − 4ac also
-            // loses EPS32·rel_f² to cancellation.
-            let width = 8.0 * EPS32 * (1.0 + rel_f + rel_c) + EPS32 * rel_f * rel_f;
-            let roots = if disc >= 0.0 {
-                let c = f.length_squared() - radius * radius;
-                let q = b + (a * disc).sqrt().copysign(b);
-                let (t0, t1) = if q == 0.0 { (0.0, 0.0) } else { (c / q, q / a) };
-                vec![t0.min(t1), t0.max(t1)]
-            } else {
+            let margin = rim_margin(center, radius, o, u);
+            let along = (center - o).dot(u);
+            let near = hit_sphere(center, radius, o, u, f64::NEG_INFINITY, f64::INFINITY);
+            let far = near.and_then(|t0| hit_sphere(center, radius, o, u, t0.max(along), f64::INFINITY));
+            let roots: Vec<f64> = match (near, far) {
+                (Some(t0), Some(t1)) => vec![t0 / len, t1 / len],
+                (Some(t0), None) => vec![t0 / len],
                 // The tangent point, for a tie that a student reports as a hit.
-                vec![b / a]
+                _ => vec![along / len],
             };
-            (roots, margin, width, false, NormalRule::FromCentre(center))
+            let closest = o + u * along;
+            let tie = is_tie(margin, tie_tol, magnitude(&[o, closest]));
+            (roots, margin >= 0.0, tie, NormalRule::FromCentre(center))
         }
         Shape::Plane { point, normal } => {
-            let den = d.dot(normal);
-            let num = (point - o).dot(normal);
+            let den = u.dot(normal);
             let n = normal.normalize();
-            if den == 0.0 {
-                if num == 0.0 {
-                    e.any_hit_ok = true;
+            match hit_plane(point, normal, o, u, f64::NEG_INFINITY, f64::INFINITY) {
+                None => {
+                    if (point - o).dot(normal) == 0.0 {
+                        e.any_hit_ok = true;
+                    }
+                    (vec![], false, false, NormalRule::Fixed(n))
                 }
-                (vec![], -1.0, 0.0, false, NormalRule::Fixed(n))
-            } else if den.abs() < 1e-6 * a.sqrt() {
-                e.any_hit_ok = true;
-                (vec![num / den], 0.0, 1.0, false, NormalRule::Fixed(n))
-            } else {
-                cond = a.sqrt() / den.abs();
-                (vec![num / den], 1.0, 0.0, false, NormalRule::Fixed(n))
+                Some(t) if den.abs() < 1e-6 => {
+                    e.any_hit_ok = true;
+                    (vec![t / len], true, true, NormalRule::Fixed(n))
+                }
+                Some(t) => {
+                    cond = 1.0 / den.abs();
+                    (vec![t / len], true, false, NormalRule::Fixed(n))
+                }
             }
         }
         Shape::Triangle { v } => {
             let (e1, e2) = (v[1] - v[0], v[2] - v[0]);
             let n = e1.cross(e2).normalize();
-            let p = d.cross(e2);
-            let det = e1.dot(p);
-            let rel_det = det.abs() / (e1.length() * e2.length() * a.sqrt());
+            // Möller and Trumbore's determinant over its largest value: how well the ray's
+            // crossing is conditioned in a tracer that uses it.
+            let rel_det = e1.cross(e2).dot(u).abs() / (e1.length() * e2.length());
             cond = 1.0 / rel_det;
-            if det == 0.0 || rel_det < 1e-7 {
-                if det != 0.0 || (o - v[0]).dot(n) == 0.0 {
-                    e.any_hit_ok = true;
+            match OracleRay::new(o, u).triangle_weights(&v) {
+                Some((w, t)) if rel_det >= 1e-7 => {
+                    let margin = w[0].min(w[1]).min(w[2]);
+                    // Each weight is the point's distance from the opposite edge over the
+                    // altitude onto it: the distance to the nearest edge's line, in scene units.
+                    let area2 = e1.cross(e2).length();
+                    let dist = (0..3)
+                        .map(|k| (w[k] * area2 / (v[(k + 2) % 3] - v[(k + 1) % 3]).length()).abs())
+                        .fold(f64::INFINITY, f64::min);
+                    let p = o + u * t;
+                    // Exactly on the boundary, in real arithmetic on the numbers sent, is no
+                    // tie: a miss there is the inside test's, not rounding's.
+                    let exact = (0..3).any(|k| w[k] == 0.0 && meets_edge_exactly(o, d, v[(k + 1) % 3], v[(k + 2) % 3]));
+                    let tie = !exact && is_tie(dist, tie_tol, magnitude(&[o, p]));
+                    (vec![t / len], margin >= 0.0, tie, NormalRule::Fixed(n))
                 }
-                (vec![], -1.0, 0.0, false, NormalRule::Fixed(n))
-            } else {
-                let s = o - v[0];
-                let u = s.dot(p) / det;
-                let q = s.cross(e1);
-                let w = d.dot(q) / det;
-                let t = e2.dot(q) / det;
-                let margin = u.min(w).min(1.0 - u - w);
-                let width = 8.0 * EPS32 * (1.0 + ((o - v[0]).length() + v[0].length()) / size) / rel_det.min(1.0);
-                (vec![t], margin, width, margin == 0.0, NormalRule::Fixed(n))
+                _ => {
+                    if rel_det != 0.0 || (o - v[0]).dot(n) == 0.0 {
+                        e.any_hit_ok = true;
+                    }
+                    (vec![], false, false, NormalRule::Fixed(n))
+                }
             }
         }
     };
@@ -870,13 +859,9 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
     e.zero = zero;
     let near_t = roots.iter().copied().find(|t| *t > zero);
     let at_origin = roots.iter().any(|t| t.abs() <= zero);
-    let inside = margin >= 0.0;
-    let tie_by_margin = !strict_boundary && margin.abs() <= width;
     e.at_origin_ok = at_origin && inside;
     let hit64 = if inside { near_t } else { None };
-    // rayscope's f32 answer, ignoring hits at the origin itself.
-    let hit32 = t32.filter(|t| *t > zero);
-    let tie = tie_by_margin || (!e.at_origin_ok && hit32.is_some() != hit64.is_some());
+    let tie = near_boundary;
     e.tie = tie;
     let truth_t = hit64.or(if tie { near_t } else { None });
     e.hit = truth_t.map(|t| {
@@ -895,17 +880,43 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
         e.other_t = truth_t.and_then(|t| roots.iter().copied().find(|r| *r != t));
     }
     let t_mag = truth_t.map_or(0.0, f64::abs);
-    let mut tol = 1e-4 * (size + t_mag) + rounding + 8.0 * EPS32 * t_mag * cond.min(1e6);
-    if let (Some(a), Some(b)) = (truth_t, hit32) {
-        tol += 4.0 * (a - b).abs();
-    }
+    // A tracer in f32 rounds the coordinates by `rounding`, which moves the crossing along the
+    // ray by that over the sine of the angle of incidence, and t by its own relative rounding.
+    let mut tol = 1e-4 * (size + t_mag) + (rounding + 8.0 * EPS32 * t_mag) * cond.min(1e6);
     if tie {
-        // Near a rim t moves with the square root of the rounding.
-        tol += 4.0 * size * (2.0 * width).sqrt();
+        // Near a rim t moves with the square root of the distance from it.
+        tol += 4.0 * size * (2.0 * tie_tol * magnitude(&[o, feature]).max(size) / size).sqrt();
     }
     e.tol = tol;
     e.normal_tol = 1e-3 + 2.0 * tol / size;
     e
+}
+
+/// True when the line `o + t d`, with `d` along a coordinate axis, meets the line through `a`
+/// and `b` exactly, in real arithmetic on these numbers. The battery's edge and corner rays are
+/// built so on triangles in an axis plane; where the scene's numbers are not exact in binary
+/// the ray passes within rounding of the edge instead, and that is a tie.
+fn meets_edge_exactly(o: DVec3, d: DVec3, a: DVec3, b: DVec3) -> bool {
+    let axes: Vec<usize> = (0..3).filter(|&k| d[k] != 0.0).collect();
+    let &[axis] = axes.as_slice() else {
+        return false;
+    };
+    let (i, j) = ((axis + 1) % 3, (axis + 2) % 3);
+    // x − y, where it is exact (Knuth's two-sum leaves no error).
+    let diff = |x: f64, y: f64| {
+        let s = x - y;
+        let back = s - x;
+        ((x - (s - back)) + (-y - back) == 0.0).then_some(s)
+    };
+    let (Some(ax), Some(ay), Some(bx), Some(by)) =
+        (diff(a[i], o[i]), diff(a[j], o[j]), diff(b[i], o[i]), diff(b[j], o[j]))
+    else {
+        return false;
+    };
+    // The cross product of the two differences in the plane across the ray: zero with both
+    // products exact.
+    let (p, q) = (ax * by, ay * bx);
+    ax.mul_add(by, -p) == 0.0 && ay.mul_add(bx, -q) == 0.0 && p == q
 }
 
 #[cfg(test)]
@@ -946,6 +957,68 @@ mod tests {
         assert!(!e.tie && !e.miss_ok, "{e:?}");
         let beside = expect(&t, DVec3::new(0.0, 0.0, -0.5), DVec3::new(-1.0, 0.0, 0.0));
         assert!(beside.hit.is_none() && beside.miss_ok);
+    }
+
+    #[test]
+    fn an_edge_ray_is_strict_only_where_it_meets_the_edge_exactly() {
+        // Our room's right wall: 0.65, 2.4 and 1.1 are not exact in binary, so the ray through
+        // the middle of the diagonal decimal edge passes within rounding of it, and a correct
+        // double-precision intersector may miss it.
+        let wall = Shape::Triangle {
+            v: [
+                DVec3::new(1.1, -1.0, -0.6),
+                DVec3::new(1.1, 1.2, 3.4),
+                DVec3::new(1.1, 1.2, -0.6),
+            ],
+        };
+        let e = expect(&wall, DVec3::new(-0.9, 0.65, 2.4), DVec3::X);
+        assert!(e.tie && e.miss_ok && e.hit.is_some(), "{e:?}");
+        // The same on a wall whose numbers are exact: a hit is required.
+        let exact = Shape::Triangle {
+            v: [
+                DVec3::new(1.0, -1.0, -0.5),
+                DVec3::new(1.0, 1.0, 3.5),
+                DVec3::new(1.0, 1.0, -0.5),
+            ],
+        };
+        let e = expect(&exact, DVec3::new(-1.0, 0.5, 2.5), DVec3::X);
+        assert!(!e.tie && e.hit_required(), "{e:?}");
+    }
+
+    #[test]
+    fn ties_are_the_log_checkers_and_relative_to_the_coordinates() {
+        // 1e-5 inside the rim of a unit sphere five units away: within 1e-4 of the coordinates.
+        let e = expect(&sphere(), DVec3::new(1.0 - 1e-5, 0.0, 0.0), DVec3::Z);
+        assert!(e.tie && e.miss_ok, "{e:?}");
+        // A ray through the middle of a sphere shrunk by 1e-4 about the origin is no tie: the
+        // tolerance shrinks with the coordinates (no floor of 1 as in a course log).
+        let tiny = Shape::Sphere {
+            center: DVec3::new(0.0, 0.0, 5e-4),
+            radius: 1e-4,
+        };
+        let e = expect(&tiny, DVec3::ZERO, DVec3::Z);
+        assert!(!e.tie && e.hit_required(), "{e:?}");
+        assert!((e.hit.unwrap().t - 4e-4).abs() < 1e-12);
+        // A tie never excuses a hit clearly behind the origin.
+        let tangent = expect(&sphere(), DVec3::new(1.0, 0.0, 0.0), DVec3::Z);
+        let case = Case {
+            case: CaseKind::Tangent,
+            shape: sphere(),
+            source: "test".into(),
+            origin: DVec3::new(1.0, 0.0, 0.0),
+            dir: DVec3::Z,
+            expect: tangent,
+        };
+        let behind = crate::probe::judge::Answer::Hit {
+            t: Some(-5.0),
+            point: None,
+            normal: None,
+        };
+        assert!(tangent.tie);
+        assert_eq!(
+            crate::probe::judge::judge(&case, &behind).verdicts,
+            vec![crate::probe::judge::Verdict::BehindOrigin]
+        );
     }
 
     #[test]

@@ -1,8 +1,8 @@
 //! The protocol's lines, and the verdict on each answer (the answer's parser is
-//! `rayscope_check::probe_answer`, where it can be fuzzed).
+//! [`crate::probe_answer`], where it can be fuzzed).
 
+pub use crate::probe_answer::{parse_answer, Answer};
 use glam::DVec3;
-pub use rayscope_check::probe_answer::{parse_answer, Answer};
 
 use super::battery::{Case, CaseKind, PrimKind, Shape};
 
@@ -34,6 +34,27 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// Every verdict, in the report's order.
+    pub const ALL: [Verdict; 11] = [
+        Verdict::Raised,
+        Verdict::NotFinite,
+        Verdict::BehindOrigin,
+        Verdict::Missed,
+        Verdict::Phantom,
+        Verdict::WrongRoot,
+        Verdict::WrongT,
+        Verdict::WrongPoint,
+        Verdict::NormalNotUnit,
+        Verdict::NormalWrong,
+        Verdict::NormalFlipped,
+    ];
+
+    /// The verdict whose [`Self::code`] is `code`.
+    #[must_use]
+    pub fn parse(code: &str) -> Option<Verdict> {
+        Verdict::ALL.into_iter().find(|v| v.code() == code)
+    }
+
     /// A stable code for scripts.
     pub fn code(self) -> &'static str {
         match self {
