@@ -23,6 +23,7 @@ use serde_json::json;
 use crate::geom::{angle, d3, reflect, refract, Geometry};
 use crate::log::{Answer, HitClaim, Kind, LoggedRay};
 use crate::oracle::{Oracle, OracleCamera};
+use crate::tie::{is_tie, scale};
 use crate::verdict::Code;
 
 pub mod causes;
@@ -484,10 +485,6 @@ const MIN_SHARE: f64 = 0.01;
 /// on: f32's rounding of coordinates, with a margin. An origin offset as the course's 1e-5 is
 /// ten times farther.
 const SURFACE_ROUNDING: f64 = 1e-6;
-
-fn scale(points: &[DVec3]) -> f64 {
-    points.iter().map(|p| p.abs().max_element()).fold(1.0, f64::max)
-}
 
 impl<'a> Judge<'a> {
     /// A judge for `scene` rendered with `settings`.

@@ -126,7 +126,8 @@ impl Grouper {
         if g.capacity() == g.len() {
             return g;
         }
-        let rays: Vec<LoggedRay> = g.drain(..).collect();
+        let mut rays = Vec::with_capacity(g.len());
+        rays.append(&mut g);
         if g.capacity() > self.spare.capacity() {
             self.spare = g;
         }

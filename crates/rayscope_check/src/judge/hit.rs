@@ -176,7 +176,7 @@ impl Judge<'_> {
         let m = self.geo.margin(h.prim, o, d, h.point);
         let l = scale(&[o, h.point]);
         let v = hit_values(None, None, None);
-        if m <= self.tol.tie * l {
+        if is_tie(m, self.tol.tie, l) {
             f.push(self.finding(
                 r,
                 kind,
@@ -234,7 +234,7 @@ impl Judge<'_> {
         let Some(h) = rs else {
             let on = c.entity.map(|e| self.geo.entity_distance(e, ps));
             if let Some((dist, Some(prim))) = on {
-                if dist <= pos && self.geo.margin(prim, o, d, ps) <= self.tol.tie * l {
+                if dist <= pos && is_tie(self.geo.margin(prim, o, d, ps), self.tol.tie, l) {
                     f.push(self.finding(
                         r,
                         kind,
@@ -267,7 +267,7 @@ impl Judge<'_> {
             return;
         }
         let l2 = scale(&[o, ps, h.point]);
-        let tie = self.tol.tie * l2;
+
         if !same_entity {
             let e = c.entity.unwrap_or(h.entity);
             let (dist, prim) = self.geo.entity_distance(e, ps);
@@ -286,7 +286,7 @@ impl Judge<'_> {
                 return;
             }
             if ts < h.t {
-                if dist <= pos && prim.is_some_and(|p| self.geo.margin(p, o, d, ps) <= tie) {
+                if dist <= pos && prim.is_some_and(|p| is_tie(self.geo.margin(p, o, d, ps), self.tol.tie, l2)) {
                     f.push(self.finding(
                         r,
                         kind,
@@ -342,7 +342,7 @@ impl Judge<'_> {
         tally: &mut Tally,
     ) {
         let (o, d) = (r.origin, r.direction);
-        let tie = self.tol.tie * scale(&[o, ps, h.point]);
+        let l = scale(&[o, ps, h.point]);
         let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
         // The tracer's hit lies beyond rayscope's nearest one.
         if c.entity == Some(h.entity) {
@@ -357,7 +357,7 @@ impl Judge<'_> {
                 ),
                 v(),
             ));
-        } else if self.geo.margin(h.prim, o, d, h.point) <= tie {
+        } else if is_tie(self.geo.margin(h.prim, o, d, h.point), self.tol.tie, l) {
             f.push(self.finding(
                 r,
                 kind,

@@ -268,7 +268,7 @@ impl Judge<'_> {
                     // Only ahead of the origin: a surface the line meets behind the ray is not in its way.
                     self.geo
                         .intersect(p, o_trace, d, -pos, f64::MAX)
-                        .is_some_and(|t| self.geo.margin(p, o_trace, d, o_trace + d * t) <= self.tol.tie * l)
+                        .is_some_and(|t| is_tie(self.geo.margin(p, o_trace, d, o_trace + d * t), self.tol.tie, l))
                 });
                 if graze {
                     f.push(self.finding(
@@ -325,7 +325,7 @@ impl Judge<'_> {
                 format!("light '{}' lies on '{}'", self.light_name(li), self.name(b.entity)),
                 v,
             ));
-        } else if self.geo.margin(b.prim, o_trace, d, b.point) <= self.tol.tie * l {
+        } else if is_tie(self.geo.margin(b.prim, o_trace, d, b.point), self.tol.tie, l) {
             f.push(self.finding(
                 r,
                 kind,
