@@ -524,6 +524,12 @@ pub fn summary_json(log: &PixelLog, list: usize) -> Value {
             "rays": c.rays,
             "summary": c.summary,
             "consequences": c.consequences.iter().map(|k| k.count).sum::<u64>(),
+            // The catalogue's mistakes that show this way, in its own words.
+            "catalogue": c.catalogue.iter().filter_map(|n| rayscope_core::Mistake::ALL.into_iter().map(rayscope_core::Mistake::info).find(|i| i.name == *n)).map(|i| json!({
+                "name": i.name,
+                "wrong": i.wrong,
+                "looks": i.looks,
+            })).collect::<Vec<_>>(),
         })).collect::<Vec<_>>(),
         "verdicts": codes(&r.verdicts),
         "tie_verdicts": codes(&r.tie_verdicts),

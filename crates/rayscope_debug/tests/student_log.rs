@@ -325,6 +325,14 @@ fn log_and_image_given_at_start() {
     assert_eq!(s["state"], "done", "{s:#}");
     assert_eq!(s["source"]["kind"], "file");
     assert_eq!(s["judged"]["verdicts"][0]["code"], "shadow.acne", "{s:#}");
+    // The cause names the catalogue's mistake, in the catalogue's words, for the panel to show.
+    let cause = &s["judged"]["causes"][0];
+    assert_eq!(cause["code"], "shadow.acne", "{s:#}");
+    let entry = &cause["catalogue"][0];
+    assert_eq!(entry["name"], "no-shadow-offset", "{s:#}");
+    let info = rayscope_core::Mistake::NoShadowOffset.info();
+    assert_eq!(entry["looks"], info.looks);
+    assert_eq!(entry["wrong"], info.wrong);
     assert_eq!(s["image"]["matches"], true);
     let p = get(addr, "/api/rays/pixel?x=3&y=2");
     let i = ((2 * w + 3) * 3) as usize;

@@ -1051,9 +1051,17 @@ function raysOnSummary(s) {
   codes.innerHTML = "";
   // One chip per root cause (what to fix), counted in pixel samples; the verdicts that follow
   // from a cause are in its tooltip, not chips of their own.
-  if (j.causes.length) codes.append(el("div", { class: "rays-headline" }, j.headline));
+  if (j.causes.length) {
+    codes.append(el("div", { class: "rays-headline" }, j.headline));
+    // The first cause's entries in rayscope's catalogue of common mistakes, in its words.
+    for (const m of j.causes[0].catalogue || []) {
+      codes.append(el("div", { class: "rays-catalogue", title: m.looks },
+        "rayscope's catalogue: ", el("b", {}, m.name), ` — ${m.wrong} (see it: rayscope -f SCENE -o out.png --mistake ${m.name})`));
+    }
+  }
   for (const c of j.causes) {
-    const follows = c.consequences ? `; ${c.consequences} verdicts below it follow from it` : "";
+    const follows = (c.consequences ? `; ${c.consequences} verdicts below it follow from it` : "") +
+      ((c.catalogue || []).length ? `; rayscope's catalogue: ${c.catalogue.map((m) => m.name).join(", ")}` : "");
     codes.append(el("span", { title: `${c.summary}${follows}` }, el("b", {}, c.name), ` × ${c.samples} sample${c.samples === 1 ? "" : "s"}`));
   }
   for (const v of j.tie_verdicts) codes.append(el("span", { title: v.summary + " (not counted against you)" }, v.code, ` × ${v.count}`));
