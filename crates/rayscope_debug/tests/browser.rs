@@ -494,6 +494,12 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         .await
         .map_err(e)?;
     assert!(codes.contains("refraction.normal-not-flipped"), "{codes}");
+    // Under the headline, the catalogue's entry for the mistake, with the render that shows it.
+    let name = rayscope_core::Mistake::RefractionNoNormalFlip.info().name;
+    assert!(
+        codes.contains(&format!("rayscope's catalogue: {name}")) && codes.contains(&format!("--mistake {name}")),
+        "{codes}"
+    );
 
     // The verdict map over the image, and the student's rays in the view.
     wait_for("the verdict map on the image", 20, || async {
