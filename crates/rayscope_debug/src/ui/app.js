@@ -815,6 +815,8 @@ function compareDiagnosis(d) {
     return;
   }
   const r = d.result;
+  // What is plain about the image (black, upside down, alpha, gamma…) comes first, before the search's verdict.
+  for (const o of r.obvious || []) box.append(el("p", { class: "obvious", "data-code": o.code }, el("b", {}, o.text)));
   if (r.matches) {
     box.className = "diagnosis ok";
     box.append(el("b", {}, "Your image matches rayscope's render."),
@@ -833,7 +835,9 @@ function compareDiagnosis(d) {
   const ol = el("ol", { id: "explanations" });
   const scene = st.scene.path;
   for (const e of r.explanations) {
-    const how = e.robust_db == null ? "exactly" : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
+    const how = e.psnr_db == null ? "exactly"
+      : e.robust_db == null ? `at ${db(e.psnr_db)} pixel for pixel, identical leaving out the worst 1 % of pixels`
+      : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
     const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") },
       `Your image ${e.matches ? "matches" : "comes closest to"} ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `,
       el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
