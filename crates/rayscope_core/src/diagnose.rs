@@ -132,7 +132,8 @@ pub struct Explanation {
     /// PSNR of the two images averaged over blocks of `BLOCK`×`BLOCK` pixels.
     #[serde(serialize_with = "ser_db")]
     pub psnr_downsampled_db: f64,
-    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`.
+    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`, or for a
+    /// one-coloured image (the colour of most pixels of many renders) [`Self::psnr_db`].
     pub matches: bool,
 }
 
@@ -143,7 +144,8 @@ pub struct Diagnosis {
     /// channel, gamma), most important first.
     pub obvious: Vec<Obvious>,
     /// True when the image matches rayscope's render under the given settings (in
-    /// [`Self::edition`] where the search chose one).
+    /// [`Self::edition`] where the search chose one); false where it does only mirrored or
+    /// transposed back (see [`Self::obvious`]).
     pub matches: bool,
     /// The course edition the image was judged by, where the scene's coloured glass makes the
     /// editions differ: the one whose render the image is closer to, searched whatever the
@@ -198,8 +200,17 @@ impl Obvious {
         Obvious {
             code,
             text,
-            numbers: numbers.iter().copied().collect(),
+            // Two decimals, as the other PSNRs; an identical image's infinite PSNR is `null`.
+            numbers: numbers
+                .iter()
+                .map(|&(k, v)| (k, if v.is_finite() { (v * 100.0).round() / 100.0 } else { v }))
+                .collect(),
         }
+    }
+
+    /// True when the rest of the diagnosis judges the image turned back (mirrored, transposed).
+    fn turned_back(&self) -> bool {
+        matches!(self.code, "mirrored" | "transposed")
     }
 
     /// Rank in the report: what makes the rest meaningless first.
@@ -235,6 +246,16 @@ fn db_text(v: f64) -> String {
         format!("{v:.1} dB")
     } else {
         "identical".to_string()
+    }
+}
+
+/// How close a turned image is to a render, for a report line: "identical to" or "within PSNR …
+/// of".
+fn closeness(psnr: f64) -> String {
+    if psnr.is_finite() {
+        format!("within PSNR {psnr:.1} dB of")
+    } else {
+        "identical to".to_string()
     }
 }
 
@@ -964,8 +985,8 @@ pub fn diagnose(
         obvious.push(Obvious::new(
             "transposed",
             format!(
-                "Your image is {iw}×{ih} but the flags ask for {w}×{h}: it is rayscope's render with rows and columns exchanged (transposed back, PSNR {}); swap x and y where you write pixels. The rest of this report judges it transposed back.",
-                db_text(m.psnr)
+                "Your image is {iw}×{ih} but the flags ask for {w}×{h}: transposed back it is {} rayscope's render, so rows and columns are exchanged; swap x and y where you write pixels. The rest of this report judges it transposed back.",
+                closeness(m.psnr)
             ),
             &[("psnr_db_turned", m.psnr), ("width", f64::from(iw)), ("height", f64::from(ih))],
         ));
@@ -994,9 +1015,14 @@ pub fn diagnose(
                 .max_by(|a, b| a.1.score().total_cmp(&b.1.score()))
                 .filter(|(_, m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB);
             if let Some(&(code, m)) = best {
+                let render = if w == h || code != "transposed" {
+                    "rayscope's render".to_string()
+                } else {
+                    format!("rayscope's render at {h}×{w}")
+                };
                 let figures = format!(
-                    "PSNR {} against rayscope's render, {} as stored",
-                    db_text(m.psnr),
+                    "{} {render} (PSNR {} as stored)",
+                    closeness(m.psnr),
                     db_text(as_is.psnr)
                 );
                 let text = match code {
@@ -1007,8 +1033,7 @@ pub fn diagnose(
                         "Your image is mirrored left to right: mirrored back it is {figures}; check the sign of the camera's x axis. The rest of this report judges it mirrored back."
                     ),
                     _ => format!(
-                        "Your image has rows and columns exchanged: transposed it is {figures}{}; swap x and y where you write pixels. The rest of this report judges it transposed.",
-                        if w == h { String::new() } else { format!(" (rendered at {h}×{w})") }
+                        "Your image has rows and columns exchanged: transposed it is {figures}; swap x and y where you write pixels. The rest of this report judges it transposed."
                     ),
                 };
                 obvious.push(Obvious::new(
@@ -1122,6 +1147,8 @@ pub fn diagnose(
     if !matches && explanations.is_empty() {
         let (mut found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
         for e in &mut found {
+            // A one-coloured picture is the colour of most pixels of many renders: only an
+            // identical one is its match, not one that leaving outliers out makes so.
             e.matches = if constant {
                 e.psnr_db >= MATCH_DB
             } else {
@@ -1131,9 +1158,11 @@ pub fn diagnose(
         explanations = found;
         tried += n;
     }
+    // An image that matches only turned back is still wrong as it stands.
+    let turned = obvious.iter().any(Obvious::turned_back);
     Ok(Diagnosis {
         obvious,
-        matches,
+        matches: matches && !turned,
         edition: edition.map(|e| e.year().to_string()),
         edition_changed: edition.is_some_and(|e| e != settings.edition),
         psnr_db: cmp.psnr,
@@ -1400,9 +1429,15 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         }
         None => String::new(),
     };
-    if d.matches {
+    let turned = d.obvious.iter().any(Obvious::turned_back);
+    let yours = if turned {
+        "Turned back, your image"
+    } else {
+        "Your image"
+    };
+    if d.matches || (turned && d.explanations.is_empty() && d.robust_db >= MATCH_DB) {
         out.push_str(&format!(
-            "Your image matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
+            "{yours} matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
             db(d.psnr_db),
             db(d.robust_db),
             d.differing_pixels,
@@ -1413,7 +1448,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         return out;
     }
     out.push_str(&format!(
-        "Your image differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
+        "{yours} differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
         db(d.psnr_db),
         db(d.robust_db),
         db(d.psnr_downsampled_db),
@@ -1443,15 +1478,29 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
             d.candidates
         )),
         Some(_) => {
-            if let Some(o) = d.obvious.iter().find(|o| matches!(o.code, "black" | "white" | "constant")) {
+            let plain = d
+                .obvious
+                .iter()
+                .find(|o| matches!(o.code, "black" | "white" | "constant"))
+                .map(|o| if o.code == "constant" { "one colour" } else { o.code });
+            if let Some(colour) = plain {
                 out.push_str(&format!(
-                    "Many mistakes give a picture that is {} everywhere: a render below that is one too is a lead, not proof.\n",
-                    if o.code == "constant" { "one colour" } else { o.code }
+                    "Many mistakes give a picture that is {colour} everywhere: a render below that is one too is a lead, not proof.\n"
                 ));
             }
             out.push_str("What explains it (best first):\n");
             for (i, e) in d.explanations.iter().enumerate() {
                 let verb = if e.matches { "matches" } else { "comes closest to" };
+                if let (Some(colour), true) = (plain, e.psnr_db.is_infinite()) {
+                    out.push_str(&format!(
+                        "  {}. {} renders it too, {colour} everywhere (yours was {} from rayscope's render): one way to get this picture\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                        i + 1,
+                        e.summary,
+                        db(d.psnr_db),
+                        e.flags
+                    ));
+                    continue;
+                }
                 // What the image was before, in the measure that shows a difference.
                 let was = if d.robust_db.is_infinite() {
                     format!("{} pixel for pixel", db(d.psnr_db))
