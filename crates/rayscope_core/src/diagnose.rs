@@ -2,6 +2,8 @@
 //! says where they differ (attributed to the entities each differing pixel's ray tree ends on,
 //! a mirror's reflection to the thing reflected), and searches the renderer's free settings and
 //! the catalogue of [`Mistake`]s, alone and in pairs, for the render that explains the image.
+//! Before any search it says what is plain ([`Obvious`]): a black, white or one-coloured image,
+//! one upside down, mirrored or transposed, saved with gamma, or with an alpha channel.
 //!
 //! The search is two passes. The coarse pass renders every candidate on a sparse grid of the
 //! image's pixels (about [`DiagnoseOptions::coarse_samples`] samples) and scores it against the
