@@ -446,6 +446,11 @@ pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
 /// Reads the image at `path` as 8-bit RGB: a regular file only, its size read from its header and
 /// checked against [`MAX_IMAGE_PIXELS`] (or 2^30 with `allow_large`) before it is decoded.
 pub fn read_rgb8(path: &Path, allow_large: bool) -> Result<image::RgbImage, Failure> {
+    Ok(read_image(path, allow_large)?.to_rgb8())
+}
+
+/// An image file as decoded, alpha channel and all, with [`read_rgb8`]'s checks and messages.
+pub fn read_image(path: &Path, allow_large: bool) -> Result<image::DynamicImage, Failure> {
     let cannot = |e: &dyn std::fmt::Display| Failure::input(format!("cannot read image '{}': {e}", path.display()));
     let meta = std::fs::metadata(path).map_err(|e| cannot(&e))?;
     if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
@@ -469,7 +474,7 @@ pub fn read_rgb8(path: &Path, allow_large: bool) -> Result<image::RgbImage, Fail
             u64::from(w) * u64::from(h)
         )));
     }
-    Ok(open()?.decode().map_err(|e| cannot(&e))?.to_rgb8())
+    open()?.decode().map_err(|e| cannot(&e))
 }
 
 fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {

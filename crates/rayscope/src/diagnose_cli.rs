@@ -12,7 +12,7 @@ use rayscope_core::mistakes::catalogue_text;
 use rayscope_core::Mistakes;
 
 use crate::cli::{Cli, RenderOpts};
-use crate::commands::{load_file, read_rgb8, setup_threads, Failure};
+use crate::commands::{load_file, read_image, setup_threads, Failure};
 
 /// `rayscope diagnose`.
 #[derive(Debug, Clone, Args)]
@@ -77,7 +77,13 @@ pub(crate) fn given(sub: &str, id: &str) -> bool {
 
 /// `rayscope diagnose`: exit 0 when the image matches, 1 with a diagnosis, 2 for bad input.
 pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
-    let img = read_rgb8(&a.image, a.opts.allow_large)?;
+    let decoded = read_image(&a.image, a.opts.allow_large)?;
+    // The alpha channel is judged apart: it may hide colour in a viewer, not in the RGB.
+    let alpha: Option<Vec<u8>> = decoded
+        .color()
+        .has_alpha()
+        .then(|| decoded.to_rgba8().pixels().map(|p| p.0[3]).collect());
+    let img = decoded.to_rgb8();
     let mut opts = a.opts.clone();
     // The image's size is the render's, unless the flags name one.
     if !given("diagnose", "width") && !given("diagnose", "height") {
@@ -91,6 +97,7 @@ pub fn diagnose(a: &DiagnoseArgs) -> Result<ExitCode, Failure> {
         width: img.width(),
         height: img.height(),
         rgb: img.as_raw(),
+        alpha: alpha.as_deref(),
     };
     let search = DiagnoseOptions {
         pairs: !a.no_pairs,

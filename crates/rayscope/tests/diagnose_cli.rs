@@ -259,3 +259,290 @@ fn an_every_material_depth_limit_is_explained_not_matched() {
         .code(1)
         .stdout(predicate::str::contains("for every material").and(predicate::str::contains("exactly")));
 }
+
+/// `rayscope diagnose` of `image` as text and as JSON (single mistakes only, to stay quick),
+/// expecting exit `code` from both.
+fn diagnosed(
+    scene: &std::path::Path,
+    image: &std::path::Path,
+    flags: &[&str],
+    code: i32,
+) -> (String, serde_json::Value) {
+    let flags = [flags, &["--no-pairs"]].concat();
+    let out = rayscope()
+        .arg("diagnose")
+        .args(&flags)
+        .arg("-f")
+        .arg(scene)
+        .arg(image)
+        .assert()
+        .code(code)
+        .get_output()
+        .stdout
+        .clone();
+    let text = String::from_utf8(out).expect("UTF-8");
+    (text, diagnosis(scene, image, &flags, code))
+}
+
+/// The codes of `d`'s plain findings, in its order.
+fn obvious_codes(d: &serde_json::Value) -> Vec<String> {
+    d["obvious"]
+        .as_array()
+        .expect("an obvious array")
+        .iter()
+        .map(|o| o["code"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// rayscope's correct render of the whitted scene at 64×48, saved as `right.png` in `dir`.
+fn correct_64x48(dir: &std::path::Path) -> (std::path::PathBuf, image::RgbImage) {
+    let scene = common::scenes("whitted.txt");
+    let img = render(
+        &scene,
+        &dir.join("right.png"),
+        &["-w", "64", "-h", "48", "--stage", "2"],
+    );
+    (scene, img)
+}
+
+#[test]
+fn a_constant_picture_is_said_first_and_explained_by_no_near_miss() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    let (text, d) = diagnosed(&scene, &dir.path().join("right.png"), &["--stage", "2"], 0);
+    assert!(obvious_codes(&d).is_empty(), "{d:#}");
+    assert!(text.starts_with("Your image matches rayscope's render"), "{text}");
+
+    for (name, colour, code, words) in [
+        (
+            "black.png",
+            [0u8, 0, 0],
+            "black",
+            "Your image is entirely black: every byte is 0 (64×48 pixels)",
+        ),
+        (
+            "white.png",
+            [255, 255, 255],
+            "white",
+            "Your image is entirely white: every byte is 255",
+        ),
+        (
+            "grey.png",
+            [128, 128, 128],
+            "constant",
+            "one constant colour: every pixel is (128, 128, 128)",
+        ),
+    ] {
+        let path = dir.path().join(name);
+        image::RgbImage::from_pixel(64, 48, image::Rgb(colour))
+            .save(&path)
+            .unwrap();
+        let (text, d) = diagnosed(&scene, &path, &["--stage", "2"], 1);
+        let first = text.lines().next().unwrap();
+        assert!(first.contains(words), "{name}: {text}");
+        assert_eq!(obvious_codes(&d), [code], "{name}: {d:#}");
+        let others = right.pixels().filter(|p| p.0 != colour).count();
+        assert_eq!(
+            d["obvious"][0]["numbers"]["rayscope_other_pixels"], others as f64,
+            "{d:#}"
+        );
+        assert!(
+            first.contains(&format!("while {others} of rayscope's 3072 pixels")),
+            "{first}"
+        );
+        // Only a render identical pixel for pixel is this picture's match, and the text calls
+        // it a lead: many mistakes give a one-coloured picture.
+        for e in d["explanations"].as_array().unwrap() {
+            assert_eq!(e["matches"].as_bool(), Some(e["psnr_db"].is_null()), "{d:#}");
+        }
+        assert!(
+            !text.contains("exactly") && !text.contains("your image matches"),
+            "{text}"
+        );
+        if code == "black" {
+            // Here a shadow ray blocked beyond its light leaves every pixel black.
+            assert!(
+                text.contains("Many mistakes give a picture that is black everywhere")
+                    && text.contains("'shadow-past-light' (")
+                    && text.contains("renders it too, black everywhere (yours was 7.3 dB from rayscope's render)"),
+                "{text}"
+            );
+        }
+    }
+
+    // In the course's scene 1 no mistake renders black everywhere: none is a match, though the
+    // closest leave only a few pixels lit.
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_1.txt");
+    let black = dir.path().join("black.png");
+    let (text, d) = diagnosed(&scene, &black, &[], 1);
+    assert!(
+        text.starts_with("Your image is entirely black: every byte is 0 (64×48 pixels)"),
+        "{text}"
+    );
+    let explanations = d["explanations"].as_array().unwrap();
+    assert!(!explanations.is_empty(), "{d:#}");
+    assert!(
+        explanations
+            .iter()
+            .all(|e| e["matches"] == false && !e["psnr_db"].is_null()),
+        "{d:#}"
+    );
+    assert!(
+        !text.contains("your image matches") && !text.contains("exactly") && text.contains("comes closest to"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_turned_picture_is_said_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    let flipped = image::imageops::flip_vertical(&right);
+    let mirrored = image::imageops::flip_horizontal(&right);
+    let transposed = image::RgbImage::from_fn(48, 64, |x, y| *right.get_pixel(y, x));
+    for (name, img, flags, code, words) in [
+        (
+            "flipped.png",
+            &flipped,
+            &[][..],
+            "upside-down",
+            "Your image is upside down",
+        ),
+        (
+            "mirrored.png",
+            &mirrored,
+            &[],
+            "mirrored",
+            "Your image is mirrored left to right",
+        ),
+        // Saved 48×64, judged at its own size (no -w/-h) and at the size the flags name.
+        (
+            "transposed.png",
+            &transposed,
+            &[],
+            "transposed",
+            "Your image has rows and columns exchanged",
+        ),
+        (
+            "transposed.png",
+            &transposed,
+            &["-w", "64", "-h", "48"],
+            "transposed",
+            "Your image is 48×64 but the flags ask for 64×48",
+        ),
+    ] {
+        let path = dir.path().join(name);
+        img.save(&path).unwrap();
+        let flags = [flags, &["--stage", "2"]].concat();
+        let (text, d) = diagnosed(&scene, &path, &flags, 1);
+        assert!(
+            text.lines().next().unwrap().starts_with(words),
+            "{name} {flags:?}: {text}"
+        );
+        assert_eq!(obvious_codes(&d), [code], "{name} {flags:?}: {d:#}");
+        assert!(
+            d["obvious"][0]["numbers"]["psnr_db_turned"].is_null(),
+            "turned back it is rayscope's render: {d:#}"
+        );
+    }
+    // Upside down is also the catalogue's mistake, found below the first line.
+    let (text, _) = diagnosed(&scene, &dir.path().join("flipped.png"), &["--stage", "2"], 1);
+    assert!(text.contains("your image matches 'image-flipped'"), "{text}");
+    // Mirrored and transposed images are judged turned back: nothing else differs, yet as
+    // they stand they are wrong (exit 1).
+    for name in ["mirrored.png", "transposed.png"] {
+        let (text, d) = diagnosed(&scene, &dir.path().join(name), &["--stage", "2"], 1);
+        assert_eq!(
+            (d["matches"].as_bool(), d["differing_pixels"].as_u64()),
+            (Some(false), Some(0)),
+            "{name}: {d:#}"
+        );
+        assert!(
+            text.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("Turned back, your image matches rayscope's render"),
+            "{name}: {text}"
+        );
+    }
+}
+
+#[test]
+fn a_picture_of_another_size_names_both_sizes_and_the_flags() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    let half = dir.path().join("half.png");
+    image::imageops::resize(&right, 32, 24, image::imageops::FilterType::Triangle)
+        .save(&half)
+        .unwrap();
+    rayscope()
+        .args(["diagnose", "--stage", "2", "-w", "64", "-h", "48", "-f"])
+        .arg(&scene)
+        .arg(&half)
+        .assert()
+        .code(2)
+        .stderr(
+            predicate::str::contains("your image is 32×24, the scene was rendered at 64×48")
+                .and(predicate::str::contains("pass -w 32 -h 24"))
+                .and(predicate::str::contains("the aspect is the same")),
+        );
+    let square = dir.path().join("square.png");
+    image::imageops::crop_imm(&right, 0, 0, 48, 48)
+        .to_image()
+        .save(&square)
+        .unwrap();
+    rayscope()
+        .args(["diagnose", "--stage", "2", "-w", "64", "-h", "48", "-f"])
+        .arg(&scene)
+        .arg(&square)
+        .assert()
+        .code(2)
+        .stderr(predicate::str::contains(
+            "the aspect differs too: 1.000 (width / height) against 1.333",
+        ));
+}
+
+#[test]
+fn an_alpha_channel_and_gamma_are_said_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    // Right colours, a 10×8 block of them transparent: the RGB matches, the alpha is said.
+    let rgba = image::RgbaImage::from_fn(64, 48, |x, y| {
+        let [r, g, b] = right.get_pixel(x, y).0;
+        image::Rgba([r, g, b, if x < 10 && y < 8 { 0 } else { 255 }])
+    });
+    let path = dir.path().join("alpha.png");
+    rgba.save(&path).unwrap();
+    let (text, d) = diagnosed(&scene, &path, &["--stage", "2"], 0);
+    assert!(
+        text.lines().next().unwrap().starts_with(
+            "Your PNG has an alpha channel that hides colour: 80 of its 3072 pixels (2.6 %) are not opaque, 80 of them fully transparent"
+        ),
+        "{text}"
+    );
+    assert!(text.lines().nth(1).unwrap().starts_with("Your image matches"), "{text}");
+    assert_eq!(obvious_codes(&d), ["alpha"], "{d:#}");
+    assert_eq!(d["obvious"][0]["numbers"]["transparent_pixels"], 80.0, "{d:#}");
+
+    // Saved with gamma: each byte v written as 255·(v/255)^(1/2.2).
+    let mut encoded = right.clone();
+    for p in encoded.pixels_mut() {
+        for c in &mut p.0 {
+            *c = (255.0 * (f64::from(*c) / 255.0).powf(1.0 / 2.2)).round() as u8;
+        }
+    }
+    let path = dir.path().join("gamma.png");
+    encoded.save(&path).unwrap();
+    let (text, d) = diagnosed(&scene, &path, &["--stage", "2"], 1);
+    assert!(
+        text.lines()
+            .next()
+            .unwrap()
+            .starts_with("Your image looks saved with gamma"),
+        "{text}"
+    );
+    assert_eq!(obvious_codes(&d), ["gamma"], "{d:#}");
+}

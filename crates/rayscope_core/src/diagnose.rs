@@ -2,6 +2,8 @@
 //! says where they differ (attributed to the entities each differing pixel's ray tree ends on,
 //! a mirror's reflection to the thing reflected), and searches the renderer's free settings and
 //! the catalogue of [`Mistake`]s, alone and in pairs, for the render that explains the image.
+//! Before any search it says what is plain ([`Obvious`]): a black, white or one-coloured image,
+//! one upside down, mirrored or transposed, saved with gamma, or with an alpha channel.
 //!
 //! The search is two passes. The coarse pass renders every candidate on a sparse grid of the
 //! image's pixels (about [`DiagnoseOptions::coarse_samples`] samples) and scores it against the
@@ -15,7 +17,7 @@
 //! floating-point noise, and two correct tracers disagree there by up to the whole colour, but
 //! each shows a colour of one side of the edge.
 
-use std::collections::HashMap;
+use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
@@ -132,15 +134,20 @@ pub struct Explanation {
     /// PSNR of the two images averaged over blocks of `BLOCK`×`BLOCK` pixels.
     #[serde(serialize_with = "ser_db")]
     pub psnr_downsampled_db: f64,
-    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`.
+    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`, or for a
+    /// one-coloured image (the colour of most pixels of many renders) [`Self::psnr_db`].
     pub matches: bool,
 }
 
 /// What [`diagnose`] found.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Diagnosis {
+    /// What is plain about the image before any search (a constant colour, a flip, an alpha
+    /// channel, gamma), most important first.
+    pub obvious: Vec<Obvious>,
     /// True when the image matches rayscope's render under the given settings (in
-    /// [`Self::edition`] where the search chose one).
+    /// [`Self::edition`] where the search chose one); false where it does only mirrored or
+    /// transposed back (see [`Self::obvious`]).
     pub matches: bool,
     /// The course edition the image was judged by, where the scene's coloured glass makes the
     /// editions differ: the one whose render the image is closer to, searched whatever the
@@ -178,6 +185,179 @@ pub struct Diagnosis {
     pub seconds: f64,
 }
 
+/// Something plain about the image that [`diagnose`] says before any search.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Obvious {
+    /// What it is: `black`, `white`, `constant`, `transposed`, `upside-down`, `mirrored`,
+    /// `gamma` or `alpha`.
+    pub code: &'static str,
+    /// One line for the student, with the figures that show it.
+    pub text: String,
+    /// Those figures by name (PSNRs in dB, counts of pixels, colours in levels).
+    pub numbers: BTreeMap<&'static str, f64>,
+}
+
+impl Obvious {
+    fn new(code: &'static str, text: String, numbers: &[(&'static str, f64)]) -> Obvious {
+        Obvious {
+            code,
+            text,
+            // Two decimals, as the other PSNRs; an identical image's infinite PSNR is `null`.
+            numbers: numbers
+                .iter()
+                .map(|&(k, v)| (k, if v.is_finite() { (v * 100.0).round() / 100.0 } else { v }))
+                .collect(),
+        }
+    }
+
+    /// True when the rest of the diagnosis judges the image turned back (mirrored, transposed).
+    fn turned_back(&self) -> bool {
+        matches!(self.code, "mirrored" | "transposed")
+    }
+
+    /// Rank in the report: what makes the rest meaningless first.
+    fn rank(&self) -> usize {
+        [
+            "black",
+            "white",
+            "constant",
+            "transposed",
+            "upside-down",
+            "mirrored",
+            "gamma",
+            "alpha",
+        ]
+        .iter()
+        .position(|c| *c == self.code)
+        .unwrap_or(usize::MAX)
+    }
+}
+
+/// An image whose PSNR against a render changed by a transform (flipped, gamma-encoded) is at
+/// least this is that transform of the render, for [`diagnose`]'s plain checks: far above the
+/// 10–20 dB an unrelated picture of the same scene reaches, low enough to allow another
+/// mistake besides.
+const PLAIN_DB: f64 = 30.0;
+
+/// How far (dB) a transform must bring the image closer than it is as stored.
+const PLAIN_GAIN_DB: f64 = 6.0;
+
+/// A PSNR for a report line.
+fn db_text(v: f64) -> String {
+    if v.is_finite() {
+        format!("{v:.1} dB")
+    } else {
+        "identical".to_string()
+    }
+}
+
+/// How close a turned image is to a render, for a report line: "identical to" or "within PSNR …
+/// of".
+fn closeness(psnr: f64) -> String {
+    if psnr.is_finite() {
+        format!("within PSNR {psnr:.1} dB of")
+    } else {
+        "identical to".to_string()
+    }
+}
+
+/// The one colour of every pixel of an RGB8 image, if it has one.
+fn constant_colour(rgb: &[u8]) -> Option<[u8; 3]> {
+    let first: [u8; 3] = rgb.get(..3)?.try_into().ok()?;
+    rgb.chunks_exact(3).all(|p| p == first).then_some(first)
+}
+
+/// A black, white or one-coloured image, said with what rayscope's render `ours` shows there.
+fn plain_colour(image: &[u8], ours: &[u8], w: u32, h: u32) -> Option<Obvious> {
+    let c = constant_colour(image)?;
+    let total = u64::from(w) * u64::from(h);
+    let same = ours.chunks_exact(3).filter(|p| *p == c).count() as u64;
+    if same == total {
+        return None;
+    }
+    let (code, what) = match c {
+        [0, 0, 0] => ("black", "entirely black: every byte is 0".to_string()),
+        [255, 255, 255] => ("white", "entirely white: every byte is 255".to_string()),
+        [r, g, b] => (
+            "constant",
+            format!("one constant colour: every pixel is ({r}, {g}, {b})"),
+        ),
+    };
+    let text = format!(
+        "Your image is {what} ({w}×{h} pixels), while {} of rayscope's {total} pixels ({:.1} %) are another colour.",
+        total - same,
+        100.0 * (total - same) as f64 / total.max(1) as f64
+    );
+    Some(Obvious::new(
+        code,
+        text,
+        &[
+            ("red", f64::from(c[0])),
+            ("green", f64::from(c[1])),
+            ("blue", f64::from(c[2])),
+            ("pixels", total as f64),
+            ("rayscope_other_pixels", (total - same) as f64),
+        ],
+    ))
+}
+
+/// The pixels an alpha channel makes see-through, said where there are any.
+fn alpha_finding(alpha: &[u8], w: u32, h: u32) -> Option<Obvious> {
+    let partial = alpha.iter().filter(|&&a| a != 255).count() as u64;
+    if partial == 0 {
+        return None;
+    }
+    let clear = alpha.iter().filter(|&&a| a == 0).count() as u64;
+    let total = u64::from(w) * u64::from(h);
+    let text = format!(
+        "Your PNG has an alpha channel that hides colour: {partial} of its {total} pixels ({:.1} %) are not opaque, {clear} of them fully transparent; viewers and markers may show those pixels differently (over white, black or a checkerboard). rayscope judges the RGB beneath; write alpha 255 everywhere (or save RGB).",
+        100.0 * partial as f64 / total.max(1) as f64
+    );
+    Some(Obvious::new(
+        "alpha",
+        text,
+        &[
+            ("not_opaque_pixels", partial as f64),
+            ("transparent_pixels", clear as f64),
+            ("pixels", total as f64),
+        ],
+    ))
+}
+
+/// An RGB8 image of `w`×`h` upside down.
+fn flip_rows(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
+    let row = (w * 3) as usize;
+    (0..h as usize)
+        .rev()
+        .flat_map(|y| rgb[y * row..(y + 1) * row].iter().copied())
+        .collect()
+}
+
+/// An RGB8 image of `w`×`h` mirrored left to right.
+fn mirror_columns(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
+    let mut out = Vec::with_capacity(rgb.len());
+    for y in 0..h {
+        for x in (0..w).rev() {
+            let p = ((y * w + x) * 3) as usize;
+            out.extend_from_slice(&rgb[p..p + 3]);
+        }
+    }
+    out
+}
+
+/// An RGB8 image of `w`×`h` with rows and columns exchanged: `h`×`w`, pixel (x, y) the
+/// image's (y, x).
+fn transpose(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
+    let mut out = Vec::with_capacity(rgb.len());
+    for x in 0..w {
+        for y in 0..h {
+            let p = ((y * w + x) * 3) as usize;
+            out.extend_from_slice(&rgb[p..p + 3]);
+        }
+    }
+    out
+}
+
 /// A student's image: 8-bit RGB, row-major from the top-left.
 #[derive(Debug, Clone, Copy)]
 pub struct Image<'a> {
@@ -187,13 +367,15 @@ pub struct Image<'a> {
     pub height: u32,
     /// `width × height × 3` bytes.
     pub rgb: &'a [u8],
+    /// The PNG's alpha channel where it has one: `width × height` bytes.
+    pub alpha: Option<&'a [u8]>,
 }
 
 /// Why [`diagnose`] could not run.
 #[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum DiagnoseError {
     /// The image's size is not the one the settings ask for.
-    #[error("the image is {image_w}×{image_h} but the flags ask for {flags_w}×{flags_h}; pass -w {image_w} -h {image_h} (or leave both out)")]
+    #[error("{}", size_message(*.image_w, *.image_h, *.flags_w, *.flags_h))]
     Size {
         /// The image's width.
         image_w: u32,
@@ -205,8 +387,25 @@ pub enum DiagnoseError {
         flags_h: u32,
     },
     /// The pixel buffer does not hold `width × height` RGB pixels.
-    #[error("the image buffer holds {0} bytes, not width × height × 3")]
+    #[error("the image buffer holds {0} bytes, not width × height × 3 (or its alpha not width × height)")]
     Buffer(usize),
+}
+
+/// What [`DiagnoseError::Size`] tells the student: both sizes, the flags to pass, and whether
+/// the aspect differs too.
+fn size_message(iw: u32, ih: u32, fw: u32, fh: u32) -> String {
+    let aspect = if u64::from(iw) * u64::from(fh) == u64::from(ih) * u64::from(fw) {
+        format!("the aspect is the same ({:.3})", f64::from(iw) / f64::from(ih.max(1)))
+    } else {
+        format!(
+            "the aspect differs too: {:.3} (width / height) against {:.3}",
+            f64::from(iw) / f64::from(ih.max(1)),
+            f64::from(fw) / f64::from(fh.max(1))
+        )
+    };
+    format!(
+        "your image is {iw}×{ih}, the scene was rendered at {fw}×{fh} (the flags ask for {fw}×{fh}); {aspect}; pass -w {iw} -h {ih} (or leave both out) to judge it at its own size"
+    )
 }
 
 /// One setting of rayscope's that a student may have set differently.
@@ -733,22 +932,30 @@ pub fn diagnose(
     opts: &DiagnoseOptions,
 ) -> Result<Diagnosis, DiagnoseError> {
     let start = Instant::now();
-    if (image.width, image.height) != (settings.width, settings.height) {
-        return Err(DiagnoseError::Size {
-            image_w: image.width,
-            image_h: image.height,
-            flags_w: settings.width,
-            flags_h: settings.height,
-        });
-    }
-    if image.rgb.len() != image.width as usize * image.height as usize * 3 {
+    let (iw, ih) = (image.width, image.height);
+    let pixels = iw as usize * ih as usize;
+    if image.rgb.len() != pixels * 3 {
         return Err(DiagnoseError::Buffer(image.rgb.len()));
     }
+    if let Some(a) = image.alpha.filter(|a| a.len() != pixels) {
+        return Err(DiagnoseError::Buffer(a.len()));
+    }
+    let size_error = DiagnoseError::Size {
+        image_w: iw,
+        image_h: ih,
+        flags_w: settings.width,
+        flags_h: settings.height,
+    };
+    // Width and height exchanged: a tracer that writes pixel (x, y) at (y, x).
+    let swapped = (ih, iw) == (settings.width, settings.height) && iw != ih;
+    if (iw, ih) != (settings.width, settings.height) && !swapped {
+        return Err(size_error);
+    }
+    let mut obvious: Vec<Obvious> = image.alpha.and_then(|a| alpha_finding(a, iw, ih)).into_iter().collect();
     let mut base = RenderSettings {
         channel: Channel::Color,
         ..*settings
     };
-    let (w, h) = (base.width, base.height);
     let mut scenes = Scenes {
         file,
         built: HashMap::new(),
@@ -761,6 +968,120 @@ pub fn diagnose(
             .unwrap_or_default()
     };
     let mut ours = full(&scenes, &base);
+    let (mut w, mut h) = (base.width, base.height);
+    // The image the rest of the diagnosis judges: as stored, or turned back where it is
+    // plainly turned (upside down is left: the catalogue's 'image-flipped' is that mistake).
+    let mut judged: Vec<u8> = image.rgb.to_vec();
+    let plain = if swapped {
+        None
+    } else {
+        plain_colour(image.rgb, &ours, w, h)
+    };
+    let constant = plain.is_some();
+    if swapped {
+        let t = transpose(image.rgb, iw, ih);
+        let m = Metrics::of(&ours, &t, w, h, BLOCK, true);
+        if m.score() < PLAIN_DB {
+            return Err(size_error);
+        }
+        obvious.push(Obvious::new(
+            "transposed",
+            format!(
+                "Your image is {iw}×{ih} but the flags ask for {w}×{h}: transposed back it is {} rayscope's render, so rows and columns are exchanged; swap x and y where you write pixels. The rest of this report judges it transposed back.",
+                closeness(m.psnr)
+            ),
+            &[("psnr_db_turned", m.psnr), ("width", f64::from(iw)), ("height", f64::from(ih))],
+        ));
+        judged = t;
+    } else if let Some(p) = plain {
+        obvious.push(p);
+    } else {
+        let as_is = Metrics::of(&ours, &judged, w, h, BLOCK, true);
+        if as_is.score() < MATCH_DB {
+            let flipped = flip_rows(&judged, w, h);
+            let mirrored = mirror_columns(&judged, w, h);
+            let other = RenderSettings {
+                width: h,
+                height: w,
+                ..base
+            };
+            let theirs_t = if w == h { ours.clone() } else { full(&scenes, &other) };
+            let t = transpose(&judged, w, h);
+            let turns = [
+                ("upside-down", Metrics::of(&ours, &flipped, w, h, BLOCK, true)),
+                ("mirrored", Metrics::of(&ours, &mirrored, w, h, BLOCK, true)),
+                ("transposed", Metrics::of(&theirs_t, &t, h, w, BLOCK, true)),
+            ];
+            let best = turns
+                .iter()
+                .max_by(|a, b| a.1.score().total_cmp(&b.1.score()))
+                .filter(|(_, m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB);
+            if let Some(&(code, m)) = best {
+                let render = if w == h || code != "transposed" {
+                    "rayscope's render".to_string()
+                } else {
+                    format!("rayscope's render at {h}×{w}")
+                };
+                let figures = format!(
+                    "{} {render} (PSNR {} as stored)",
+                    closeness(m.psnr),
+                    db_text(as_is.psnr)
+                );
+                let text = match code {
+                    "upside-down" => format!(
+                        "Your image is upside down: flipped vertically it is {figures}; a PNG's first row is the top of the picture."
+                    ),
+                    "mirrored" => format!(
+                        "Your image is mirrored left to right: mirrored back it is {figures}; check the sign of the camera's x axis. The rest of this report judges it mirrored back."
+                    ),
+                    _ => format!(
+                        "Your image has rows and columns exchanged: transposed it is {figures}; swap x and y where you write pixels. The rest of this report judges it transposed."
+                    ),
+                };
+                obvious.push(Obvious::new(
+                    code,
+                    text,
+                    &[("psnr_db_turned", m.psnr), ("psnr_db_as_stored", as_is.psnr)],
+                ));
+                match code {
+                    "mirrored" => judged = mirrored,
+                    "transposed" => {
+                        judged = t;
+                        base = other;
+                        ours = theirs_t;
+                        (w, h) = (base.width, base.height);
+                    }
+                    _ => {}
+                }
+            }
+        }
+        let now = Metrics::of(&ours, &judged, w, h, BLOCK, true);
+        if now.score() < MATCH_DB && !base.mistakes.has(Mistake::Gamma) {
+            let encoded = RenderSettings {
+                mistakes: base.mistakes.with(Mistake::Gamma),
+                ..base
+            };
+            let g = Metrics::of(&full(&scenes, &encoded), &judged, w, h, BLOCK, true);
+            if g.score() >= PLAIN_DB && g.score() >= now.score() + PLAIN_GAIN_DB {
+                obvious.push(Obvious::new(
+                    "gamma",
+                    format!(
+                        "Your image looks saved with gamma: its bytes are about 255·(v/255)^(1/2.2) of rayscope's linear ones (PSNR {} against rayscope's render so encoded, {} as it is); the course writes linear values.",
+                        db_text(g.psnr),
+                        db_text(now.psnr)
+                    ),
+                    &[("psnr_db_encoded", g.psnr), ("psnr_db_as_stored", now.psnr)],
+                ));
+            }
+        }
+    }
+    obvious.sort_by_key(Obvious::rank);
+    let image = Image {
+        width: w,
+        height: h,
+        rgb: &judged,
+        alpha: None,
+    };
     let mut m0 = Metrics::of(&ours, image.rgb, w, h, BLOCK, true);
     // The edition is a free setting: a scene with coloured glass is judged by the edition whose
     // render the image is closer to, whatever the flags say.
@@ -782,7 +1103,13 @@ pub fn diagnose(
         base.edition
     });
     let cmp = compare_rgb8(&ours, image.rgb);
-    let mut matches = m0.robust >= MATCH_DB;
+    // A one-coloured image is matched pixel for pixel: its colour is also that of most pixels
+    // of many renders, which leaving outliers out would call a match.
+    let mut matches = if constant {
+        m0.psnr >= MATCH_DB
+    } else {
+        m0.robust >= MATCH_DB
+    };
 
     let (differing, threshold) = differing_pixels(&ours, image.rgb);
     let region = (!differing.is_empty()).then(|| {
@@ -820,12 +1147,24 @@ pub fn diagnose(
         attribution(scenes.get(base.mistakes), &base, &differing)
     };
     if !matches && explanations.is_empty() {
-        let (found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
+        let (mut found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
+        for e in &mut found {
+            // A one-coloured picture is the colour of most pixels of many renders: only an
+            // identical one is its match, not one that leaving outliers out makes so.
+            e.matches = if constant {
+                e.psnr_db >= MATCH_DB
+            } else {
+                e.robust_db >= MATCH_DB
+            };
+        }
         explanations = found;
         tried += n;
     }
+    // An image that matches only turned back is still wrong as it stands.
+    let turned = obvious.iter().any(Obvious::turned_back);
     Ok(Diagnosis {
-        matches,
+        obvious,
+        matches: matches && !turned,
         edition: edition.map(|e| e.year().to_string()),
         edition_changed: edition.is_some_and(|e| e != settings.edition),
         psnr_db: cmp.psnr,
@@ -1072,6 +1411,10 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         }
     };
     let mut out = String::new();
+    for o in &d.obvious {
+        out.push_str(&o.text);
+        out.push('\n');
+    }
     let edition = match d.edition.as_deref() {
         Some(year) => {
             let reading = if year == "2021" {
@@ -1088,9 +1431,15 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         }
         None => String::new(),
     };
-    if d.matches {
+    let turned = d.obvious.iter().any(Obvious::turned_back);
+    let yours = if turned {
+        "Turned back, your image"
+    } else {
+        "Your image"
+    };
+    if d.matches || (turned && d.explanations.is_empty() && d.robust_db >= MATCH_DB) {
         out.push_str(&format!(
-            "Your image matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
+            "{yours} matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
             db(d.psnr_db),
             db(d.robust_db),
             d.differing_pixels,
@@ -1101,7 +1450,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         return out;
     }
     out.push_str(&format!(
-        "Your image differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
+        "{yours} differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
         db(d.psnr_db),
         db(d.robust_db),
         db(d.psnr_downsampled_db),
@@ -1131,9 +1480,29 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
             d.candidates
         )),
         Some(_) => {
+            let plain = d
+                .obvious
+                .iter()
+                .find(|o| matches!(o.code, "black" | "white" | "constant"))
+                .map(|o| if o.code == "constant" { "one colour" } else { o.code });
+            if let Some(colour) = plain {
+                out.push_str(&format!(
+                    "Many mistakes give a picture that is {colour} everywhere: a render below that is one too is a lead, not proof.\n"
+                ));
+            }
             out.push_str("What explains it (best first):\n");
             for (i, e) in d.explanations.iter().enumerate() {
                 let verb = if e.matches { "matches" } else { "comes closest to" };
+                if let (Some(colour), true) = (plain, e.psnr_db.is_infinite()) {
+                    out.push_str(&format!(
+                        "  {}. {} renders it too, {colour} everywhere (yours was {} from rayscope's render): one way to get this picture\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                        i + 1,
+                        e.summary,
+                        db(d.psnr_db),
+                        e.flags
+                    ));
+                    continue;
+                }
                 // What the image was before, in the measure that shows a difference.
                 let was = if d.robust_db.is_infinite() {
                     format!("{} pixel for pixel", db(d.psnr_db))
@@ -1194,6 +1563,98 @@ mod tests {
         assert_eq!(g[0], (2, 2));
         let (g, ..) = coarse_grid(10, 10, 16, 10_000);
         assert_eq!(g.len(), 100, "small images are searched whole");
+    }
+
+    #[test]
+    fn plain_findings_name_their_figures() {
+        // A 3×2 image: turned three ways, each undone by itself.
+        let img: Vec<u8> = (0..18).collect();
+        assert_eq!(flip_rows(&flip_rows(&img, 3, 2), 3, 2), img);
+        assert_eq!(&flip_rows(&img, 3, 2)[..9], &img[9..]);
+        assert_eq!(&mirror_columns(&img, 3, 2)[..3], &img[6..9]);
+        let t = transpose(&img, 3, 2);
+        assert_eq!(&t[3..6], &img[9..12], "pixel (1, 0) of the 2×3 is (0, 1) of the 3×2");
+        assert_eq!(transpose(&t, 2, 3), img);
+
+        let ours = [0u8, 0, 0, 200, 100, 50, 0, 0, 0, 0, 0, 0];
+        let black = plain_colour(&[0; 12], &ours, 2, 2).expect("black");
+        assert_eq!(black.code, "black");
+        assert_eq!(black.numbers["rayscope_other_pixels"], 1.0);
+        assert!(
+            black
+                .text
+                .contains("every byte is 0 (2×2 pixels), while 1 of rayscope's 4 pixels (25.0 %)"),
+            "{}",
+            black.text
+        );
+        let grey = plain_colour(&[9, 8, 7].repeat(4), &ours, 2, 2).expect("one colour");
+        assert!(grey.code == "constant" && grey.text.contains("(9, 8, 7)"), "{grey:?}");
+        assert!(plain_colour(&ours, &ours, 2, 2).is_none(), "not one colour");
+        assert!(
+            plain_colour(&[0; 12], &[0; 12], 2, 2).is_none(),
+            "rayscope's render is black too"
+        );
+
+        assert!(alpha_finding(&[255; 4], 2, 2).is_none());
+        let a = alpha_finding(&[0, 128, 255, 255], 2, 2).expect("see-through");
+        assert_eq!(
+            (a.numbers["not_opaque_pixels"], a.numbers["transparent_pixels"]),
+            (2.0, 1.0)
+        );
+        assert!(
+            a.text
+                .contains("2 of its 4 pixels (50.0 %) are not opaque, 1 of them fully transparent"),
+            "{}",
+            a.text
+        );
+
+        let e = DiagnoseError::Size {
+            image_w: 48,
+            image_h: 64,
+            flags_w: 64,
+            flags_h: 48,
+        }
+        .to_string();
+        assert!(
+            e.contains("your image is 48×64, the scene was rendered at 64×48")
+                && e.contains("aspect differs too: 0.750 (width / height) against 1.333")
+                && e.contains("pass -w 48 -h 64"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn the_first_line_is_the_most_important_plain_finding() {
+        let mut d = Diagnosis {
+            obvious: vec![
+                alpha_finding(&[0; 4], 2, 2).unwrap(),
+                plain_colour(&[0; 12], &[9; 12], 2, 2).unwrap(),
+            ],
+            matches: false,
+            edition: None,
+            edition_changed: false,
+            psnr_db: 10.0,
+            robust_db: 10.0,
+            psnr_downsampled_db: 10.0,
+            differing_pixels: 4,
+            total_pixels: 4,
+            threshold: 2,
+            max_channel_diff: 9,
+            region: None,
+            attribution: Vec::new(),
+            explanations: Vec::new(),
+            candidates: 1,
+            seconds: 0.0,
+        };
+        d.obvious.sort_by_key(Obvious::rank);
+        let text = report_text(&d, "s.txt");
+        let lines: Vec<&str> = text.lines().collect();
+        assert!(lines[0].starts_with("Your image is entirely black"), "{text}");
+        assert!(lines[1].starts_with("Your PNG has an alpha channel"), "{text}");
+        assert!(lines[2].starts_with("Your image differs from rayscope's"), "{text}");
+        let json = serde_json::to_value(&d).unwrap();
+        assert_eq!(json["obvious"][0]["code"], "black");
+        assert_eq!(json["obvious"][0]["numbers"]["pixels"], 4.0);
     }
 
     #[test]

@@ -46,6 +46,7 @@ fn run(path: &Path, bugs: &[&'static str], student: Options, flags: &RenderSetti
         width: student.width,
         height: student.height,
         rgb: &img,
+        alpha: None,
     };
     diagnose(&file, flags, image, &search(pairs)).expect("the sizes agree")
 }
@@ -341,6 +342,7 @@ fn a_picture_of_the_wrong_size_is_refused() {
             width: 30,
             height: 20,
             rgb: &img,
+            alpha: None,
         },
         &search(false),
     )

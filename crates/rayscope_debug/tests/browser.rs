@@ -665,6 +665,67 @@ fn compare_in_chromium() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// A student's upside-down picture in the page: the diagnosis says so on its first line, before
+/// the verdict and the catalogue's 'image-flipped'.
+#[test]
+fn compare_says_the_obvious_first_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let (w, h) = (64u32, 48u32);
+    let scene_path = rayscope_testkit::scene("whitted.txt");
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let theirs = student::Student::new(&file, &["image-flipped"], student::Options::new(w, h)).render();
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-obvious-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join("upside_down.png");
+    image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
+
+    let (_server, url) = serve_stage_two(scene_path, w, h);
+    let png2 = png.clone();
+    in_chromium(&chromium, &driver, &url, "obvious-failure.png", |c, url| async move {
+        let r = drive_obvious(&c, &url, &png2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    c.goto(url).await.map_err(e)?;
+    wait_for("the page to load the scene", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+    wait_for("the rendered image", 60, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == "64x48")
+    })
+    .await;
+    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the diagnosis", 120, || async {
+        attr(c, "#diagnosis", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let diagnosis = text(c, "#diagnosis").await?;
+    assert_eq!(state, "done", "{diagnosis}");
+    assert!(
+        diagnosis.starts_with("Your image is upside down: flipped vertically it is "),
+        "{diagnosis}"
+    );
+    assert_eq!(
+        attr(c, "#diagnosis p.obvious", "data-code").await.as_deref(),
+        Some("upside-down"),
+        "{diagnosis}"
+    );
+    let named = attr(c, "#explanations li:first-child", "data-mistakes").await;
+    assert_eq!(named.as_deref(), Some("image-flipped"), "{diagnosis}");
+    shot(c, "08b-compare-obvious.png").await;
+    Ok(())
+}
+
 async fn text(c: &Client, css: &str) -> Result<String, String> {
     c.find(Locator::Css(css))
         .await

@@ -241,6 +241,7 @@ fn diagnosis(st: &Arc<AppState>, img: &Arc<RgbImage>, settings: RenderSettings) 
             width: img2.width,
             height: img2.height,
             rgb: &img2.rgb,
+            alpha: None,
         };
         let outcome = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
             diagnose(&st2.scene_file, &settings, image, &DiagnoseOptions::default())

@@ -815,14 +815,20 @@ function compareDiagnosis(d) {
     return;
   }
   const r = d.result;
-  if (r.matches) {
-    box.className = "diagnosis ok";
-    box.append(el("b", {}, "Your image matches rayscope's render."),
+  // What is plain about the image (black, upside down, alpha, gamma…) comes first, before the search's verdict.
+  const obvious = r.obvious || [];
+  for (const o of obvious) box.append(el("p", { class: "obvious", "data-code": o.code }, el("b", {}, o.text)));
+  const turned = obvious.some((o) => o.code === "mirrored" || o.code === "transposed");
+  const plain = obvious.find((o) => ["black", "white", "constant"].includes(o.code));
+  const yours = turned ? "Turned back, your image" : "Your image";
+  if (r.matches || (turned && !r.explanations.length && (r.robust_db == null || r.robust_db >= 65))) {
+    box.className = r.matches ? "diagnosis ok" : "diagnosis bad";
+    box.append(el("b", {}, `${yours} matches rayscope's render.`),
       el("p", {}, `PSNR ${db(r.psnr_db)}; ${db(r.robust_db)} leaving out the worst 1 % of pixels (two correct tracers differ there, where two surfaces meet at the same distance). ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels.`));
     return;
   }
   box.className = "diagnosis bad";
-  box.append(el("b", {}, "Your image differs from rayscope's."),
+  box.append(el("b", {}, `${yours} differs from rayscope's.`),
     el("p", {}, `PSNR ${db(r.psnr_db)} (${db(r.robust_db)} leaving out the worst 1 % of pixels); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
       (r.region ? ` They lie in columns ${r.region.x0}–${r.region.x1 - 1}, rows ${r.region.y0}–${r.region.y1 - 1}.` : "")));
   if (!r.explanations.length) {
@@ -833,9 +839,14 @@ function compareDiagnosis(d) {
   const ol = el("ol", { id: "explanations" });
   const scene = st.scene.path;
   for (const e of r.explanations) {
-    const how = e.robust_db == null ? "exactly" : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
-    const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") },
-      `Your image ${e.matches ? "matches" : "comes closest to"} ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `,
+    const how = e.psnr_db == null ? "exactly"
+      : e.robust_db == null ? `at ${db(e.psnr_db)} pixel for pixel, identical leaving out the worst 1 % of pixels`
+      : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
+    // A one-coloured picture is what many renders are: an identical one is a lead, not its match.
+    const says = plain && e.psnr_db == null
+      ? `${e.summary} renders it too, pixel for pixel: one way to get this picture. `
+      : `Your image ${e.matches ? "matches" : "comes closest to"} ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `;
+    const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") }, says,
       el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
     const patch = e.mistakes.length ? null : flagsPatch(e.settings);
     if (patch) li.append(" ", el("button", { onclick: () => applySettings(patch) }, "render with this here"));
