@@ -103,8 +103,17 @@ fn a3(v: DVec3) -> [f64; 3] {
     v.to_array()
 }
 
-fn fmt_t(t: f64) -> String {
-    format!("{}", (t * 1e4).round() / 1e4)
+/// A ray distance as a person reads it: four decimals, and a distance too small for them in
+/// scientific notation, so that a hit just behind the origin never reads "-0".
+#[must_use]
+pub fn fmt_t(t: f64) -> String {
+    let r = (t * 1e4).round() / 1e4;
+    if r == 0.0 && t != 0.0 {
+        format!("{t:.1e}")
+    } else {
+        // `r + 0.0` turns -0 into 0.
+        format!("{}", r + 0.0)
+    }
 }
 
 /// The display form of a logged ray.
@@ -589,4 +598,21 @@ pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[S
     let divergence =
         first(&|r| r.verdict == Some(PixelStatus::Disagrees)).or_else(|| first(&|r| r.shape != Shape::Both));
     Alignment { rows, divergence }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn distances_read_as_a_person_reads_them() {
+        assert_eq!(fmt_t(2.5), "2.5");
+        assert_eq!(fmt_t(1.234_56), "1.2346");
+        assert_eq!(fmt_t(0.0), "0");
+        assert_eq!(fmt_t(-0.0), "0");
+        // Behind the origin, however little: the sign shows.
+        assert_eq!(fmt_t(-0.000_012), "-1.2e-5");
+        assert_eq!(fmt_t(0.000_03), "3.0e-5");
+        assert_eq!(fmt_t(-0.25), "-0.25");
+    }
 }

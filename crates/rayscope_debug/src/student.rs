@@ -308,7 +308,7 @@ fn rs_answer(n: &rayscope_core::RayNode) -> String {
         (Some(h), _, _) => format!(
             "hit '{}' at t = {}",
             h.entity_name,
-            (f64::from(h.t) * 1e4).round() / 1e4
+            rayscope_check::pixels::fmt_t(f64::from(h.t))
         ),
         (None, _, _) => "missed".into(),
     }

@@ -23,7 +23,14 @@ const st = {
 };
 
 // ---------- helpers ----------
-const fmt = (v, d = 3) => (typeof v === "number" ? (Number.isInteger(v) ? String(v) : v.toFixed(d)) : String(v));
+// Numbers as a person reads them: `d` decimals, and a value too small for them in scientific
+// notation, so that a tiny negative never reads "-0.000".
+const fmt = (v, d = 3) => {
+  if (typeof v !== "number") return String(v);
+  if (Number.isInteger(v)) return String(v);
+  if (Math.abs(v) < 0.5 * 10 ** -d) return v.toExponential(1);
+  return v.toFixed(d);
+};
 const vec = (a, d = 3) => (a ? "(" + a.map((x) => fmt(x, d)).join(", ") + ")" : "—");
 const rgbCss = (c) => `rgb(${c.map((x) => Math.round(Math.min(1, Math.max(0, x)) * 255)).join(",")})`;
 function el(tag, attrs = {}, ...kids) {
