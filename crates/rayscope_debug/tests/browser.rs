@@ -636,6 +636,19 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
     Ok(())
 }
 
+/// The student-style tracer's picture of our whitted scene with `mistakes`, saved as `name` in a
+/// folder of its own: the scene, the folder (to remove afterwards) and the picture.
+fn student_png(test: &str, mistakes: &[&'static str], w: u32, h: u32, name: &str) -> (PathBuf, PathBuf, PathBuf) {
+    let scene_path = rayscope_testkit::scene("whitted.txt");
+    let file = rayscope_scene::load(&scene_path).unwrap();
+    let theirs = student::Student::new(&file, mistakes, student::Options::new(w, h)).render();
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-{test}-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let png = dir.join(name);
+    image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
+    (scene_path, dir, png)
+}
+
 /// A student's wrong picture in the page, at the course's 400×400: it fits the panel below 1×,
 /// is loaded through the file picker, compared and diagnosed (the mistake named, the
 /// differences attributed to the glass ball), shown as a heat map with its scale, flickered
@@ -648,13 +661,7 @@ fn compare_in_chromium() {
         return;
     };
     let (w, h) = (400u32, 400u32);
-    let scene_path = rayscope_testkit::scene("whitted.txt");
-    let file = rayscope_scene::load(&scene_path).unwrap();
-    let theirs = student::Student::new(&file, &["refraction-no-normal-flip"], student::Options::new(w, h)).render();
-    let dir = std::env::temp_dir().join(format!("rayscope-chromium-compare-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let png = dir.join("my_render.png");
-    image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
+    let (scene_path, dir, png) = student_png("compare", &["refraction-no-normal-flip"], w, h, "my_render.png");
 
     let (_server, url) = serve_stage_two(scene_path, w, h);
     let png2 = png.clone();
@@ -673,13 +680,7 @@ fn compare_says_the_obvious_first_in_chromium() {
         return;
     };
     let (w, h) = (64u32, 48u32);
-    let scene_path = rayscope_testkit::scene("whitted.txt");
-    let file = rayscope_scene::load(&scene_path).unwrap();
-    let theirs = student::Student::new(&file, &["image-flipped"], student::Options::new(w, h)).render();
-    let dir = std::env::temp_dir().join(format!("rayscope-chromium-obvious-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).unwrap();
-    let png = dir.join("upside_down.png");
-    image::RgbImage::from_raw(w, h, theirs).unwrap().save(&png).unwrap();
+    let (scene_path, dir, png) = student_png("obvious", &["image-flipped"], w, h, "upside_down.png");
 
     let (_server, url) = serve_stage_two(scene_path, w, h);
     let png2 = png.clone();
