@@ -633,6 +633,43 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         "the drop hint stays after the drop: {hidden}"
     );
     shot(c, "06b-student-log-dropped.png").await;
+
+    // That log has rays only for pixels x < 8, y < 6: a click three pixels right of them selects
+    // the nearest logged pixel, (7, 3).
+    let v = c
+        .execute(
+            r#"const img = document.getElementById("image");
+            const r = img.getBoundingClientRect();
+            const left = Math.max(r.left, 0), right = Math.min(r.right, window.innerWidth);
+            const top = Math.max(r.top, 0), bottom = Math.min(r.bottom, window.innerHeight);
+            const tx = r.left + 10.5 / 32 * r.width, ty = r.top + 3.5 / 24 * r.height;
+            return { dx: Math.round(tx - (left + right) / 2), dy: Math.round(ty - (top + bottom) / 2) };"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    let (dx, dy) = (v["dx"].as_f64().ok_or("dx")?, v["dy"].as_f64().ok_or("dy")?);
+    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
+    let click = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: image,
+            duration: None,
+            x: dx,
+            y: dy,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(click).await.map_err(e)?;
+    let head = wait_for("the snapped pixel's rays", 30, || async {
+        let t = c.find(Locator::Css("#rays-pixel-head")).await.ok()?.text().await.ok()?;
+        t.starts_with("pixel (7, 3)").then_some(t)
+    })
+    .await;
+    assert!(head.contains("agrees"), "{head}");
     Ok(())
 }
 

@@ -511,7 +511,9 @@ function setupImageInput() {
     });
     img.addEventListener("click", (e) => {
       const p = imagePixelAt(e);
-      if (p) selectPixel(p[0], p[1]);
+      if (!p) return;
+      const q = raysSnap(p);
+      selectPixel(q[0], q[1]);
     });
   }
   $("zoom").addEventListener("change", () => { st.zoom = st.zooms[Number($("zoom").value)][0]; st.zoomChosen = true; layoutImage(); });
@@ -521,6 +523,28 @@ function setupImageInput() {
   compareSetupInput();
   $("check-btn").addEventListener("click", runCheck);
   raysSetupInput();
+}
+
+// A click on a pixel the loaded ray log has no ray for selects the nearest logged pixel within
+// about a dozen screen pixels: a log of a few pixels is clickable at any zoom.
+function raysSnap(p) {
+  const m = rays.mapData;
+  if (!m || m.width !== st.settings.width || m.height !== st.settings.height) return p;
+  const logged = (x, y) => {
+    const i = (y * m.width + x) * 4;
+    const s = RAYS_STATUS[`${m.data[i]},${m.data[i + 1]},${m.data[i + 2]}`];
+    return s !== undefined && s !== "not logged";
+  };
+  if (logged(p[0], p[1])) return p;
+  const r = Math.max(3, Math.ceil(12 / st.zoom));
+  let best = p, bd = Infinity;
+  for (let y = Math.max(0, p[1] - r); y <= Math.min(m.height - 1, p[1] + r); y++) {
+    for (let x = Math.max(0, p[0] - r); x <= Math.min(m.width - 1, p[0] + r); x++) {
+      const d = (x - p[0]) ** 2 + (y - p[1]) ** 2;
+      if (d < bd && logged(x, y)) { bd = d; best = [x, y]; }
+    }
+  }
+  return best;
 }
 
 function selectPixel(x, y, sample = 0) {
