@@ -332,6 +332,21 @@ async fn drive(c: &Client, url: &str) -> Result<(), String> {
     tokio::time::sleep(Duration::from_millis(600)).await;
     shot(c, "03-ray-tree.png").await;
 
+    // rayscope's own self-test is out of a student's way: offered only with ?selftest=1.
+    let offered = c
+        .find(Locator::Css("#check-btn"))
+        .await
+        .map_err(|e| e.to_string())?
+        .is_displayed()
+        .await
+        .map_err(|e| e.to_string())?;
+    assert!(!offered, "the self-test button shows on a student's page");
+    let self_test = format!("{url}?selftest=1");
+    c.goto(&self_test).await.map_err(|e| e.to_string())?;
+    wait_for("the page with the self-test", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
     // Check the intersector: both agree on this scene.
     c.find(Locator::Css("#check-btn"))
         .await

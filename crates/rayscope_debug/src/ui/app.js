@@ -1316,6 +1316,10 @@ async function main() {
     for (const id of ["rays", "image-mode", "show-tree", "show-samples", "cutaway", "xray"]) $(id).addEventListener("change", () => requestView());
     $("reset-view").addEventListener("click", () => { st.orbit = orbitFrom(st.defaultView.eye, st.defaultView.target, st.defaultView.fov); requestView(); });
     for (const t of document.querySelectorAll(".tab")) t.addEventListener("click", () => showTab(t.dataset.tab));
+    // rayscope's own intersector self-test (its BVH against parry3d) checks rayscope, not the
+    // student's code: it is offered only on a page opened with ?selftest=1.
+    const selfTest = new URLSearchParams(location.search).has("selftest");
+    for (const id of ["check-btn", "check-tab-btn"]) $(id).classList.toggle("hidden", !selfTest);
     document.body.dataset.ready = "1";
     pollStatus();
     raysPoll();
