@@ -647,6 +647,11 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         hidden.contains("hidden"),
         "the drop hint stays after the drop: {hidden}"
     );
+    // A log of 48 of the 768 pixels: each logged pixel is marked, whatever the zoom.
+    wait_for("a marker on each logged pixel", 20, || async {
+        attr(c, "#image-overlay", "data-markers").await.filter(|v| v == "48")
+    })
+    .await;
     shot(c, "06b-student-log-dropped.png").await;
 
     // That log has rays only for pixels x < 8, y < 6: a click three pixels right of them selects

@@ -983,6 +983,8 @@ const rays = {
   summary: null, file: null, mapJob: -1, mapCanvas: null, mapData: null,
   imageVersion: 0, imageKey: "", theirData: null, rsData: null, pollTimer: null, resending: false, pixelSeq: 0,
 };
+// Logs of at most this many pixels (and at most a quarter of the image) get a marker per pixel.
+const MAX_MARKERS = 4096;
 const RAYS_STATUS = { "46,204,113": "agrees", "241,196,15": "only ties", "255,38,38": "disagrees", "70,70,76": "not logged" };
 function raysJudged() { return rays.summary && rays.summary.judged ? rays.summary.judged : null; }
 function raysSizeMatches(w, h) { return st.settings && w === st.settings.width && h === st.settings.height; }
@@ -1123,6 +1125,13 @@ function raysLoadMap(j) {
     g.drawImage(img, 0, 0);
     const d = g.getImageData(0, 0, c.width, c.height);
     rays.mapData = { width: c.width, height: c.height, data: new Uint8ClampedArray(d.data) };
+    // A log of a few pixels: each logged pixel gets a marker, visible at any zoom.
+    const logged = [];
+    for (let i = 0; i < d.data.length && logged.length <= MAX_MARKERS; i += 4) {
+      const s = RAYS_STATUS[`${d.data[i]},${d.data[i + 1]},${d.data[i + 2]}`];
+      if (s && s !== "not logged") logged.push([(i / 4) % c.width, Math.floor(i / 4 / c.width), s]);
+    }
+    rays.logged = logged.length <= MAX_MARKERS && logged.length * 4 <= c.width * c.height ? logged : null;
     // The overlay: strong red where rays disagree, a light tint where they agree.
     for (let i = 0; i < d.data.length; i += 4) {
       const key = `${d.data[i]},${d.data[i + 1]},${d.data[i + 2]}`;
@@ -1164,6 +1173,18 @@ function raysDrawOverlay(g, z) {
   g.imageSmoothingEnabled = false;
   g.drawImage(rays.mapCanvas, 0, 0, rays.mapCanvas.width * z, rays.mapCanvas.height * z);
   ov.dataset.verdicts = `${j.pixels.disagrees}`;
+  // Rings of a fixed screen size around the logged pixels of a sparse log: at a zoom below one
+  // screen pixel per image pixel, the map alone would lose them.
+  const marks = rays.logged || [];
+  const colour = { disagrees: "#ff2626", "only ties": "#f1c40f", agrees: "#2ecc71" };
+  g.lineWidth = 2;
+  for (const [x, y, s] of marks) {
+    g.strokeStyle = colour[s] || "#ffffff";
+    g.beginPath();
+    g.arc((x + 0.5) * z, (y + 0.5) * z, Math.max(4, 0.7 * z), 0, 2 * Math.PI);
+    g.stroke();
+  }
+  ov.dataset.markers = String(marks.length);
 }
 function raysRgbAt(d, p) {
   if (!d || !raysSizeMatches(d.width, d.height)) return null;
