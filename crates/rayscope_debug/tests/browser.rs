@@ -652,6 +652,27 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         attr(c, "#image-overlay", "data-markers").await.filter(|v| v == "48")
     })
     .await;
+    // The same 48 pixels listed with their verdicts; filtered to those that disagree, none; a row
+    // selects its pixel.
+    let rows = wait_for("the list of logged pixels", 20, || async {
+        attr(c, "#rays-logged", "data-rows").await.filter(|v| v == "48")
+    })
+    .await;
+    assert_eq!(rows, "48");
+    choose(c, "#rays-logged-filter", "disagrees").await?;
+    assert_eq!(attr(c, "#rays-logged", "data-rows").await.as_deref(), Some("0"));
+    choose(c, "#rays-logged-filter", "").await?;
+    c.find(Locator::Css("#rays-logged-list tbody tr:nth-child(2)"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    wait_for("the listed pixel's rays", 30, || async {
+        let t = c.find(Locator::Css("#rays-pixel-head")).await.ok()?.text().await.ok()?;
+        t.starts_with("pixel (1, 0)").then_some(t)
+    })
+    .await;
     shot(c, "06b-student-log-dropped.png").await;
 
     // That log has rays only for pixels x < 8, y < 6: a click three pixels right of them selects

@@ -523,6 +523,7 @@ function setupImageInput() {
   compareSetupInput();
   $("check-btn").addEventListener("click", runCheck);
   raysSetupInput();
+  $("rays-logged-filter").addEventListener("change", raysLoggedList);
 }
 
 // A click on a pixel the loaded ray log has no ray for selects the nearest logged pixel within
@@ -1132,6 +1133,7 @@ function raysLoadMap(j) {
       if (s && s !== "not logged") logged.push([(i / 4) % c.width, Math.floor(i / 4 / c.width), s]);
     }
     rays.logged = logged.length <= MAX_MARKERS && logged.length * 4 <= c.width * c.height ? logged : null;
+    raysLoggedList();
     // The overlay: strong red where rays disagree, a light tint where they agree.
     for (let i = 0; i < d.data.length; i += 4) {
       const key = `${d.data[i]},${d.data[i + 1]},${d.data[i + 2]}`;
@@ -1166,6 +1168,27 @@ function raysLoadRendered() {
   if (st.renderedJob < 0) return;
   raysImageData(`/api/image.png?channel=color&job=${st.renderedJob}`, (d) => { rays.rsData = d; });
 }
+// The logged pixels of a sparse log, those that disagree first, filtered by verdict; a row
+// selects its pixel.
+function raysLoggedList() {
+  const box = $("rays-logged");
+  box.classList.toggle("hidden", !rays.logged);
+  if (!rays.logged) return;
+  const want = $("rays-logged-filter").value;
+  const rank = { disagrees: 0, "only ties": 1, agrees: 2 };
+  const rows = rays.logged
+    .filter((p) => !want || p[2] === want)
+    .sort((a, b) => rank[a[2]] - rank[b[2]] || a[1] - b[1] || a[0] - b[0]);
+  const tb = $("rays-logged-list").querySelector("tbody");
+  tb.innerHTML = "";
+  for (const [x, y, s] of rows) {
+    const tr = el("tr", { class: `logged-${s.replace(" ", "-")}` }, el("td", {}, `(${x}, ${y})`), el("td", {}, s));
+    tr.addEventListener("click", () => selectPixel(x, y));
+    tb.append(tr);
+  }
+  box.dataset.rows = String(rows.length);
+}
+
 function raysDrawOverlay(g, z) {
   const ov = $("image-overlay");
   const j = raysJudged();
