@@ -465,8 +465,28 @@ fn student_tracer_log(scene: &Path, w: u32, h: u32, args: &[&str]) -> String {
     String::from_utf8(out.stdout).expect("the log is text")
 }
 
-async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> Result<(), String> {
+/// A mouse click on the image at (dx, dy) from its in-view centre, as WebDriver measures it.
+async fn click_image(c: &Client, dx: f64, dy: f64) -> Result<(), String> {
     use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
+    let click = MouseActions::new("mouse".into())
+        .then(PointerAction::MoveToElement {
+            element: image,
+            duration: None,
+            x: dx,
+            y: dy,
+        })
+        .then(PointerAction::Down {
+            button: MOUSE_BUTTON_LEFT,
+        })
+        .then(PointerAction::Up {
+            button: MOUSE_BUTTON_LEFT,
+        });
+    c.perform_actions(click).await.map_err(e)
+}
+
+async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> Result<(), String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
     c.goto(url).await.map_err(|e| e.to_string())?;
     wait_for("the page to load the scene", 20, || async {
@@ -553,21 +573,7 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
     let (x, y) = (v["x"].as_u64().ok_or("x")?, v["y"].as_u64().ok_or("y")?);
     let (iw, ih) = (v["w"].as_f64().ok_or("w")?, v["h"].as_f64().ok_or("h")?);
     let (dx, dy) = (v["dx"].as_f64().ok_or("dx")?, v["dy"].as_f64().ok_or("dy")?);
-    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
-    let click = MouseActions::new("mouse".into())
-        .then(PointerAction::MoveToElement {
-            element: image,
-            duration: None,
-            x: dx,
-            y: dy,
-        })
-        .then(PointerAction::Down {
-            button: MOUSE_BUTTON_LEFT,
-        })
-        .then(PointerAction::Up {
-            button: MOUSE_BUTTON_LEFT,
-        });
-    c.perform_actions(click).await.map_err(e)?;
+    click_image(c, dx, dy).await?;
     let code = wait_for("the divergence to be explained", 30, || async {
         attr(c, "#rays-divergence-box", "data-code").await
     })
@@ -690,21 +696,7 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         .await
         .map_err(e)?;
     let (dx, dy) = (v["dx"].as_f64().ok_or("dx")?, v["dy"].as_f64().ok_or("dy")?);
-    let image = c.find(Locator::Css("#image")).await.map_err(e)?;
-    let click = MouseActions::new("mouse".into())
-        .then(PointerAction::MoveToElement {
-            element: image,
-            duration: None,
-            x: dx,
-            y: dy,
-        })
-        .then(PointerAction::Down {
-            button: MOUSE_BUTTON_LEFT,
-        })
-        .then(PointerAction::Up {
-            button: MOUSE_BUTTON_LEFT,
-        });
-    c.perform_actions(click).await.map_err(e)?;
+    click_image(c, dx, dy).await?;
     let head = wait_for("the snapped pixel's rays", 30, || async {
         let t = c.find(Locator::Css("#rays-pixel-head")).await.ok()?.text().await.ok()?;
         t.starts_with("pixel (7, 3)").then_some(t)
