@@ -465,6 +465,21 @@ fn student_tracer_log(scene: &Path, w: u32, h: u32, args: &[&str]) -> String {
     String::from_utf8(out.stdout).expect("the log is text")
 }
 
+/// Opens the page at `url` and waits for the scene, then for rayscope's render of `size`
+/// ("WxH") for at most `secs` seconds.
+async fn open_page(c: &Client, url: &str, size: &str, secs: u64) -> Result<(), String> {
+    c.goto(url).await.map_err(|e| e.to_string())?;
+    wait_for("the page to load the scene", 20, || async {
+        attr(c, "body", "data-ready").await.filter(|v| v == "1")
+    })
+    .await;
+    wait_for("the rendered image", secs, || async {
+        attr(c, "#image", "data-loaded").await.filter(|v| v == size)
+    })
+    .await;
+    Ok(())
+}
+
 /// A mouse click on the image at (dx, dy) from its in-view centre, as WebDriver measures it.
 async fn click_image(c: &Client, dx: f64, dy: f64) -> Result<(), String> {
     use fantoccini::actions::{InputSource, MouseActions, PointerAction, MOUSE_BUTTON_LEFT};
@@ -488,15 +503,7 @@ async fn click_image(c: &Client, dx: f64, dy: f64) -> Result<(), String> {
 
 async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> Result<(), String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
-    c.goto(url).await.map_err(|e| e.to_string())?;
-    wait_for("the page to load the scene", 20, || async {
-        attr(c, "body", "data-ready").await.filter(|v| v == "1")
-    })
-    .await;
-    wait_for("the rendered image", 30, || async {
-        attr(c, "#image", "data-loaded").await.filter(|v| v == "32x24")
-    })
-    .await;
+    open_page(c, url, "32x24", 30).await?;
 
     // Load the log through the file picker, as a student would.
     let input = c.find(Locator::Css("#rays-file")).await.map_err(e)?;
@@ -763,15 +770,7 @@ fn compare_says_the_obvious_first_in_chromium() {
 
 async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
-    c.goto(url).await.map_err(e)?;
-    wait_for("the page to load the scene", 20, || async {
-        attr(c, "body", "data-ready").await.filter(|v| v == "1")
-    })
-    .await;
-    wait_for("the rendered image", 60, || async {
-        attr(c, "#image", "data-loaded").await.filter(|v| v == "64x48")
-    })
-    .await;
+    open_page(c, url, "64x48", 60).await?;
     let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
     input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
     let state = wait_for("the diagnosis", 120, || async {
@@ -831,15 +830,7 @@ async fn fits_panel(c: &Client, css: &str) -> Result<serde_json::Value, String> 
 async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> {
     use fantoccini::actions::{InputSource, MouseActions, PointerAction};
     let e = |e: fantoccini::error::CmdError| e.to_string();
-    c.goto(url).await.map_err(e)?;
-    wait_for("the page to load the scene", 20, || async {
-        attr(c, "body", "data-ready").await.filter(|v| v == "1")
-    })
-    .await;
-    wait_for("the rendered image", 60, || async {
-        attr(c, "#image", "data-loaded").await.filter(|v| v == "400x400")
-    })
-    .await;
+    open_page(c, url, "400x400", 60).await?;
     shot(c, "07-compare-400-fits.png").await;
     // The default window: 400×400 fits the panel at a zoom below 1×.
     let zoom: f64 = attr(c, "#image", "data-zoom")
