@@ -517,7 +517,10 @@ fn the_csharp_adapter_gives_entities_a_material_their_intersect_may_read() {
     // The same adapter handing the constructors a null material, as it once did.
     let source = std::fs::read_to_string(&adapter).unwrap();
     let real = "static readonly Material Probe = new Material(Material.MaterialType.Diffuse, new Color(1, 1, 1));";
-    assert!(source.contains(real), "the adapter's material line changed; update this test");
+    assert!(
+        source.contains(real),
+        "the adapter's material line changed; update this test"
+    );
     let null_adapter = dir.path().join("NullMaterialAdapter.cs");
     std::fs::write(
         &null_adapter,
@@ -585,7 +588,10 @@ fn the_python_adapter_gives_primitives_a_material_their_intersect_may_read() {
     let adapter = examples("python/probe_adapter.py");
     let source = std::fs::read_to_string(&adapter).unwrap();
     let real = "MATERIAL = make_material()\n";
-    assert!(source.contains(real), "the adapter's material line changed; update this test");
+    assert!(
+        source.contains(real),
+        "the adapter's material line changed; update this test"
+    );
     let dir = tempfile::tempdir().unwrap();
     let null_adapter = dir.path().join("probe_adapter.py");
     std::fs::write(&null_adapter, source.replace(real, "MATERIAL = None\n")).unwrap();
