@@ -479,15 +479,13 @@ fn mcs(exe: &Path, sources: &[&Path]) {
     );
 }
 
-/// `rayscope probe --json` of `scene` against `mono exe --probe`: (exit code, report).
-fn probe_mono(scene: &Path, exe: &Path) -> (i32, Value) {
+/// `rayscope probe --json` of `scene` against the program `command`: (exit code, report).
+fn probe_report(scene: &Path, command: &[&std::ffi::OsStr]) -> (i32, Value) {
     let out = rayscope()
         .args(["probe", "--json", "-f"])
         .arg(scene)
         .arg("--")
-        .arg("mono")
-        .arg(exe)
-        .arg("--probe")
+        .args(command)
         .output()
         .unwrap();
     let code = out.status.code().unwrap_or(-1);
@@ -499,6 +497,11 @@ fn probe_mono(scene: &Path, exe: &Path) -> (i32, Value) {
         )
     });
     (code, report)
+}
+
+/// `probe_report` against `mono exe --probe`.
+fn probe_mono(scene: &Path, exe: &Path) -> (i32, Value) {
+    probe_report(scene, &["mono".as_ref(), exe.as_os_str(), "--probe".as_ref()])
 }
 
 #[test]
@@ -514,7 +517,8 @@ fn the_csharp_adapter_gives_entities_a_material_their_intersect_may_read() {
     let dir = tempfile::tempdir().unwrap();
     let exe = dir.path().join("probe.exe");
     mcs(&exe, &[&adapter, &tracer]);
-    // The same adapter handing the constructors a null material, as it once did.
+    // The same adapter handing the constructors a null material, which this tracer must not
+    // survive: otherwise the test would pass whatever material the adapter gave.
     let source = std::fs::read_to_string(&adapter).unwrap();
     let real = "static readonly Material Probe = new Material(Material.MaterialType.Diffuse, new Color(1, 1, 1));";
     assert!(
@@ -557,27 +561,10 @@ fn the_csharp_adapter_gives_entities_a_material_their_intersect_may_read() {
     }
 }
 
-/// `rayscope probe --json` of `scene` against `python3 adapter` with the example tracer:
-/// (exit code, report).
+/// `probe_report` against `python3 adapter example_tracer.py`.
 fn probe_python_example(scene: &Path, adapter: &Path) -> (i32, Value) {
-    let out = rayscope()
-        .args(["probe", "--json", "-f"])
-        .arg(scene)
-        .arg("--")
-        .arg(python())
-        .arg(adapter)
-        .arg(examples("python/example_tracer.py"))
-        .output()
-        .unwrap();
-    let code = out.status.code().unwrap_or(-1);
-    let report = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
-        panic!(
-            "no JSON report ({e}); exit {code}\nstdout: {}\nstderr: {}",
-            String::from_utf8_lossy(&out.stdout),
-            String::from_utf8_lossy(&out.stderr)
-        )
-    });
-    (code, report)
+    let tracer = examples("python/example_tracer.py");
+    probe_report(scene, &[python().as_ref(), adapter.as_os_str(), tracer.as_os_str()])
 }
 
 #[test]
