@@ -608,15 +608,36 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
         text.contains("refraction leaving glass used the outward normal") && text.contains("flipped to face the ray"),
         "{text}"
     );
-    // The two trees side by side, the divergent row marked, a refraction on both sides.
-    let row = c.find(Locator::Css("#rays-table tr.diverge")).await.map_err(e)?;
-    let cells = row.find_all(Locator::Css("td.k")).await.map_err(e)?;
+    // The two trees pair by pair, the divergent pair marked, a refraction on both sides.
+    let cells = c
+        .find_all(Locator::Css("#rays-table tr.diverge td.k"))
+        .await
+        .map_err(e)?;
     let mut kinds = Vec::new();
     for k in cells {
         let t = k.prop("textContent").await.map_err(e)?.unwrap_or_default();
         kinds.push(t.trim().to_string());
     }
     assert_eq!(kinds, ["refraction", "refraction"], "{kinds:?}");
+    // In a 1400×900 window the explanation and the aligned rays fit the panel's width: nothing
+    // to scroll sideways.
+    c.set_window_size(1400, 900).await.map_err(e)?;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    let widths = c
+        .execute(
+            r#"const t = document.getElementById("rays-tab");
+            return [t.scrollWidth, t.clientWidth, window.innerWidth];"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    let w: Vec<u64> = serde_json::from_value(widths).map_err(|x| x.to_string())?;
+    assert!(
+        w[2] <= 1400 && w[0] <= w[1],
+        "the rays panel scrolls sideways at 1400×900: {w:?}"
+    );
+    shot(c, "06c-student-divergence-1400x900.png").await;
+    c.set_window_size(1500, 950).await.map_err(e)?;
     // The view draws the student's rays of the pixel.
     wait_for("a view with the student's rays", 20, || async {
         attr(c, "#view", "data-student").await.filter(|v| v == "1")

@@ -1340,24 +1340,29 @@ function raysShowPixel(r) {
   // The two trees, row by row.
   const tb = $("rays-table").querySelector("tbody");
   tb.innerHTML = "";
-  const indent = (d) => "\u00a0\u00a0".repeat(d);
+  // One space a level, at most six: deep glass paths must not push the answers off the panel.
+  const indent = (d) => "\u00a0".repeat(Math.min(d, 6));
+  // Each aligned pair stacked, yours above rayscope's, so the panel never needs to scroll sideways.
   r.alignment.rows.forEach((row, k) => {
     const y = row.yours != null ? r.yours[row.yours] : null;
     const n = row.rayscope != null ? r.rayscope.nodes[row.rayscope] : null;
     const verdict = y ? (y.findings.filter((f) => !f.code.startsWith("tie.")).map((f) => f.code).join(", ") || (y.findings.length ? y.findings.map((f) => f.code).join(", ") : "✓")) : "";
     const vcls = !y ? "" : row.verdict === "disagrees" ? "bad" : row.verdict === "tie" ? "tie" : "ok";
-    const tr = el("tr", { class: (k === r.alignment.divergence ? "diverge " : "") + (row.shape !== "both" ? "only" : "") },
-      el("td", {}, y ? String(y.line) : ""),
-      el("td", { class: "k", style: y ? `color:${KIND_COLORS[y.kind] || "#ccc"}` : "" }, y ? indent(row.depth) + y.kind : "—"),
-      el("td", {}, y ? rvec(y.direction) : ""),
-      el("td", { class: y ? "" : "empty" }, y ? y.answer : "not in your log"),
-      el("td", { class: vcls, title: y ? y.findings.map((f) => `${f.code}: ${f.detail}`).join("\n") : "" }, verdict),
-      el("td", { class: "gap" }),
-      el("td", { class: "k", style: n ? `color:${KIND_COLORS[n.kind] || "#ccc"}` : "" }, n ? indent(row.depth) + n.kind : "—"),
-      el("td", {}, n ? rvec(n.direction) : ""),
-      el("td", { class: n ? "" : "empty" }, n ? r.rayscope_answers[n.id] : "rayscope casts none"),
+    const cls = (k === r.alignment.divergence ? "diverge " : "") + (row.shape !== "both" ? "only" : "");
+    const answer = (text, dir, empty) => el("td", { class: "answer" + (empty ? " empty" : "") }, text,
+      ...(dir ? [el("br"), el("span", { class: "dim" }, `direction ${rvec(dir)}`)] : []));
+    tb.append(
+      el("tr", { class: `${cls} yours` },
+        el("td", { class: "who" }, y ? `line ${y.line}` : "yours"),
+        el("td", { class: "k", style: y ? `color:${KIND_COLORS[y.kind] || "#ccc"}` : "" }, y ? indent(row.depth) + y.kind : "—"),
+        answer(y ? y.answer : "not in your log", y && y.direction, !y),
+        el("td", { class: `verdict ${vcls}`, title: y ? y.findings.map((f) => `${f.code}: ${f.detail}`).join("\n") : "" }, verdict)),
+      el("tr", { class: `${cls} theirs` },
+        el("td", { class: "who" }, "rayscope"),
+        el("td", { class: "k", style: n ? `color:${KIND_COLORS[n.kind] || "#ccc"}` : "" }, n ? indent(row.depth) + n.kind : "—"),
+        answer(n ? r.rayscope_answers[n.id] : "rayscope casts none", n && n.direction, !n),
+        el("td", {}, "")),
     );
-    tb.append(tr);
   });
   // The divergent row in view, scrolling the table only (not the page).
   const dr = tb.querySelector("tr.diverge");
