@@ -1,0 +1,384 @@
+//! The logging kits (kits/) in students' own tracers: a C# tracer in the course template's shape
+//! (Parallel.For), a Python one and a C++ one (std::threads), each with its kit added as a
+//! student adds it (tests/student/kit/). With logging on, the correct tracers get no verdict and
+//! each switchable mistake is named on the report's first line; with it off nothing is written;
+//! the pixel filters log exactly the pixels asked for; and every kit line docs/check.md shows is
+//! one the tracers compile and run.
+
+mod common;
+
+use std::collections::BTreeSet;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::sync::OnceLock;
+
+use common::{check_log, have, root, text};
+
+use rayscope_check::{Code, Report};
+use rayscope_core::{RenderSettings, Stage};
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+enum Lang {
+    CSharp,
+    Python,
+    Cpp,
+}
+
+const LANGS: [Lang; 3] = [Lang::CSharp, Lang::Python, Lang::Cpp];
+
+fn kit_dir() -> PathBuf {
+    root().join("crates/rayscope_check/tests/student/kit")
+}
+
+/// The tracer's source, as the docs' kit lines are looked for in it.
+fn source(lang: Lang) -> PathBuf {
+    kit_dir().join(match lang {
+        Lang::CSharp => "Tracer.cs",
+        Lang::Python => "tracer.py",
+        Lang::Cpp => "tracer.cpp",
+    })
+}
+
+/// Compiles `what` once per test run into a kept temporary folder; `None` (loudly) when a tool
+/// is missing outside CI.
+fn built(cell: &'static OnceLock<Option<PathBuf>>, build: fn(&Path) -> Option<PathBuf>) -> Option<PathBuf> {
+    cell.get_or_init(|| build(&tempfile::tempdir().expect("temp dir").keep()))
+        .clone()
+}
+
+fn compile(mut cmd: Command, what: &str) {
+    let out = cmd.output().unwrap_or_else(|e| panic!("run {what}: {e}"));
+    assert!(
+        out.status.success(),
+        "{what} failed:\n{}{}",
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// The command that starts the tracer in `lang`, built from the kit files themselves.
+fn tracer(lang: Lang) -> Option<Command> {
+    static CS: OnceLock<Option<PathBuf>> = OnceLock::new();
+    static CPP: OnceLock<Option<PathBuf>> = OnceLock::new();
+    match lang {
+        Lang::CSharp => {
+            let exe = built(&CS, |dir| {
+                if !have("mcs", "the C# kit tests") || !have("mono", "the C# kit tests") {
+                    return None;
+                }
+                let exe = dir.join("tracer.exe");
+                let mut cmd = Command::new("mcs");
+                // The kit promises C# 7.0, which Mono's compiler checks.
+                cmd.arg("-langversion:7")
+                    .arg("-warnaserror+")
+                    .arg(format!("-out:{}", exe.display()))
+                    .arg(root().join("kits/csharp/RayLog.cs"))
+                    .arg(source(Lang::CSharp));
+                compile(cmd, "mcs");
+                Some(exe)
+            })?;
+            let mut cmd = Command::new("mono");
+            cmd.arg(exe);
+            Some(cmd)
+        }
+        Lang::Python => {
+            if !have("python3", "the Python kit tests") {
+                return None;
+            }
+            let mut cmd = Command::new("python3");
+            cmd.arg(source(Lang::Python))
+                .env("PYTHONPATH", root().join("kits/python"));
+            Some(cmd)
+        }
+        Lang::Cpp => {
+            let exe = built(&CPP, |dir| {
+                if !have("g++", "the C++ kit tests") {
+                    return None;
+                }
+                let exe = dir.join("tracer");
+                let mut cmd = Command::new("g++");
+                cmd.args(["-O1", "-std=c++17", "-pthread", "-Wall", "-Wextra", "-Werror", "-I"])
+                    .arg(root().join("kits/cpp"))
+                    .arg("-o")
+                    .arg(&exe)
+                    .arg(source(Lang::Cpp));
+                compile(cmd, "g++");
+                Some(exe)
+            })?;
+            Some(Command::new(exe))
+        }
+    }
+}
+
+/// One render: the scene, the image size and `-x`, the mistake, and the kit's variables.
+struct Run<'a> {
+    lang: Lang,
+    scene: PathBuf,
+    w: u32,
+    h: u32,
+    aa: u32,
+    bug: &'a str,
+    env: Vec<(&'a str, &'a str)>,
+}
+
+impl<'a> Run<'a> {
+    fn new(lang: Lang, scene: PathBuf) -> Self {
+        Run {
+            lang,
+            scene,
+            w: 40,
+            h: 40,
+            aa: 1,
+            bug: "none",
+            env: Vec::new(),
+        }
+    }
+
+    /// Renders in an empty folder with every RAYSCOPE_ variable cleared but those of `env`, and
+    /// `RAYSCOPE_LOG` set to `log` (relative to that folder) when given; returns the folder, or
+    /// `None` when the tracer's tools are missing.
+    fn render(&self, log: Option<&str>) -> Option<tempfile::TempDir> {
+        let mut cmd = tracer(self.lang)?;
+        let dir = tempfile::tempdir().expect("temp dir");
+        cmd.current_dir(dir.path())
+            .arg("-f")
+            .arg(&self.scene)
+            .args(["-w", &self.w.to_string(), "-h", &self.h.to_string()])
+            .args(["-x", &self.aa.to_string(), "--bug", self.bug]);
+        for (k, _) in std::env::vars() {
+            if k.starts_with("RAYSCOPE_") {
+                cmd.env_remove(k);
+            }
+        }
+        if let Some(log) = log {
+            cmd.env("RAYSCOPE_LOG", log);
+        }
+        cmd.envs(self.env.iter().copied());
+        let out = cmd.output().expect("run the tracer");
+        assert!(
+            out.status.success(),
+            "{:?} tracer failed:\n{}",
+            self.lang,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        Some(dir)
+    }
+
+    /// Renders with logging on and checks the log; `None` when the tracer's tools are missing.
+    fn check(&self) -> Option<Report> {
+        let dir = self.render(Some("rays.jsonl"))?;
+        let settings = RenderSettings {
+            width: self.w,
+            height: self.h,
+            aa: self.aa,
+            stage: Stage::Two,
+            ..RenderSettings::default()
+        };
+        Some(check_log(&self.scene, settings, &dir.path().join("rays.jsonl"), 3))
+    }
+
+    /// The (x, y, sample) of every record of the log written with logging on.
+    fn logged(&self) -> Option<BTreeSet<(u32, u32, u32)>> {
+        let dir = self.render(Some("rays.jsonl"))?;
+        let log = std::fs::read_to_string(dir.path().join("rays.jsonl")).expect("the log");
+        let mut seen = BTreeSet::new();
+        for line in log.lines() {
+            let v: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
+            let n = |x: &serde_json::Value| x.as_u64().expect("an integer") as u32;
+            seen.insert((n(&v["pixel"][0]), n(&v["pixel"][1]), n(&v["sample"])));
+        }
+        Some(seen)
+    }
+}
+
+fn course_scene(name: &str) -> Option<PathBuf> {
+    rayscope_testkit::course().map(|c| c.scene(name))
+}
+
+#[test]
+fn correct_tracers_get_no_verdict_on_course_scenes_1_and_2() {
+    let (Some(s1), Some(s2)) = (course_scene("sample_scene_1.txt"), course_scene("sample_scene_2.txt")) else {
+        return;
+    };
+    for lang in LANGS {
+        for scene in [&s1, &s2] {
+            let Some(r) = Run::new(lang, scene.clone()).check() else {
+                continue;
+            };
+            assert!(r.rays > 1600, "{lang:?}: too few rays: {}", r.rays);
+            assert_eq!(r.disagree, 0, "{lang:?}: the correct tracer got verdicts:\n{}", text(&r));
+        }
+    }
+}
+
+/// Parallel.For (C#) and std::threads (C++) interleave their samples; each sample is still
+/// logged whole, once, with every ray and colour: no verdict, every sample present.
+#[test]
+fn threaded_renders_with_anti_aliasing_log_every_sample_whole() {
+    let Some(s2) = course_scene("sample_scene_2.txt") else {
+        return;
+    };
+    for lang in [Lang::CSharp, Lang::Cpp] {
+        let run = Run {
+            w: 30,
+            h: 30,
+            aa: 2,
+            ..Run::new(lang, s2.clone())
+        };
+        let Some(r) = run.check() else {
+            continue;
+        };
+        assert_eq!(r.disagree, 0, "{lang:?}: verdicts on a threaded render:\n{}", text(&r));
+        let Some(seen) = run.logged() else {
+            continue;
+        };
+        assert_eq!(seen.len(), 30 * 30 * 4, "{lang:?}: not every pixel sample was logged");
+    }
+}
+
+#[test]
+fn each_mistake_is_named_on_the_first_line() {
+    let Some(s2) = course_scene("sample_scene_2.txt") else {
+        return;
+    };
+    for lang in LANGS {
+        for (bug, code) in [
+            ("shadow-no-offset", Code::ShadowAcne),
+            ("reflect-no-2", Code::ReflectionNotMirror),
+            ("refraction-normal", Code::RefractionNormalNotFlipped),
+        ] {
+            let Some(r) = (Run {
+                bug,
+                ..Run::new(lang, s2.clone())
+            })
+            .check() else {
+                continue;
+            };
+            let t = text(&r);
+            assert!(
+                t.lines().next().is_some_and(|l| l.contains(code.as_str())),
+                "{lang:?} '{bug}': the first line does not name {}:\n{t}",
+                code.as_str()
+            );
+            assert!(
+                r.causes[0].code == code || r.causes[0].or == Some(code),
+                "{lang:?} '{bug}':\n{t}"
+            );
+        }
+    }
+}
+
+#[test]
+fn logging_off_writes_nothing() {
+    let Some(s1) = course_scene("sample_scene_1.txt") else {
+        return;
+    };
+    for lang in LANGS {
+        // Filters alone, or an empty RAYSCOPE_LOG, do not switch logging on.
+        for log in [None, Some("")] {
+            let run = Run {
+                w: 10,
+                h: 10,
+                env: vec![("RAYSCOPE_LOG_PIXELS", "1,1"), ("RAYSCOPE_LOG_STEP", "2")],
+                ..Run::new(lang, s1.clone())
+            };
+            let Some(dir) = run.render(log) else {
+                continue;
+            };
+            let files: Vec<_> = std::fs::read_dir(dir.path()).expect("read dir").collect();
+            assert!(files.is_empty(), "{lang:?} wrote {files:?} with RAYSCOPE_LOG {log:?}");
+        }
+    }
+}
+
+#[test]
+fn filters_log_exactly_the_chosen_pixels_and_samples() {
+    let Some(s1) = course_scene("sample_scene_1.txt") else {
+        return;
+    };
+    let all = |x: u32, y: u32| (0..4).map(move |s| (x, y, s));
+    let cases: Vec<(Vec<(&str, &str)>, BTreeSet<(u32, u32, u32)>)> = vec![
+        (
+            vec![("RAYSCOPE_LOG_PIXELS", "3,4 10,12")],
+            all(3, 4).chain(all(10, 12)).collect(),
+        ),
+        (
+            vec![("RAYSCOPE_LOG_RECT", "2,3,4,5")],
+            (2..=4).flat_map(|x| (3..=5).flat_map(move |y| all(x, y))).collect(),
+        ),
+        (
+            vec![("RAYSCOPE_LOG_STEP", "5")],
+            (0..4).flat_map(|i| (0..4).flat_map(move |j| all(5 * i, 5 * j))).collect(),
+        ),
+        (
+            vec![("RAYSCOPE_LOG_RECT", "0,0,1,1"), ("RAYSCOPE_LOG_SAMPLES", "0,3")],
+            [(0, 0), (1, 0), (0, 1), (1, 1)]
+                .into_iter()
+                .flat_map(|(x, y)| [(x, y, 0), (x, y, 3)])
+                .collect(),
+        ),
+        (
+            vec![("RAYSCOPE_LOG_PIXELS", "5,5 3,4 10,15"), ("RAYSCOPE_LOG_STEP", "5")],
+            all(5, 5).chain(all(10, 15)).collect(),
+        ),
+    ];
+    for lang in LANGS {
+        for (env, want) in &cases {
+            let run = Run {
+                w: 20,
+                h: 20,
+                aa: 2,
+                env: env.clone(),
+                ..Run::new(lang, s1.clone())
+            };
+            let Some(seen) = run.logged() else {
+                break;
+            };
+            assert_eq!(&seen, want, "{lang:?} with {env:?}");
+        }
+        // A sparse log is judged like a full one.
+        let run = Run {
+            env: vec![("RAYSCOPE_LOG_STEP", "7")],
+            ..Run::new(lang, course_scene("sample_scene_2.txt").expect("scene 2"))
+        };
+        if let Some(r) = run.check() {
+            assert!(r.rays > 30, "{lang:?}: {} rays", r.rays);
+            assert_eq!(r.disagree, 0, "{lang:?}:\n{}", text(&r));
+        }
+    }
+}
+
+/// The kit's code blocks in docs/check.md (between "## Logging kits" and the next section),
+/// by language: every line but comments and `...` is a line of that language's test tracer.
+#[test]
+fn the_docs_show_the_lines_the_tracers_run() {
+    let doc = std::fs::read_to_string(root().join("docs/check.md")).expect("docs/check.md");
+    let start = doc.find("\n## Logging kits").expect("a '## Logging kits' section");
+    let section = &doc[start + 1..];
+    let section = &section[..section[3..].find("\n## ").map_or(section.len(), |e| e + 3)];
+    let mut blocks = 0;
+    let mut lines = section.lines();
+    while let Some(line) = lines.next() {
+        let lang = match line.trim() {
+            "```csharp" => Lang::CSharp,
+            "```python" => Lang::Python,
+            "```cpp" => Lang::Cpp,
+            _ => continue,
+        };
+        blocks += 1;
+        let src = std::fs::read_to_string(source(lang)).expect("tracer source");
+        let have: BTreeSet<&str> = src.lines().map(str::trim).collect();
+        for l in lines.by_ref().take_while(|l| l.trim() != "```") {
+            let l = l.trim();
+            if l.is_empty() || l == "..." || l.starts_with("//") || l.starts_with("# ") {
+                continue;
+            }
+            assert!(
+                have.contains(l),
+                "docs/check.md shows `{l}` for {lang:?}, which {} does not have",
+                source(lang).display()
+            );
+        }
+    }
+    assert!(blocks >= 3, "the kit section shows {blocks} code blocks");
+}
