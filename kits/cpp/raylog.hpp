@@ -355,6 +355,10 @@ inline void traced(const V3& o, const V3& d, bool found, const V3& p, const V3& 
 inline void shadow(const V3& o, const V3& d, const V3& light, bool blocked) {
     Sample* s = active();
     if (!s) return;
+    // A tracer whose hit() call sits in the nearest-hit search it also runs for shadow rays has
+    // just logged this ray as a traced one: it is this shadow ray.
+    if (!s->recs.empty() && !s->recs.back().kind && s->recs.back().origin == o && s->recs.back().direction == d)
+        s->recs.pop_back();
     Rec r;
     r.kind = "shadow";
     r.shadow = true;

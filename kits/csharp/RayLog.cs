@@ -267,6 +267,12 @@ namespace RayTracer
         {
             Sample s = mine;
             if (s == null || !s.Active) return;
+            // A tracer whose Hit call sits in the nearest-hit search it also runs for shadow rays
+            // has just logged this ray as a traced one: it is this shadow ray.
+            int last = s.Recs.Count - 1;
+            if (last >= 0 && s.Recs[last].Kind == null && !s.Recs[last].Shadow && Same(s.Recs[last].Origin, ray.Origin)
+                && Same(s.Recs[last].Direction, ray.Direction))
+                s.Recs.RemoveAt(last);
             s.Recs.Add(new Rec
             {
                 Kind = "shadow", Shadow = true, Parent = ParentOf(s.Recs, ray.Origin), Origin = ray.Origin,

@@ -248,8 +248,12 @@ def _shadow(origin, direction, light, blocked):
     s = _active()
     if s is None:
         return
-    o = _v(origin)
-    r = _Rec("shadow", _parent(s.recs, o), o, _v(direction))
+    o, d = _v(origin), _v(direction)
+    # A tracer whose hit() call sits in the nearest-hit search it also runs for shadow rays has
+    # just logged this ray as a traced one: it is this shadow ray.
+    if s.recs and s.recs[-1].kind is None and s.recs[-1].origin == o and s.recs[-1].direction == d:
+        s.recs.pop()
+    r = _Rec("shadow", _parent(s.recs, o), o, d)
     r.shadow = True
     r.light = _v(light)
     r.blocked = bool(blocked)

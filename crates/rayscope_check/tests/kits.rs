@@ -206,7 +206,12 @@ fn correct_tracers_get_no_verdict_on_course_scenes_1_and_2() {
                 continue;
             };
             assert!(r.rays > 1600, "{lang:?}: too few rays: {}", r.rays);
-            assert_eq!(r.disagree, 0, "{lang:?}: the correct tracer got verdicts:\n{}", text(&r));
+            assert_eq!(
+                r.disagree,
+                0,
+                "{lang:?}: the correct tracer got verdicts:\n{}",
+                text(&r)
+            );
         }
     }
 }
@@ -308,7 +313,9 @@ fn filters_log_exactly_the_chosen_pixels_and_samples() {
         ),
         (
             vec![("RAYSCOPE_LOG_STEP", "5")],
-            (0..4).flat_map(|i| (0..4).flat_map(move |j| all(5 * i, 5 * j))).collect(),
+            (0..4)
+                .flat_map(|i| (0..4).flat_map(move |j| all(5 * i, 5 * j)))
+                .collect(),
         ),
         (
             vec![("RAYSCOPE_LOG_RECT", "0,0,1,1"), ("RAYSCOPE_LOG_SAMPLES", "0,3")],
@@ -381,4 +388,99 @@ fn the_docs_show_the_lines_the_tracers_run() {
         }
     }
     assert!(blocks >= 3, "the kit section shows {blocks} code blocks");
+}
+
+/// Every number as an `f64`, so that `4.0` and `4` compare equal.
+fn numbers_as_f64(v: serde_json::Value) -> serde_json::Value {
+    use serde_json::Value;
+    match v {
+        Value::Number(n) => serde_json::json!(n.as_f64().expect("a number")),
+        Value::Array(a) => Value::Array(a.into_iter().map(numbers_as_f64).collect()),
+        Value::Object(o) => Value::Object(o.into_iter().map(|(k, v)| (k, numbers_as_f64(v))).collect()),
+        v => v,
+    }
+}
+
+/// The same calls in each kit (tests/student/kit/orders.py, Orders.cs, orders.cpp), in the orders
+/// tracers use: a hit logged before its ray's kind, a hit logged for a shadow ray by a nearest-hit
+/// search the shadow test shares, colours returned deepest first, a pixel the filter leaves out,
+/// calls after Close. Each kit writes the same tree.
+#[test]
+fn the_kits_work_out_the_tree_whatever_the_call_order() {
+    let want: Vec<serde_json::Value> = [
+        r#"{"pixel":[1,2],"sample":3,"id":0,"parent":null,"kind":"camera","origin":[0,0,0],"direction":[0,0,1],"hit":{"point":[0,0,5],"normal":[0,0,-1]},"color":[0.25,0.25,0.25]}"#,
+        r#"{"pixel":[1,2],"sample":3,"id":1,"parent":0,"kind":"reflection","origin":[0,0,4.99999],"direction":[0,1,0],"hit":{"point":[0,3,5],"normal":[0,-1,0]},"color":[0.5,0.5,0.5]}"#,
+        r#"{"pixel":[1,2],"sample":3,"id":2,"parent":1,"kind":"shadow","origin":[0,2.99999,5],"direction":[1,0,0],"light":[4,3,5],"blocked_by":null}"#,
+        r#"{"pixel":[1,2],"sample":3,"id":3,"parent":0,"kind":"refraction","origin":[0,0,5.00001],"direction":[0,0,1],"hit":null,"color":[0,0,0]}"#,
+    ]
+    .iter()
+    .map(|l| numbers_as_f64(serde_json::from_str(l).expect("JSON")))
+    .collect();
+    let kit = kit_dir();
+    let dir = tempfile::tempdir().expect("temp dir");
+    for lang in LANGS {
+        let mut cmd = match lang {
+            Lang::Python => {
+                if !have("python3", "the Python kit tests") {
+                    continue;
+                }
+                let mut cmd = Command::new("python3");
+                cmd.arg(kit.join("orders.py"))
+                    .env("PYTHONPATH", root().join("kits/python"));
+                cmd
+            }
+            Lang::CSharp => {
+                if !have("mcs", "the C# kit tests") || !have("mono", "the C# kit tests") {
+                    continue;
+                }
+                let exe = dir.path().join("orders.exe");
+                let mut mcs = Command::new("mcs");
+                mcs.args(["-langversion:7", "-warnaserror+", "-main:RayTracer.Orders"])
+                    .arg(format!("-out:{}", exe.display()))
+                    .arg(root().join("kits/csharp/RayLog.cs"))
+                    .arg(kit.join("Tracer.cs"))
+                    .arg(kit.join("Orders.cs"));
+                compile(mcs, "mcs");
+                let mut cmd = Command::new("mono");
+                cmd.arg(exe);
+                cmd
+            }
+            Lang::Cpp => {
+                if !have("g++", "the C++ kit tests") {
+                    continue;
+                }
+                let exe = dir.path().join("orders");
+                let mut gpp = Command::new("g++");
+                gpp.args(["-std=c++17", "-pthread", "-Wall", "-Wextra", "-Werror", "-I"])
+                    .arg(root().join("kits/cpp"))
+                    .arg("-o")
+                    .arg(&exe)
+                    .arg(kit.join("orders.cpp"));
+                compile(gpp, "g++");
+                Command::new(exe)
+            }
+        };
+        let log = dir.path().join(format!("{lang:?}.jsonl"));
+        for (k, _) in std::env::vars() {
+            if k.starts_with("RAYSCOPE_") {
+                cmd.env_remove(k);
+            }
+        }
+        let out = cmd
+            .env("RAYSCOPE_LOG", &log)
+            .env("RAYSCOPE_LOG_PIXELS", "1,2")
+            .output()
+            .expect("run the calls");
+        assert!(
+            out.status.success(),
+            "{lang:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(&log).expect("the log");
+        let got: Vec<serde_json::Value> = text
+            .lines()
+            .map(|l| numbers_as_f64(serde_json::from_str(l).expect("a JSON line")))
+            .collect();
+        assert_eq!(got, want, "{lang:?} wrote:\n{text}");
+    }
 }
