@@ -110,6 +110,9 @@ fn tracer(lang: Lang) -> Option<Command> {
     }
 }
 
+/// The pixel samples a log has records of: (x, y, sample).
+type Logged = BTreeSet<(u32, u32, u32)>;
+
 /// One render: the scene, the image size and `-x`, the mistake, and the kit's variables.
 struct Run<'a> {
     lang: Lang,
@@ -178,7 +181,7 @@ impl<'a> Run<'a> {
     }
 
     /// The (x, y, sample) of every record of the log written with logging on.
-    fn logged(&self) -> Option<BTreeSet<(u32, u32, u32)>> {
+    fn logged(&self) -> Option<Logged> {
         let dir = self.render(Some("rays.jsonl"))?;
         let log = std::fs::read_to_string(dir.path().join("rays.jsonl")).expect("the log");
         let mut seen = BTreeSet::new();
@@ -302,7 +305,7 @@ fn filters_log_exactly_the_chosen_pixels_and_samples() {
         return;
     };
     let all = |x: u32, y: u32| (0..4).map(move |s| (x, y, s));
-    let cases: Vec<(Vec<(&str, &str)>, BTreeSet<(u32, u32, u32)>)> = vec![
+    let cases: Vec<(Vec<(&str, &str)>, Logged)> = vec![
         (
             vec![("RAYSCOPE_LOG_PIXELS", "3,4 10,12")],
             all(3, 4).chain(all(10, 12)).collect(),
