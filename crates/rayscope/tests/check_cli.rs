@@ -103,6 +103,21 @@ fn names_and_ranges_are_checked_against_the_scene_and_flags() {
         "{err}"
     );
 
+    // A tracer whose lights have no names gives the light's position; one that is no light is
+    // refused where it stands.
+    write(
+        &log,
+        "{\"origin\": [0, 0, 0], \"direction\": [0, 1, 0], \"light\": [9, 9, 9], \"blocked_by\": true}\n",
+    );
+    let out = check_cmd(&log).output().unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("rays.jsonl:1:47"), "{err}");
+    assert!(
+        err.contains("no light at [9.0, 9.0, 9.0]") && err.contains("its lights: 'Light' at [1, 1.4, 0.4]"),
+        "{err}"
+    );
+
     write(&log, &camera_line(8, 0, Vec3A::Z));
     let out = check_cmd(&log).output().unwrap();
     assert_eq!(out.status.code(), Some(2));

@@ -751,9 +751,25 @@ impl<'a> Judge<'a> {
             Answer::NotLogged => r.end.and_then(|end| self.segment_claim(r, end, t_max)),
             other => Some(other),
         };
+        // A hit logged without a name is judged as one on the surface its point lies on.
+        let unnamed = matches!(r.hit, Answer::Found(HitClaim { entity: None, .. }));
+        let claim = claim.map(|c| match c {
+            Answer::Found(mut h) if unnamed => {
+                h.entity = self.entity_at(r, &h, rs.as_ref());
+                Answer::Found(h)
+            }
+            other => other,
+        });
         if let Some(claim) = claim {
             let before = f.len();
             self.hit(r, &kind, claim, rs.as_ref(), leave, f, tally);
+            if unnamed {
+                for x in &mut f[before..] {
+                    x.detail = x
+                        .detail
+                        .replace("your tracer names '", "your tracer's hit point lies on '");
+                }
+            }
             let claimed = match claim {
                 Answer::Found(c) => c.entity,
                 _ => None,
@@ -765,15 +781,35 @@ impl<'a> Judge<'a> {
         }
         if kind == Kind::Shadow {
             if let (Some(li), blocked) = (light, r.blocked_by) {
-                if blocked != Answer::NotLogged {
-                    let before = f.len();
-                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, blocked, leave, f, tally);
-                    let named = match blocked {
-                        Answer::Found(e) => Some(e),
-                        _ => None,
-                    };
-                    blocker_entities(&mut f[before..], named, rs.map(|h| h.entity));
+                let before = f.len();
+                // A blocker logged without a name is judged as the surface it stands for.
+                let judged = match blocked {
+                    Answer::Found(Some(e)) => Answer::Found(e),
+                    Answer::Found(None) => match self.unnamed_blocker(r, li, rs.as_ref(), leave) {
+                        Some(e) => Answer::Found(e),
+                        None => {
+                            self.blocked_by_nothing(r, &kind, li, f);
+                            Answer::NotLogged
+                        }
+                    },
+                    Answer::Nothing => Answer::Nothing,
+                    Answer::NotLogged => Answer::NotLogged,
+                };
+                if judged != Answer::NotLogged {
+                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, judged, leave, f, tally);
                 }
+                if blocked == Answer::Found(None) {
+                    for v in f[before..].iter_mut().flat_map(|x| &mut x.values) {
+                        if v.what.starts_with("blocker of light") {
+                            v.yours = json!(shadow::UNNAMED_BLOCKER);
+                        }
+                    }
+                }
+                let named = match judged {
+                    Answer::Found(e) => Some(e),
+                    _ => None,
+                };
+                blocker_entities(&mut f[before..], named, rs.map(|h| h.entity));
             }
         }
         (

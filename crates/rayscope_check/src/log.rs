@@ -153,8 +153,9 @@ pub struct LoggedRay {
     pub hit: Answer<HitClaim>,
     /// Shadow rays: the light aimed at (index into the scene's lights).
     pub light: Option<u32>,
-    /// Shadow rays: the entity in the way, or `Nothing` when the light is reached.
-    pub blocked_by: Answer<u32>,
+    /// Shadow rays: what is in the way (`Found(None)`: something the log does not name), or
+    /// `Nothing` when the light is reached.
+    pub blocked_by: Answer<Option<u32>>,
     /// The linear colour the ray brought back to whoever cast it, before clamping, when logged.
     pub color: Option<DVec3>,
 }
@@ -190,6 +191,7 @@ pub struct LogContext {
     entity_list: Vec<String>,
     lights: FxHashMap<String, u32>,
     light_list: Vec<String>,
+    light_positions: Vec<DVec3>,
     /// Image width.
     pub width: u32,
     /// Image height.
@@ -211,11 +213,42 @@ impl LogContext {
             entity_list,
             lights: index(&scene.light_names),
             light_list: scene.light_names.clone(),
+            light_positions: scene.lights.iter().map(|l| l.position.as_dvec3()).collect(),
             width,
             height,
             spp,
             aa,
         }
+    }
+}
+
+/// The light at `p`: the nearest one within single-precision rounding of the scene's position, so
+/// that a tracer storing positions as floats is matched too.
+fn light_at(ctx: &LogContext, p: DVec3) -> Option<u32> {
+    let (i, d) = ctx
+        .light_positions
+        .iter()
+        .enumerate()
+        .map(|(i, l)| (i, (*l - p).length()))
+        .min_by(|a, b| a.1.total_cmp(&b.1))?;
+    let scale = p.abs().max_element().max(1.0);
+    (d <= 1e-5 * scale).then_some(i as u32)
+}
+
+/// The scene's lights with their positions, for a message about a light logged by position.
+fn list_lights(ctx: &LogContext) -> String {
+    let named: Vec<String> = ctx
+        .light_list
+        .iter()
+        .zip(&ctx.light_positions)
+        .take(8)
+        // The scene's own numbers: its positions are single precision.
+        .map(|(n, p)| format!("'{n}' at [{}, {}, {}]", p.x as f32, p.y as f32, p.z as f32))
+        .collect();
+    match ctx.light_list.len() {
+        0 => "none".into(),
+        n if n > 8 => format!("{} and {} more", named.join(", "), n - 8),
+        _ => named.join(", "),
     }
 }
 
@@ -645,6 +678,22 @@ struct RawHit<'a> {
     entity: Option<Cow<'a, str>>,
 }
 
+/// A shadow ray's light as logged: its name, or its position for tracers whose lights have none.
+#[derive(Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+enum LightRef<'a> {
+    Name(#[serde(borrow)] Cow<'a, str>),
+    Position([f64; 3]),
+}
+
+/// A shadow ray's blocker as logged: its name, or only whether something blocks the light.
+#[derive(Debug, PartialEq, Deserialize)]
+#[serde(untagged)]
+enum BlockerRef<'a> {
+    Name(#[serde(borrow)] Cow<'a, str>),
+    Blocked(bool),
+}
+
 #[derive(Debug, PartialEq, Deserialize)]
 struct RawRay<'a> {
     pixel: Option<[u32; 2]>,
@@ -660,14 +709,14 @@ struct RawRay<'a> {
     #[serde(default, deserialize_with = "present", borrow)]
     hit: Option<Option<RawHit<'a>>>,
     #[serde(borrow)]
-    light: Option<Cow<'a, str>>,
+    light: Option<LightRef<'a>>,
     #[serde(default, deserialize_with = "present", borrow)]
-    blocked_by: Option<Option<Cow<'a, str>>>,
+    blocked_by: Option<Option<BlockerRef<'a>>>,
     color: Option<[f64; 3]>,
 }
 
 /// The fields a ray record may have, for notes.
-const FORMAT_NOTE: &str = "a record is one JSON object per line: {\"pixel\": [x, y], \"sample\": 0, \"id\": 1, \"parent\": null, \"kind\": \"camera\", \"origin\": [x, y, z], \"direction\": [x, y, z], \"hit\": {\"t\": 1.0, \"point\": [x, y, z], \"normal\": [x, y, z], \"entity\": \"Name\"} or null}; shadow rays add \"light\" and \"blocked_by\"; any ray may add \"color\": [r, g, b]";
+const FORMAT_NOTE: &str = "a record is one JSON object per line: {\"pixel\": [x, y], \"sample\": 0, \"id\": 1, \"parent\": null, \"kind\": \"camera\", \"origin\": [x, y, z], \"direction\": [x, y, z], \"hit\": {\"t\": 1.0, \"point\": [x, y, z], \"normal\": [x, y, z], \"entity\": \"Name\"} or null}; shadow rays add \"light\" (a name or [x, y, z]) and \"blocked_by\" (a name, true or null); any ray may add \"color\": [r, g, b]";
 
 /// 1-based character column of byte offset `byte` in `line`.
 fn char_column(line: &str, byte: usize) -> usize {
@@ -803,12 +852,21 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     };
     let blocked_by = match raw.blocked_by {
         None => Answer::NotLogged,
-        Some(None) => Answer::Nothing,
-        Some(Some(name)) => Answer::Found(entity(&name, "blocked_by")?),
+        Some(None | Some(BlockerRef::Blocked(false))) => Answer::Nothing,
+        Some(Some(BlockerRef::Blocked(true))) => Answer::Found(None),
+        Some(Some(BlockerRef::Name(name))) => Answer::Found(Some(entity(&name, "blocked_by")?)),
     };
     let light = match raw.light {
         None => None,
-        Some(name) => Some(ctx.lights.get(name.as_ref()).copied().ok_or_else(|| {
+        Some(LightRef::Position(p)) => Some(light_at(ctx, vec(p)).ok_or_else(|| {
+            let (c, s) = key_column(&shown(), "light");
+            err(
+                c,
+                s,
+                format!("no light at {p:?} in the scene (its lights: {})", list_lights(ctx)),
+            )
+        })?),
+        Some(LightRef::Name(name)) => Some(ctx.lights.get(name.as_ref()).copied().ok_or_else(|| {
             let (c, s) = value_column(&shown(), "light", &name);
             err(
                 c,

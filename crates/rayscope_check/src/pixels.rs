@@ -164,7 +164,8 @@ pub fn shown_ray(judge: &Judge<'_>, r: &LoggedRay, findings: Vec<Finding>) -> Sh
             .and_then(|l| scene.lights.get(l as usize))
             .map(|l| a3(crate::geom::d3(Vec3A::from(l.position))));
         let said = match r.blocked_by {
-            Answer::Found(e) => format!("light {light} blocked by '{}'", ename(e)),
+            Answer::Found(Some(e)) => format!("light {light} blocked by '{}'", ename(e)),
+            Answer::Found(None) => format!("light {light} blocked"),
             Answer::Nothing => format!("light {light} reached"),
             Answer::NotLogged => String::new(),
         };

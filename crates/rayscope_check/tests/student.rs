@@ -19,6 +19,9 @@ struct Run<'a> {
     aa: u32,
     region: Option<[u32; 4]>,
     bug: &'a str,
+    /// Whether the log names entities and lights (and gives t), or is shaped like the course
+    /// template's tracer, which has none.
+    names: bool,
 }
 
 impl Run<'_> {
@@ -30,6 +33,7 @@ impl Run<'_> {
             aa: 1,
             region: None,
             bug: "none",
+            names: true,
         }
     }
 
@@ -53,6 +57,9 @@ impl Run<'_> {
             .args(["--bug", self.bug])
             .arg("--log")
             .arg(&log);
+        if !self.names {
+            cmd.arg("--no-names");
+        }
         if let Some([a, b, c, d]) = self.region {
             cmd.arg("--region").arg(format!("{a},{b},{c},{d}"));
         }
@@ -146,6 +153,42 @@ fn correct_tracer_gets_no_verdict_on_our_scenes() {
         40,
         30,
     ));
+}
+
+/// A tracer shaped like the course's template has no names and no t: its log gives hits by point
+/// and normal, lights by position and blockers only as `true`. rayscope finds the entities by
+/// geometry, so the correct tracer still gets no verdict and each mistake the same headline as
+/// with names.
+#[test]
+fn a_log_without_names_or_t_is_judged_like_a_named_one() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let nameless = |run: Run<'static>| Run { names: false, ..run };
+    assert_clean(nameless(Run::new(course.scene("sample_scene_1.txt"), 40, 40)));
+    assert_clean(nameless(Run {
+        aa: 2,
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    }));
+    let scene2 = || Run::new(course.scene("sample_scene_2.txt"), 40, 40);
+    for (bug, code, allowed) in [
+        ("shadow-no-offset", Code::ShadowAcne, &[][..]),
+        ("refraction-normal", Code::RefractionNormalNotFlipped, &[]),
+        ("reflect-no-2", Code::ReflectionNotMirror, &[]),
+    ] {
+        assert_named(nameless(Run { bug, ..scene2() }), code, allowed);
+    }
+    // Scene 1's floor in the triangle's shadow: blockers logged as `true` still tell a shadow
+    // test that misses the triangle's back face.
+    assert_named(
+        nameless(Run {
+            bug: "one-sided",
+            region: Some([200, 250, 280, 300]),
+            ..Run::new(course.scene("sample_scene_1.txt"), 400, 400)
+        }),
+        Code::ShadowOneSidedTriangle,
+        &[Code::HitOneSidedTriangle],
+    );
 }
 
 #[test]

@@ -23,6 +23,46 @@ impl Judge<'_> {
             })
     }
 
+    /// The entity a hit logged without a name lies on: rayscope's own where the point lies on
+    /// it with the logged normal (either way round), else the one surface that holds the point
+    /// and, where several do (a corner of the box), the one whose normal is the logged one.
+    /// `None` where no surface holds it, or more than one does indistinguishably.
+    pub(super) fn entity_at(&self, r: &LoggedRay, c: &HitClaim, rs: Option<&RsHit>) -> Option<u32> {
+        let p = c
+            .point
+            .or_else(|| c.t.map(|t| r.origin + r.direction * (t * r.dir_len)))?;
+        let tol = self.tol.position * scale(&[r.origin, p]);
+        let fits = |prim: PrimRef| {
+            c.normal.is_none_or(|n| {
+                let n = n.normalize_or_zero();
+                let own = self.geo.own_normal(prim, p);
+                let shading = self.geo.shading_normal(prim, p).unwrap_or(own);
+                [own, shading]
+                    .iter()
+                    .any(|s| angle(*s, n).min(angle(-*s, n)) <= self.tol.normal)
+            })
+        };
+        let on = |e: u32| {
+            let (dist, prim) = self.geo.entity_distance(e, p);
+            prim.filter(|_| dist <= tol)
+        };
+        if let Some(h) = rs {
+            if on(h.entity).is_some_and(fits) {
+                return Some(h.entity);
+            }
+        }
+        let holding: Vec<(u32, PrimRef)> = (0..self.scene.entities.len() as u32)
+            .filter_map(|e| on(e).map(|prim| (e, prim)))
+            .collect();
+        if let [(e, _)] = holding[..] {
+            return Some(e);
+        }
+        match holding.iter().filter(|(_, prim)| fits(*prim)).collect::<Vec<_>>()[..] {
+            [(e, _)] => Some(*e),
+            _ => None,
+        }
+    }
+
     /// The tracer's hit (or miss) against rayscope's.
     #[allow(clippy::too_many_arguments)]
     pub(super) fn hit(

@@ -3,6 +3,9 @@
 
 use super::*;
 
+/// How a blocker logged without a name is shown beside rayscope's answer.
+pub(super) const UNNAMED_BLOCKER: &str = "something (the log names no blocker)";
+
 /// A shadow ray's segment to its light: its length, the scale of the ray and the light, and the
 /// position tolerance at that scale.
 #[derive(Debug, Clone, Copy)]
@@ -76,6 +79,69 @@ impl Judge<'_> {
             }],
         ));
         None
+    }
+
+    /// The entity a shadow ray logged as blocked, without a name, stands for: rayscope's blocker
+    /// on the segment where there is one, else what the tracer most likely met there — the
+    /// surface it leaves, met again at its origin; another surface touching its origin; the
+    /// nearest surface beyond the light; one behind the origin. `None`: nothing lies on the
+    /// ray's line at all.
+    pub(super) fn unnamed_blocker(
+        &self,
+        r: &LoggedRay,
+        li: u32,
+        rs: Option<&RsHit>,
+        leave: Option<&Leave>,
+    ) -> Option<u32> {
+        if let Some(b) = rs {
+            return Some(b.entity);
+        }
+        let ToLight { dist, l, pos } = self.to_light(r, li);
+        let (o, d) = (r.origin, r.direction);
+        let near = SURFACE_ROUNDING * l;
+        if let Some(lv) = leave {
+            let t_self = self.geo.entity_intersect(lv.entity, o, d, -pos, dist).map(|x| x.0);
+            if t_self.is_some_and(|t| t >= -near) {
+                return Some(lv.entity);
+            }
+        }
+        let all = 0..self.scene.entities.len() as u32;
+        let touching = all.clone().find(|&e| {
+            self.geo.entity_distance(e, o).0 <= near && self.geo.entity_intersect(e, o, d, -near, near).is_some()
+        });
+        let beyond = || {
+            all.clone()
+                .filter_map(|e| {
+                    self.geo
+                        .entity_intersect(e, o, d, dist + pos, f64::INFINITY)
+                        .map(|x| (e, x.0))
+                })
+                .min_by(|a, b| a.1.total_cmp(&b.1))
+        };
+        let behind = || {
+            all.clone()
+                .filter_map(|e| self.geo.entity_intersect(e, o, d, f64::MIN, -near).map(|x| (e, x.0)))
+                .max_by(|a, b| a.1.total_cmp(&b.1))
+        };
+        touching.or_else(|| beyond().or_else(behind).map(|x| x.0))
+    }
+
+    /// A shadow ray logged as blocked, without a name, where nothing at all lies on its line.
+    pub(super) fn blocked_by_nothing(&self, r: &LoggedRay, kind: &Kind, li: u32, f: &mut Vec<Finding>) {
+        f.push(self.finding(
+            r,
+            kind,
+            Code::ShadowPhantomBlocker,
+            format!(
+                "your tracer says light '{}' is blocked, but no surface lies anywhere on the ray's line, ahead of its origin or behind it",
+                self.light_name(li)
+            ),
+            vec![Value {
+                what: format!("blocker of light '{}'", self.light_name(li)),
+                yours: json!(UNNAMED_BLOCKER),
+                rayscope: json!("none: light reached"),
+            }],
+        ));
     }
 
     /// The verdict on a shadow ray that names `e` where rayscope finds `b` in the way and `e` is

@@ -9,7 +9,7 @@
 
 use std::borrow::Cow;
 
-use super::{RawHit, RawRay};
+use super::{BlockerRef, LightRef, RawHit, RawRay};
 
 /// A position in one record. Only strings can hold bytes outside ASCII (everything else must
 /// be JSON's punctuation, literals and numbers), so each string is checked to be UTF-8 on its
@@ -486,8 +486,14 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
         FROM => once(&mut from, c.nullable(Cursor::vec3)),
         TO => once(&mut to, c.nullable(Cursor::vec3)),
         HIT => once(&mut hit_, c.nullable(hit)),
-        LIGHT => once(&mut light, c.nullable(|c| c.string().map(Cow::Borrowed))),
-        BLOCKED_BY => once(&mut blocked_by, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        LIGHT => once(
+            &mut light,
+            c.nullable(|c| c.string().map(|s| LightRef::Name(Cow::Borrowed(s)))),
+        ),
+        BLOCKED_BY => once(
+            &mut blocked_by,
+            c.nullable(|c| c.string().map(|s| BlockerRef::Name(Cow::Borrowed(s)))),
+        ),
         COLOR => once(&mut color, c.nullable(Cursor::vec3)),
         _ => c.skip_value(0),
     })?;

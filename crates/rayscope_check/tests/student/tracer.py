@@ -147,6 +147,9 @@ class Tracer:
         self.bug = args.bug
         self.log = log
         self.colors = args.colors
+        # A tracer shaped like the course's template knows no names and no t: hits are logged by
+        # point and normal, lights by position, blockers only as blocked.
+        self.names = args.names
         # The current sample's records: a ray's colour is known only once its children are traced.
         self.pending = []
         self.next_id = 0
@@ -231,6 +234,13 @@ class Tracer:
         return self.next_id
 
     def emit(self, rec):
+        if self.log and not self.names:
+            if rec.get("hit"):
+                rec["hit"].pop("entity")
+                rec["hit"].pop("t")
+            if "light" in rec:
+                rec["light"] = list(next(l["pos"] for l in self.lights if l["name"] == rec["light"]))
+                rec["blocked_by"] = True if rec["blocked_by"] else None
         if self.log:
             rec["pixel"] = list(self.pixel)
             rec["sample"] = self.sample
@@ -376,6 +386,7 @@ def main():
     ap.add_argument("--log", default="-")
     ap.add_argument("--image", default=None)
     ap.add_argument("--no-colors", dest="colors", action="store_false")
+    ap.add_argument("--no-names", dest="names", action="store_false")
     args = ap.parse_args()
     if args.bug not in BUGS and args.bug not in GEOMETRY_BUGS and args.bug not in OUTPUT_BUGS:
         sys.exit(f"unknown bug {args.bug}")
