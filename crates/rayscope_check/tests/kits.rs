@@ -263,6 +263,7 @@ fn each_mistake_is_named_on_the_first_line() {
                 continue;
             };
             let t = text(&r);
+            eprintln!("{lang:?} {bug}: {}", t.lines().next().unwrap_or_default());
             assert!(
                 t.lines().next().is_some_and(|l| l.contains(code.as_str())),
                 "{lang:?} '{bug}': the first line does not name {}:\n{t}",
@@ -272,6 +273,7 @@ fn each_mistake_is_named_on_the_first_line() {
                 r.causes[0].code == code || r.causes[0].or == Some(code),
                 "{lang:?} '{bug}':\n{t}"
             );
+            assert_eq!(r.causes.len(), 1, "{lang:?} '{bug}' has more than one headline:\n{t}");
         }
     }
 }
