@@ -393,6 +393,28 @@ fn the_docs_show_the_lines_the_tracers_run() {
         }
     }
     assert!(blocks >= 3, "the kit section shows {blocks} code blocks");
+    // The number of lines the docs say a student adds is the number the tracer has: the import,
+    // and the calls that are statements of their own (not the wrapped returns).
+    for (lang, calls, import, heading) in [
+        (Lang::CSharp, "RayLog.", None, "**C#**"),
+        (Lang::Python, "raylog.", Some("import raylog"), "**Python**"),
+        (Lang::Cpp, "raylog::", Some("#include \"raylog.hpp\""), "**C++**"),
+    ] {
+        let src = std::fs::read_to_string(source(lang)).expect("tracer source");
+        let added = src
+            .lines()
+            .map(str::trim)
+            .filter(|l| l.starts_with(calls) || Some(*l) == import)
+            .count();
+        let from = section
+            .find(heading)
+            .unwrap_or_else(|| panic!("no {heading} paragraph"));
+        let paragraph = &section[from..section[from..].find("\n\n").map_or(section.len(), |e| from + e)];
+        assert!(
+            paragraph.contains(&format!("**{added} lines**")),
+            "{lang:?}: the tracer adds {added} lines, the docs say otherwise:\n{paragraph}"
+        );
+    }
 }
 
 /// Every number as an `f64`, so that `4.0` and `4` compare equal.

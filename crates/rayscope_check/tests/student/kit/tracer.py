@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """A small student-style ray tracer (stage 2 of the course) with rayscope's kit,
-kits/python/raylog.py, added as a student adds it: `import raylog` and the lines that call
-raylog. Standard library only; run it with kits/python on PYTHONPATH. `--bug NAME` switches on
-one mistake:
+kits/python/raylog.py, added as a student adds it: `import raylog` and the lines that call the
+kit. Standard library only; run it with kits/python on PYTHONPATH. `--bug NAME` switches on one
+mistake:
 
   shadow-no-offset   shadow rays start exactly on the surface
   reflect-no-2       the reflection formula without its factor 2: d - (d.n) n
