@@ -443,3 +443,160 @@ fn the_csharp_adapter_compiles_and_passes() {
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("Every answer is right"));
 }
+
+/// Whether Mono's compiler and runtime are on PATH; says loudly that the caller is not run
+/// when they are not (and fails under CI=true).
+fn have_mono() -> bool {
+    let runs = |tool: &str| {
+        StdCommand::new(tool)
+            .arg("--version")
+            .output()
+            .is_ok_and(|o| o.status.success())
+    };
+    let have = runs("mcs") && runs("mono");
+    if !have {
+        rayscope_testkit::not_run(
+            "needs mcs and mono",
+            "No mcs (Mono's C# compiler) and mono found on PATH.",
+            "To run it, install them (Debian: apt-get install mono-mcs).",
+        );
+    }
+    have
+}
+
+/// Compiles `sources` with mcs into `exe`.
+fn mcs(exe: &Path, sources: &[&Path]) {
+    let built = StdCommand::new("mcs")
+        .arg(format!("-out:{}", exe.display()))
+        .args(sources)
+        .output()
+        .unwrap();
+    assert!(
+        built.status.success(),
+        "{}{}",
+        String::from_utf8_lossy(&built.stdout),
+        String::from_utf8_lossy(&built.stderr)
+    );
+}
+
+/// `rayscope probe --json` of `scene` against the program `command`: (exit code, report).
+fn probe_report(scene: &Path, command: &[&std::ffi::OsStr]) -> (i32, Value) {
+    let out = rayscope()
+        .args(["probe", "--json", "-f"])
+        .arg(scene)
+        .arg("--")
+        .args(command)
+        .output()
+        .unwrap();
+    let code = out.status.code().unwrap_or(-1);
+    let report = serde_json::from_slice(&out.stdout).unwrap_or_else(|e| {
+        panic!(
+            "no JSON report ({e}); exit {code}\nstdout: {}\nstderr: {}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    (code, report)
+}
+
+/// `probe_report` against `mono exe --probe`.
+fn probe_mono(scene: &Path, exe: &Path) -> (i32, Value) {
+    probe_report(scene, &["mono".as_ref(), exe.as_os_str(), "--probe".as_ref()])
+}
+
+#[test]
+fn the_csharp_adapter_gives_entities_a_material_their_intersect_may_read() {
+    if !have_mono() {
+        return;
+    }
+    // ExampleTracer.cs is in the template's shape, and its hits read the entity's material, as
+    // many students' tracers do: `new RayHit(p, n, ray.Direction, this.Material)` taking its
+    // type and colour.
+    let tracer = examples("csharp/ExampleTracer.cs");
+    let adapter = examples("csharp/ProbeAdapter.cs");
+    let dir = tempfile::tempdir().unwrap();
+    let exe = dir.path().join("probe.exe");
+    mcs(&exe, &[&adapter, &tracer]);
+    // The same adapter handing the constructors a null material, which this tracer must not
+    // survive: otherwise the test would pass whatever material the adapter gave.
+    let source = std::fs::read_to_string(&adapter).unwrap();
+    let real = "static readonly Material Probe = new Material(Material.MaterialType.Diffuse, new Color(1, 1, 1));";
+    assert!(
+        source.contains(real),
+        "the adapter's material line changed; update this test"
+    );
+    let null_adapter = dir.path().join("NullMaterialAdapter.cs");
+    std::fs::write(
+        &null_adapter,
+        source.replace(real, "static readonly Material Probe = null;"),
+    )
+    .unwrap();
+    let null_exe = dir.path().join("null.exe");
+    mcs(&null_exe, &[&null_adapter, &tracer]);
+
+    let mut all = vec![scenes("room.txt"), scenes("obj.txt")];
+    if let Some(course) = rayscope_testkit::course_part() {
+        all.push(course.scene("sample_scene_2.txt"));
+    }
+    for scene in all {
+        let (code, report) = probe_mono(&scene, &exe);
+        assert_eq!(
+            findings(&report),
+            vec![],
+            "{}: the C# example tracer is blamed:\n{report:#}",
+            scene.display()
+        );
+        assert_eq!(code, 0);
+        // Without a material every hit throws: each is reported as an error the tracer raised.
+        let (code, report) = probe_mono(&scene, &null_exe);
+        assert_eq!(code, 1, "{}: a null material went unnoticed", scene.display());
+        let raised: u64 = report["findings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|f| f["verdict"] == "raised-error")
+            .map(|f| f["count"].as_u64().unwrap())
+            .sum();
+        assert!(raised > 100, "{}: {raised} raised errors\n{report:#}", scene.display());
+    }
+}
+
+/// `probe_report` against `python3 adapter example_tracer.py`.
+fn probe_python_example(scene: &Path, adapter: &Path) -> (i32, Value) {
+    let tracer = examples("python/example_tracer.py");
+    probe_report(scene, &[python().as_ref(), adapter.as_os_str(), tracer.as_os_str()])
+}
+
+#[test]
+fn the_python_adapter_gives_primitives_a_material_their_intersect_may_read() {
+    // example_tracer.py's constructors take a material after the geometry, as the template's
+    // do, and its hits read the material's type and colour (student_tracer.py's take none, and
+    // the other tests run it through the same adapter).
+    let adapter = examples("python/probe_adapter.py");
+    let source = std::fs::read_to_string(&adapter).unwrap();
+    let real = "MATERIAL = make_material()\n";
+    assert!(
+        source.contains(real),
+        "the adapter's material line changed; update this test"
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let null_adapter = dir.path().join("probe_adapter.py");
+    std::fs::write(&null_adapter, source.replace(real, "MATERIAL = None\n")).unwrap();
+    for scene in [scenes("room.txt"), scenes("obj.txt")] {
+        let (code, report) = probe_python_example(&scene, &adapter);
+        assert_eq!(
+            findings(&report),
+            vec![],
+            "{}: the Python example tracer is blamed:\n{report:#}",
+            scene.display()
+        );
+        assert_eq!(code, 0);
+        let (code, report) = probe_python_example(&scene, &null_adapter);
+        assert_eq!(code, 1, "{}: a missing material went unnoticed", scene.display());
+        assert!(
+            findings(&report).iter().any(|f| f.2 == "raised-error"),
+            "{}:\n{report:#}",
+            scene.display()
+        );
+    }
+}

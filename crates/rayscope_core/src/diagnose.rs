@@ -34,9 +34,14 @@ use crate::integrator::{Counters, Integrator};
 use crate::material::Material;
 use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::{NoObserver, RayTree};
-use crate::render::{render, trace_pixel, Mistaken};
+use crate::render::{render, Mistaken};
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
+
+mod explained;
+
+use explained::Traced;
+pub use explained::{Explained, NextStep, PartExplained};
 
 /// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
 /// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
@@ -97,6 +102,10 @@ pub struct Share {
     pub pixels: u64,
     /// Their share of the differing pixels traced, in percent.
     pub percent: f64,
+    /// How the image differs there, with the course's item it belongs to ("darker (diffuse
+    /// shading and shadow rays, stage 1)"); empty where not judged.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub how: String,
 }
 
 /// A rectangle of pixels, `x0..x1` × `y0..y1`.
@@ -137,6 +146,14 @@ pub struct Explanation {
     /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`, or for a
     /// one-coloured image (the colour of most pixels of many renders) [`Self::psnr_db`].
     pub matches: bool,
+    /// How much of the difference this render reproduces, overall and per part (null for a
+    /// recursion limit found behind a match).
+    pub explained: Option<Explained>,
+    /// Offered as the cause: the image is this render ([`Self::matches`]), or the render
+    /// reproduces the whole difference ([`Explained`]; speckle such as acne on average, since
+    /// each tracer's rounding puts its speckles on other pixels). Otherwise the render explains
+    /// only a part.
+    pub cause: bool,
 }
 
 /// What [`diagnose`] found.
@@ -177,8 +194,13 @@ pub struct Diagnosis {
     pub region: Option<Region>,
     /// Where the differences are, largest share first.
     pub attribution: Vec<Share>,
-    /// Explanations, best first (empty when the image matches or nothing explains it better).
+    /// Explanations, best first: those that match ([`Explanation::matches`]), then those that
+    /// explain a part of the difference ([`Explained`]); a render that does neither is no
+    /// explanation and is not listed. Empty when the image matches or nothing explains it.
     pub explanations: Vec<Explanation>,
+    /// Where no explanation matches: the pixels to log with the student's own tracer and the
+    /// commands that judge them.
+    pub next: Option<NextStep>,
     /// Candidate renders the search tried.
     pub candidates: usize,
     /// Wall time of the diagnosis in seconds.
@@ -535,6 +557,8 @@ impl Candidate {
             robust_db: m.robust,
             psnr_downsampled_db: m.blurred,
             matches: m.robust >= MATCH_DB,
+            explained: None,
+            cause: m.robust >= MATCH_DB,
         }
     }
 }
@@ -918,6 +942,30 @@ fn attribute(tree: &RayTree) -> (String, Vec<String>) {
     }
 }
 
+/// The kind of the material of the entity [`attribute`] names (empty for the background).
+fn end_material(tree: &RayTree) -> String {
+    let mut node = match tree.nodes.first() {
+        Some(n) => n,
+        None => return String::new(),
+    };
+    loop {
+        let Some(h) = &node.hit else {
+            return String::new();
+        };
+        if h.material_kind == "Reflective" {
+            let child = tree
+                .nodes
+                .iter()
+                .find(|c| c.parent == Some(node.id) && c.kind == crate::observer::RayKind::Reflection);
+            if let Some(c) = child {
+                node = c;
+                continue;
+            }
+        }
+        return h.material_kind.to_string();
+    }
+}
+
 /// Most differing pixels whose ray trees [`diagnose`] traces for the attribution.
 const MAX_TRACED: usize = 20_000;
 
@@ -1141,13 +1189,25 @@ pub fn diagnose(
             explanations.push(e);
         }
     }
-    let attribution = if matches {
-        Vec::new()
+    let traced = if matches {
+        Traced::default()
     } else {
-        attribution(scenes.get(base.mistakes), &base, &differing)
+        Traced::of(scenes.get(base.mistakes), &base, &differing)
     };
+    let mut differs = vec![false; (w * h) as usize];
+    for &i in &differing {
+        differs[i as usize] = true;
+    }
+    let attribution = shares(&traced, |k| traced.how(k, &ours, image.rgb, w, h, &differs));
     if !matches && explanations.is_empty() {
-        let (mut found, n) = search(&mut scenes, &base, image, opts, &full, m0.score());
+        let against = Against {
+            plain: constant,
+            ours: &ours,
+            threshold,
+            differs: &differs,
+            traced: &traced,
+        };
+        let (mut found, n) = search(&mut scenes, &base, image, opts, &full, m0.score(), &against);
         for e in &mut found {
             // A one-coloured picture is the colour of most pixels of many renders: only an
             // identical one is its match, not one that leaving outliers out makes so.
@@ -1162,6 +1222,15 @@ pub fn diagnose(
     }
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(Obvious::turned_back);
+    let next = if matches || explanations.first().is_some_and(|e| e.cause) {
+        None
+    } else {
+        NextStep::new(
+            &traced.next_pixels(w),
+            &render_flags(&base),
+            &file.path.display().to_string(),
+        )
+    };
     Ok(Diagnosis {
         obvious,
         matches: matches && !turned,
@@ -1177,6 +1246,7 @@ pub fn diagnose(
         region,
         attribution,
         explanations,
+        next,
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
     })
@@ -1231,32 +1301,36 @@ pub fn differing_pixels(a: &[u8], b: &[u8]) -> (Vec<u32>, u8) {
 /// spread over them.
 #[must_use]
 pub fn attribution(scene: &Scene, base: &RenderSettings, differing: &[u32]) -> Vec<Share> {
-    let w = base.width.max(1);
-    if differing.is_empty() {
-        return Vec::new();
-    }
-    let step = differing.len().div_ceil(MAX_TRACED);
-    let traced: Vec<u32> = differing.iter().copied().step_by(step).collect();
-    let labels: Vec<(String, Vec<String>)> = traced
-        .par_iter()
-        .map(|&i| attribute(&trace_pixel(scene, base, i % w, i / w, 0)))
-        .collect();
-    let mut counts: HashMap<(String, Vec<String>), u64> = HashMap::new();
-    for l in labels {
-        *counts.entry(l).or_default() += 1;
-    }
-    let total = traced.len() as f64;
-    let mut shares: Vec<Share> = counts
-        .into_iter()
-        .map(|((entity, seen_in), pixels)| Share {
-            entity,
-            seen_in,
+    shares(&Traced::of(scene, base, differing), |_| String::new())
+}
+
+/// The attribution's shares of `traced`, largest first, with `how` of each part.
+fn shares(traced: &Traced, how: impl Fn(usize) -> String) -> Vec<Share> {
+    let total = traced.pixels.len() as f64;
+    traced
+        .parts
+        .iter()
+        .zip(&traced.counts)
+        .enumerate()
+        .map(|(k, (p, &pixels))| Share {
+            entity: p.entity.clone(),
+            seen_in: p.seen_in.clone(),
             pixels,
             percent: (1000.0 * pixels as f64 / total).round() / 10.0,
+            how: how(k),
         })
-        .collect();
-    shares.sort_by(|a, b| b.pixels.cmp(&a.pixels).then_with(|| a.entity.cmp(&b.entity)));
-    shares
+        .collect()
+}
+
+/// What a candidate's full render is measured against for [`Explained`]: rayscope's render
+/// under the flags, the differing pixels and their threshold, and the traced parts.
+struct Against<'a> {
+    /// The image is one colour: many renders come near it, so nothing short of it explains it.
+    plain: bool,
+    ours: &'a [u8],
+    threshold: u8,
+    differs: &'a [bool],
+    traced: &'a Traced,
 }
 
 /// The search: every candidate on the coarse grid, then the best at full size. Returns the
@@ -1268,6 +1342,7 @@ fn search(
     opts: &DiagnoseOptions,
     full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
     baseline: f64,
+    against: &Against<'_>,
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
     let contents = Contents::of(scenes.file);
@@ -1342,40 +1417,113 @@ fn search(
         }
         picked.push(i);
     }
-    let confirmed: Vec<(usize, Metrics)> = picked
+    // And those that reproduce the most of the grid's differing pixels while breaking few: a
+    // mistake that explains one entity's difference moves the score little while another
+    // mistake remains.
+    if !against.plain {
+        let thr = against.threshold;
+        let same = |a: &[u8], b: &[u8]| a.iter().zip(b).all(|(x, y)| x.abs_diff(*y) < thr);
+        let gain = |bytes: &[u8]| -> i64 {
+            let mut g = 0i64;
+            for ((c, t), o) in bytes
+                .chunks_exact(3)
+                .zip(theirs.chunks_exact(3))
+                .zip(coarse_base.chunks_exact(3))
+            {
+                match (same(t, o), same(c, t)) {
+                    (false, true) => g += 2,
+                    (true, false) => g -= 1,
+                    _ => {}
+                }
+            }
+            g
+        };
+        let mut by_gain: Vec<(usize, i64)> = (1..candidates.len())
+            .map(|i| (i, gain(&results[i].0)))
+            .filter(|&(_, g)| g > 0)
+            .collect();
+        by_gain.sort_by(|a, b| {
+            b.1.cmp(&a.1)
+                .then(candidates[a.0].penalty().total_cmp(&candidates[b.0].penalty()))
+        });
+        let mut more = 0;
+        for (i, _) in by_gain {
+            if more >= opts.confirm {
+                break;
+            }
+            if picked.iter().any(|&p| results[p].0 == results[i].0) {
+                continue;
+            }
+            picked.push(i);
+            more += 1;
+        }
+    }
+    let confirmed: Vec<(usize, Metrics, Explained)> = picked
         .into_iter()
         .map(|i| {
             let s = candidates[i].settings(base);
             let bytes = full(scenes, &s);
-            (i, Metrics::of(&bytes, image.rgb, w, h, BLOCK, true))
+            let ex = Explained::of(
+                &bytes,
+                against.ours,
+                image.rgb,
+                (w, h),
+                against.threshold,
+                against.differs,
+                against.traced,
+            );
+            (i, Metrics::of(&bytes, image.rgb, w, h, BLOCK, true), ex)
         })
         .collect();
-    let mut ranked: Vec<&(usize, Metrics)> = confirmed.iter().filter(|(_, m)| m.score() >= baseline + 3.0).collect();
+    // A candidate is an explanation when its render is the image (a match) or reproduces a
+    // real part of the difference; one that merely scores better is not offered.
+    let mut ranked: Vec<&(usize, Metrics, Explained)> = confirmed
+        .iter()
+        .filter(|(_, m, ex)| m.robust >= MATCH_DB && m.score() >= baseline + 3.0 || !against.plain && ex.partial())
+        .collect();
     // Between equal scores (two renders that both match once outliers are left out) the one
     // closer pixel for pixel comes first, so the match rule cannot hide which one the image is.
+    let cause = |c: &(usize, Metrics, Explained)| c.1.robust >= MATCH_DB || !against.plain && c.2.full();
+    // Explained differing pixels, less half of those broken: how partial explanations rank.
+    let net = |ex: &Explained| ex.pixels as f64 - 0.5 * ex.new_pixels as f64;
     ranked.sort_by(|x, y| {
         let sx = x.1.score() - candidates[x.0].penalty();
         let sy = y.1.score() - candidates[y.0].penalty();
-        sy.total_cmp(&sx).then(y.1.psnr.total_cmp(&x.1.psnr))
+        let by_score = sy.total_cmp(&sx).then(y.1.psnr.total_cmp(&x.1.psnr));
+        match (cause(x), cause(y)) {
+            (true, true) => by_score,
+            (false, false) => net(&y.2)
+                .total_cmp(&net(&x.2))
+                .then(candidates[x.0].penalty().total_cmp(&candidates[y.0].penalty())),
+            (a, b) => b.cmp(&a),
+        }
     });
-    // A pair is no better an explanation than its half that does as well alone, and far
-    // behind the best is no explanation at all.
+    // A pair is no better an explanation than its half that does as well alone (as close a
+    // render, or as many pixels explained), and far behind the best is no explanation at all.
     let alone = |a: &Atom| {
         confirmed
             .iter()
-            .find(|(j, _)| candidates[*j].0 == [*a])
-            .map_or(f64::NEG_INFINITY, |(_, m)| m.score())
+            .find(|(j, _, _)| candidates[*j].0 == [*a])
+            .map(|(_, m, ex)| (m.score(), net(ex)))
     };
-    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m)| m.score());
+    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m, _)| m.score());
     let explanations = ranked
         .into_iter()
-        .filter(|(i, m)| {
-            let c = &candidates[*i];
-            let redundant = c.0.len() > 1 && c.0.iter().any(|a| alone(a) >= m.score() - 0.5);
-            !redundant && m.score() >= best - 6.0
+        .filter(|c| {
+            let (i, m, ex) = c;
+            let atoms = &candidates[*i].0;
+            let redundant = atoms.len() > 1
+                && atoms.iter().any(|a| {
+                    alone(a).is_some_and(|(score, px)| score >= m.score() - 0.5 || !cause(c) && px >= 0.95 * net(ex))
+                });
+            !redundant && (m.score() >= best - 6.0 || !against.plain && ex.partial())
         })
         .take(opts.report)
-        .map(|&(i, m)| candidates[i].explain(base, m))
+        .map(|c| Explanation {
+            explained: Some(c.2.clone()),
+            cause: cause(c),
+            ..candidates[c.0].explain(base, c.1)
+        })
         .collect();
     (explanations, tried)
 }
@@ -1391,7 +1539,12 @@ pub fn attribution_text(shares: &[Share]) -> String {
         } else {
             format!(", seen in {}", s.seen_in.join(" in "))
         };
-        out.push_str(&format!("  {:5.1} %  {}{}\n", s.percent, s.entity, seen));
+        let how = if s.how.is_empty() {
+            String::new()
+        } else {
+            format!(": {}", s.how)
+        };
+        out.push_str(&format!("  {:5.1} %  {}{}{how}\n", s.percent, s.entity, seen));
     }
     if shares.len() > 8 {
         let rest: f64 = shares[8..].iter().map(|s| s.percent).sum();
@@ -1449,6 +1602,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         out.push_str(&edition);
         return out;
     }
+    out.push_str(&headline(d));
     out.push_str(&format!(
         "{yours} differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
         db(d.psnr_db),
@@ -1474,66 +1628,156 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         out.push_str("Where they are:\n");
         out.push_str(&attribution_text(&d.attribution));
     }
-    match d.explanations.first() {
-        None => out.push_str(&format!(
-            "No setting or catalogued mistake (alone or in pairs, {} renders tried) explains it better; `rayscope mistakes` lists the catalogue.\n",
-            d.candidates
-        )),
-        Some(_) => {
-            let plain = d
-                .obvious
-                .iter()
-                .find(|o| matches!(o.code, "black" | "white" | "constant"))
-                .map(|o| if o.code == "constant" { "one colour" } else { o.code });
-            if let Some(colour) = plain {
+    let (causes, partials): (Vec<&Explanation>, Vec<&Explanation>) = d.explanations.iter().partition(|e| e.cause);
+    if !causes.is_empty() {
+        let plain = d
+            .obvious
+            .iter()
+            .find(|o| matches!(o.code, "black" | "white" | "constant"))
+            .map(|o| if o.code == "constant" { "one colour" } else { o.code });
+        if let Some(colour) = plain {
+            out.push_str(&format!(
+                "Many mistakes give a picture that is {colour} everywhere: a render below that is one too is a lead, not proof.\n"
+            ));
+        }
+        out.push_str("What explains it (best first):\n");
+        for (i, e) in causes.iter().enumerate() {
+            if let (Some(colour), true) = (plain, e.psnr_db.is_infinite()) {
                 out.push_str(&format!(
-                    "Many mistakes give a picture that is {colour} everywhere: a render below that is one too is a lead, not proof.\n"
-                ));
-            }
-            out.push_str("What explains it (best first):\n");
-            for (i, e) in d.explanations.iter().enumerate() {
-                let verb = if e.matches { "matches" } else { "comes closest to" };
-                if let (Some(colour), true) = (plain, e.psnr_db.is_infinite()) {
-                    out.push_str(&format!(
-                        "  {}. {} renders it too, {colour} everywhere (yours was {} from rayscope's render): one way to get this picture\n     see it: rayscope -f {scene} -o explained.png {}\n",
-                        i + 1,
-                        e.summary,
-                        db(d.psnr_db),
-                        e.flags
-                    ));
-                    continue;
-                }
-                // What the image was before, in the measure that shows a difference.
-                let was = if d.robust_db.is_infinite() {
-                    format!("{} pixel for pixel", db(d.psnr_db))
-                } else {
-                    db(d.robust_db)
-                };
-                let how = if e.psnr_db.is_infinite() {
-                    format!("exactly (was {was})")
-                } else if e.robust_db.is_infinite() {
-                    format!(
-                        "at {} pixel for pixel, identical without the worst 1 % of pixels (was {was})",
-                        db(e.psnr_db)
-                    )
-                } else {
-                    format!(
-                        "at {} ({} downsampled; was {})",
-                        db(e.robust_db),
-                        db(e.psnr_downsampled_db),
-                        was
-                    )
-                };
-                out.push_str(&format!(
-                    "  {}. your image {verb} {} {how}\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                    "  {}. {} renders it too, {colour} everywhere (yours was {} from rayscope's render): one way to get this picture\n     see it: rayscope -f {scene} -o explained.png {}\n",
                     i + 1,
                     e.summary,
+                    db(d.psnr_db),
                     e.flags
                 ));
+                continue;
             }
+            let how = if e.matches {
+                format!("your image matches {} {}", e.summary, match_how(d, e))
+            } else {
+                format!("{} {}", e.summary, whole_how(e))
+            };
+            out.push_str(&format!(
+                "  {}. {how}\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                i + 1,
+                e.flags
+            ));
         }
     }
+    if !partials.is_empty() {
+        out.push_str(if causes.is_empty() {
+            "What explains a part of it (none explains all):\n"
+        } else {
+            "What explains only a part of it:\n"
+        });
+        for (i, e) in partials.iter().enumerate() {
+            out.push_str(&format!(
+                "  {}. {} {}\n     see it: rayscope -f {scene} -o explained.png {}\n",
+                i + 1,
+                e.summary,
+                partial_how(e),
+                e.flags
+            ));
+        }
+    }
+    if let Some(n) = &d.next {
+        out.push_str(&format!(
+            "To find out what your tracer does there, log its rays at {} of these pixels and let rayscope judge them (the logging kits: docs/check.md):\n  {} <run your tracer>\n  {}\n  rayscope's own rays at the first: {}\n",
+            if n.pixels.len() == 1 { "one" } else { "a few" },
+            n.log_env,
+            n.check_command,
+            n.trace_command
+        ));
+    }
     out
+}
+
+/// The report's first line after what is plain: the cause, or what part of the picture is
+/// explained, or that no known mistake explains it.
+fn headline(d: &Diagnosis) -> String {
+    // A one-coloured picture is said first, and many renders are that colour too: which one
+    // is the cause the picture cannot tell.
+    let plain = d
+        .obvious
+        .iter()
+        .any(|o| matches!(o.code, "black" | "white" | "constant"));
+    if plain && !d.explanations.is_empty() {
+        return String::new();
+    }
+    match d.explanations.first() {
+        Some(e) if e.matches => format!(
+            "Explained: your image is rayscope's render with {} ({}).\n",
+            e.summary,
+            match_how(d, e)
+        ),
+        Some(e) if e.cause => format!("Explained: {} {}.\n", e.summary, whole_how(e)),
+        Some(e) => format!(
+            "No known mistake explains all of your picture; {} {}.\n",
+            e.summary,
+            partial_how(e)
+        ),
+        None => format!(
+            "No known mistake explains your picture: no setting or catalogued mistake (alone or in pairs, {} renders tried) reproduces it or a part of it; `rayscope mistakes` lists the catalogue.\n",
+            d.candidates
+        ),
+    }
+}
+
+/// How closely a matching explanation's render is the image, against what the image was.
+fn match_how(d: &Diagnosis, e: &Explanation) -> String {
+    let db = |v: f64| {
+        if v.is_finite() {
+            format!("{v:.1} dB")
+        } else {
+            "identical".to_string()
+        }
+    };
+    // What the image was before, in the measure that shows a difference.
+    let was = if d.robust_db.is_infinite() {
+        format!("{} pixel for pixel", db(d.psnr_db))
+    } else {
+        db(d.robust_db)
+    };
+    if e.psnr_db.is_infinite() {
+        format!("exactly (was {was})")
+    } else if e.robust_db.is_infinite() {
+        format!(
+            "at {} pixel for pixel, identical without the worst 1 % of pixels (was {was})",
+            db(e.psnr_db)
+        )
+    } else {
+        format!(
+            "at {} ({} downsampled; was {})",
+            db(e.robust_db),
+            db(e.psnr_downsampled_db),
+            was
+        )
+    }
+}
+
+/// How an explanation that is not the image pixel for pixel accounts for all of the difference.
+fn whole_how(e: &Explanation) -> String {
+    let (p, err) = e
+        .explained
+        .as_ref()
+        .map_or((0.0, 0.0), |x| (x.percent, x.error_percent));
+    format!(
+        "accounts for the whole difference: its render reproduces {p:.0} % of the differing pixels, pixel for pixel or on average over {BLOCK}×{BLOCK} blocks (speckle falls where each tracer's rounding puts it), and removes {err:.0} % of the error"
+    )
+}
+
+/// How much of the difference a partial explanation reproduces, in words.
+fn partial_how(e: &Explanation) -> String {
+    let Some(x) = &e.explained else {
+        return "explains a part of it".into();
+    };
+    match x.best_part() {
+        Some(part) if x.percent < 95.0 => format!(
+            "explains {part} ({:.0} % of all the differing pixels; the rest is something else)",
+            x.percent
+        ),
+        _ => format!("explains {:.0} % of the differing pixels", x.percent),
+    }
 }
 
 #[cfg(test)]

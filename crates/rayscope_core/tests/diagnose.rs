@@ -359,3 +359,82 @@ fn a_picture_of_the_wrong_size_is_refused() {
     let msg = e.to_string();
     assert!(msg.contains("30×20") && msg.contains("80×60"), "{msg}");
 }
+
+/// Mistakes the catalogue does not have: no render explains them, so none may be offered as
+/// their cause, and the report says so, says where the picture differs and sends the student to
+/// the rays there.
+#[test]
+fn a_mistake_no_catalogue_has_gets_no_name_but_where_and_what_next() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_2.txt");
+    for (bug, entity) in [
+        ("reflect-no-2", "MirrorSphere"),
+        ("eta-entering-inverted", "GlassSphere"),
+        ("sphere-near-root-only", "GlassSphere"),
+    ] {
+        let d = run(&scene, &[bug], Options::new(W, H), &flags(1), true);
+        let text = rayscope_core::diagnose::report_text(&d, "scene.txt");
+        assert!(!d.matches, "{bug}: called correct\n{text}");
+        assert!(
+            d.explanations.iter().all(|e| !e.cause),
+            "{bug}: a catalogued mistake was offered as the cause:\n{text}"
+        );
+        assert!(
+            text.starts_with("No known mistake explains"),
+            "{bug}: the first line is not that nothing known explains it:\n{text}"
+        );
+        // Most of the difference lies on the entity the mistake is in, or is seen in it.
+        let on: f64 = d
+            .attribution
+            .iter()
+            .filter(|s| s.entity == entity || s.seen_in.iter().any(|m| m == entity))
+            .map(|s| s.percent)
+            .sum();
+        assert!(on >= 80.0, "{bug}: {on} % on {entity}\n{text}");
+        assert!(d.attribution.iter().all(|s| !s.how.is_empty()), "{bug}:\n{text}");
+        let next = d.next.as_ref().expect("a next step");
+        assert!(
+            !next.pixels.is_empty()
+                && next
+                    .log_env
+                    .starts_with("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\""),
+            "{bug}: {next:?}"
+        );
+    }
+}
+
+/// A catalogued mistake beside one no catalogue has: the catalogued one is named for the part of
+/// the picture it explains, with how much, and not as the cause of all of it.
+#[test]
+fn a_mistake_that_explains_a_part_is_named_for_that_part() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_2.txt");
+    let d = run(
+        &scene,
+        &["no-fresnel", "reflect-no-2"],
+        Options::new(W, H),
+        &flags(1),
+        true,
+    );
+    let text = rayscope_core::diagnose::report_text(&d, "scene.txt");
+    let first = text.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with("No known mistake explains all of your picture; 'no-fresnel'")
+            && first.contains("% of GlassSphere's differing pixels"),
+        "{text}"
+    );
+    let e = &d.explanations[0];
+    assert!(!e.cause && e.mistakes == ["no-fresnel"], "{text}");
+    let x = e.explained.as_ref().expect("how much it explains");
+    let glass = x
+        .parts
+        .iter()
+        .find(|p| p.entity == "GlassSphere" && p.seen_in.is_empty());
+    assert!(glass.is_some_and(|p| p.percent >= 60.0), "{x:?}");
+    assert!(x.percent < 95.0, "{x:?}");
+    assert!(d.next.is_some(), "{text}");
+}

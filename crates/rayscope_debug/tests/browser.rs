@@ -862,7 +862,7 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     let diagnosis = text(c, "#diagnosis").await?;
     assert_eq!(state, "done", "{diagnosis}");
     assert!(
-        diagnosis.starts_with("Your image differs from rayscope's."),
+        diagnosis.starts_with("Explained: your image is rayscope's render with 'refraction-no-normal-flip'"),
         "{diagnosis}"
     );
     let named = attr(c, "#explanations li:first-child", "data-mistakes").await;

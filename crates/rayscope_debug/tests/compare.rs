@@ -172,7 +172,18 @@ fn a_wrong_picture_is_compared_attributed_and_diagnosed() {
     assert_eq!(first["settings"], serde_json::json!(["--fov-axis vertical"]), "{d}");
     assert!((d["result"]["psnr_db"].as_f64().unwrap() - psnr).abs() < 0.01, "{d}");
     let text = d["text"].as_str().unwrap();
-    assert!(text.starts_with("Your image differs from rayscope's"), "{text}");
+    // The cause on the first line, the figures after it.
+    assert!(
+        text.starts_with("Explained: your image is rayscope's render with the field of view on the vertical axis"),
+        "{text}"
+    );
+    assert!(
+        text.lines()
+            .nth(1)
+            .unwrap_or_default()
+            .starts_with("Your image differs from rayscope's"),
+        "{text}"
+    );
     assert!(text.contains("--fov-axis vertical"), "{text}");
     server.stop();
 }

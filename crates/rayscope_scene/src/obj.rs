@@ -421,13 +421,22 @@ impl<'a> ObjParser<'a, '_> {
     /// The error for an index `text` of a `kind` that [`resolve`] rejected.
     fn index_error(&self, start: usize, text: &str, kind: &str, count: usize, problem: IndexProblem) -> Diagnostic {
         match problem {
-            IndexProblem::NotANumber => self
-                .error(
-                    start,
-                    text,
-                    format!("expected a {kind} index (a whole number) but found '{text}'"),
-                )
-                .with_label("not an index"),
+            IndexProblem::NotANumber => {
+                let d = self
+                    .error(
+                        start,
+                        text,
+                        format!("expected a {kind} index (a whole number) but found '{text}'"),
+                    )
+                    .with_label("not an index");
+                if text == "\\" {
+                    // Some writers continue a long line this way; students' readers, and this
+                    // one, read a statement from one line.
+                    d.with_note("a '\\' at the end of a line does not continue it on the next here: join the lines")
+                } else {
+                    d
+                }
+            }
             IndexProblem::Zero => self
                 .error(start, text, format!("expected a {kind} index but found 0"))
                 .with_label("OBJ indices start at 1")

@@ -215,6 +215,21 @@ fn wrong_geometry_stays_an_error() {
 }
 
 #[test]
+fn a_line_continued_with_a_backslash_is_an_error_that_says_so() {
+    let e = fails(&format!("{TRIANGLE}v 1 1 0\nf 1 2 \\\n  3 4\n"));
+    error_at(&e, 5, 7);
+    let text = e.to_string();
+    assert!(
+        text.contains("expected a vertex index (a whole number) but found '\\'"),
+        "{text}"
+    );
+    assert!(
+        text.contains("a '\\' at the end of a line does not continue it on the next here: join the lines"),
+        "{text}"
+    );
+}
+
+#[test]
 fn many_such_lines_make_one_bounded_warning() {
     // Over 1 MiB, so that the file is parsed in stretches where there are several threads.
     let faces = 100_000;

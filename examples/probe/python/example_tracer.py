@@ -1,8 +1,11 @@
 """A minimal, correct set of intersectors shaped like a course project, for probe_adapter.py.
 
-Each primitive's intersect(ray) returns a RayHit (position, normal, incident) or None.
+As in the course template, each primitive is built from its geometry and a Material, and its
+intersect(ray) returns a RayHit (position, normal, incident, material) or None; the hit reads the
+material's type and colour, so a primitive built without a material fails on every hit.
 """
 import math
+from enum import Enum
 
 EPSILON = 1e-9
 
@@ -36,19 +39,38 @@ class Vector3:
         return self * (1.0 / self.length())
 
 
+class Color:
+    def __init__(self, r, g, b):
+        self.r, self.g, self.b = r, g, b
+
+
+class Material:
+    class MaterialType(Enum):
+        Diffuse = 0
+        Reflective = 1
+        Refractive = 2
+        Emissive = 3
+        Glossy = 4
+
+    def __init__(self, type, color, refractive_index=1.0):
+        self.type, self.color, self.refractive_index = type, color, refractive_index
+
+
 class Ray:
     def __init__(self, origin, direction):
         self.origin, self.direction = origin, direction
 
 
 class RayHit:
-    def __init__(self, position, normal, incident):
+    def __init__(self, position, normal, incident, material):
         self.position, self.normal, self.incident = position, normal, incident
+        # What the shading reads later, taken from the material when the hit is made.
+        self.type, self.color = material.type, material.color
 
 
 class Sphere:
-    def __init__(self, center, radius):
-        self.center, self.radius = center, radius
+    def __init__(self, center, radius, material):
+        self.center, self.radius, self.material = center, radius, material
 
     def intersect(self, ray):
         oc = ray.origin - self.center
@@ -62,13 +84,13 @@ class Sphere:
         for t in ((-b - root) / a, (-b + root) / a):
             if t > EPSILON:
                 p = ray.origin + ray.direction * t
-                return RayHit(p, (p - self.center) * (1.0 / self.radius), ray.direction)
+                return RayHit(p, (p - self.center) * (1.0 / self.radius), ray.direction, self.material)
         return None
 
 
 class Plane:
-    def __init__(self, point, normal):
-        self.point, self.normal = point, normal.normalized()
+    def __init__(self, point, normal, material):
+        self.point, self.normal, self.material = point, normal.normalized(), material
 
     def intersect(self, ray):
         denom = ray.direction.dot(self.normal)
@@ -77,12 +99,12 @@ class Plane:
         t = (self.point - ray.origin).dot(self.normal) / denom
         if t <= EPSILON:
             return None
-        return RayHit(ray.origin + ray.direction * t, self.normal, ray.direction)
+        return RayHit(ray.origin + ray.direction * t, self.normal, ray.direction, self.material)
 
 
 class Triangle:
-    def __init__(self, v0, v1, v2):
-        self.v0, self.v1, self.v2 = v0, v1, v2
+    def __init__(self, v0, v1, v2, material):
+        self.v0, self.v1, self.v2, self.material = v0, v1, v2, material
         self.normal = (v1 - v0).cross(v2 - v0).normalized()
 
     def intersect(self, ray):
@@ -103,4 +125,4 @@ class Triangle:
         t = e2.dot(q) / det
         if t <= EPSILON:
             return None
-        return RayHit(ray.origin + ray.direction * t, self.normal, ray.direction)
+        return RayHit(ray.origin + ray.direction * t, self.normal, ray.direction, self.material)

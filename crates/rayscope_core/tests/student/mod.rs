@@ -194,7 +194,12 @@ impl Student {
                 if depth >= self.max_depth() {
                     return DVec3::ZERO;
                 }
-                let r = reflect(ray.d, n);
+                // Uncatalogued: the reflection formula with the factor 2 forgotten.
+                let r = if self.bug("reflect-no-2") {
+                    (ray.d - n * ray.d.dot(n)).normalize()
+                } else {
+                    reflect(ray.d, n)
+                };
                 self.trace(
                     Ray {
                         o: hit.p + n * EPS,
@@ -259,7 +264,10 @@ impl Student {
     }
 
     fn glass(&self, ray: Ray, hit: &Hit, n: DVec3, outside: bool, ior: f64, depth: u32) -> DVec3 {
-        let (n1, n2) = if outside || self.bug("refraction-no-index-swap") {
+        // Uncatalogued: η = n instead of 1/n on the way in.
+        let (n1, n2) = if outside && self.bug("eta-entering-inverted") {
+            (ior, 1.0)
+        } else if outside || self.bug("refraction-no-index-swap") {
             (1.0, ior)
         } else {
             (ior, 1.0)
@@ -324,7 +332,7 @@ impl Student {
                         Some((t, *n, *n))
                     }
                 }
-                Geo::Sphere { c, r } => sphere(ray, *c, *r).map(|t| {
+                Geo::Sphere { c, r } => sphere(ray, *c, *r, self.bug("sphere-near-root-only")).map(|t| {
                     let n = (ray.o + ray.d * t - *c) / *r;
                     (t, n, n)
                 }),
@@ -412,7 +420,9 @@ fn reflect(d: DVec3, n: DVec3) -> DVec3 {
     (d - n * 2.0 * d.dot(n)).normalize()
 }
 
-fn sphere(ray: Ray, c: DVec3, r: f64) -> Option<f64> {
+/// `near_only`, an uncatalogued mistake: the near root or nothing, so a ray from inside the
+/// sphere (through glass) misses it.
+fn sphere(ray: Ray, c: DVec3, r: f64, near_only: bool) -> Option<f64> {
     let oc = ray.o - c;
     let b = oc.dot(ray.d);
     let disc = b * b - (oc.dot(oc) - r * r);
@@ -423,6 +433,9 @@ fn sphere(ray: Ray, c: DVec3, r: f64) -> Option<f64> {
     let t0 = -b - s;
     if t0 > 0.0 {
         return Some(t0);
+    }
+    if near_only {
+        return None;
     }
     let t1 = -b + s;
     (t1 > 0.0).then_some(t1)

@@ -860,31 +860,59 @@ function compareDiagnosis(d) {
     return;
   }
   box.className = "diagnosis bad";
-  box.append(el("b", {}, `${yours} differs from rayscope's.`),
-    el("p", {}, `PSNR ${db(r.psnr_db)} (${db(r.robust_db)} leaving out the worst 1 % of pixels); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
+  // The headline: the cause, or how much a known mistake explains, or that none does.
+  const first = r.explanations[0];
+  const partText = (e) => {
+    const x = e.explained;
+    if (!x) return "explains a part of it";
+    const parts = x.parts.filter((p) => p.pixels >= 10);
+    const best = parts.sort((a, b) => b.percent - a.percent)[0];
+    const where = best ? `${best.percent.toFixed(0)} % of ${best.entity}${best.seen_in.length ? ` (seen in ${best.seen_in.join(" in ")})` : ""}'s differing pixels, ` : "";
+    return `explains ${where}${x.percent.toFixed(0)} % of all the differing pixels`;
+  };
+  const head = plain && first ? null
+    : !first ? `No known mistake explains your picture: no setting or catalogued mistake (alone or in pairs, ${r.candidates} renders tried) reproduces it or a part of it.`
+    : first.matches ? `Explained: your image is rayscope's render with ${first.summary}.`
+    : first.cause ? `Explained: ${first.summary} accounts for the whole difference.`
+    : `No known mistake explains all of your picture; ${first.summary} ${partText(first)}.`;
+  if (head) box.append(el("b", { id: "diagnosis-headline" }, head));
+  box.append(el("p", {}, `${yours} differs from rayscope's: PSNR ${db(r.psnr_db)} (${db(r.robust_db)} leaving out the worst 1 % of pixels); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
       (r.region ? ` They lie in columns ${r.region.x0}–${r.region.x1 - 1}, rows ${r.region.y0}–${r.region.y1 - 1}.` : "")));
-  if (!r.explanations.length) {
-    box.append(el("p", {}, `No setting and no common mistake (alone or in pairs, ${r.candidates} renders tried) explains it better. Hover the image to compare pixels, and click one that differs for rayscope's ray tree.`));
-    return;
+  if (r.attribution && r.attribution.length) {
+    const ul = el("ul", { id: "diagnosis-where" });
+    for (const a of r.attribution.slice(0, 6)) {
+      ul.append(el("li", {}, `${a.percent.toFixed(1)} % ${a.entity}${a.seen_in.length ? `, seen in ${a.seen_in.join(" in ")}` : ""}${a.how ? `: ${a.how}` : ""}`));
+    }
+    box.append(el("p", {}, "Where they are:"), ul);
   }
-  box.append(el("p", {}, "What explains it, best first:"));
-  const ol = el("ol", { id: "explanations" });
   const scene = st.scene.path;
-  for (const e of r.explanations) {
+  const list = (items, title, id, says) => {
+    if (!items.length) return;
+    box.append(el("p", {}, title));
+    const ol = el("ol", { id });
+    for (const e of items) {
+      const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") }, says(e),
+        el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
+      const patch = e.mistakes.length ? null : flagsPatch(e.settings);
+      if (patch) li.append(" ", el("button", { onclick: () => applySettings(patch) }, "render with this here"));
+      ol.append(li);
+    }
+    box.append(ol);
+  };
+  list(r.explanations.filter((e) => e.cause), "What explains it, best first:", "explanations", (e) => {
     const how = e.psnr_db == null ? "exactly"
       : e.robust_db == null ? `at ${db(e.psnr_db)} pixel for pixel, identical leaving out the worst 1 % of pixels`
       : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
     // A one-coloured picture is what many renders are: an identical one is a lead, not its match.
-    const says = plain && e.psnr_db == null
-      ? `${e.summary} renders it too, pixel for pixel: one way to get this picture. `
-      : `Your image ${e.matches ? "matches" : "comes closest to"} ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `;
-    const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") }, says,
-      el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
-    const patch = e.mistakes.length ? null : flagsPatch(e.settings);
-    if (patch) li.append(" ", el("button", { onclick: () => applySettings(patch) }, "render with this here"));
-    ol.append(li);
+    if (plain && e.psnr_db == null) return `${e.summary} renders it too, pixel for pixel: one way to get this picture. `;
+    if (e.matches) return `Your image matches ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `;
+    return `${e.summary} accounts for the whole difference: its render reproduces ${e.explained.percent.toFixed(0)} % of the differing pixels (speckle on average over 4×4 blocks). `;
+  });
+  list(r.explanations.filter((e) => !e.cause), "What explains a part of it:", "partial-explanations", (e) => `${e.summary} ${partText(e)}. `);
+  if (r.next) {
+    box.append(el("p", {}, "To find out what your tracer does there, log its rays at these pixels (the logging kits: docs/check.md) and let rayscope judge them:"),
+      el("pre", { id: "diagnosis-next" }, `${r.next.log_env} <run your tracer>\n${r.next.check_command}\n${r.next.trace_command}`));
   }
-  box.append(ol);
   box.append(el("p", { class: "dim" }, `${r.candidates} renders tried in ${(d.millis / 1000).toFixed(1)} s; \`rayscope mistakes\` lists the catalogue.`));
 }
 // Sets some settings as the inspector would.

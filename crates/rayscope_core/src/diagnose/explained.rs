@@ -1,0 +1,388 @@
+//! How much of a picture's difference a candidate explains, part by part, and what can be said
+//! of the parts nothing explains: how they differ and which pixels to log next.
+//!
+//! A render that reproduces most of one entity's differing pixels without breaking pixels the
+//! image had right is evidence for its mistake even while other mistakes remain; one that only
+//! moves the overall PSNR is not. A candidate that is neither a match nor such a partial fit is
+//! not offered at all: a wrong name sends a student to the wrong code.
+
+use rayon::prelude::*;
+use serde::Serialize;
+
+use super::{attribute, block_means, BLOCK, MAX_TRACED};
+use crate::render::trace_pixel;
+use crate::scene::Scene;
+use crate::settings::RenderSettings;
+
+/// Share of a part's differing pixels a render must reproduce to explain that part.
+const PART_PERCENT: f64 = 60.0;
+
+/// Share of all differing pixels a render must reproduce to explain the picture in part.
+const WHOLE_PERCENT: f64 = 50.0;
+
+/// Most pixels a partial explanation may break (the image has them as rayscope renders them,
+/// the explanation's render not) per pixel it reproduces: speckle such as acne falls on other
+/// pixels in each tracer, and a partial fit leaves room for another mistake.
+const BREAKS_PER_FIX: f64 = 0.5;
+
+/// A block average within this many levels of the image's is the image's there.
+const BLOCK_LEVELS: f32 = 1.0;
+
+/// Share of the differing pixels a render that is not the image pixel for pixel must reproduce
+/// to explain all of the difference (acne, whose speckles fall on other pixels in each tracer).
+const FULL_PERCENT: f64 = 95.0;
+
+/// Pixels listed for the student to log next.
+const NEXT_PIXELS: usize = 6;
+
+/// What the differing pixels' ray trees end on: the entity, the mirrors it is seen in, and the
+/// kind of its material (empty for the background).
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+pub(crate) struct Part {
+    pub(crate) entity: String,
+    pub(crate) seen_in: Vec<String>,
+    pub(crate) material: String,
+}
+
+/// The differing pixels traced for the attribution, each with the part it belongs to.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Traced {
+    /// Pixel indices (row-major), evenly spread over the differing pixels.
+    pub(crate) pixels: Vec<u32>,
+    /// Index into [`Self::parts`] of each traced pixel.
+    pub(crate) part_of: Vec<usize>,
+    /// The parts, largest first.
+    pub(crate) parts: Vec<Part>,
+    /// Traced pixels of each part.
+    pub(crate) counts: Vec<u64>,
+}
+
+impl Traced {
+    /// Traces up to [`MAX_TRACED`] of the `differing` pixels under `base` and groups them by part.
+    pub(crate) fn of(scene: &Scene, base: &RenderSettings, differing: &[u32]) -> Traced {
+        if differing.is_empty() {
+            return Traced::default();
+        }
+        let w = base.width.max(1);
+        let step = differing.len().div_ceil(MAX_TRACED);
+        let pixels: Vec<u32> = differing.iter().copied().step_by(step).collect();
+        let labels: Vec<Part> = pixels
+            .par_iter()
+            .map(|&i| {
+                let tree = trace_pixel(scene, base, i % w, i / w, 0);
+                let (entity, seen_in) = attribute(&tree);
+                let material = super::end_material(&tree);
+                Part {
+                    entity,
+                    seen_in,
+                    material,
+                }
+            })
+            .collect();
+        let mut parts: Vec<Part> = Vec::new();
+        let mut counts: Vec<u64> = Vec::new();
+        let mut part_of = Vec::with_capacity(labels.len());
+        for l in labels {
+            let k = match parts.iter().position(|p| *p == l) {
+                Some(k) => k,
+                None => {
+                    parts.push(l);
+                    counts.push(0);
+                    parts.len() - 1
+                }
+            };
+            counts[k] += 1;
+            part_of.push(k);
+        }
+        // Largest first, then by name, so the order is the same on every run.
+        let mut order: Vec<usize> = (0..parts.len()).collect();
+        order.sort_by(|&a, &b| {
+            counts[b]
+                .cmp(&counts[a])
+                .then_with(|| parts[a].entity.cmp(&parts[b].entity))
+        });
+        let mut rank = vec![0; parts.len()];
+        for (r, &k) in order.iter().enumerate() {
+            rank[k] = r;
+        }
+        Traced {
+            pixels,
+            part_of: part_of.into_iter().map(|k| rank[k]).collect(),
+            parts: order.iter().map(|&k| parts[k].clone()).collect(),
+            counts: order.iter().map(|&k| counts[k]).collect(),
+        }
+    }
+
+    /// Traced pixels of part `k`.
+    fn of_part(&self, k: usize) -> impl Iterator<Item = u32> + '_ {
+        self.pixels
+            .iter()
+            .zip(&self.part_of)
+            .filter(move |(_, &p)| p == k)
+            .map(|(&i, _)| i)
+    }
+
+    /// How part `k` differs: darker, brighter, black, a colour shift, and whether the
+    /// differences are speckle (isolated pixels) or areas, with the course's item it belongs to.
+    pub(crate) fn how(&self, k: usize, ours: &[u8], image: &[u8], w: u32, h: u32, differs: &[bool]) -> String {
+        let luma = |b: &[u8], i: u32| {
+            let p = i as usize * 3;
+            0.2126 * f64::from(b[p]) + 0.7152 * f64::from(b[p + 1]) + 0.0722 * f64::from(b[p + 2])
+        };
+        let (mut darker, mut brighter, mut black, mut isolated, mut n) = (0u64, 0u64, 0u64, 0u64, 0u64);
+        for i in self.of_part(k) {
+            n += 1;
+            let (a, b) = (luma(ours, i), luma(image, i));
+            if b + 2.0 < a {
+                darker += 1;
+            } else if b > a + 2.0 {
+                brighter += 1;
+            }
+            let p = i as usize * 3;
+            if image[p..p + 3] == [0, 0, 0] && ours[p..p + 3] != [0, 0, 0] {
+                black += 1;
+            }
+            let (x, y) = (i % w, i / w);
+            let neighbours = [
+                (x > 0).then(|| i - 1),
+                (x + 1 < w).then(|| i + 1),
+                (y > 0).then(|| i - w),
+                (y + 1 < h).then(|| i + w),
+            ];
+            if neighbours.iter().flatten().all(|&j| !differs[j as usize]) {
+                isolated += 1;
+            }
+        }
+        let most = |c: u64| c * 4 >= n * 3;
+        let tone = if most(black) {
+            "black"
+        } else if most(darker) {
+            "darker"
+        } else if most(brighter) {
+            "brighter"
+        } else if darker + brighter < n / 2 {
+            "another colour"
+        } else {
+            "darker in places, brighter in others"
+        };
+        let spread = if isolated * 2 >= n {
+            ", in scattered single pixels (speckle)"
+        } else {
+            ""
+        };
+        let item = match self.parts[k].material.as_str() {
+            "" => "camera rays and the background, stage 1",
+            "Diffuse" => "diffuse shading and shadow rays, stage 1",
+            "Reflective" => "mirror reflection, stage 2",
+            "Refractive" => "refraction and Fresnel, stage 2",
+            "Emissive" => "emissive materials, stage 3",
+            "Glossy" => "glossy materials, stage 3",
+            _ => "its material",
+        };
+        if self.parts[k].seen_in.is_empty() {
+            format!("{tone}{spread} ({item})")
+        } else {
+            format!("{tone}{spread} ({item}, or the mirror reflection it is seen in, stage 2)")
+        }
+    }
+
+    /// Up to [`NEXT_PIXELS`] pixels to log next, `(x, y)`: spread over the largest parts, a
+    /// few from each, evenly over its traced pixels.
+    pub(crate) fn next_pixels(&self, w: u32) -> Vec<(u32, u32)> {
+        let mut out = Vec::new();
+        let parts = self.parts.len().min(3);
+        for k in 0..parts {
+            let want = (NEXT_PIXELS - out.len()).div_ceil(parts - k);
+            let px: Vec<u32> = self.of_part(k).collect();
+            let step = px.len().div_ceil(want.max(1)).max(1);
+            out.extend(
+                px.iter()
+                    .skip(step / 2)
+                    .step_by(step)
+                    .take(want)
+                    .map(|&i| (i % w, i / w)),
+            );
+        }
+        out
+    }
+}
+
+/// How much of a part's difference a render reproduces.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct PartExplained {
+    /// The entity (as in [`super::Share::entity`]).
+    pub entity: String,
+    /// The mirrors it is seen in, nearest first.
+    pub seen_in: Vec<String>,
+    /// Its differing pixels traced.
+    pub pixels: u64,
+    /// The share of them the render reproduces, in percent.
+    pub percent: f64,
+}
+
+/// How much of the difference between the image and rayscope's render a candidate's render
+/// reproduces.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Explained {
+    /// Differing pixels that the candidate's render has as the image has them.
+    pub pixels: u64,
+    /// Their share of the differing pixels, in percent.
+    pub percent: f64,
+    /// Pixels the image has as rayscope renders them that the candidate's render changes.
+    pub new_pixels: u64,
+    /// The share of the image's squared error against rayscope's render that the candidate's
+    /// render removes, in percent (negative where it adds error).
+    pub error_percent: f64,
+    /// Per part of the attribution, largest first.
+    pub parts: Vec<PartExplained>,
+}
+
+impl Explained {
+    /// Of the `candidate`'s render against rayscope's `ours` and the `image` (all `w`×`h`),
+    /// with the `threshold` of [`super::differing_pixels`] and `differs` flagging the pixels it
+    /// found. A pixel is reproduced when the candidate has it as the image has it, or, for
+    /// speckle that falls where each tracer's rounding puts it (acne), when the candidate's
+    /// average over the pixel's [`BLOCK`]×[`BLOCK`] block closes most of the gap between
+    /// rayscope's average there and the image's.
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn of(
+        candidate: &[u8],
+        ours: &[u8],
+        image: &[u8],
+        (w, h): (u32, u32),
+        threshold: u8,
+        differs: &[bool],
+        traced: &Traced,
+    ) -> Explained {
+        let (mc, mo, mi) = (
+            block_means(candidate, w, h, BLOCK),
+            block_means(ours, w, h, BLOCK),
+            block_means(image, w, h, BLOCK),
+        );
+        let bw = w.div_ceil(BLOCK);
+        let reproduces = |i: usize| {
+            let p = i * 3;
+            if (0..3).all(|c| candidate[p + c].abs_diff(image[p + c]) < threshold) {
+                return true;
+            }
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let b = ((y / BLOCK) * bw + x / BLOCK) as usize * 3;
+            (0..3).all(|c| {
+                let gap = (mo[b + c] - mi[b + c]).abs();
+                (mc[b + c] - mi[b + c]).abs() <= (0.25 * gap).max(BLOCK_LEVELS)
+            })
+        };
+        let (mut pixels, mut new_pixels, mut differing) = (0u64, 0u64, 0u64);
+        for (i, &d) in differs.iter().enumerate() {
+            match (d, reproduces(i)) {
+                (true, true) => pixels += 1,
+                (false, false) => new_pixels += 1,
+                _ => {}
+            }
+            differing += u64::from(d);
+        }
+        let se = |a: &[u8]| -> f64 {
+            a.iter()
+                .zip(image)
+                .map(|(x, y)| f64::from(x.abs_diff(*y)).powi(2))
+                .sum()
+        };
+        let se_blocks = |m: &[f32]| -> f64 { m.iter().zip(&mi).map(|(x, y)| f64::from(x - y).powi(2)).sum() };
+        // The error removed pixel for pixel, or over block averages where speckle moved.
+        let removed = |before: f64, after: f64| if before > 0.0 { 1.0 - after / before } else { 0.0 };
+        let removed = removed(se(ours), se(candidate)).max(removed(se_blocks(&mo), se_blocks(&mc)));
+        let mut got = vec![0u64; traced.parts.len()];
+        for (&i, &k) in traced.pixels.iter().zip(&traced.part_of) {
+            got[k] += u64::from(reproduces(i as usize));
+        }
+        let pct = |a: u64, b: u64| {
+            if b == 0 {
+                0.0
+            } else {
+                (1000.0 * a as f64 / b as f64).round() / 10.0
+            }
+        };
+        Explained {
+            pixels,
+            percent: pct(pixels, differing),
+            new_pixels,
+            error_percent: (1000.0 * removed).round() / 10.0,
+            parts: traced
+                .parts
+                .iter()
+                .zip(&traced.counts)
+                .zip(&got)
+                .map(|((p, &n), &g)| PartExplained {
+                    entity: p.entity.clone(),
+                    seen_in: p.seen_in.clone(),
+                    pixels: n,
+                    percent: pct(g, n),
+                })
+                .collect(),
+        }
+    }
+
+    /// True when the render explains a real part of the difference: most of the differing
+    /// pixels, or most of one sizeable part's, while adding error nowhere it takes away.
+    pub(crate) fn partial(&self) -> bool {
+        let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
+        let sizeable = |p: &PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
+        let clean = self.error_percent > 0.0 && self.new_pixels as f64 <= BREAKS_PER_FIX * self.pixels as f64;
+        clean && (self.percent >= WHOLE_PERCENT || self.parts.iter().any(|p| sizeable(p) && p.percent >= PART_PERCENT))
+    }
+
+    /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing
+    /// pixels, without adding error.
+    pub(crate) fn full(&self) -> bool {
+        self.percent >= FULL_PERCENT && self.partial()
+    }
+
+    /// The part it explains best, among the sizeable ones, in words: "74 % of GlassSphere's
+    /// differing pixels".
+    pub(crate) fn best_part(&self) -> Option<String> {
+        let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
+        self.parts
+            .iter()
+            .filter(|p| p.pixels >= 10 && p.pixels * 20 >= traced)
+            .max_by(|a, b| a.percent.total_cmp(&b.percent))
+            .map(|p| {
+                let seen = if p.seen_in.is_empty() {
+                    String::new()
+                } else {
+                    format!(" (seen in {})", p.seen_in.join(" in "))
+                };
+                format!("{:.0} % of {}{seen}'s differing pixels", p.percent, p.entity)
+            })
+    }
+}
+
+/// The next step for a difference nothing explains in full: the pixels to log with the
+/// student's own tracer, as the logging kits' environment variables, and the commands that
+/// judge that log and show rayscope's own rays at one of the pixels.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NextStep {
+    /// The pixels, `[x, y]`.
+    pub pixels: Vec<[u32; 2]>,
+    /// The environment for a tracer with rayscope's logging kit, e.g.
+    /// `RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS="12,30 40,8"`.
+    pub log_env: String,
+    /// The `rayscope check` command for that log.
+    pub check_command: String,
+    /// The `rayscope trace` command for the first pixel.
+    pub trace_command: String,
+}
+
+impl NextStep {
+    /// For `pixels`, with `flags` the render flags (size, anti-aliasing, …) and `scene` the
+    /// scene file as the student named it.
+    pub(crate) fn new(pixels: &[(u32, u32)], flags: &str, scene: &str) -> Option<NextStep> {
+        let &(x0, y0) = pixels.first()?;
+        let list: Vec<String> = pixels.iter().map(|(x, y)| format!("{x},{y}")).collect();
+        Some(NextStep {
+            pixels: pixels.iter().map(|&(x, y)| [x, y]).collect(),
+            log_env: format!("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\"{}\"", list.join(" ")),
+            check_command: format!("rayscope check -f {scene} --rays rays.jsonl {flags}"),
+            trace_command: format!("rayscope trace -f {scene} {flags} --pixel {x0},{y0}"),
+        })
+    }
+}
