@@ -1887,6 +1887,7 @@ mod tests {
             region: None,
             attribution: Vec::new(),
             explanations: Vec::new(),
+            next: None,
             candidates: 1,
             seconds: 0.0,
         };
@@ -1895,7 +1896,9 @@ mod tests {
         let lines: Vec<&str> = text.lines().collect();
         assert!(lines[0].starts_with("Your image is entirely black"), "{text}");
         assert!(lines[1].starts_with("Your PNG has an alpha channel"), "{text}");
-        assert!(lines[2].starts_with("Your image differs from rayscope's"), "{text}");
+        // Then the verdict of the search, then the figures.
+        assert!(lines[2].starts_with("No known mistake explains your picture"), "{text}");
+        assert!(lines[3].starts_with("Your image differs from rayscope's"), "{text}");
         let json = serde_json::to_value(&d).unwrap();
         assert_eq!(json["obvious"][0]["code"], "black");
         assert_eq!(json["obvious"][0]["numbers"]["pixels"], 4.0);
