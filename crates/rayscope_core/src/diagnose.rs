@@ -33,14 +33,14 @@ use crate::film::to_byte;
 use crate::integrator::{Counters, Integrator};
 use crate::material::Material;
 use crate::mistakes::{Mistake, Mistakes};
-use crate::observer::{NoObserver, RayTree};
+use crate::observer::NoObserver;
 use crate::render::{render, Mistaken};
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
 
 mod explained;
 
-use explained::Traced;
+use explained::{block_means, Traced, BLOCK};
 pub use explained::{Explained, NextStep, PartExplained};
 
 /// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
@@ -48,9 +48,6 @@ pub use explained::{Explained, NextStep, PartExplained};
 /// course's own scene-1 image 72 dB with every pixel counted), while the subtlest catalogue
 /// entries stay below 60 (Schlick's approximation 57 dB, rounded colours 51 dB).
 pub(crate) const MATCH_DB: f64 = 65.0;
-
-/// Side of the blocks both images are averaged over for the downsampled comparison at full size.
-pub(crate) const BLOCK: u32 = 4;
 
 /// Largest share of the pixels the robust PSNR leaves out (see the module's notes).
 pub(crate) const OUTLIERS: f64 = 0.01;
@@ -881,29 +878,6 @@ fn robust_psnr(mut px: Vec<(f64, bool)>) -> f64 {
     db_of(se, 3 * (n - dropped))
 }
 
-/// Averages an RGB8 grid of `w`×`h` over blocks of `k`×`k` (partial blocks at the edges), as f32.
-fn block_means(rgb: &[u8], w: u32, h: u32, k: u32) -> Vec<f32> {
-    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
-    let mut sum = vec![0.0f32; (bw * bh * 3) as usize];
-    let mut count = vec![0u32; (bw * bh) as usize];
-    for y in 0..h {
-        for x in 0..w {
-            let b = ((y / k) * bw + x / k) as usize;
-            let p = ((y * w + x) * 3) as usize;
-            for c in 0..3 {
-                sum[b * 3 + c] += f32::from(rgb[p + c]);
-            }
-            count[b] += 1;
-        }
-    }
-    for (b, n) in count.iter().enumerate() {
-        for c in 0..3 {
-            sum[b * 3 + c] /= *n as f32;
-        }
-    }
-    sum
-}
-
 /// The sparse grid of the coarse pass: every `k`-th pixel both ways, `k` chosen so the grid
 /// holds about `samples / spp` pixels; returns the pixels and the grid's size.
 fn coarse_grid(w: u32, h: u32, spp: u64, samples: u64) -> (Vec<(u32, u32)>, u32, u32) {
@@ -914,60 +888,6 @@ fn coarse_grid(w: u32, h: u32, spp: u64, samples: u64) -> (Vec<(u32, u32)>, u32,
     let pixels = ys.iter().flat_map(|&y| xs.iter().map(move |&x| (x, y))).collect();
     (pixels, xs.len() as u32, ys.len() as u32)
 }
-
-/// Where a pixel's difference belongs: the first entity its camera ray's path meets that is not
-/// a mirror, and the mirrors it is seen in.
-fn attribute(tree: &RayTree) -> (String, Vec<String>) {
-    let mut seen_in = Vec::new();
-    let mut node = match tree.nodes.first() {
-        Some(n) => n,
-        None => return ("(background)".into(), seen_in),
-    };
-    loop {
-        let Some(h) = &node.hit else {
-            return ("(background)".into(), seen_in);
-        };
-        if h.material_kind == "Reflective" {
-            let child = tree
-                .nodes
-                .iter()
-                .find(|c| c.parent == Some(node.id) && c.kind == crate::observer::RayKind::Reflection);
-            if let Some(c) = child {
-                seen_in.push(h.entity_name.clone());
-                node = c;
-                continue;
-            }
-        }
-        return (h.entity_name.clone(), seen_in);
-    }
-}
-
-/// The kind of the material of the entity [`attribute`] names (empty for the background).
-fn end_material(tree: &RayTree) -> String {
-    let mut node = match tree.nodes.first() {
-        Some(n) => n,
-        None => return String::new(),
-    };
-    loop {
-        let Some(h) = &node.hit else {
-            return String::new();
-        };
-        if h.material_kind == "Reflective" {
-            let child = tree
-                .nodes
-                .iter()
-                .find(|c| c.parent == Some(node.id) && c.kind == crate::observer::RayKind::Reflection);
-            if let Some(c) = child {
-                node = c;
-                continue;
-            }
-        }
-        return h.material_kind.to_string();
-    }
-}
-
-/// Most differing pixels whose ray trees [`diagnose`] traces for the attribution.
-const MAX_TRACED: usize = 20_000;
 
 /// Diagnoses `image` against rayscope's render of `file` under `settings`.
 ///

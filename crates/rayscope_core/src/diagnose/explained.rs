@@ -9,10 +9,66 @@
 use rayon::prelude::*;
 use serde::Serialize;
 
-use super::{attribute, block_means, BLOCK, MAX_TRACED};
+use crate::observer::{RayKind, RayTree};
 use crate::render::trace_pixel;
 use crate::scene::Scene;
 use crate::settings::RenderSettings;
+
+/// Side of the blocks both images are averaged over for the downsampled comparison at full size.
+pub(crate) const BLOCK: u32 = 4;
+
+/// Most differing pixels whose ray trees are traced for the attribution.
+const MAX_TRACED: usize = 20_000;
+
+/// Averages an RGB8 grid of `w`×`h` over blocks of `k`×`k` (partial blocks at the edges), as f32.
+pub(crate) fn block_means(rgb: &[u8], w: u32, h: u32, k: u32) -> Vec<f32> {
+    let (bw, bh) = (w.div_ceil(k), h.div_ceil(k));
+    let mut sum = vec![0.0f32; (bw * bh * 3) as usize];
+    let mut count = vec![0u32; (bw * bh) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let b = ((y / k) * bw + x / k) as usize;
+            let p = ((y * w + x) * 3) as usize;
+            for c in 0..3 {
+                sum[b * 3 + c] += f32::from(rgb[p + c]);
+            }
+            count[b] += 1;
+        }
+    }
+    for (b, n) in count.iter().enumerate() {
+        for c in 0..3 {
+            sum[b * 3 + c] /= *n as f32;
+        }
+    }
+    sum
+}
+
+/// Where a pixel's difference belongs: the first entity its camera ray's path meets that is not
+/// a mirror, the mirrors it is seen in, and that entity's material kind (empty for the
+/// background).
+fn attribute(tree: &RayTree) -> (String, Vec<String>, String) {
+    let mut seen_in = Vec::new();
+    let Some(mut node) = tree.nodes.first() else {
+        return ("(background)".into(), seen_in, String::new());
+    };
+    loop {
+        let Some(h) = &node.hit else {
+            return ("(background)".into(), seen_in, String::new());
+        };
+        if h.material_kind == "Reflective" {
+            let child = tree
+                .nodes
+                .iter()
+                .find(|c| c.parent == Some(node.id) && c.kind == RayKind::Reflection);
+            if let Some(c) = child {
+                seen_in.push(h.entity_name.clone());
+                node = c;
+                continue;
+            }
+        }
+        return (h.entity_name.clone(), seen_in, h.material_kind.to_string());
+    }
+}
 
 /// Share of a part's differing pixels a render must reproduce to explain that part.
 const PART_PERCENT: f64 = 60.0;
@@ -70,8 +126,7 @@ impl Traced {
             .par_iter()
             .map(|&i| {
                 let tree = trace_pixel(scene, base, i % w, i / w, 0);
-                let (entity, seen_in) = attribute(&tree);
-                let material = super::end_material(&tree);
+                let (entity, seen_in, material) = attribute(&tree);
                 Part {
                     entity,
                     seen_in,
