@@ -2,9 +2,12 @@
 
 use std::io::IsTerminal;
 use std::process::ExitCode;
+use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+
+use rayscope_check::image::{ImageCheck, LogNext};
 use rayscope_check::log::IdRole;
 use rayscope_check::{CheckOptions, Finding, Judge, LogContext, LogError};
 
@@ -37,18 +40,20 @@ fn nothing_judged(path: &std::path::Path, report: &rayscope_check::Report) -> Fa
     Failure::input(message)
 }
 
-/// Largest picture `check --image` compares: its colour sums take 40 bytes a pixel (160 MiB at
-/// this size), far past any course image (400×400) and a 2560×1600 screen.
+/// Largest picture `check --image` compares: its colour sums take 41 bytes a pixel (164 MiB at
+/// this size; rayscope's own render, made after they are dropped, 15), far past any course image
+/// (400×400) and a 2560×1600 screen.
 const MAX_PICTURE_PIXELS: u64 = 1 << 22;
 
 /// `--image`: the picture's bytes against the colours the log's camera rays brought back, read
-/// in a second pass over the log (32 bytes a pixel, within the image's own budget).
+/// in a second pass over the log, and, for a render without random sampling, against rayscope's
+/// render where the log lacks pixels.
 fn picture(
     a: &CheckArgs,
     png: &std::path::Path,
     judge: &Judge<'_>,
     roles: &[IdRole],
-) -> Result<rayscope_check::image::ImageCheck, Failure> {
+) -> Result<(ImageCheck, Option<LogNext>), Failure> {
     let s = judge.settings();
     let pixels = u64::from(s.width) * u64::from(s.height);
     if pixels > MAX_PICTURE_PIXELS {
@@ -75,7 +80,25 @@ fn picture(
     let mut sums = rayscope_check::image::PixelSums::new(s.width, s.height, judge.samples_per_pixel());
     let camera = |r: &rayscope_check::LoggedRay| judge.kind_of(r) == rayscope_check::log::Kind::Camera;
     sums.read(source.as_mut(), &camera).map_err(log_failure)?;
-    Ok(rayscope_check::image::judge(&sums, img.as_raw(), a.examples as usize))
+    let check = rayscope_check::image::judge(&sums, img.as_raw(), a.examples as usize);
+    let logged = sums.into_logged();
+    // With random sampling, two correct pictures differ in every pixel's noise.
+    if rayscope_core::integrator::Integrator::new(judge.scene(), s).stochastic {
+        return Ok((check, None));
+    }
+    let ours = rayscope_core::render(judge.scene(), s, &|_, _| {}, &AtomicBool::new(false))
+        .map_err(|e| Failure::failed(e.to_string()))?
+        .film
+        .to_rgb8();
+    let next = LogNext::picture(
+        judge.scene(),
+        s,
+        (&ours, img.as_raw()),
+        &logged,
+        &replay_flags(&a.opts),
+        (&a.file.display().to_string(), &png.display().to_string()),
+    );
+    Ok((check, Some(next)))
 }
 
 /// Runs `rayscope check`: exit 0 when every ray agrees, 1 when any disagrees, 2 for bad input
@@ -120,7 +143,16 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
         return Err(nothing_judged(&a.rays, &report));
     }
     if let Some(png) = &a.image {
-        report.image = Some(picture(a, png, &judge, &roles)?);
+        let (image, next) = picture(a, png, &judge, &roles)?;
+        report.image = Some(image);
+        report.next = next;
+    } else {
+        report.next = LogNext::sparse(
+            report.camera_rays,
+            (settings.width, settings.height, judge.samples_per_pixel()),
+            &replay_flags(&a.opts),
+            &a.file.display().to_string(),
+        );
     }
     let secs = start.elapsed().as_secs_f64();
 

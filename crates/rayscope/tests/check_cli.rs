@@ -305,3 +305,127 @@ fn a_picture_past_the_budget_is_refused_from_the_flags() {
         .code(2)
         .stderr(predicates::str::contains("over check's 4 megapixels"));
 }
+
+/// The tests' student tracer in Python (`--bug`, `--log`, `--image`; a PPM picture).
+fn student_tracer(scene: &Path, (w, h): (u32, u32), bug: &str, log: &Path, picture: &Path) {
+    let script = rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py");
+    let out = std::process::Command::new("python3")
+        .arg(script)
+        .arg("-f")
+        .arg(scene)
+        .args(["-w", &w.to_string(), "-h", &h.to_string(), "--bug", bug, "--log"])
+        .arg(log)
+        .arg("--image")
+        .arg(picture)
+        .output()
+        .expect("python3 runs the student tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+}
+
+/// The log's lines of the pixels `keep` chooses, as the logging kits write them when
+/// `RAYSCOPE_LOG_PIXELS` or `RAYSCOPE_LOG_RECT` is set.
+fn lines_of(log: &Path, keep: &dyn Fn(u32, u32) -> bool) -> String {
+    let text = std::fs::read_to_string(log).expect("log");
+    text.lines()
+        .filter(|l| {
+            let v: serde_json::Value = serde_json::from_str(l).expect("a JSON line");
+            let p = &v["pixel"];
+            keep(p[0].as_u64().unwrap_or(0) as u32, p[1].as_u64().unwrap_or(0) as u32)
+        })
+        .map(|l| format!("{l}\n"))
+        .collect()
+}
+
+/// A student logs a few rows where their tracer happens to be right while their picture is
+/// wrong elsewhere (a sphere test that compares with r, not r²: no catalogue has it). `check`
+/// does not say all is well: it compares the picture with rayscope's render, names the pixels
+/// the log lacks as the kits' variables, and the log of those pixels shows the mistake.
+#[test]
+fn a_log_that_misses_the_mistake_is_told_which_pixels_to_log_next() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let scene = rayscope_testkit::scene("whitted.txt");
+    let (w, h) = (48, 36);
+    let (full, picture) = (dir.path().join("full.jsonl"), dir.path().join("yours.ppm"));
+    student_tracer(&scene, (w, h), "radius-not-squared", &full, &picture);
+    let check = |log: &Path, image: bool| {
+        let mut c = rayscope();
+        c.arg("check").arg("-f").arg(&scene).arg("--rays").arg(log);
+        c.args(["-w", &w.to_string(), "-h", &h.to_string(), "--quiet"]);
+        if image {
+            c.arg("--image").arg(&picture);
+        }
+        let out = c.output().expect("rayscope check runs");
+        (out.status.code(), String::from_utf8_lossy(&out.stdout).into_owned())
+    };
+
+    // RAYSCOPE_LOG_RECT="0,0,47,3": the top rows, wall and ceiling, far above every sphere.
+    let top = dir.path().join("top.jsonl");
+    write(&top, &lines_of(&full, &|_, y| y <= 3));
+    let (code, text) = check(&top, true);
+    assert_eq!(code, Some(0), "{text}");
+    let first = text.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with("no mistake found in the log, but your picture differs from rayscope's at ")
+            && first.contains("not in your log: log some of those next"),
+        "{text}"
+    );
+    let env = text
+        .lines()
+        .find_map(|l| l.trim().strip_prefix("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\""))
+        .unwrap_or_else(|| panic!("no pixels to log next:\n{text}"));
+    let pixels: Vec<(u32, u32)> = env
+        .split('"')
+        .next()
+        .unwrap_or_default()
+        .split(' ')
+        .map(|p| {
+            let (x, y) = p.split_once(',').expect("x,y");
+            (x.parse().expect("x"), y.parse().expect("y"))
+        })
+        .collect();
+    assert!(!pixels.is_empty() && pixels.len() <= 6, "{text}");
+    assert!(pixels.iter().all(|&(x, y)| x < w && y > 3 && y < h), "{pixels:?}");
+    assert!(
+        text.contains(&format!("rayscope check -f {} --rays rays.jsonl", scene.display()))
+            && text.contains(&format!("--image {}", picture.display())),
+        "{text}"
+    );
+
+    // What the student's kit logs with those variables: the mistake is there.
+    let next = dir.path().join("next.jsonl");
+    write(&next, &lines_of(&full, &|x, y| pixels.contains(&(x, y))));
+    let (code, text) = check(&next, true);
+    assert_eq!(code, Some(1), "{text}");
+    assert!(text.starts_with("mistake: "), "{text}");
+
+    // Without the picture, the sparse log is said to be sparse, with a grid to log instead.
+    let (code, text) = check(&top, false);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.starts_with("no mistake found"), "{text}");
+    assert!(
+        text.contains(&format!("your log has 192 of the picture's {} camera rays", w * h))
+            && text.contains("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_STEP=2 ")
+            && text.contains("--image YOUR_PICTURE.png"),
+        "{text}"
+    );
+
+    // The whole log of a correct tracer: nothing to log next.
+    let (right_log, right) = (dir.path().join("right.jsonl"), dir.path().join("right.ppm"));
+    student_tracer(&scene, (w, h), "none", &right_log, &right);
+    let out = rayscope()
+        .arg("check")
+        .arg("-f")
+        .arg(&scene)
+        .arg("--rays")
+        .arg(&right_log)
+        .args(["-w", &w.to_string(), "-h", &h.to_string(), "--quiet", "--image"])
+        .arg(&right)
+        .output()
+        .expect("rayscope check runs");
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert_eq!(out.status.code(), Some(0), "{text}");
+    assert!(
+        text.starts_with("no mistake found") && !text.contains("log these pixels next") && !text.contains("RAYSCOPE_LOG"),
+        "{text}"
+    );
+}

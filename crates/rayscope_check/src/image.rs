@@ -6,6 +6,9 @@
 
 use serde::Serialize;
 
+use rayscope_core::diagnose::{next_step, NextStep};
+use rayscope_core::{RenderSettings, Scene};
+
 use crate::log::{LogError, LoggedRay, RaySource};
 use crate::verdict::Code;
 
@@ -21,11 +24,13 @@ pub struct PixelSums {
     bytes: Vec<[u32; 3]>,
     /// Samples with a colour.
     n: Vec<u32>,
+    /// Pixels with a logged camera ray, coloured or not.
+    logged: Vec<bool>,
 }
 
 impl PixelSums {
     /// Empty sums for a `width` × `height` image of `spp` samples a pixel (the caller bounds the
-    /// size: 32 bytes a pixel).
+    /// size: 41 bytes a pixel).
     #[must_use]
     pub fn new(width: u32, height: u32, spp: u32) -> Self {
         let len = width as usize * height as usize;
@@ -36,18 +41,30 @@ impl PixelSums {
             sum: vec![[0.0; 3]; len],
             bytes: vec![[0; 3]; len],
             n: vec![0; len],
+            logged: vec![false; len],
         }
     }
 
-    /// Adds a camera ray's colour to its pixel; rays without a pixel or colour are left out.
+    /// The pixels with a logged camera ray, row by row.
+    #[must_use]
+    pub fn into_logged(self) -> Vec<bool> {
+        self.logged
+    }
+
+    /// Marks a camera ray's pixel as logged and adds its colour; rays without a pixel are left
+    /// out, and rays without a colour add none.
     pub fn add(&mut self, r: &LoggedRay) {
-        let (Some([x, y]), Some(c)) = (r.pixel, r.color) else {
+        let Some([x, y]) = r.pixel else {
             return;
         };
         if x >= self.width || y >= self.height {
             return;
         }
         let i = (y * self.width + x) as usize;
+        self.logged[i] = true;
+        let Some(c) = r.color else {
+            return;
+        };
         for ((sum, bytes), v) in self.sum[i].iter_mut().zip(&mut self.bytes[i]).zip(c.to_array()) {
             *sum += v;
             *bytes += u32::from(course_byte(v));
@@ -276,6 +293,93 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
         verdict,
         detail,
         examples,
+    }
+}
+
+/// Pixels about as many as a log of [`LogNext::Sparse`]'s grid covers: enough to meet every
+/// entity of a course scene, few enough to log in seconds.
+const GRID_PIXELS: u64 = 1500;
+
+/// What to log next when a log holds no mistake but does not show the whole picture.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum LogNext {
+    /// The tracer's picture against rayscope's render of the same settings.
+    Picture {
+        /// Pixels where the picture differs from rayscope's render by two levels or more.
+        differing: u64,
+        /// Of those, pixels without a logged camera ray.
+        unlogged: u64,
+        /// A few of the unlogged ones to log next, and the commands for them.
+        next: Option<NextStep>,
+    },
+    /// No picture to compare, and camera rays for only part of it.
+    Sparse {
+        /// Camera rays logged.
+        camera_rays: u64,
+        /// Camera rays of the whole picture (pixels × samples).
+        all: u64,
+        /// The logging kits' environment for an even grid of about 1,500 pixels.
+        grid_env: String,
+        /// The `rayscope check` command for that log together with the picture.
+        check_command: String,
+    },
+}
+
+impl LogNext {
+    /// The tracer's `image` against rayscope's render `ours` (RGB bytes, `settings`' size) where
+    /// `logged` (row by row) marks the pixels the log has camera rays for; `flags` reproduce
+    /// `settings`, `scene_path` names the scene and `image_path` the picture as the student does.
+    #[must_use]
+    pub fn picture(
+        scene: &Scene,
+        settings: &RenderSettings,
+        (ours, image): (&[u8], &[u8]),
+        logged: &[bool],
+        flags: &str,
+        (scene_path, image_path): (&str, &str),
+    ) -> LogNext {
+        // Off by one level is rounding (a tracer in double precision against rayscope's single).
+        let differing: Vec<u32> = ours
+            .chunks_exact(3)
+            .zip(image.chunks_exact(3))
+            .enumerate()
+            .filter(|(_, (a, b))| a.iter().zip(*b).any(|(x, y)| x.abs_diff(*y) >= 2))
+            .map(|(i, _)| i as u32)
+            .collect();
+        let unlogged: Vec<u32> = differing
+            .iter()
+            .copied()
+            .filter(|&i| !logged.get(i as usize).copied().unwrap_or(false))
+            .collect();
+        let next = next_step(scene, settings, &unlogged, flags, scene_path).map(|mut n| {
+            n.check_command.push_str(&format!(" --image {image_path}"));
+            n
+        });
+        LogNext::Picture {
+            differing: differing.len() as u64,
+            unlogged: unlogged.len() as u64,
+            next,
+        }
+    }
+
+    /// For a log of `camera_rays` camera rays of a `width`×`height` picture of `spp` samples a
+    /// pixel, when it lacks some: a grid of about [`GRID_PIXELS`] pixels to log instead, or the
+    /// picture to give; `None` for a log of every sample.
+    #[must_use]
+    pub fn sparse(camera_rays: u64, (width, height, spp): (u32, u32, u32), flags: &str, scene_path: &str) -> Option<LogNext> {
+        let pixels = u64::from(width) * u64::from(height);
+        let all = pixels * u64::from(spp.max(1));
+        if camera_rays >= all {
+            return None;
+        }
+        let step = ((pixels as f64 / GRID_PIXELS as f64).sqrt().ceil() as u64).max(1);
+        Some(LogNext::Sparse {
+            camera_rays,
+            all,
+            grid_env: format!("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_STEP={step}"),
+            check_command: format!("rayscope check -f {scene_path} --rays rays.jsonl --image YOUR_PICTURE.png {flags}"),
+        })
     }
 }
 

@@ -6,6 +6,8 @@ use std::time::Duration;
 
 use serde::Serialize;
 
+use crate::image::LogNext;
+
 use crate::judge::{Cause, Finding, Tally, Tolerances};
 use crate::log::printable;
 use crate::verdict::Code;
@@ -127,6 +129,76 @@ impl CauseGroup {
     }
 }
 
+fn plural(n: u64) -> &'static str {
+    if n == 1 {
+        ""
+    } else {
+        "s"
+    }
+}
+
+/// The lines of [`Report::to_text`] that say what to log next.
+fn next_text(s: &mut String, n: &LogNext, shaded_judged: u64) {
+    match n {
+        LogNext::Picture {
+            differing,
+            unlogged,
+            next,
+        } => {
+            if *differing == 0 {
+                let _ = writeln!(
+                    s,
+                    "\nyour picture against rayscope's render: no pixel differs by more than one level"
+                );
+                return;
+            }
+            let _ = writeln!(
+                s,
+                "\nyour picture against rayscope's render: {differing} pixel{} differ by two levels or more, {unlogged} of them with no camera ray in your log",
+                plural(*differing)
+            );
+            if let Some(n) = next {
+                let _ = writeln!(
+                    s,
+                    "log these pixels next (the logging kits read these variables: docs/check.md), then check again:"
+                );
+                let _ = writeln!(s, "  {} <run your tracer as before>", n.log_env);
+                let _ = writeln!(s, "  {}", n.check_command);
+                let _ = writeln!(s, "rayscope's own rays at the first of them: {}", n.trace_command);
+            } else if *unlogged == 0 {
+                let what = if shaded_judged == 0 {
+                    "log \"color\" (docs/check.md) so their shading is judged too"
+                } else {
+                    "see the colours not judged above, or let `rayscope diagnose` compare the two pictures"
+                };
+                for l in wrap(
+                    &format!("each of them is in your log and was judged above; where no verdict names one, its rays agree or tie and the difference is in the colours: {what}"),
+                    96,
+                ) {
+                    let _ = writeln!(s, "  {l}");
+                }
+            }
+        }
+        LogNext::Sparse {
+            camera_rays,
+            all,
+            grid_env,
+            check_command,
+        } => {
+            for l in wrap(
+                &format!(
+                    "note: your log has {camera_rays} of the picture's {all} camera rays, so only those pixels were judged. Give check your picture (--image) and it finds the pixels where it differs from rayscope's render, or log an even grid of pixels:"
+                ),
+                96,
+            ) {
+                let _ = writeln!(s, "{l}");
+            }
+            let _ = writeln!(s, "  {grid_env} <run your tracer as before>");
+            let _ = writeln!(s, "  {check_command}");
+        }
+    }
+}
+
 /// The result of checking a log.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Report {
@@ -161,6 +233,8 @@ pub struct Report {
     pub tie_verdicts: Vec<VerdictGroup>,
     /// The tracer's picture against its logged colours (`check --image`).
     pub image: Option<crate::image::ImageCheck>,
+    /// What to log next when no ray disagrees but the log does not show the whole picture.
+    pub next: Option<crate::image::LogNext>,
     /// The tolerances used.
     pub tolerances: Tolerances,
     /// Time spent.
@@ -211,6 +285,7 @@ impl Report {
             verdicts,
             tie_verdicts: ties,
             image: None,
+            next: None,
             tolerances,
             timing,
         }
@@ -284,6 +359,14 @@ impl Report {
             )
         } else if self.rays == 0 {
             "no ray was judged: the log has none".to_string()
+        } else if let Some(LogNext::Picture {
+            differing, unlogged, ..
+        }) = self.next.as_ref().filter(|n| self.disagree == 0 && matches!(n, LogNext::Picture { unlogged, .. } if *unlogged > 0))
+        {
+            format!(
+                "no mistake found in the log, but your picture differs from rayscope's at {differing} pixel{}, {unlogged} of them not in your log: log some of those next (below)",
+                plural(*differing)
+            )
         } else if self.shaded_judged == 0 {
             "no mistake found in the rays: every ray agrees with rayscope; no colour was logged, so shading (diffuse sums, Fresnel, mirrors) was not judged: log \"color\" to have it judged".to_string()
         } else if self.shaded_unjudged > self.shaded_judged / 10 {
@@ -414,6 +497,9 @@ impl Report {
                     e.pixel[0], e.pixel[1], e.yours, e.colour[0], e.colour[1], e.colour[2], e.expected
                 );
             }
+        }
+        if let Some(n) = self.next.as_ref().filter(|_| self.disagree == 0) {
+            next_text(&mut s, n, self.shaded_judged);
         }
         if !self.tie_verdicts.is_empty() {
             let _ = writeln!(s, "\nties (either answer is right; not counted against you):");

@@ -1198,6 +1198,23 @@ fn closer_depth(
     Some(c.explain(base, m))
 }
 
+/// The pixels to log next when a student's ray log holds no mistake but their picture differs
+/// from rayscope's render at pixels the log lacks (`unlogged`, row-major indices under
+/// `settings`): a few, spread over what those pixels show, as the logging kits' environment and
+/// the commands that judge them; `flags` reproduce `settings`, `scene_path` names the scene file
+/// as the student does.
+#[must_use]
+pub fn next_step(
+    scene: &Scene,
+    settings: &RenderSettings,
+    unlogged: &[u32],
+    flags: &str,
+    scene_path: &str,
+) -> Option<NextStep> {
+    let traced = Traced::of(scene, settings, unlogged);
+    NextStep::new(&traced.next_pixels(settings.width.max(1)), flags, scene_path)
+}
+
 /// The pixels where two RGB8 images differ, as indices (row-major), and the threshold used:
 /// pixels off by at least two levels in some channel, or by one where nothing differs by more
 /// (so one-level rounding noise does not drown a real difference).

@@ -155,6 +155,49 @@ impl Default for RenderSettings {
     }
 }
 
+impl RenderSettings {
+    /// The command-line flags that give these settings: the size, then each setting that is not
+    /// the default (the debug channel has no flag).
+    #[must_use]
+    pub fn flags(&self) -> String {
+        let d = RenderSettings::default();
+        let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
+        let mut f = format!("-w {} -h {}", self.width, self.height);
+        let mut add = |on: bool, flag: String| {
+            if on {
+                f.push(' ');
+                f.push_str(&flag);
+            }
+        };
+        let stage = match self.stage {
+            Stage::One => "1",
+            Stage::Two => "2",
+            Stage::Full => "3",
+        };
+        add(self.stage != d.stage, format!("--stage {stage}"));
+        add(self.aa != d.aa, format!("-x {}", self.aa));
+        add(self.ambient, "-l".into());
+        add(self.quality != d.quality, format!("-q {}", self.quality));
+        add(
+            self.depth_limit != d.depth_limit,
+            format!("--depth-limit {}", self.depth_limit.name()),
+        );
+        add(self.max_depth != d.max_depth, format!("--max-depth {}", self.max_depth));
+        add(self.edition != d.edition, format!("--edition {}", self.edition.year()));
+        let (c, dc) = (&self.camera, &d.camera);
+        add(c.position != dc.position, format!("-p {}", v(c.position)));
+        add(c.axis != dc.axis, format!("-a {}", v(c.axis)));
+        add(c.angle_deg != dc.angle_deg, format!("-n {}", c.angle_deg));
+        add(c.fov_deg != dc.fov_deg, format!("--fov {}", c.fov_deg));
+        add(c.fov_axis != dc.fov_axis, "--fov-axis vertical".into());
+        add(c.aperture_radius != dc.aperture_radius, format!("-r {}", c.aperture_radius));
+        add(c.focal_length != dc.focal_length, format!("-t {}", c.focal_length));
+        add(self.seed != d.seed, format!("--seed {}", self.seed));
+        add(!self.mistakes.is_empty(), format!("--mistake {}", self.mistakes));
+        f
+    }
+}
+
 /// Memory a render holds per pixel at its peak: the float film (12 bytes), the tiles' results
 /// before they are copied in (12) and the 8-bit image being encoded (4), rounded up to leave room
 /// for the encoder's buffers. Path-traced tiles stream their samples in bounded batches, so this

@@ -416,3 +416,93 @@ fn uploads_are_refused_across_sites_with_other_types_or_too_large() {
     assert_eq!(a.code, 415);
     server.stop();
 }
+
+/// The student tracer's whole log and picture of `scene` at `w`×`h` with `bug`.
+fn student_run(scene: &Path, w: u32, h: u32, bug: &str) -> Option<(String, rayscope_debug::RgbImage)> {
+    let py = python()?;
+    let dir = std::env::temp_dir().join(format!("rayscope-student-run-{}-{bug}-{w}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let (log, ppm) = (dir.join("rays.jsonl"), dir.join("out.ppm"));
+    let out = Command::new(py)
+        .arg(rayscope_testkit::workspace().join("crates/rayscope_check/tests/student/tracer.py"))
+        .arg("-f")
+        .arg(scene)
+        .args(["-w", &w.to_string(), "-h", &h.to_string(), "--bug", bug, "--log"])
+        .arg(&log)
+        .arg("--image")
+        .arg(&ppm)
+        .output()
+        .expect("run the student tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let img = image::open(&ppm).expect("the tracer's PPM").into_rgb8();
+    let img = rayscope_debug::RgbImage {
+        width: img.width(),
+        height: img.height(),
+        rgb: img.into_raw(),
+    };
+    let text = std::fs::read_to_string(&log).expect("log");
+    let _ = std::fs::remove_dir_all(&dir);
+    Some((text, img))
+}
+
+/// A log of the top rows, where the tracer (a sphere test that compares with r, not r²) is right,
+/// with the student's whole picture: the panel is handed the pixels to log next, all below those
+/// rows where the picture differs from rayscope's render; without the picture, a grid.
+#[test]
+fn a_log_that_misses_the_mistake_gets_the_pixels_to_log_next() {
+    let (w, h) = (48, 36);
+    let Some((log, img)) = student_run(&whitted(), w, h, "radius-not-squared") else {
+        return;
+    };
+    let top: String = log
+        .lines()
+        .filter(|l| json(l.as_bytes())["pixel"][1].as_u64().is_some_and(|y| y <= 3))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let dir = std::env::temp_dir().join(format!("rayscope-top-log-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("top.jsonl");
+    std::fs::write(&path, &top).unwrap();
+    for with_image in [true, false] {
+        let server = start(
+            &whitted(),
+            w,
+            h,
+            rayscope_debug::student::StudentInput {
+                rays: Some(path.clone()),
+                image: with_image.then(|| img.clone()),
+                ..Default::default()
+            },
+        );
+        let addr = server.addr;
+        wait_for_render(addr);
+        let s = wait_state(addr, &["done", "error"]);
+        assert_eq!(s["state"], "done", "{s:#}");
+        assert_eq!(s["judged"]["disagree"], 0, "{s:#}");
+        let mut next = s["judged"]["next"].clone();
+        for _ in 0..100 {
+            if !next.is_null() {
+                break;
+            }
+            std::thread::sleep(Duration::from_millis(100));
+            next = get(addr, "/api/rays/summary")["judged"]["next"].clone();
+        }
+        if with_image {
+            assert_eq!(next["kind"], "picture", "{next:#}");
+            assert!(next["unlogged"].as_u64().unwrap_or(0) > 0, "{next:#}");
+            let pixels = next["next"]["pixels"].as_array().expect("pixels");
+            assert!(!pixels.is_empty() && pixels.len() <= 6, "{next:#}");
+            assert!(pixels.iter().all(|p| p[1].as_u64().is_some_and(|y| y > 3)), "{next:#}");
+            let env = next["next"]["log_env"].as_str().unwrap_or_default();
+            assert!(env.starts_with("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\""), "{env}");
+            let check = next["next"]["check_command"].as_str().unwrap_or_default();
+            assert!(check.contains("--rays rays.jsonl -w 48 -h 36 --stage 2"), "{check}");
+        } else {
+            assert_eq!(next["kind"], "sparse", "{next:#}");
+            assert_eq!(next["camera_rays"], 4 * w, "{next:#}");
+            assert_eq!(next["grid_env"], "RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_STEP=2", "{next:#}");
+        }
+        server.stop();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -86,7 +86,7 @@ fn parse_range(q: &HashMap<String, String>) -> ApiResult<Option<u8>> {
 }
 
 /// The finished render of the current render job, if it has finished.
-fn current_render(st: &AppState) -> Option<Arc<Rendered>> {
+pub(super) fn current_render(st: &AppState) -> Option<Arc<Rendered>> {
     let g = st.lock();
     g.rendered
         .clone()

@@ -24,6 +24,7 @@ use std::io::Read;
 use std::path::Path;
 
 use axum::extract::Query;
+use rayscope_check::image::LogNext;
 use rayscope_check::log::IdRole;
 use rayscope_check::PixelLog;
 
@@ -146,6 +147,8 @@ struct RInner {
     error: Option<(RenderSettings, String)>,
     image: Option<(String, Arc<RgbImage>)>,
     next: u64,
+    /// What to log next for a judged log, image and render ([`NextKey`]), once worked out.
+    log_next: Option<(NextKey, Value)>,
     /// How to stop the upload being received, so that a newer one replaces it.
     receiving: Option<Arc<tokio::sync::Notify>>,
 }
@@ -430,9 +433,71 @@ fn summary(st: &Arc<AppState>) -> Value {
     v
 }
 
+/// What [`log_next`] was worked out for: the judgement's job, the student's image (by its
+/// allocation) and the render's job.
+type NextKey = (u64, usize, u64);
+
+/// What to log next when the judged log has no mistake but does not show the whole picture:
+/// with the student's image, the pixels where it differs from rayscope's finished render of the
+/// same settings that the log lacks (not for renders with random sampling, whose noise differs
+/// everywhere); without one, a grid of pixels when the log lacks some. `None` while the log,
+/// the image or the render is not ready for the current settings.
+fn log_next(st: &AppState) -> Option<Value> {
+    let rendered = compare_api::current_render(st);
+    let settings = st.lock().settings;
+    let (judged, image) = {
+        let g = st.rays.lock();
+        let j = g.judged.clone()?;
+        if g.running.is_some() || j.settings != settings || j.log.report.disagree > 0 {
+            return None;
+        }
+        (j, g.image.clone())
+    };
+    let log = &judged.log;
+    let scene_path = st.scene_file.path.display().to_string();
+    let flags = settings.flags();
+    let Some((name, img)) = image.filter(|(_, i)| (i.width, i.height) == (settings.width, settings.height)) else {
+        let sparse = LogNext::sparse(log.report.camera_rays, (log.width, log.height, log.spp), &flags, &scene_path);
+        return sparse.and_then(|n| serde_json::to_value(n).ok());
+    };
+    let rendered = rendered.filter(|r| r.settings == settings)?;
+    if rayscope_core::integrator::Integrator::new(&st.scene, &settings).stochastic {
+        return None;
+    }
+    let key = (judged.job, Arc::as_ptr(&img) as usize, rendered.job);
+    if let Some((k, v)) = &st.rays.lock().log_next {
+        if *k == key {
+            return Some(v.clone());
+        }
+    }
+    let logged: Vec<bool> = (0..log.height)
+        .flat_map(|y| (0..log.width).map(move |x| (x, y)))
+        .map(|(x, y)| log.status_at(x, y) != rayscope_check::PixelStatus::NotLogged)
+        .collect();
+    let next = LogNext::picture(
+        &st.scene,
+        &settings,
+        (&rendered.image.rgb, &img.rgb),
+        &logged,
+        &flags,
+        (&scene_path, &name),
+    );
+    let v = serde_json::to_value(next).ok()?;
+    st.rays.lock().log_next = Some((key, v.clone()));
+    Some(v)
+}
+
 pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> {
     refresh(&st);
-    Json(summary(&st))
+    let mut v = summary(&st);
+    if v.get("judged").is_some() {
+        // Traces up to a few thousand pixels the first time: off the async workers.
+        let s = st.clone();
+        if let Ok(Some(next)) = tokio::task::spawn_blocking(move || log_next(&s)).await {
+            v["judged"]["next"] = next;
+        }
+    }
+    Json(v)
 }
 
 /// A file name as sent, without its folders and control characters, at most 120 characters.

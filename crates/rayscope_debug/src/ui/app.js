@@ -702,6 +702,7 @@ async function theirImageUpload(file) {
   try {
     const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
     raysOnSummary(s);
+    raysPoll();
     cmp.data = null;
     compareDropImages();
     comparePoll();
@@ -1138,11 +1139,36 @@ function raysOnSummary(s) {
     codes.append(el("span", { title: `${c.summary}${follows}` }, el("b", {}, c.name), ` × ${c.samples} sample${c.samples === 1 ? "" : "s"}`));
   }
   for (const v of j.tie_verdicts) codes.append(el("span", { title: v.summary + " (not counted against you)" }, v.code, ` × ${v.count}`));
+  raysNext(s, j, codes);
   if (j.job !== rays.mapJob) {
     rays.mapJob = j.job;
     raysLoadMap(j);
     raysLoadRendered();
     if (st.pixel) raysPixel(); else requestView();
+  }
+}
+// A log with no mistake that does not show the whole picture: the pixels to log next, as the
+// logging kits' variables. The server works them out once the render and the student's image
+// are there, so the summary is asked again until they are.
+function raysNext(s, j, codes) {
+  const nx = j.next;
+  if (nx && nx.kind === "picture" && nx.next) {
+    codes.append(el("div", { class: "rays-headline", id: "rays-next-headline" },
+      `No mistake in your log, but your image differs from rayscope's render at ${nx.differing} pixel${nx.differing === 1 ? "" : "s"}, ` +
+      `${nx.unlogged} of them not in your log: log some of those next (the logging kits read these variables; docs/check.md):`),
+    el("pre", { id: "rays-next", class: "rays-next" }, `${nx.next.log_env} <run your tracer as before>\n${nx.next.check_command}`));
+  } else if (nx && nx.kind === "sparse") {
+    codes.append(el("div", { class: "dim", id: "rays-next-headline" },
+      `Your log has ${nx.camera_rays} of the picture's ${nx.all} camera rays, so only those pixels were judged. ` +
+      "Load your image (Compare) to find where it differs from rayscope's render, or log an even grid:"),
+    el("pre", { id: "rays-next", class: "rays-next" }, `${nx.grid_env} <run your tracer as before>`));
+  }
+  const waiting = !nx && s.state === "done" && !j.disagree && s.image && s.image.matches;
+  if (waiting && (rays.nextTries = (rays.nextTries || 0) + 1) <= 60) {
+    clearTimeout(rays.pollTimer);
+    rays.pollTimer = setTimeout(raysPoll, 1000);
+  } else if (!waiting) {
+    rays.nextTries = 0;
   }
 }
 function raysLoadMap(j) {
