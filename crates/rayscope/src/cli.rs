@@ -735,6 +735,7 @@ mod tests {
     #[test]
     fn settings_written_as_flags_read_back_the_same() {
         #[derive(Parser)]
+        #[command(disable_help_flag = true)]
         struct T {
             #[command(flatten)]
             o: RenderOpts,

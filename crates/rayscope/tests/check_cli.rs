@@ -425,7 +425,9 @@ fn a_log_that_misses_the_mistake_is_told_which_pixels_to_log_next() {
     let text = String::from_utf8_lossy(&out.stdout);
     assert_eq!(out.status.code(), Some(0), "{text}");
     assert!(
-        text.starts_with("no mistake found") && !text.contains("log these pixels next") && !text.contains("RAYSCOPE_LOG"),
+        text.starts_with("no mistake found")
+            && !text.contains("log these pixels next")
+            && !text.contains("RAYSCOPE_LOG"),
         "{text}"
     );
 }

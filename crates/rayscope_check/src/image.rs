@@ -367,7 +367,12 @@ impl LogNext {
     /// pixel, when it lacks some: a grid of about [`GRID_PIXELS`] pixels to log instead, or the
     /// picture to give; `None` for a log of every sample.
     #[must_use]
-    pub fn sparse(camera_rays: u64, (width, height, spp): (u32, u32, u32), flags: &str, scene_path: &str) -> Option<LogNext> {
+    pub fn sparse(
+        camera_rays: u64,
+        (width, height, spp): (u32, u32, u32),
+        flags: &str,
+        scene_path: &str,
+    ) -> Option<LogNext> {
         let pixels = u64::from(width) * u64::from(height);
         let all = pixels * u64::from(spp.max(1));
         if camera_rays >= all {

@@ -361,7 +361,10 @@ impl Report {
             "no ray was judged: the log has none".to_string()
         } else if let Some(LogNext::Picture {
             differing, unlogged, ..
-        }) = self.next.as_ref().filter(|n| self.disagree == 0 && matches!(n, LogNext::Picture { unlogged, .. } if *unlogged > 0))
+        }) = self
+            .next
+            .as_ref()
+            .filter(|n| self.disagree == 0 && matches!(n, LogNext::Picture { unlogged, .. } if *unlogged > 0))
         {
             format!(
                 "no mistake found in the log, but your picture differs from rayscope's at {differing} pixel{}, {unlogged} of them not in your log: log some of those next (below)",

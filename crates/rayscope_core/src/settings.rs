@@ -190,7 +190,10 @@ impl RenderSettings {
         add(c.angle_deg != dc.angle_deg, format!("-n {}", c.angle_deg));
         add(c.fov_deg != dc.fov_deg, format!("--fov {}", c.fov_deg));
         add(c.fov_axis != dc.fov_axis, "--fov-axis vertical".into());
-        add(c.aperture_radius != dc.aperture_radius, format!("-r {}", c.aperture_radius));
+        add(
+            c.aperture_radius != dc.aperture_radius,
+            format!("-r {}", c.aperture_radius),
+        );
         add(c.focal_length != dc.focal_length, format!("-t {}", c.focal_length));
         add(self.seed != d.seed, format!("--seed {}", self.seed));
         add(!self.mistakes.is_empty(), format!("--mistake {}", self.mistakes));

@@ -494,13 +494,19 @@ fn a_log_that_misses_the_mistake_gets_the_pixels_to_log_next() {
             assert!(!pixels.is_empty() && pixels.len() <= 6, "{next:#}");
             assert!(pixels.iter().all(|p| p[1].as_u64().is_some_and(|y| y > 3)), "{next:#}");
             let env = next["next"]["log_env"].as_str().unwrap_or_default();
-            assert!(env.starts_with("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\""), "{env}");
+            assert!(
+                env.starts_with("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\""),
+                "{env}"
+            );
             let check = next["next"]["check_command"].as_str().unwrap_or_default();
             assert!(check.contains("--rays rays.jsonl -w 48 -h 36 --stage 2"), "{check}");
         } else {
             assert_eq!(next["kind"], "sparse", "{next:#}");
             assert_eq!(next["camera_rays"], 4 * w, "{next:#}");
-            assert_eq!(next["grid_env"], "RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_STEP=2", "{next:#}");
+            assert_eq!(
+                next["grid_env"], "RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_STEP=2",
+                "{next:#}"
+            );
         }
         server.stop();
     }

@@ -457,7 +457,12 @@ fn log_next(st: &AppState) -> Option<Value> {
     let scene_path = st.scene_file.path.display().to_string();
     let flags = settings.flags();
     let Some((name, img)) = image.filter(|(_, i)| (i.width, i.height) == (settings.width, settings.height)) else {
-        let sparse = LogNext::sparse(log.report.camera_rays, (log.width, log.height, log.spp), &flags, &scene_path);
+        let sparse = LogNext::sparse(
+            log.report.camera_rays,
+            (log.width, log.height, log.spp),
+            &flags,
+            &scene_path,
+        );
         return sparse.and_then(|n| serde_json::to_value(n).ok());
     };
     let rendered = rendered.filter(|r| r.settings == settings)?;
