@@ -433,6 +433,17 @@ fn summary(st: &Arc<AppState>) -> Value {
     v
 }
 
+/// The image's name for a command to paste: as it is when a shell takes it as one word, else a
+/// placeholder (an image given at start, or named with spaces, has no such name).
+fn pasteable(name: &str) -> String {
+    let plain = |c: char| c.is_ascii_alphanumeric() || "._-+/".contains(c);
+    if !name.is_empty() && name.chars().all(plain) {
+        name.to_string()
+    } else {
+        "YOUR_PICTURE.png".to_string()
+    }
+}
+
 /// What [`log_next`] was worked out for: the judgement's job, the student's image (by its
 /// allocation) and the render's job.
 type NextKey = (u64, usize, u64);
@@ -485,7 +496,7 @@ fn log_next(st: &AppState) -> Option<Value> {
         (&rendered.image.rgb, &img.rgb),
         &logged,
         &flags,
-        (&scene_path, &name),
+        (&scene_path, &pasteable(&name)),
     );
     let v = serde_json::to_value(next).ok()?;
     st.rays.lock().log_next = Some((key, v.clone()));
