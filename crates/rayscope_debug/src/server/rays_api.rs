@@ -148,7 +148,7 @@ struct RInner {
     image: Option<(String, Arc<RgbImage>)>,
     next: u64,
     /// What to log next for a judged log, image and render ([`NextKey`]), once worked out.
-    log_next: Option<(NextKey, Value)>,
+    log_next: Option<(NextKey, Option<Value>)>,
     /// How to stop the upload being received, so that a newer one replaces it.
     receiving: Option<Arc<tokio::sync::Notify>>,
 }
@@ -444,9 +444,15 @@ fn pasteable(name: &str) -> String {
     }
 }
 
-/// What [`log_next`] was worked out for: the judgement's job, the student's image (by its
-/// allocation) and the render's job.
-type NextKey = (u64, usize, u64);
+/// What [`log_next`] was worked out for: the judgement's job, the student's image (held, so that
+/// its allocation cannot be reused by a newer one) and the render's job.
+struct NextKey(u64, Arc<RgbImage>, u64);
+
+impl NextKey {
+    fn same(&self, o: &NextKey) -> bool {
+        self.0 == o.0 && Arc::ptr_eq(&self.1, &o.1) && self.2 == o.2
+    }
+}
 
 /// What to log next when the judged log has no mistake but does not show the whole picture:
 /// with the student's image, the pixels where it differs from rayscope's finished render of the
@@ -477,30 +483,50 @@ fn log_next(st: &AppState) -> Option<Value> {
         return sparse.and_then(|n| serde_json::to_value(n).ok());
     };
     let rendered = rendered.filter(|r| r.settings == settings)?;
-    if rayscope_core::integrator::Integrator::new(&st.scene, &settings).stochastic {
-        return None;
-    }
-    let key = (judged.job, Arc::as_ptr(&img) as usize, rendered.job);
+    let key = NextKey(judged.job, img.clone(), rendered.job);
     if let Some((k, v)) = &st.rays.lock().log_next {
-        if *k == key {
-            return Some(v.clone());
+        if k.same(&key) {
+            return v.clone();
         }
+    }
+    // Worked out once per key, as is the answer for a render with random sampling (none).
+    let v = next_for_picture(
+        st,
+        &settings,
+        (&rendered.image.rgb, &img.rgb),
+        log,
+        &flags,
+        (&scene_path, &pasteable(&name)),
+    );
+    st.rays.lock().log_next = Some((key, v.clone()));
+    v
+}
+
+/// [`log_next`] for the student's picture against rayscope's render `(ours, theirs)`.
+fn next_for_picture(
+    st: &AppState,
+    settings: &RenderSettings,
+    (ours, theirs): (&[u8], &[u8]),
+    log: &PixelLog,
+    flags: &str,
+    paths: (&str, &str),
+) -> Option<Value> {
+    if rayscope_core::integrator::Integrator::new(&st.scene, settings).stochastic {
+        return None;
     }
     let logged: Vec<bool> = (0..log.height)
         .flat_map(|y| (0..log.width).map(move |x| (x, y)))
         .map(|(x, y)| log.status_at(x, y) != rayscope_check::PixelStatus::NotLogged)
         .collect();
-    let next = LogNext::picture(
+    serde_json::to_value(LogNext::picture(
         &st.scene,
-        &settings,
-        (&rendered.image.rgb, &img.rgb),
+        settings,
+        (ours, theirs),
         &logged,
-        &flags,
-        (&scene_path, &pasteable(&name)),
-    );
-    let v = serde_json::to_value(next).ok()?;
-    st.rays.lock().log_next = Some((key, v.clone()));
-    Some(v)
+        flags,
+        paths,
+    ))
+    .ok()
 }
 
 pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> {
