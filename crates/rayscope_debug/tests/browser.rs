@@ -731,6 +731,52 @@ async fn drive_student_log(c: &Client, url: &str, log: &Path, fixed: String) -> 
     })
     .await;
     assert!(head.contains("agrees"), "{head}");
+
+    // No mistake in those 48 pixels and no picture loaded: the page says how to log an even grid.
+    let next = wait_for("the advice on what to log next", 20, || async {
+        let t = c.find(Locator::Css("#rays-next")).await.ok()?.text().await.ok()?;
+        t.contains("RAYSCOPE_LOG=").then_some(t)
+    })
+    .await;
+    assert!(next.contains("RAYSCOPE_LOG_STEP="), "{next}");
+    // The student's picture, wrong in the glass ball, loaded beside that log: the pixels where it
+    // differs that the log lacks, as the kits' variables, and the check command to run after.
+    let (_, dir, png) = student_png("next", &["refraction-no-normal-flip"], 32, 24, "mine.png");
+    let input = c.find(Locator::Css("#rays-image-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    // Loading a picture shows the comparison; the advice is on the "your rays" tab.
+    c.find(Locator::Css(".tab[data-tab='rays-tab']"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    let headline = wait_for("the pixels to log next", 60, || async {
+        let t = c
+            .find(Locator::Css("#rays-next-headline"))
+            .await
+            .ok()?
+            .text()
+            .await
+            .ok()?;
+        t.starts_with("No mistake in your log, but your image differs")
+            .then_some(t)
+    })
+    .await;
+    let next = c
+        .find(Locator::Css("#rays-next"))
+        .await
+        .map_err(e)?
+        .text()
+        .await
+        .map_err(e)?;
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        next.contains("RAYSCOPE_LOG=") && next.contains("RAYSCOPE_LOG_PIXELS=") && next.contains("rayscope check"),
+        "{headline}\n{next}"
+    );
+    assert!(next.contains("--image mine.png"), "{next}");
+    shot(c, "06d-student-log-next.png").await;
     Ok(())
 }
 
