@@ -599,10 +599,14 @@ fn exclusive(a: Atom, b: Atom) -> bool {
         Atom::Setting(SettingChange::Fov(_)) => 3,
         Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
         Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick) => 5,
+        Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
+        Atom::Mistake(M::NearestByOriginDistance | M::FirstHitInSceneOrder) => 7,
         Atom::Mistake(_) => 0,
     };
+    // A never-reset sum turns the picture white whatever else is wrong: no pair can tell.
+    let whitens = |x: Atom| x == Atom::Mistake(M::AccumulatorNotReset);
     let (ga, gb) = (group(a), group(b));
-    ga != 0 && ga == gb
+    whitens(a) || whitens(b) || ga != 0 && ga == gb
 }
 
 /// What the scene contains, to skip mistakes that cannot show in it.
@@ -662,9 +666,15 @@ impl Contents {
             | M::NoTir
             | M::NoFresnel
             | M::FresnelHalf
-            | M::Schlick => self.glass,
+            | M::Schlick
+            | M::GlassReflectionAlongRay
+            | M::GlassReflectionOutward => self.glass,
             M::ObjNoZFlip => self.meshes,
             M::ObjFlatNormals => self.mesh_normals,
+            M::CamAngleRadians => s.camera.angle_deg != 0.0 && s.camera.axis != glam::Vec3::ZERO,
+            M::MinHitDistance | M::FirstHitInSceneOrder | M::AccumulatorNotReset => true,
+            // With the camera at the origin, only rays from other points choose differently.
+            M::NearestByOriginDistance => self.specular || s.camera.position != glam::Vec3::ZERO,
         }
     }
 }
@@ -758,6 +768,21 @@ impl Scenes<'_> {
 /// The colours `settings` give the pixels `pixels`, as bytes: what a full render writes there.
 fn render_pixels(scene: &Scene, settings: &RenderSettings, pixels: &[(u32, u32)]) -> Vec<u8> {
     let m = settings.mistakes;
+    if m.has(Mistake::AccumulatorNotReset) {
+        // Each pixel holds the sum of every pixel before it: only a whole render gives it.
+        let never = AtomicBool::new(false);
+        let full = render(scene, settings, &|_, _| {}, &never)
+            .map(|o| o.film.to_rgb8())
+            .unwrap_or_default();
+        let w = settings.width;
+        return pixels
+            .iter()
+            .flat_map(|&(x, y)| {
+                let p = ((y * w + x) * 3) as usize;
+                full.get(p..p + 3).unwrap_or(&[0; 3]).to_vec()
+            })
+            .collect();
+    }
     if m.is_empty() {
         pixel_bytes(&Integrator::new(scene, settings), m, pixels)
     } else {

@@ -67,6 +67,20 @@ pub enum Mistake {
     ObjNoZFlip,
     /// OBJ triangles are shaded with their face normals.
     ObjFlatNormals,
+    /// The camera's rotation angle is used as radians.
+    CamAngleRadians,
+    /// Hits nearer than 0.05 along a ray are ignored.
+    MinHitDistance,
+    /// The nearest hit is the one nearest the world's origin.
+    NearestByOriginDistance,
+    /// The first hit in the scene's entity order is kept, not the nearest.
+    FirstHitInSceneOrder,
+    /// Glass's reflected ray starts along the incident ray.
+    GlassReflectionAlongRay,
+    /// Glass's reflected ray starts on the outside of the surface.
+    GlassReflectionOutward,
+    /// The anti-aliasing sum is not reset between pixels.
+    AccumulatorNotReset,
 }
 
 /// What the catalogue says about a mistake.
@@ -96,17 +110,20 @@ const REFRACTION: &str = "Stage 2: refraction (Snell's law, total internal refle
 const FRESNEL: &str = "Stage 2: Fresnel mix of reflection and refraction";
 const OUTPUT: &str = "Output: the image matches the reference";
 const OBJ: &str = "Stage 3 C: OBJ models";
+const NEAREST: &str = "Stage 1: the nearest hit along each ray";
 
 /// The offset [`Mistake::HugeShadowOffset`] moves shadow rays off the surface, in scene units.
 pub(crate) const HUGE_OFFSET: f32 = 0.1;
 /// The ambient term [`Mistake::AmbientTerm`] adds, as a fraction of the material colour.
 pub(crate) const AMBIENT: f32 = 0.1;
+/// The distance under which [`Mistake::MinHitDistance`] ignores hits, in scene units.
+pub(crate) const MIN_HIT: f32 = 0.05;
 /// The exponent [`Mistake::Gamma`] raises colours to.
 pub(crate) const GAMMA: f32 = 1.0 / 2.2;
 
 impl Mistake {
     /// Every mistake, in catalogue order.
-    pub const ALL: [Mistake; 23] = [
+    pub const ALL: [Mistake; 30] = [
         Mistake::FovVertical,
         Mistake::AspectIgnored,
         Mistake::PixelCorners,
@@ -130,6 +147,13 @@ impl Mistake {
         Mistake::Gamma,
         Mistake::ObjNoZFlip,
         Mistake::ObjFlatNormals,
+        Mistake::CamAngleRadians,
+        Mistake::MinHitDistance,
+        Mistake::NearestByOriginDistance,
+        Mistake::FirstHitInSceneOrder,
+        Mistake::GlassReflectionAlongRay,
+        Mistake::GlassReflectionOutward,
+        Mistake::AccumulatorNotReset,
     ];
 
     /// The catalogue entry.
@@ -274,6 +298,48 @@ impl Mistake {
                 "the model looks faceted instead of smooth",
                 OBJ,
             ),
+            Mistake::CamAngleRadians => (
+                "cam-angle-radians",
+                "turns the camera by --cam-angle read as radians (e.g. passed straight to Quaternion.CreateFromAxisAngle) instead of degrees",
+                "with --cam-angle the camera looks the wrong way (45 means about 2578°); without it nothing changes",
+                "Stage 3 E: custom camera",
+            ),
+            Mistake::MinHitDistance => (
+                "min-hit-distance",
+                "ignores every hit nearer than 0.05 along a ray (a large minimum distance as the cure for shadow acne)",
+                "shadows come loose where objects touch, and what lies within 0.05 of a surface is missing from its shadows and reflections",
+                SHADOWS,
+            ),
+            Mistake::NearestByOriginDistance => (
+                "nearest-by-origin-distance",
+                "keeps the hit nearest the world's origin (its position's length) instead of the one nearest the ray's origin",
+                "reflections, refractions and anything seen from a moved camera show the wrong surface; the course's camera at the origin is unaffected",
+                NEAREST,
+            ),
+            Mistake::FirstHitInSceneOrder => (
+                "first-hit-in-scene-order",
+                "keeps the first hit in the scene file's order instead of the nearest (e.g. comparing the lengths of unit incident directions, all 1)",
+                "entities listed early cover those listed later, even when they are behind them",
+                NEAREST,
+            ),
+            Mistake::GlassReflectionAlongRay => (
+                "glass-reflection-along-ray",
+                "starts the glass's reflected ray a little along the incident ray (inside the glass) instead of off the surface on the ray's side",
+                "glass shows its inside instead of reflections: its rim and highlights of the room are wrong",
+                FRESNEL,
+            ),
+            Mistake::GlassReflectionOutward => (
+                "glass-reflection-outward",
+                "starts the glass's reflected ray off the surface along the outward normal, also when it reflects inside the glass",
+                "inside glass, rays that should reflect leave it: the dark rims and inner reflections of glass change",
+                FRESNEL,
+            ),
+            Mistake::AccumulatorNotReset => (
+                "accumulator-not-reset",
+                "never resets the anti-aliasing sum between pixels, so each pixel adds all the pixels before it",
+                "the picture turns white a few pixels into its first row",
+                "Anti-aliasing: each pixel the mean of its own samples",
+            ),
         };
         MistakeInfo {
             name,
@@ -321,6 +387,12 @@ impl Mistake {
             Mistake::RoundedColours => &["image.rounded"],
             Mistake::Gamma => &["image.gamma"],
             Mistake::ObjNoZFlip => &["hit.surface-wrong"],
+            Mistake::CamAngleRadians => &["camera.direction"],
+            Mistake::MinHitDistance => &["shadow.missed-blocker", "hit.farther"],
+            Mistake::NearestByOriginDistance | Mistake::FirstHitInSceneOrder => &["hit.farther"],
+            Mistake::GlassReflectionAlongRay => &["secondary.offset-wrong-side"],
+            Mistake::GlassReflectionOutward => &["secondary.offset-wrong-side"],
+            Mistake::AccumulatorNotReset => &["image.differs"],
         }
     }
 
@@ -430,6 +502,12 @@ impl Mistakes {
             let t = (cam.settings.fov_deg.to_radians() * 0.5).tan();
             cam.half = glam::Vec2::splat(t);
         }
+        if self.has(Mistake::CamAngleRadians) {
+            let k = cam.settings.axis.normalize_or_zero();
+            if k != Vec3::ZERO {
+                cam.rotation = glam::Mat3A::from_axis_angle(k, cam.settings.angle_deg);
+            }
+        }
     }
 
     /// A linear colour as the student's output code would write it, in a form the course's
@@ -453,8 +531,17 @@ impl Mistakes {
         self.has(Mistake::Gamma) || self.has(Mistake::RoundedColours)
     }
 
-    /// Applies [`Self::output`] to every pixel of `film`.
+    /// Applies the film-wide mistakes to `film`: the never-reset sum, which makes each pixel the
+    /// sum of itself and every pixel before it in the order the student's loops visit them (row
+    /// by row from the top-left), then [`Self::output`] to every pixel.
     pub(crate) fn apply_to_film(self, film: &mut Film) {
+        if self.has(Mistake::AccumulatorNotReset) {
+            let mut sum = Vec3::ZERO;
+            for p in &mut film.pixels {
+                sum += *p;
+                *p = sum;
+            }
+        }
         if self.changes_output() {
             for p in &mut film.pixels {
                 *p = self.output(*p);

@@ -447,6 +447,16 @@ pub(crate) struct Mistaken<'a, I: Intersect> {
 }
 
 impl<I: Intersect> Mistaken<'_, I> {
+    /// The nearest distance along a ray the student's tracer accepts a hit at.
+    #[inline]
+    fn t_min(&self, t_min: f32) -> f32 {
+        if self.mistakes.has(Mistake::MinHitDistance) {
+            t_min.max(crate::mistakes::MIN_HIT)
+        } else {
+            t_min
+        }
+    }
+
     /// True when the hit must be skipped: a triangle seen from the side the student's
     /// one-sided test rejects.
     #[inline]
@@ -466,26 +476,86 @@ impl<I: Intersect> Mistaken<'_, I> {
 /// Most culled hits one query steps past before it gives up (a ray grazing a mesh can meet many).
 const MAX_CULLED: usize = 1024;
 
+/// The t to look for the next hit beyond `hit` from, `last` being the primitive of the hit
+/// before it. Asked again from its own t, a primitive's t can come out a rounding step larger:
+/// the first step is one float past the hit, and a primitive met twice is stepped past by a
+/// millionth of its distance.
+#[inline]
+fn past(hit: &Hit, last: Option<PrimRef>) -> f32 {
+    if last == Some(hit.prim) {
+        hit.t + hit.t.abs() * 1e-6
+    } else {
+        hit.t.next_up()
+    }
+}
+
 impl<I: Intersect> Intersect for Mistaken<'_, I> {
     const MISTAKEN: bool = true;
 
     fn intersect(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<Hit> {
-        let mut lo = t_min;
-        for _ in 0..MAX_CULLED {
-            let hit = self.inner.intersect(ray, lo, t_max)?;
-            if !self.culled(ray, hit.prim) {
-                return Some(hit);
+        let mut lo = self.t_min(t_min);
+        let by_origin = self.mistakes.has(Mistake::NearestByOriginDistance);
+        let by_order = self.mistakes.has(Mistake::FirstHitInSceneOrder);
+        if !by_origin && !by_order {
+            let mut last = None;
+            for _ in 0..MAX_CULLED {
+                let hit = self.inner.intersect(ray, lo, t_max)?;
+                if last != Some(hit.prim) && !self.culled(ray, hit.prim) {
+                    return Some(hit);
+                }
+                lo = past(&hit, last);
+                last = Some(hit.prim);
             }
-            lo = hit.t;
+            return None;
         }
-        None
+        // The student's loop over every entity keeps another hit than the nearest: walk all
+        // hits along the ray, nearest first, and keep the one the student's comparison prefers
+        // (the first of equals, as a strict `<` does).
+        let key = |h: &Hit| -> f32 {
+            if by_origin {
+                (ray.origin + ray.dir * h.t).length()
+            } else {
+                self.scene.prim_info(h.prim).0 as f32
+            }
+        };
+        let mut best: Option<(f32, Hit)> = None;
+        let mut last = None;
+        for _ in 0..MAX_CULLED {
+            let Some(hit) = self.inner.intersect(ray, lo, t_max) else {
+                break;
+            };
+            lo = past(&hit, last);
+            if last == Some(hit.prim) {
+                continue;
+            }
+            last = Some(hit.prim);
+            if self.culled(ray, hit.prim) {
+                continue;
+            }
+            let k = key(&hit);
+            if best.as_ref().is_none_or(|(b, _)| k < *b) {
+                best = Some((k, hit));
+            }
+        }
+        best.map(|(_, h)| h)
     }
 
     fn occluder(&self, ray: &Ray, t_min: f32, t_max: f32) -> Option<PrimRef> {
+        let lo = self.t_min(t_min);
         if !self.mistakes.has(Mistake::OneSidedTriangles) {
-            return self.inner.occluder(ray, t_min, t_max);
+            return self.inner.occluder(ray, lo, t_max);
         }
-        self.intersect(ray, t_min, t_max).map(|h| h.prim)
+        // Any hit blocks, whichever the student's nearest-hit rule would keep.
+        let (mut lo, mut last) = (lo, None);
+        for _ in 0..MAX_CULLED {
+            let hit = self.inner.intersect(ray, lo, t_max)?;
+            if last != Some(hit.prim) && !self.culled(ray, hit.prim) {
+                return Some(hit.prim);
+            }
+            lo = past(&hit, last);
+            last = Some(hit.prim);
+        }
+        None
     }
 
     fn mistakes(&self) -> Mistakes {

@@ -526,3 +526,132 @@ fn settings_with_mistakes_round_trip_through_json_and_old_json_still_reads() {
         RenderSettings::default()
     );
 }
+
+#[test]
+fn a_camera_angle_read_as_radians_turns_the_camera_by_that_many_radians() {
+    let path = rayscope_testkit::scene("whitted.txt");
+    let file = load(&path);
+    // Without --cam-angle the mistake cannot show.
+    let base = settings(48, 36);
+    assert_eq!(
+        bytes(&file, &base),
+        bytes(&file, &with(&base, Mistake::CamAngleRadians))
+    );
+    let mut turned = base;
+    turned.camera.axis = glam::Vec3::Y;
+    turned.camera.angle_deg = 0.5;
+    let c = case(&path, turned, Mistake::CamAngleRadians);
+    // The mistaken render is the correct one turned by 0.5 rad (28.6°) instead of 0.5°: the
+    // same picture up to the rounding of converting the angle there and back.
+    let mut as_radians = turned;
+    as_radians.camera.angle_deg = 0.5f32.to_degrees();
+    let expected = bytes(&c.file, &as_radians);
+    let off = differing(&expected, &c.wrong);
+    assert!(
+        off.len() * 100 <= c.diff.len(),
+        "{} of {} pixels differ from the render turned by 0.5 rad",
+        off.len(),
+        c.diff.len()
+    );
+    assert!(c.diff.len() * 2 > c.wrong.len() / 3, "{} pixels changed", c.diff.len());
+}
+
+#[test]
+fn a_minimum_hit_distance_changes_only_rays_that_meet_something_that_near() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // Our spheres rest on the ground, the bunny's triangles lie close, and a pane of glass
+    // 0.03 thick loses its back face.
+    for path in [
+        rayscope_testkit::scene("whitted.txt"),
+        course.scene("sample_scene_obj.txt"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/thin_pane.txt"),
+    ] {
+        let c = case(&path, settings(64, 64), Mistake::MinHitDistance);
+        c.only_where("a ray meeting a surface or blocker nearer than 0.05", |t| {
+            any_node(t, |n| {
+                n.hit.as_ref().is_some_and(|h| h.t < 0.05) || n.blocker.as_ref().is_some_and(|h| h.t < 0.05)
+            })
+        });
+    }
+}
+
+#[test]
+fn choosing_the_nearest_hit_by_another_distance_changes_only_what_it_should() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // From a camera at the origin, distance from the origin is distance along the camera ray:
+    // only what mirrors and glass show changes.
+    let c = case(
+        &course.scene("sample_scene_2.txt"),
+        settings(64, 64),
+        Mistake::NearestByOriginDistance,
+    );
+    c.only_where("seen in a mirror or through glass", |t| {
+        hits_material(t, "Reflective") || hits_material(t, "Refractive")
+    });
+    // Scene 1 lists its floor first: kept whenever a camera ray meets it at all, the floor
+    // covers the sphere's and the triangle's lower halves, only where their rays go on down to
+    // it (and not where the floor behind them is as dark as they are).
+    let c = case(
+        &course.scene("sample_scene_1.txt"),
+        settings(64, 64),
+        Mistake::FirstHitInSceneOrder,
+    );
+    let t = trees(&c.file, &c.base);
+    let covered: Vec<usize> = (0..t.len())
+        .filter(|&i| {
+            let cam = &t[i].nodes[0];
+            cam.hit.as_ref().is_some_and(|h| h.entity != 0) && cam.direction[1] < 0.0
+        })
+        .collect();
+    let outside: Vec<&usize> = c.diff.iter().filter(|i| !covered.contains(i)).collect();
+    assert!(outside.is_empty(), "{outside:?}");
+    assert!(
+        c.diff.len() * 5 >= covered.len() * 4,
+        "{} of {} covered pixels changed",
+        c.diff.len(),
+        covered.len()
+    );
+}
+
+#[test]
+fn glass_reflections_started_on_the_wrong_side_change_only_what_is_seen_in_glass() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for m in [Mistake::GlassReflectionAlongRay, Mistake::GlassReflectionOutward] {
+        for path in [course.scene("sample_scene_2.txt"), rayscope_testkit::scene("beer.txt")] {
+            let c = case(&path, settings(64, 64), m);
+            c.only_where("seen through glass", |t| hits_material(t, "Refractive"));
+        }
+    }
+}
+
+#[test]
+fn a_sum_never_reset_makes_each_pixel_the_sum_of_those_before_it() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let file = load(&course.scene("sample_scene_1.txt"));
+    let base = settings(40, 30);
+    let film = render(&Scene::from_file(&file), &base, &|_, _| {}, &AtomicBool::new(false))
+        .expect("not cancelled")
+        .film;
+    let mut sum = glam::Vec3::ZERO;
+    let expected: Vec<u8> = film
+        .pixels
+        .iter()
+        .flat_map(|p| {
+            sum += *p;
+            sum.to_array().map(|v| (v.clamp(0.0, 1.0) * 255.0) as u8)
+        })
+        .collect();
+    let wrong = bytes(&file, &with(&base, Mistake::AccumulatorNotReset));
+    assert_eq!(wrong, expected);
+    // Past the first lit pixels every channel a surface has lit is saturated.
+    let lit = wrong.iter().filter(|&&v| v == 255).count();
+    assert!(lit * 2 > wrong.len(), "{lit} of {} channels saturated", wrong.len());
+}

@@ -150,6 +150,21 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
+    /// The glass's reflected ray about `n` as a tracer with this render's mistakes starts it:
+    /// along the incident ray, off the outward side, or (correctly) off the side the ray came from.
+    #[cold]
+    fn mistaken_reflection(&self, ray: &Ray, s: &Surface, n: Vec3A, eps: f32) -> Ray {
+        let r = mirror_ray(ray.dir, n, s.point, eps);
+        if self.mistake(Mistake::GlassReflectionAlongRay) {
+            Ray::new(s.point + ray.dir * eps, r.dir)
+        } else if self.mistake(Mistake::GlassReflectionOutward) {
+            let outward = if s.front_face { s.normal } else { -s.normal };
+            Ray::new(s.point + outward * eps, r.dir)
+        } else {
+            r
+        }
+    }
+
     /// [`Self::glass`] as a tracer with this render's glass mistakes computes it.
     #[cold]
     pub(super) fn mistaken_glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
@@ -192,7 +207,7 @@ impl<I: Intersect> Integrator<'_, I> {
         Glass {
             // Without total internal reflection the ray that should reflect brings nothing.
             kr: if no_tir { 0.0 } else { kr },
-            reflected: mirror_ray(ray.dir, n, s.point, eps),
+            reflected: self.mistaken_reflection(ray, s, n, eps),
             refracted: refracted.map(|t| Ray::new(s.point - n * eps, t)),
             refl_medium,
             refr_medium,

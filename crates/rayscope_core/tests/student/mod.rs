@@ -16,6 +16,9 @@ pub struct Options {
     pub height: u32,
     pub aa: u32,
     pub max_depth: u32,
+    /// `--cam-axis` and `--cam-angle` (degrees).
+    pub cam_axis: DVec3,
+    pub cam_angle: f64,
 }
 
 impl Options {
@@ -25,6 +28,8 @@ impl Options {
             height,
             aa: 1,
             max_depth: 8,
+            cam_axis: DVec3::Z,
+            cam_angle: 0.0,
         }
     }
 }
@@ -141,10 +146,24 @@ impl Student {
         } else {
             (tan, tan / aspect)
         };
+        // Uncatalogued: System.Numerics' CreateFromAxisAngle takes radians.
+        let angle = if self.bug("cam-angle-radians") {
+            self.opts.cam_angle
+        } else {
+            self.opts.cam_angle.to_radians()
+        };
+        let k = self.opts.cam_axis.normalize();
+        let turn = |v: DVec3| v * angle.cos() + k.cross(v) * angle.sin() + k * k.dot(v) * (1.0 - angle.cos());
+        // The sum the student forgot to reset per pixel lives outside the loops.
+        let mut total = DVec3::ZERO;
         for row in 0..h {
             let y = if self.bug("image-flipped") { h - 1 - row } else { row };
             for x in 0..w {
-                let mut sum = DVec3::ZERO;
+                let mut sum = if self.bug("accumulator-not-reset") {
+                    total
+                } else {
+                    DVec3::ZERO
+                };
                 for j in 0..n {
                     for i in 0..n {
                         let (ox, oy) = if self.bug("pixel-corners") {
@@ -155,9 +174,10 @@ impl Student {
                         let u = (x as f64 + ox) / w as f64;
                         let v = (y as f64 + oy) / h as f64;
                         let d = DVec3::new((2.0 * u - 1.0) * sx, (1.0 - 2.0 * v) * sy, 1.0).normalize();
-                        sum += self.trace(Ray { o: DVec3::ZERO, d }, 0);
+                        sum += self.trace(Ray { o: DVec3::ZERO, d: turn(d) }, 0);
                     }
                 }
+                total = sum;
                 let c = sum / (n * n) as f64;
                 for v in [c.x, c.y, c.z] {
                     out.push(self.byte(v));
@@ -281,8 +301,15 @@ impl Student {
         let eta = n1 / n2;
         let cos_i = -ray.d.dot(n);
         let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
+        let o = if self.bug("glass-reflection-along-ray") {
+            hit.p + ray.d * EPS
+        } else if self.bug("glass-reflection-outward") {
+            hit.p + hit.n * EPS
+        } else {
+            hit.p + n * EPS
+        };
         let reflected = Ray {
-            o: hit.p + n * EPS,
+            o,
             d: reflect(ray.d, n),
         };
         if k < 0.0 {
@@ -318,10 +345,25 @@ impl Student {
         c
     }
 
+    /// The smallest t the student accepts.
+    fn t_min(&self) -> f64 {
+        if self.bug("min-hit-distance") {
+            0.05
+        } else {
+            0.0
+        }
+    }
+
     fn closest(&self, ray: Ray, t_max: f64) -> Option<Hit> {
         let mut best: Option<Hit> = None;
+        // Whether the student compares hits by their distance along the ray.
+        let by_t = !self.bug("nearest-by-origin-distance") && !self.bug("first-hit-in-scene-order");
         for (i, obj) in self.objs.iter().enumerate() {
-            let limit = best.as_ref().map_or(t_max, |b| b.t);
+            let limit = if by_t {
+                best.as_ref().map_or(t_max, |b| b.t)
+            } else {
+                t_max
+            };
             let found = match &obj.geo {
                 Geo::Plane { p, n } => {
                     let dn = ray.d.dot(*n);
@@ -332,7 +374,7 @@ impl Student {
                         Some((t, *n, *n))
                     }
                 }
-                Geo::Sphere { c, r } => sphere(ray, *c, *r, self.bug("sphere-near-root-only")).map(|t| {
+                Geo::Sphere { c, r } => sphere(ray, *c, *r, self.t_min(), self.bug("sphere-near-root-only")).map(|t| {
                     let n = (ray.o + ray.d * t - *c) / *r;
                     (t, n, n)
                 }),
@@ -353,7 +395,14 @@ impl Student {
                 }
             };
             if let Some((t, n, shading)) = found {
-                if t > 0.0 && t < limit {
+                let p = ray.o + ray.d * t;
+                let better = match &best {
+                    None => true,
+                    Some(_) if by_t => true,
+                    Some(b) if self.bug("nearest-by-origin-distance") => p.length() < b.p.length(),
+                    Some(_) => false,
+                };
+                if t > self.t_min() && t < limit && better {
                     best = Some(Hit {
                         t,
                         p: ray.o + ray.d * t,
@@ -397,7 +446,7 @@ impl Student {
             return None;
         }
         let t = e2.dot(qv) * inv;
-        if t <= 0.0 || t >= limit {
+        if t <= self.t_min() || t >= limit {
             return None;
         }
         let shading = match tri.n {
@@ -422,7 +471,7 @@ fn reflect(d: DVec3, n: DVec3) -> DVec3 {
 
 /// `near_only`, an uncatalogued mistake: the near root or nothing, so a ray from inside the
 /// sphere (through glass) misses it.
-fn sphere(ray: Ray, c: DVec3, r: f64, near_only: bool) -> Option<f64> {
+fn sphere(ray: Ray, c: DVec3, r: f64, t_min: f64, near_only: bool) -> Option<f64> {
     let oc = ray.o - c;
     let b = oc.dot(ray.d);
     let disc = b * b - (oc.dot(oc) - r * r);
@@ -431,14 +480,14 @@ fn sphere(ray: Ray, c: DVec3, r: f64, near_only: bool) -> Option<f64> {
     }
     let s = disc.sqrt();
     let t0 = -b - s;
-    if t0 > 0.0 {
+    if t0 > t_min {
         return Some(t0);
     }
     if near_only {
         return None;
     }
     let t1 = -b + s;
-    (t1 > 0.0).then_some(t1)
+    (t1 > t_min).then_some(t1)
 }
 
 fn sphere_touches(ray: Ray, c: DVec3, r: f64) -> bool {
