@@ -112,10 +112,13 @@ pub enum Conversion {
     Flipped,
     /// Red and blue exchanged.
     Bgr,
+    /// Each pixel the sum of its own colour and every pixel's before it, row by row: an
+    /// anti-aliasing sum never reset between pixels.
+    Accumulated,
 }
 
 impl Conversion {
-    const ALL: [Conversion; 7] = [
+    const ALL: [Conversion; 8] = [
         Conversion::Course,
         Conversion::Rounded,
         Conversion::Gamma,
@@ -123,6 +126,7 @@ impl Conversion {
         Conversion::ByteAverage,
         Conversion::Flipped,
         Conversion::Bgr,
+        Conversion::Accumulated,
     ];
 
     /// The verdict a picture following this rule gets.
@@ -135,6 +139,7 @@ impl Conversion {
             Conversion::ByteAverage => Some(Code::ImageByteAverage),
             Conversion::Flipped => Some(Code::ImageFlipped),
             Conversion::Bgr => Some(Code::ImageChannels),
+            Conversion::Accumulated => Some(Code::ImageAccumulated),
         }
     }
 
@@ -148,7 +153,7 @@ impl Conversion {
         };
         let i = at(x, y);
         let n = s.n[i];
-        if n != s.spp || n == 0 {
+        if n != s.spp || n == 0 || self == Conversion::Accumulated {
             return None;
         }
         let avg = s.sum[i].map(|v| v / f64::from(n));
@@ -159,7 +164,7 @@ impl Conversion {
                 Conversion::Gamma => (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8,
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
                 Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
-                Conversion::ByteAverage => 0,
+                Conversion::ByteAverage | Conversion::Accumulated => 0,
             }
         };
         let mut b = if self == Conversion::ByteAverage {
@@ -215,6 +220,18 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     let mut compared = 0;
     let mut examples = Vec::new();
     let close = |a: [u8; 3], b: [u8; 3]| a.iter().zip(b).all(|(&p, q)| p.abs_diff(q) <= 1);
+    // The running sum of the logged colours, row by row, while every pixel so far is logged.
+    let mut sum = Some([0.0f64; 3]);
+    let running: Vec<Option<[u8; 3]>> = (0..s.n.len())
+        .map(|i| {
+            let n = s.n[i];
+            sum = sum.filter(|_| n == s.spp && n != 0).map(|t| {
+                let avg = s.sum[i].map(|v| v / f64::from(n));
+                [t[0] + avg[0], t[1] + avg[1], t[2] + avg[2]]
+            });
+            sum.map(|t| t.map(course_byte))
+        })
+        .collect();
     for y in 0..s.height {
         for x in 0..s.width {
             let Some(expected) = Conversion::Course.bytes(s, x, y) else {
@@ -226,7 +243,11 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             };
             compared += 1;
             for (k, c) in Conversion::ALL.iter().enumerate() {
-                let b = c.bytes(s, x, y);
+                let b = if *c == Conversion::Accumulated {
+                    running[(y * s.width + x) as usize]
+                } else {
+                    c.bytes(s, x, y)
+                };
                 fits[k] += u64::from(b.is_some_and(|b| close(b, yours)));
                 exact[k] += u64::from(b == Some(yours));
             }

@@ -151,6 +151,14 @@ pub struct Tally {
     /// Refracted rays into glass with no verdict: where they exist the tracer's ratio of
     /// indices is right on the way in.
     pub entering_refracted_ok: u64,
+    /// The nearest hits the tracer passed over, for the log-wide rule that explains them.
+    pub skipped: Skipped,
+    /// Reflected and refracted rays that hit the surface they leave at t ≈ 0 from an origin on
+    /// the wrong side of it, however little: with offsets to the wrong side elsewhere in the log,
+    /// and no such hit from the right side, that is the same offset, not acne.
+    pub acne_wrong_side: u64,
+    /// Such rays from an origin on the right side of the surface, or on it.
+    pub acne_other: u64,
     /// Per root cause: the pixel samples and rays it is the first mistake of, what follows
     /// from it, and its first examples.
     pub causes: BTreeMap<Cause, CauseCount>,
@@ -162,6 +170,108 @@ pub struct Tally {
     /// material the course's stage-2 rules do not cover).
     pub shaded_unjudged: u64,
 }
+
+/// The nearest hits (or shadow blockers) a tracer passed over, log-wide: which rule other
+/// than "the smallest positive t" would pass over all of them.
+#[derive(Debug, Clone, Copy)]
+pub struct Skipped {
+    /// Rays whose nearest hit the tracer passed over (ties not counted).
+    pub rays: u64,
+    /// The farthest of those hits along its ray.
+    pub max_t: f64,
+    /// The nearest hit the tracer kept (one rayscope agrees with) along its ray.
+    pub kept_min_t: f64,
+    /// The scene's size, which a minimum distance is judged against.
+    pub size: f64,
+    /// Passed-over rays whose kept hit's entity comes earlier in the scene file.
+    pub earlier_in_file: u64,
+    /// Passed-over rays whose kept hit lies nearer the world's origin.
+    pub nearer_origin: u64,
+}
+
+impl Default for Skipped {
+    fn default() -> Self {
+        Skipped {
+            rays: 0,
+            max_t: 0.0,
+            kept_min_t: f64::INFINITY,
+            size: 0.0,
+            earlier_in_file: 0,
+            nearer_origin: 0,
+        }
+    }
+}
+
+impl Skipped {
+    fn merge(&mut self, o: Skipped) {
+        self.rays += o.rays;
+        self.max_t = self.max_t.max(o.max_t);
+        self.kept_min_t = self.kept_min_t.min(o.kept_min_t);
+        self.size = self.size.max(o.size);
+        self.earlier_in_file += o.earlier_in_file;
+        self.nearer_origin += o.nearer_origin;
+    }
+
+    /// Counts a passed-over hit at `t` along its ray; `kept` tells, for a farther hit the tracer
+    /// kept instead, whether its entity comes earlier in the file and whether it is nearer the
+    /// world's origin.
+    pub(crate) fn pass(&mut self, t: f64, kept: Option<(bool, bool)>) {
+        self.rays += 1;
+        self.max_t = self.max_t.max(t);
+        if let Some((earlier, nearer)) = kept {
+            self.earlier_in_file += u64::from(earlier);
+            self.nearer_origin += u64::from(nearer);
+        }
+    }
+
+    /// The verdict that explains every passed-over hit, with what shows it: a minimum distance
+    /// (all passed over nearer than all kept, and near for the scene), else the file's order or
+    /// the distance from the world's origin (true of every one of at least three rays).
+    fn rule(&self) -> Option<(Code, String)> {
+        if self.rays == 0 {
+            return None;
+        }
+        if self.max_t < self.kept_min_t && self.kept_min_t.is_finite() && self.max_t < 0.1 * self.size.max(1.0) {
+            return Some((
+                Code::HitNearSkipped,
+                format!(
+                    "every hit your tracer passed over is nearer than t = {:.4}, and every hit it kept is at t = {:.4} or farther",
+                    self.max_t, self.kept_min_t
+                ),
+            ));
+        }
+        if self.rays >= 3 && self.earlier_in_file == self.rays {
+            return Some((
+                Code::HitSceneOrder,
+                format!(
+                    "in all {} rays that passed over the nearest hit, the hit kept belongs to an entity listed earlier in the scene file",
+                    self.rays
+                ),
+            ));
+        }
+        if self.rays >= 3 && self.nearer_origin == self.rays {
+            return Some((
+                Code::HitOriginDistance,
+                format!(
+                    "in all {} rays that passed over the nearest hit, the hit kept lies nearer the world's origin",
+                    self.rays
+                ),
+            ));
+        }
+        None
+    }
+}
+
+/// The verdicts a passed-over nearest hit is given one ray at a time.
+const PASSED_OVER: [Code; 7] = [
+    Code::HitFarther,
+    Code::HitMissed,
+    Code::HitWrongT,
+    Code::HitOneSidedTriangle,
+    Code::HitTriangleEdge,
+    Code::ShadowMissedBlocker,
+    Code::ShadowOneSidedTriangle,
+];
 
 /// One root cause's counts.
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -280,6 +390,68 @@ impl Tally {
         }
     }
 
+    /// Passed-over nearest hits that one rule explains, log-wide (a minimum distance, the
+    /// file's order, the distance from the world's origin), are that rule's verdict, not one
+    /// verdict per ray about the surface passed over.
+    fn nearest_rule(&mut self) {
+        let Some((code, why)) = self.skipped.rule() else {
+            return;
+        };
+        let to = Cause { code, or: None };
+        let from: Vec<Cause> = (self.causes.keys())
+            .filter(|c| c.codes().iter().all(|k| PASSED_OVER.contains(k)))
+            .copied()
+            .collect();
+        if from.is_empty() {
+            return;
+        }
+        for k in PASSED_OVER {
+            if let Some((n, mut ex)) = self.codes.remove(&k) {
+                for f in &mut ex {
+                    f.code = code;
+                    f.detail = format!("{why}; here {}", f.detail);
+                }
+                let e = self.codes.entry(code).or_default();
+                e.0 += n;
+                keep_first(&mut e.1, ex, self.keep);
+            }
+        }
+        for c in from {
+            if let Some(moved) = self.causes.get_mut(&c) {
+                for f in &mut moved.examples {
+                    f.detail = format!("{why}; here {}", f.detail);
+                }
+            }
+            self.recast(c, to);
+        }
+    }
+
+    /// Self-intersections of secondary rays whose origins all lie (if only by a rounding step)
+    /// on the wrong side of the surface, in a log whose other secondary rays are offset to the
+    /// wrong side: one offset mistake, whose grazing rays start too near the surface to tell.
+    fn acne_or_wrong_side(&mut self) {
+        let acne = Cause {
+            code: Code::SecondaryAcne,
+            or: None,
+        };
+        let wrong = Cause {
+            code: Code::SecondaryOffsetWrongSide,
+            or: None,
+        };
+        if !self.causes.contains_key(&wrong) || self.acne_wrong_side == 0 || self.acne_other > 0 {
+            return;
+        }
+        if let Some((n, mut ex)) = self.codes.remove(&Code::SecondaryAcne) {
+            for f in &mut ex {
+                f.code = Code::SecondaryOffsetWrongSide;
+            }
+            let e = self.codes.entry(Code::SecondaryOffsetWrongSide).or_default();
+            e.0 += n;
+            keep_first(&mut e.1, ex, self.keep);
+        }
+        self.recast(acne, wrong);
+    }
+
     /// A tracer that misses triangles near their edges on the front face, and on the back face
     /// only near edges too, has an inside test that is too strict, not a one-sided one: its
     /// back-face misses are counted as such.
@@ -343,6 +515,9 @@ impl Tally {
         self.back_near_edge += o.back_near_edge;
         self.back_inside += o.back_inside;
         self.entering_refracted_ok += o.entering_refracted_ok;
+        self.skipped.merge(o.skipped);
+        self.acne_wrong_side += o.acne_wrong_side;
+        self.acne_other += o.acne_other;
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
         let keep = self.keep.max(o.keep);
@@ -365,6 +540,8 @@ impl Tally {
     /// Turns the normal conventions into a verdict: when back-face hits use both, the rarer one
     /// is inconsistent with the rest. Those rays are counted as disagreeing.
     pub fn finish(&mut self) {
+        self.nearest_rule();
+        self.acne_or_wrong_side();
         self.one_sided_or_edges();
         self.tir_test_or_ratio();
         let (out, fac) = (self.outward.0, self.facing.0);
@@ -563,6 +740,16 @@ impl<'a> Judge<'a> {
             un,
             shade,
         })
+    }
+
+    /// The diagonal of the scene's bounded entities (planes have no size), at least 1.
+    fn scene_size(&self) -> f64 {
+        let b = &self.scene.bounds;
+        if b.is_empty() {
+            1.0
+        } else {
+            f64::from((b.max - b.min).length()).max(1.0)
+        }
     }
 
     fn finding(&self, r: &LoggedRay, kind: &Kind, code: Code, detail: String, values: Vec<Value>) -> Finding {

@@ -85,6 +85,15 @@ codes! {
     HitFarther = "hit.farther", false,
         "chose a farther surface over a nearer one",
         "Your tracer reports a surface that lies beyond the nearest one: rayscope finds another entity in front of it. Keep the hit with the smallest positive t over all entities (not the first one found, and not the last one tested).";
+    HitNearSkipped = "hit.near-skipped", false,
+        "hits nearer than a minimum distance are ignored",
+        "Every hit your tracer passed over lies nearer to its ray's origin than every hit it kept: it ignores hits closer than a minimum distance (a test such as t > 0.05, often the cure for shadow acne). That distance is too large for the scene: surfaces that near (where objects touch, across a thin pane of glass, along a wall's foot) are missed. Ignore hits only within a tiny ε (about 1e-5 at the course's scale), or offset the new ray's origin by point + n·ε instead; the details give the distances passed over and kept.";
+    HitSceneOrder = "hit.scene-order", false,
+        "the first hit in the scene's order kept instead of the nearest",
+        "Wherever your tracer passed over the nearest hit, the one it kept belongs to an entity listed earlier in the scene file: it keeps the first hit it finds rather than the nearest. Typically the comparison that should pick the smallest t compares something that does not grow with distance (the length of a unit direction, always 1) or is missing. Keep the hit with the smallest positive t over all entities.";
+    HitOriginDistance = "hit.origin-distance", false,
+        "the hit nearest the world's origin kept instead of the nearest along the ray",
+        "Wherever your tracer passed over the nearest hit, the one it kept lies nearer the world's origin (0, 0, 0): it compares hit positions' lengths, which is distance along the ray only for rays that start at the origin (the course's camera rays), not for reflected, refracted or shadow rays, or a moved camera. Compare t (or the distance from the ray's origin) instead.";
     HitOneSidedTriangle = "hit.one-sided-triangle", false,
         "ray passed through a triangle's back face",
         "Your ray went through a triangle from its back side, as a one-sided (back-face culling) intersection test does. The course's triangles are two-sided: accept the hit whatever the sign of the determinant (d · n), and flip the normal to face the ray when shading.";
@@ -223,6 +232,9 @@ codes! {
     ImageChannels = "image.channels", false,
         "red and blue exchanged in the picture",
         "Your picture's red and blue bytes are exchanged relative to the colours your camera rays logged (BGR order): write red, green, blue in that order.";
+    ImageAccumulated = "image.accumulated", false,
+        "each pixel adds up all the pixels before it",
+        "Each pixel of your picture is the sum of its own logged colour and those of every pixel before it, row by row from the top-left: the variable that sums a pixel's anti-aliasing samples is set to black once, outside the loops over pixels, and never again. Set it to black at the start of each pixel, before the loop over its samples.";
     ImageDiffers = "image.differs", false,
         "picture not made from the logged colours",
         "Your picture's bytes are not your logged camera-ray colours turned into bytes by the course's rule (average the samples, clamp to [0, 1], byte = trunc(v · 255)), nor by any usual mistake. Either the picture comes from another run than the log (other flags, older code), or the colour your tracer logs is not the one it writes. The examples give your bytes beside the conversion of the logged colour.";

@@ -12,6 +12,15 @@ use rayscope_core::{Mistake, Mistakes, RenderSettings, Scene, Stage};
 /// The scene, image size and rows where a mistake shows.
 fn case(m: Mistake) -> (&'static str, u32, u32, std::ops::Range<u32>) {
     let info = m.info();
+    match m {
+        // A pane of glass 0.03 thick: the course's scenes have nothing that near another surface.
+        Mistake::MinHitDistance => return ("thin_pane.txt", 40, 40, 0..40),
+        Mistake::NearestByOriginDistance => return ("sample_scene_2.txt", 40, 40, 0..40),
+        Mistake::FirstHitInSceneOrder | Mistake::CamAngleRadians | Mistake::AccumulatorNotReset => {
+            return ("sample_scene_1.txt", 40, 40, 0..40);
+        }
+        _ => {}
+    }
     match info.rubric {
         r if r.starts_with("Stage 1") => ("sample_scene_1.txt", 400, 300, 140..143),
         _ if matches!(m, Mistake::NoTir) => ("glass_cube.txt", 40, 30, 0..30),
@@ -30,10 +39,10 @@ fn case(m: Mistake) -> (&'static str, u32, u32, std::ops::Range<u32>) {
 
 fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     let (file, w, h, rows) = case(m);
-    let path = if file == "glass_cube.txt" {
-        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/glass_cube.txt")
-    } else {
-        course.scene(file)
+    let path = match file {
+        "glass_cube.txt" => std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/glass_cube.txt"),
+        "thin_pane.txt" => rayscope_testkit::workspace().join("crates/rayscope_core/tests/scenes/thin_pane.txt"),
+        _ => course.scene(file),
     };
     let parsed = rayscope_scene::load(&path).expect("scene");
     let scene = Scene::from_file(&parsed);
@@ -41,12 +50,17 @@ fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     let mut mistaken_file = parsed.clone();
     Mistakes::NONE.with(m).apply_to_file(&mut mistaken_file);
     let traced = Scene::from_owned_file(mistaken_file);
-    let correct = RenderSettings {
+    let mut correct = RenderSettings {
         width: w,
         height: h,
         stage: Stage::Two,
         ..RenderSettings::default()
     };
+    if m == Mistake::CamAngleRadians {
+        // Turned a little about the vertical: by half a degree, or half a radian in the tracer.
+        correct.camera.axis = glam::Vec3::Y;
+        correct.camera.angle_deg = 0.5;
+    }
     let mistaken = RenderSettings {
         mistakes: Mistakes::NONE.with(m),
         ..correct

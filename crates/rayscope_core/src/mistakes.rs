@@ -337,7 +337,7 @@ impl Mistake {
             Mistake::AccumulatorNotReset => (
                 "accumulator-not-reset",
                 "never resets the anti-aliasing sum between pixels, so each pixel adds all the pixels before it",
-                "the picture turns white a few pixels into its first row",
+                "from the first lit pixels on, the picture climbs to full brightness: mostly white, or one saturated colour",
                 "Anti-aliasing: each pixel the mean of its own samples",
             ),
         };
@@ -388,11 +388,12 @@ impl Mistake {
             Mistake::Gamma => &["image.gamma"],
             Mistake::ObjNoZFlip => &["hit.surface-wrong"],
             Mistake::CamAngleRadians => &["camera.direction"],
-            Mistake::MinHitDistance => &["shadow.missed-blocker", "hit.farther"],
-            Mistake::NearestByOriginDistance | Mistake::FirstHitInSceneOrder => &["hit.farther"],
+            Mistake::MinHitDistance => &["hit.near-skipped"],
+            Mistake::NearestByOriginDistance => &["hit.origin-distance"],
+            Mistake::FirstHitInSceneOrder => &["hit.scene-order"],
             Mistake::GlassReflectionAlongRay => &["secondary.offset-wrong-side"],
             Mistake::GlassReflectionOutward => &["secondary.offset-wrong-side"],
-            Mistake::AccumulatorNotReset => &["image.differs"],
+            Mistake::AccumulatorNotReset => &["image.accumulated"],
         }
     }
 

@@ -509,4 +509,3 @@ fn a_mistake_that_explains_a_part_is_named_for_that_part() {
     assert!(x.percent < 95.0, "{x:?}");
     assert!(d.next.is_some(), "{text}");
 }
-

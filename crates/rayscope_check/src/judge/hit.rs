@@ -169,6 +169,13 @@ impl Judge<'_> {
                 let code = if *kind == Kind::Shadow {
                     Code::ShadowAcne
                 } else {
+                    // Which side of the surface the origin lies on, however little off it: the
+                    // log-wide decision between acne and an offset to the wrong side.
+                    if sigma * heading < 0.0 {
+                        tally.acne_wrong_side += 1;
+                    } else {
+                        tally.acne_other += 1;
+                    }
                     Code::SecondaryAcne
                 };
                 f.push(self.finding(r, kind, code, self.acne_detail(r, lv, ts), v()));
@@ -211,6 +218,16 @@ impl Judge<'_> {
 
     /// The tracer reports no hit where the oracle finds `h`.
     fn reported_nothing(&self, r: &LoggedRay, kind: &Kind, h: &RsHit, f: &mut Vec<Finding>, tally: &mut Tally) {
+        let before = f.len();
+        self.reported_nothing_verdict(r, kind, h, f, tally);
+        if f[before..].iter().any(|x| !x.code.is_tie()) {
+            tally.skipped.size = tally.skipped.size.max(self.scene_size());
+            tally.skipped.pass(h.t, None);
+        }
+    }
+
+    /// [`Self::reported_nothing`]'s verdict on the ray alone.
+    fn reported_nothing_verdict(&self, r: &LoggedRay, kind: &Kind, h: &RsHit, f: &mut Vec<Finding>, tally: &mut Tally) {
         let (o, d) = (r.origin, r.direction);
         let hit_values = |ts, ps, es| self.hit_values(Some(h), ts, ps, es);
         let m = self.geo.margin(h.prim, o, d, h.point);
@@ -301,6 +318,7 @@ impl Judge<'_> {
         let same_t = (ts - h.t).abs() <= pos / cos;
         let same_entity = c.entity.is_none_or(|e| e == h.entity);
         if same_entity && same_t {
+            tally.skipped.kept_min_t = tally.skipped.kept_min_t.min(h.t);
             if let Some(n) = c.normal {
                 self.normal(r, kind, n, h, f, tally);
             }
@@ -381,9 +399,33 @@ impl Judge<'_> {
         f: &mut Vec<Finding>,
         tally: &mut Tally,
     ) {
-        let (o, d) = (r.origin, r.direction);
-        let l = scale(&[o, ps, h.point]);
+        let l = scale(&[r.origin, ps, h.point]);
         let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
+        let before = f.len();
+        self.beyond_nearest_verdict(r, kind, c, ts, h, f, tally, l, &v);
+        if f[before..].iter().any(|x| !x.code.is_tie()) {
+            let earlier = c.entity.is_some_and(|e| e < h.entity);
+            let nearer = ps.length() < h.point.length();
+            tally.skipped.size = tally.skipped.size.max(self.scene_size());
+            tally.skipped.pass(h.t, Some((earlier, nearer)));
+        }
+    }
+
+    /// [`Self::beyond_nearest`]'s verdict on the ray alone.
+    #[allow(clippy::too_many_arguments)]
+    fn beyond_nearest_verdict(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        c: &HitClaim,
+        ts: f64,
+        h: &RsHit,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+        l: f64,
+        v: &dyn Fn() -> Vec<Value>,
+    ) {
+        let (o, d) = (r.origin, r.direction);
         // The tracer's hit lies beyond rayscope's nearest one.
         if c.entity == Some(h.entity) {
             f.push(self.finding(

@@ -381,6 +381,27 @@ impl Judge<'_> {
         f: &mut Vec<Finding>,
         tally: &mut Tally,
     ) {
+        let before = f.len();
+        self.reported_reached_verdict(r, kind, li, seg, b, v, f, tally);
+        if f[before..].iter().any(|x| !x.code.is_tie()) {
+            tally.skipped.size = tally.skipped.size.max(self.scene_size());
+            tally.skipped.pass(b.t, None);
+        }
+    }
+
+    /// [`Self::reported_reached`]'s verdict on the ray alone.
+    #[allow(clippy::too_many_arguments)]
+    fn reported_reached_verdict(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        seg: ToLight,
+        b: &RsHit,
+        v: Vec<Value>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
         let (o_trace, d) = (r.origin, r.direction);
         let ToLight { dist, l, pos } = seg;
         if (b.t - dist).abs() <= pos {

@@ -174,7 +174,13 @@ impl Student {
                         let u = (x as f64 + ox) / w as f64;
                         let v = (y as f64 + oy) / h as f64;
                         let d = DVec3::new((2.0 * u - 1.0) * sx, (1.0 - 2.0 * v) * sy, 1.0).normalize();
-                        sum += self.trace(Ray { o: DVec3::ZERO, d: turn(d) }, 0);
+                        sum += self.trace(
+                            Ray {
+                                o: DVec3::ZERO,
+                                d: turn(d),
+                            },
+                            0,
+                        );
                     }
                 }
                 total = sum;
