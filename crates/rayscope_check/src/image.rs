@@ -427,9 +427,18 @@ mod tests {
 
     fn picture(s: &PixelSums, c: Conversion) -> Vec<u8> {
         let mut out = Vec::new();
+        let mut sum = [0.0f64; 3];
         for y in 0..s.height {
             for x in 0..s.width {
-                out.extend(c.bytes(s, x, y).unwrap_or([0; 3]));
+                if c == Conversion::Accumulated {
+                    let i = (y * s.width + x) as usize;
+                    for (t, v) in sum.iter_mut().zip(s.sum[i]) {
+                        *t += v / f64::from(s.n[i]);
+                    }
+                    out.extend(sum.map(course_byte));
+                } else {
+                    out.extend(c.bytes(s, x, y).unwrap_or([0; 3]));
+                }
             }
         }
         out

@@ -505,6 +505,70 @@ fn an_uncatalogued_mistake_gets_a_truthful_headline_with_the_numbers() {
     }
 }
 
+/// Rules that pass over the nearest hit are named by what every passed-over hit has in common,
+/// log-wide: a minimum distance (on a pane of glass 0.03 thick, where 0.05 loses the back face),
+/// the scene's order, the distance from the world's origin. A tracer that keeps the farthest
+/// hit, which no catalogue has, is told only what is true of each ray.
+#[test]
+fn rules_that_pass_over_the_nearest_hit_are_named_by_what_they_share() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let pane = root().join("crates/rayscope_core/tests/scenes/thin_pane.txt");
+    assert_one_headline(
+        Run {
+            bug: "min-distance",
+            ..Run::new(pane, 40, 30)
+        },
+        Code::HitNearSkipped,
+    );
+    assert_one_headline(
+        Run {
+            bug: "first-in-list",
+            ..Run::new(course.scene("sample_scene_1.txt"), 40, 30)
+        },
+        Code::HitSceneOrder,
+    );
+    assert_one_headline(
+        Run {
+            bug: "origin-distance",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::HitOriginDistance,
+    );
+    let Some(r) = Run {
+        bug: "farthest-hit",
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    }
+    .check() else {
+        return;
+    };
+    let t = text(&r);
+    for wrong in [Code::HitNearSkipped, Code::HitSceneOrder, Code::HitOriginDistance] {
+        assert!(r.causes.iter().all(|c| !c.codes().contains(&wrong)), "{t}");
+    }
+    assert!(
+        t.lines().next().is_some_and(|l| l.contains(Code::HitFarther.as_str())),
+        "{t}"
+    );
+}
+
+/// Glass whose reflected ray starts along the incident ray (inside the glass) is named as the
+/// offset to the wrong side it is, grazing rays included.
+#[test]
+fn a_glass_reflection_started_along_the_ray_is_an_offset_to_the_wrong_side() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    assert_one_headline(
+        Run {
+            bug: "reflect-along-ray",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::SecondaryOffsetWrongSide,
+    );
+}
+
 /// The student's picture beside its log (`check --image`): written by the course's rule it gets
 /// no verdict; each usual mistake in turning colours into bytes is named, and a picture from
 /// other colours (no catalogue has it) is said not to be made from the logged ones.
@@ -533,6 +597,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("flipped-out", Some(Code::ImageFlipped)),
         ("bgr-out", Some(Code::ImageChannels)),
         ("stale-image", Some(Code::ImageDiffers)),
+        ("accumulator-out", Some(Code::ImageAccumulated)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));

@@ -30,10 +30,16 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      block the light
   shadow-unnormalised the shadow test is given light - point unnormalised, so its spheres' t is
                      off (it logs the normalised direction; no catalogue has it)
+  min-distance       every intersection test ignores hits nearer than t = 0.05
+  first-in-list      the nearest-hit loop keeps the first entity hit in the scene's order
+  origin-distance    the nearest-hit loop keeps the hit whose point is nearest (0, 0, 0)
+  farthest-hit       the nearest-hit loop keeps the farthest hit (no catalogue has it)
+  reflect-along-ray  glass's reflected ray starts at p + EPS * d, along the incident ray
   gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out
                      the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
                      samples averaged as bytes, rows upside down, red and blue swapped
   stale-image        the picture is not made of the logged colours (no catalogue has it)
+  accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
   schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
@@ -68,13 +74,14 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
         "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
-        "limit-colour", "mirror-tint", "background")
+        "limit-colour", "mirror-tint", "background", "reflect-along-ray")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
-               "stale-image")
+               "stale-image", "accumulator-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
-                 "strict-edges", "radius-not-squared")
+                 "strict-edges", "radius-not-squared", "min-distance", "first-in-list", "origin-distance",
+                 "farthest-hit")
 
 
 def add(a, b):
@@ -158,7 +165,18 @@ class Tracer:
 
     # --- intersection -------------------------------------------------------------------
     def intersect(self, e, o, d):
-        """Nearest t > 0 of the ray with entity e, or None."""
+        """Nearest t > 0 (or > 0.05 with min-distance) of the ray with entity e, or None."""
+        t = self.intersect_any(e, o, d)
+        if t is not None and self.bug == "min-distance" and t <= 0.05:
+            return self.intersect_any(e, add(o, mul(d, 0.05)), d, 0.05)
+        return t
+
+    def intersect_any(self, e, o, d, already=0.0):
+        """Nearest t > 0 of the ray with entity e (plus `already`), or None."""
+        t = self.intersect_from(e, o, d)
+        return None if t is None else t + already
+
+    def intersect_from(self, e, o, d):
         if e.kind == "plane":
             den = dot(e.n, d)
             if den == 0:
@@ -204,7 +222,19 @@ class Tracer:
         best = None
         for e in self.entities:
             t = self.intersect(e, o, d)
-            if t is not None and (best is None or t < best[0]):
+            if t is None:
+                continue
+            if best is None:
+                best = (t, e)
+            elif self.bug == "first-in-list":
+                pass
+            elif self.bug == "origin-distance":
+                if dot(add(o, mul(d, t)), add(o, mul(d, t))) < dot(add(o, mul(d, best[0])), add(o, mul(d, best[0]))):
+                    best = (t, e)
+            elif self.bug == "farthest-hit":
+                if t > best[0]:
+                    best = (t, e)
+            elif t < best[0]:
                 best = (t, e)
         return best
 
@@ -338,7 +368,8 @@ class Tracer:
         if self.bug == "no-reflection-ray":
             col = (0.0, 0.0, 0.0)
         else:
-            col = mul(self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection"), kr)
+            ro = add(p, mul(d, EPS)) if self.bug == "reflect-along-ray" else add(p, mul(nf, EPS))
+            col = mul(self.trace(ro, r, depth + 1, rid, "reflection"), kr)
         if k < 0 and self.bug != "no-tir":
             return col
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
@@ -403,9 +434,11 @@ def main():
     elif args.bug == "aspect":
         hx, hy = t, t * w / h
     image = {}
+    total = (0.0, 0.0, 0.0)
     for y in range(y0, y1):
         for x in range(x0, x1):
-            total = (0.0, 0.0, 0.0)
+            if args.bug != "accumulator-out":
+                total = (0.0, 0.0, 0.0)
             byte_total = [0, 0, 0]
             for j in range(n):
                 for i in range(n):
