@@ -73,6 +73,9 @@ codes! {
     CameraSubpixelGrid = "camera.subpixel-grid", false,
         "sample not at rayscope's sub-pixel grid position",
         "With -x N each pixel is sampled on an N×N regular grid: sample s is cell (i, j) = (s mod N, s div N), at ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height). Your ray lies elsewhere: rows and columns swapped, every sample at the pixel centre, a grid that spans the pixel's corners, or random jitter. Number your samples row by row, as rayscope does, to compare them.";
+    CameraRotation = "camera.rotation", false,
+        "camera turned by another angle about its axis",
+        "Your camera rays fit the camera turned about the --cam-axis by an angle other than --cam-angle: the details give the angle they fit. --cam-angle is in degrees; most rotation functions (System.Numerics' Quaternion.CreateFromAxisAngle, Matrix4x4.CreateFromAxisAngle) take radians, so convert with angle · π / 180. A turn the wrong way round is the angle's sign, or the rotation applied as its inverse.";
     CameraDirection = "camera.direction", false,
         "camera ray points elsewhere",
         "Your camera ray's direction matches none of the usual mistakes rayscope knows. The details name the pixel your ray actually passes through. Check how you map pixel coordinates to the image plane, the FOV, and the camera's rotation.";

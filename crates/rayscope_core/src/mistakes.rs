@@ -387,7 +387,7 @@ impl Mistake {
             Mistake::RoundedColours => &["image.rounded"],
             Mistake::Gamma => &["image.gamma"],
             Mistake::ObjNoZFlip => &["hit.surface-wrong"],
-            Mistake::CamAngleRadians => &["camera.direction"],
+            Mistake::CamAngleRadians => &["camera.rotation"],
             Mistake::MinHitDistance => &["hit.near-skipped"],
             Mistake::NearestByOriginDistance => &["hit.origin-distance"],
             Mistake::FirstHitInSceneOrder => &["hit.scene-order"],

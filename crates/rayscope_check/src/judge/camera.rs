@@ -112,6 +112,18 @@ impl Judge<'_> {
             }
             return;
         }
+        if let Some(detail) = self.turned(
+            d,
+            dir_of(&CamGuess {
+                off: offs[0].0,
+                half,
+                pos_code: None,
+                proj_code: None,
+            }),
+        ) {
+            f.push(self.finding(r, kind, Code::CameraRotation, format!("{off_by}; {detail}"), values));
+            return;
+        }
         if dc.z <= 0.0 {
             f.push(self.finding(
                 r,
@@ -163,6 +175,37 @@ impl Judge<'_> {
             off_by
         };
         f.push(self.finding(r, kind, Code::CameraDirection, detail, values));
+    }
+
+    /// For a camera turned by `--cam-angle`: whether direction `d` is the unturned camera's `p`
+    /// turned about the same axis by another angle, and which (said as the flags' angle read as
+    /// radians where it is that).
+    fn turned(&self, d: DVec3, p: DVec3) -> Option<String> {
+        let cam = &self.settings.camera;
+        let k = cam.axis.as_dvec3().normalize_or_zero();
+        if cam.angle_deg == 0.0 || k == DVec3::ZERO {
+            return None;
+        }
+        // A turn about k keeps the part along k and turns the rest by θ.
+        let (pp, dp) = (p - k * k.dot(p), d - k * k.dot(d));
+        if pp.length() < 1e-9 || dp.length() < 1e-9 {
+            return None;
+        }
+        let theta = k.dot(pp.cross(dp)).atan2(pp.dot(dp));
+        let turned = DMat3::from_axis_angle(k, theta) * p;
+        if angle(turned, d) > self.cam_tol {
+            return None;
+        }
+        let flags = f64::from(cam.angle_deg);
+        let wrap = |a: f64| (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI;
+        let deg = theta.to_degrees();
+        Some(if wrap(theta - flags).abs() < 1e-4 {
+            format!(
+                "it fits the camera turned by {flags} radians ({deg:.2}° as a turn) about the axis: --cam-angle {flags} read as radians, not degrees"
+            )
+        } else {
+            format!("it fits the camera turned by {deg:.2}° about the axis instead of {flags}°")
+        })
     }
 
     /// The values shown beside a wrong camera ray: its direction and where it crosses rayscope's
