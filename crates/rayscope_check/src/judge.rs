@@ -187,6 +187,14 @@ pub struct Skipped {
     pub earlier_in_file: u64,
     /// Passed-over rays whose kept hit lies nearer the world's origin.
     pub nearer_origin: u64,
+    /// Rays the tracer got right that were walked to the end, to test the two rules on.
+    pub walked: u64,
+    /// A ray the tracer got right meets an entity listed earlier beyond its nearest hit: the
+    /// file's order would have kept that one, so it is not the rule.
+    pub order_refuted: bool,
+    /// A ray the tracer got right meets a point nearer the world's origin beyond its nearest
+    /// hit: so the distance from the origin is not the rule.
+    pub origin_refuted: bool,
 }
 
 impl Default for Skipped {
@@ -198,9 +206,17 @@ impl Default for Skipped {
             size: 0.0,
             earlier_in_file: 0,
             nearer_origin: 0,
+            walked: 0,
+            order_refuted: false,
+            origin_refuted: false,
         }
     }
 }
+
+/// One in this many rays the tracer got right (by log line) is walked to test the nearest-hit
+/// rules: enough to meet an entity behind another in any scene with more than a few, few enough
+/// to cost little, and the same rays whatever the threads.
+pub(crate) const WALK_EVERY: u64 = 16;
 
 impl Skipped {
     fn merge(&mut self, o: Skipped) {
@@ -210,6 +226,9 @@ impl Skipped {
         self.size = self.size.max(o.size);
         self.earlier_in_file += o.earlier_in_file;
         self.nearer_origin += o.nearer_origin;
+        self.walked += o.walked;
+        self.order_refuted |= o.order_refuted;
+        self.origin_refuted |= o.origin_refuted;
     }
 
     /// Counts a passed-over hit at `t` along its ray; `kept` tells, for a farther hit the tracer
@@ -240,7 +259,7 @@ impl Skipped {
                 ),
             ));
         }
-        if self.rays >= 3 && self.earlier_in_file == self.rays {
+        if self.rays >= 3 && self.earlier_in_file == self.rays && !self.order_refuted {
             return Some((
                 Code::HitSceneOrder,
                 format!(
@@ -249,7 +268,7 @@ impl Skipped {
                 ),
             ));
         }
-        if self.rays >= 3 && self.nearer_origin == self.rays {
+        if self.rays >= 3 && self.nearer_origin == self.rays && !self.origin_refuted {
             return Some((
                 Code::HitOriginDistance,
                 format!(
@@ -740,6 +759,57 @@ impl<'a> Judge<'a> {
             un,
             shade,
         })
+    }
+
+    /// For a shadow ray the tracer says reaches its light at `dist`, though something blocks
+    /// it: whether a shadow test that takes the tracer's "closest" hit on the whole ray and
+    /// compares its distance with the light's would say so, with the hit kept (among each
+    /// entity's nearest) being the first in the scene's order, and with it being the one nearest
+    /// the world's origin.
+    fn kept_beyond(&self, o: DVec3, d: DVec3, dist: f64) -> (bool, bool) {
+        let mut hits = Vec::new();
+        let mut lo = 0.0;
+        while hits.len() < 64 {
+            let Some(h) = self.oracle.closest(o, d, lo, f64::INFINITY) else {
+                break;
+            };
+            lo = h.t + h.t.abs() * 1e-9 + 1e-12;
+            // Each entity's own test answers one hit, its nearest (a sphere's near root).
+            if hits.iter().all(|k: &crate::oracle::OracleHit| k.entity != h.entity) {
+                hits.push(h);
+            }
+        }
+        let first = hits.iter().min_by_key(|h| h.entity);
+        let nearest_origin = hits.iter().min_by(|a, b| a.point.length().total_cmp(&b.point.length()));
+        (
+            first.is_none_or(|h| h.t >= dist),
+            nearest_origin.is_none_or(|h| h.t >= dist),
+        )
+    }
+
+    /// For a ray whose nearest hit `h` the tracer got right: whether an entity's own nearest hit
+    /// beyond it (past `margin`) is listed earlier, or lies nearer the world's origin, which
+    /// refutes the rule that would have kept it.
+    pub(crate) fn walk_agreeing(&self, r: &LoggedRay, h: &RsHit, margin: f64, s: &mut Skipped) {
+        if r.line % WALK_EVERY != 0 || s.order_refuted && s.origin_refuted {
+            return;
+        }
+        let (o, d) = (r.origin, r.direction);
+        s.walked += 1;
+        let mut seen = vec![h.entity];
+        let mut lo = h.t + margin;
+        for _ in 0..64 {
+            let Some(k) = self.oracle.closest(o, d, lo, f64::INFINITY) else {
+                break;
+            };
+            lo = k.t + k.t.abs() * 1e-9 + 1e-12;
+            if seen.contains(&k.entity) {
+                continue;
+            }
+            seen.push(k.entity);
+            s.order_refuted |= k.entity < h.entity;
+            s.origin_refuted |= k.point.length() < h.point.length() - margin;
+        }
     }
 
     /// The diagonal of the scene's bounded entities (planes have no size), at least 1.

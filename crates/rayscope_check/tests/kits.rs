@@ -511,3 +511,86 @@ fn the_kits_work_out_the_tree_whatever_the_call_order() {
         assert_eq!(got, want, "{lang:?} wrote:\n{text}");
     }
 }
+
+/// Mistakes found in real students' tracers, made by the template-shaped C# tracer (its own code,
+/// not theirs): `diagnose` names each from the picture alone, as the catalogue's mistake whose
+/// render is that picture; the correct tracer's picture matches.
+#[test]
+fn diagnose_names_real_students_mistakes_in_a_template_shaped_tracer() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene2 = course.scene("sample_scene_2.txt");
+    let pane = root().join("crates/rayscope_core/tests/scenes/thin_pane.txt");
+    let (w, h) = (80u32, 60u32);
+    for (scene, bug, named) in [
+        (&scene2, "none", None),
+        (&pane, "min-distance", Some("min-hit-distance")),
+        (&scene2, "first-in-list", Some("first-hit-in-scene-order")),
+        (&scene2, "origin-distance", Some("nearest-by-origin-distance")),
+        (&scene2, "reflect-along-ray", Some("glass-reflection-along-ray")),
+        (&scene2, "reflect-outward", Some("glass-reflection-outward")),
+        (&scene2, "accumulator", Some("accumulator-not-reset")),
+    ] {
+        let Some(mut cmd) = tracer(Lang::CSharp) else {
+            return;
+        };
+        let dir = tempfile::tempdir().expect("temp dir");
+        let ppm = dir.path().join("out.ppm");
+        let out = cmd
+            .arg("-f")
+            .arg(scene)
+            .args([
+                "-w",
+                &w.to_string(),
+                "-h",
+                &h.to_string(),
+                "--bug",
+                bug,
+                "--serial",
+                "-o",
+            ])
+            .arg(&ppm)
+            .env_remove("RAYSCOPE_LOG")
+            .output()
+            .expect("run the tracer");
+        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+        let rgb: Vec<u8> = std::fs::read_to_string(&ppm)
+            .expect("the picture")
+            .split_whitespace()
+            .skip(4)
+            .map(|t| t.parse().expect("a byte"))
+            .collect();
+        let file = rayscope_scene::load(scene).expect("scene");
+        let flags = RenderSettings {
+            width: w,
+            height: h,
+            stage: Stage::Two,
+            ..RenderSettings::default()
+        };
+        let image = rayscope_core::diagnose::Image {
+            width: w,
+            height: h,
+            rgb: &rgb,
+            alpha: None,
+        };
+        let opts = rayscope_core::diagnose::DiagnoseOptions {
+            pairs: false,
+            coarse_samples: 2_400,
+            ..Default::default()
+        };
+        let d = rayscope_core::diagnose::diagnose(&file, &flags, image, &opts).expect("the sizes agree");
+        let text = rayscope_core::diagnose::report_text(&d, &scene.display().to_string());
+        match named {
+            None => assert!(d.matches, "{bug}:\n{text}"),
+            Some(name) => {
+                let first = d.explanations.first();
+                assert!(
+                    first.is_some_and(|e| e.matches && e.mistakes == [name] && e.settings.is_empty()),
+                    "{bug}:\n{text}"
+                );
+                assert!(text.lines().next().is_some_and(|l| l.contains(name)), "{bug}:\n{text}");
+            }
+        }
+    }
+}

@@ -583,14 +583,17 @@ fn choosing_the_nearest_hit_by_another_distance_changes_only_what_it_should() {
         return;
     };
     // From a camera at the origin, distance from the origin is distance along the camera ray:
-    // only what mirrors and glass show changes.
+    // only what mirrors and glass show changes, and shadows, whose test keeps the closest hit's
+    // answer on the whole ray.
     let c = case(
         &course.scene("sample_scene_2.txt"),
         settings(64, 64),
         Mistake::NearestByOriginDistance,
     );
-    c.only_where("seen in a mirror or through glass", |t| {
-        hits_material(t, "Reflective") || hits_material(t, "Refractive")
+    c.only_where("seen in a mirror or through glass, or in a shadow", |t| {
+        hits_material(t, "Reflective")
+            || hits_material(t, "Refractive")
+            || any_node(t, |n| n.kind == RayKind::Shadow && n.blocker.is_some())
     });
     // Scene 1 lists its floor first: kept whenever a camera ray meets it at all, the floor
     // covers the sphere's and the triangle's lower halves, only where their rays go on down to

@@ -319,6 +319,7 @@ impl Judge<'_> {
         let same_entity = c.entity.is_none_or(|e| e == h.entity);
         if same_entity && same_t {
             tally.skipped.kept_min_t = tally.skipped.kept_min_t.min(h.t);
+            self.walk_agreeing(r, h, pos / cos, &mut tally.skipped);
             if let Some(n) = c.normal {
                 self.normal(r, kind, n, h, f, tally);
             }

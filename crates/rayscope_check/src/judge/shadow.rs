@@ -382,10 +382,12 @@ impl Judge<'_> {
         tally: &mut Tally,
     ) {
         let before = f.len();
+        let dist = seg.dist;
         self.reported_reached_verdict(r, kind, li, seg, b, v, f, tally);
         if f[before..].iter().any(|x| !x.code.is_tie()) {
             tally.skipped.size = tally.skipped.size.max(self.scene_size());
-            tally.skipped.pass(b.t, None);
+            let kept = self.kept_beyond(r.origin, r.direction, dist);
+            tally.skipped.pass(b.t, Some(kept));
         }
     }
 

@@ -6,6 +6,14 @@
 //   shadow-no-offset   shadow rays start exactly on the surface
 //   reflect-no-2       the reflection formula without its factor 2: d - (d.n) n
 //   refraction-normal  leaving glass, the refraction uses the outward normal (not flipped)
+// and mistakes found in real students' tracers, for `diagnose`:
+//   min-distance       every Intersect ignores hits nearer than t = 0.05
+//   first-in-list      the closest-hit loop compares the lengths of the hits' unit incident
+//                      directions (all 1), so the first entity hit in the scene's order is kept
+//   origin-distance    the closest-hit loop compares the hits' positions' lengths
+//   reflect-along-ray  glass's reflected ray starts at p + d * Eps, along the incident ray
+//   reflect-outward    glass's reflected ray starts at p + N * Eps with the outward normal N
+//   accumulator        the sum of a pixel's samples is never reset (use with --serial)
 // Its structs are plain (the template's are readonly, C# 7.2) so that it builds as C# 7.0, as the kit must:
 //     mcs -langversion:7 -out:tracer.exe kits/csharp/RayLog.cs Tracer.cs
 // Usage: mono tracer.exe -f scene.txt [-w 400] [-h 400] [-x 1] [-o out.ppm] [--bug NAME] [--serial]
@@ -86,6 +94,12 @@ namespace RayTracer
         Material Material { get; }
     }
 
+    public static class Student
+    {
+        // The smallest t the Intersect methods accept (the min-distance mistake raises it).
+        public static double MinT = 0;
+    }
+
     public class Sphere : SceneEntity
     {
         private readonly Vector3 center;
@@ -100,8 +114,8 @@ namespace RayTracer
             if (disc < 0) return null;
             double root = Math.Sqrt(disc);
             double t = -b - root;
-            if (t <= 0) t = -b + root;
-            if (t <= 0) return null;
+            if (t <= Student.MinT) t = -b + root;
+            if (t <= Student.MinT) return null;
             Vector3 p = ray.Origin + ray.Direction * t;
             return new RayHit(p, (p - center).Normalized(), ray.Direction, Material);
         }
@@ -117,7 +131,7 @@ namespace RayTracer
             double den = ray.Direction.Dot(normal);
             if (den == 0) return null;
             double t = (center - ray.Origin).Dot(normal) / den;
-            if (t <= 0) return null;
+            if (t <= Student.MinT) return null;
             return new RayHit(ray.Origin + ray.Direction * t, normal, ray.Direction, Material);
         }
     }
@@ -142,7 +156,7 @@ namespace RayTracer
             double v = ray.Direction.Dot(q) / det;
             if (v < 0 || u + v > 1) return null;
             double t = e2.Dot(q) / det;
-            if (t <= 0) return null;
+            if (t <= Student.MinT) return null;
             return new RayHit(ray.Origin + ray.Direction * t, normal, ray.Direction, Material);
         }
     }
@@ -170,11 +184,12 @@ namespace RayTracer
         {
             var image = new Color[width, height];
             double half = Math.Tan(Math.PI / 6);
+            Color carried = new Color(0, 0, 0);
             Action<int> row = y =>
             {
                 for (int x = 0; x < width; x++)
                 {
-                    Color sum = new Color(0, 0, 0);
+                    Color sum = Bug == "accumulator" ? carried : new Color(0, 0, 0);
                     for (int j = 0; j < n; j++)
                         for (int i = 0; i < n; i++)
                         {
@@ -184,6 +199,7 @@ namespace RayTracer
                             RayLog.Camera(x, y, j * n + i, ray);
                             sum = sum + Trace(ray, 0);
                         }
+                    carried = sum;
                     image[x, y] = sum * (1.0 / (n * n));
                 }
             };
@@ -204,6 +220,8 @@ namespace RayTracer
                 RayHit hit = e.Intersect(ray);
                 if (hit == null) continue;
                 double d = (hit.Position - ray.Origin).Length();
+                if (Bug == "first-in-list") d = hit.Incident.Length();
+                if (Bug == "origin-distance") d = hit.Position.Length();
                 if (d < bestDist) { best = hit; bestDist = d; closest = e; }
             }
             return best;
@@ -237,9 +255,14 @@ namespace RayTracer
 
         private Ray Reflect(Ray ray, Vector3 p, Vector3 nf)
         {
+            return Reflect(ray, p + nf * Eps, p, nf);
+        }
+
+        private Ray Reflect(Ray ray, Vector3 origin, Vector3 p, Vector3 nf)
+        {
             Vector3 d = ray.Direction;
             double k = Bug == "reflect-no-2" ? 1 : 2;
-            var reflected = new Ray(p + nf * Eps, (d - nf * (k * d.Dot(nf))).Normalized());
+            var reflected = new Ray(origin, (d - nf * (k * d.Dot(nf))).Normalized());
             RayLog.Reflection(reflected);
             return reflected;
         }
@@ -269,7 +292,10 @@ namespace RayTracer
             Vector3 nn = Bug == "refraction-normal" ? hit.Normal : nf;
             double eta = n1 / n2, cosi = -d.Dot(nn);
             double k = 1 - eta * eta * (1 - cosi * cosi);
-            Color reflected = Trace(Reflect(ray, p, nf), depth + 1);
+            Vector3 from = p + nf * Eps;
+            if (Bug == "reflect-along-ray") from = p + d * Eps;
+            if (Bug == "reflect-outward") from = p + hit.Normal * Eps;
+            Color reflected = Trace(Reflect(ray, from, p, nf), depth + 1);
             if (k < 0) return reflected;
             double ci = Math.Abs(cosi), ct = Math.Sqrt(k);
             double rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct), rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
@@ -345,13 +371,15 @@ namespace RayTracer
                 }
             }
             if (file == null) { Console.Error.WriteLine("usage: tracer.exe -f scene.txt [-w W] [-h H] [-x N] [-o out.ppm] [--bug NAME] [--serial]"); return 2; }
-            if (bug != "none" && bug != "shadow-no-offset" && bug != "reflect-no-2" && bug != "refraction-normal")
+            var bugs = new[] { "none", "shadow-no-offset", "reflect-no-2", "refraction-normal", "min-distance", "first-in-list", "origin-distance", "reflect-along-ray", "reflect-outward", "accumulator" };
+            if (Array.IndexOf(bugs, bug) < 0)
             {
                 Console.Error.WriteLine("unknown bug " + bug);
                 return 2;
             }
             Scene scene = Load(file);
             scene.Bug = bug;
+            if (bug == "min-distance") Student.MinT = 0.05;
             scene.Serial = serial;
             Color[,] image = scene.Render(w, h, n);
             if (output != null)
