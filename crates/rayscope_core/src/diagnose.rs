@@ -503,9 +503,8 @@ impl Candidate {
                                 base.max_depth
                             ),
                         ),
-                        SettingChange::MaxDepth(d) => (
-                            format!("--max-depth {d}"),
-                            if d == 3 {
+                        SettingChange::MaxDepth(d) => {
+                            let mut word = if d == 3 {
                                 format!(
                                     "a recursion limit of {d} instead of {} ('{}')",
                                     base.max_depth,
@@ -513,8 +512,17 @@ impl Candidate {
                                 )
                             } else {
                                 format!("a recursion limit of {d} instead of {}", base.max_depth)
-                            },
-                        ),
+                            };
+                            // Students often stop every ray at a depth; where only mirrors and
+                            // glass send rays on, that is this picture at one more.
+                            if base.stage != Stage::Full {
+                                word.push_str(&format!(
+                                    " for mirrors and glass, the same picture as every ray from depth {} on returning black",
+                                    d + 1
+                                ));
+                            }
+                            (format!("--max-depth {d}"), word)
+                        }
                         SettingChange::DepthAll(d) => (
                             format!("--depth-limit all --max-depth {d}"),
                             format!(

@@ -14,6 +14,10 @@
 //   reflect-along-ray  glass's reflected ray starts at p + d * Eps, along the incident ray
 //   reflect-outward    glass's reflected ray starts at p + N * Eps with the outward normal N
 //   accumulator        the sum of a pixel's samples is never reset (use with --serial)
+//   schlick            glass mixes by Schlick's approximation
+//   integer-aspect     the aspect ratio computed as width / height in integers (80 / 60 is 1)
+//   fov-vertical       the 60 degrees span the image's height (Unity's camera)
+//   depth-all-3        every material returns black from depth 3 on
 // Its structs are plain (the template's are readonly, C# 7.2) so that it builds as C# 7.0, as the kit must:
 //     mcs -langversion:7 -out:tracer.exe kits/csharp/RayLog.cs Tracer.cs
 // Usage: mono tracer.exe -f scene.txt [-w 400] [-h 400] [-x 1] [-o out.ppm] [--bug NAME] [--serial]
@@ -194,7 +198,14 @@ namespace RayTracer
                         for (int i = 0; i < n; i++)
                         {
                             double u = (x + (i + 0.5) / n) / width, v = (y + (j + 0.5) / n) / height;
-                            var dir = new Vector3((2 * u - 1) * half, (1 - 2 * v) * half * height / width, 1);
+                            double sx = half, sy = half * height / width;
+                            if (Bug == "integer-aspect")
+                            {
+                                double aspect = width / height;
+                                sy = half / aspect;
+                            }
+                            if (Bug == "fov-vertical") { sx = half * width / height; sy = half; }
+                            var dir = new Vector3((2 * u - 1) * sx, (1 - 2 * v) * sy, 1);
                             var ray = new Ray(new Vector3(0, 0, 0), dir.Normalized());
                             RayLog.Camera(x, y, j * n + i, ray);
                             sum = sum + Trace(ray, 0);
@@ -237,6 +248,7 @@ namespace RayTracer
 
         private Color Shade(Ray ray, RayHit hit, Material material, int depth)
         {
+            if (Bug == "depth-all-3" && depth >= 3) return new Color(0, 0, 0);
             Vector3 d = ray.Direction, p = hit.Position;
             bool front = hit.Normal.Dot(d) < 0;
             Vector3 nf = front ? hit.Normal : -hit.Normal;
@@ -300,6 +312,13 @@ namespace RayTracer
             double ci = Math.Abs(cosi), ct = Math.Sqrt(k);
             double rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct), rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
             double kr = 0.5 * (rs * rs + rp * rp);
+            if (Bug == "schlick")
+            {
+                double r0 = (n1 - n2) / (n1 + n2);
+                r0 *= r0;
+                double c = n1 <= n2 ? ci : ct;
+                kr = r0 + (1 - r0) * Math.Pow(1 - c, 5);
+            }
             var refracted = new Ray(p - nn * Eps, (d * eta + nn * (eta * cosi - ct)).Normalized());
             RayLog.Refraction(refracted);
             return reflected * kr + Trace(refracted, depth + 1) * (1 - kr);
@@ -371,7 +390,7 @@ namespace RayTracer
                 }
             }
             if (file == null) { Console.Error.WriteLine("usage: tracer.exe -f scene.txt [-w W] [-h H] [-x N] [-o out.ppm] [--bug NAME] [--serial]"); return 2; }
-            var bugs = new[] { "none", "shadow-no-offset", "reflect-no-2", "refraction-normal", "min-distance", "first-in-list", "origin-distance", "reflect-along-ray", "reflect-outward", "accumulator" };
+            var bugs = new[] { "none", "shadow-no-offset", "reflect-no-2", "refraction-normal", "min-distance", "first-in-list", "origin-distance", "reflect-along-ray", "reflect-outward", "accumulator", "schlick", "integer-aspect", "fov-vertical", "depth-all-3" };
             if (Array.IndexOf(bugs, bug) < 0)
             {
                 Console.Error.WriteLine("unknown bug " + bug);
