@@ -216,7 +216,7 @@ impl Default for Skipped {
 /// One in this many rays the tracer got right (by log line) is walked to test the nearest-hit
 /// rules: enough to meet an entity behind another in any scene with more than a few, few enough
 /// to cost little, and the same rays whatever the threads.
-pub(crate) const WALK_EVERY: u64 = 16;
+const WALK_EVERY: u64 = 16;
 
 impl Skipped {
     fn merge(&mut self, o: Skipped) {
@@ -790,8 +790,8 @@ impl<'a> Judge<'a> {
     /// For a ray whose nearest hit `h` the tracer got right: whether an entity's own nearest hit
     /// beyond it (past `margin`) is listed earlier, or lies nearer the world's origin, which
     /// refutes the rule that would have kept it.
-    pub(crate) fn walk_agreeing(&self, r: &LoggedRay, h: &RsHit, margin: f64, s: &mut Skipped) {
-        if r.line % WALK_EVERY != 0 || s.order_refuted && s.origin_refuted {
+    fn walk_agreeing(&self, r: &LoggedRay, h: &RsHit, margin: f64, s: &mut Skipped) {
+        if !r.line.is_multiple_of(WALK_EVERY) || s.order_refuted && s.origin_refuted {
             return;
         }
         let (o, d) = (r.origin, r.direction);
