@@ -606,7 +606,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
         Atom::Setting(SettingChange::MaxDepth(_) | SettingChange::DepthAll(_)) => 2,
         Atom::Setting(SettingChange::Fov(_)) => 3,
         Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
-        Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick) => 5,
+        Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick | M::FresnelSwapped) => 5,
         Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
         Atom::Mistake(M::NearestByOriginDistance | M::FirstHitInSceneOrder) => 7,
         Atom::Mistake(_) => 0,
@@ -676,7 +676,11 @@ impl Contents {
             | M::FresnelHalf
             | M::Schlick
             | M::GlassReflectionAlongRay
-            | M::GlassReflectionOutward => self.glass,
+            | M::GlassReflectionOutward
+            | M::EtaEnteringInverted
+            | M::FresnelSwapped => self.glass,
+            M::ReflectNo2 => self.specular,
+            M::StrictEdges => self.triangles,
             M::ObjNoZFlip => self.meshes,
             M::ObjFlatNormals => self.mesh_normals,
             M::CamAngleRadians => s.camera.angle_deg != 0.0 && s.camera.axis != glam::Vec3::ZERO,

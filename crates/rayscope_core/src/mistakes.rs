@@ -81,6 +81,14 @@ pub enum Mistake {
     GlassReflectionOutward,
     /// The anti-aliasing sum is not reset between pixels.
     AccumulatorNotReset,
+    /// Entering glass, η = n instead of 1/n.
+    EtaEnteringInverted,
+    /// The reflection formula without its factor 2.
+    ReflectNo2,
+    /// The Fresnel reflectance with cos θi and cos θt exchanged in one term.
+    FresnelSwapped,
+    /// The triangle's inside test rejects hits near its edges.
+    StrictEdges,
 }
 
 /// What the catalogue says about a mistake.
@@ -118,12 +126,15 @@ pub(crate) const HUGE_OFFSET: f32 = 0.1;
 pub(crate) const AMBIENT: f32 = 0.1;
 /// The distance under which [`Mistake::MinHitDistance`] ignores hits, in scene units.
 pub(crate) const MIN_HIT: f32 = 0.05;
+/// The share of a triangle's altitude near each edge in which [`Mistake::StrictEdges`] rejects
+/// hits (a margin of 0.02 on the barycentric coordinates).
+pub(crate) const EDGE_MARGIN: f32 = 0.02;
 /// The exponent [`Mistake::Gamma`] raises colours to.
 pub(crate) const GAMMA: f32 = 1.0 / 2.2;
 
 impl Mistake {
     /// Every mistake, in catalogue order.
-    pub const ALL: [Mistake; 30] = [
+    pub const ALL: [Mistake; 34] = [
         Mistake::FovVertical,
         Mistake::AspectIgnored,
         Mistake::PixelCorners,
@@ -154,6 +165,10 @@ impl Mistake {
         Mistake::GlassReflectionAlongRay,
         Mistake::GlassReflectionOutward,
         Mistake::AccumulatorNotReset,
+        Mistake::EtaEnteringInverted,
+        Mistake::ReflectNo2,
+        Mistake::FresnelSwapped,
+        Mistake::StrictEdges,
     ];
 
     /// The catalogue entry.
@@ -340,6 +355,30 @@ impl Mistake {
                 "from the first lit pixels on, the picture climbs to full brightness: mostly white, or one saturated colour",
                 "Anti-aliasing: each pixel the mean of its own samples",
             ),
+            Mistake::EtaEnteringInverted => (
+                "eta-entering-inverted",
+                "entering glass, bends rays with η = n₂ / n₁ = n instead of n₁ / n₂ = 1/n",
+                "glass bends light the wrong way: what it shows is shrunk or scrambled, with wide dark rims",
+                REFRACTION,
+            ),
+            Mistake::ReflectNo2 => (
+                "reflect-no-2",
+                "reflects with d − (d · n) n, the factor 2 forgotten, for mirrors and glass",
+                "mirrors and glass reflect along the surface: they show a smeared band of what lies beside them",
+                "Stage 2: recursive reflection and refraction",
+            ),
+            Mistake::FresnelSwapped => (
+                "fresnel-swapped",
+                "writes one Fresnel term with cos θi and cos θt exchanged, so that the reflected share is rs² or rp² instead of their mean",
+                "glass reflects a little too much or too little, most near its rim",
+                FRESNEL,
+            ),
+            Mistake::StrictEdges => (
+                "strict-edges",
+                "rejects triangle hits within 0.02 of an edge in barycentric coordinates (u > ε, u + v < 1 − ε)",
+                "thin cracks along every triangle's edges, through which what lies behind shows",
+                "Stage 1: the nearest hit along each ray",
+            ),
         };
         MistakeInfo {
             name,
@@ -394,6 +433,10 @@ impl Mistake {
             Mistake::GlassReflectionAlongRay => &["secondary.offset-wrong-side"],
             Mistake::GlassReflectionOutward => &["secondary.offset-wrong-side"],
             Mistake::AccumulatorNotReset => &["image.accumulated"],
+            Mistake::EtaEnteringInverted => &["refraction.indices-not-swapped"],
+            Mistake::ReflectNo2 => &["reflection.not-mirror"],
+            Mistake::FresnelSwapped => &["shading.fresnel-swapped-cosines"],
+            Mistake::StrictEdges => &["hit.triangle-edge"],
         }
     }
 
@@ -409,14 +452,14 @@ impl Mistake {
         Mistake::ALL.into_iter().find(|m| m.name() == name)
     }
 
-    fn bit(self) -> u32 {
+    fn bit(self) -> u64 {
         1 << self as u8
     }
 }
 
 /// A set of [`Mistake`]s; empty for a correct render. Serialised as a list of names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct Mistakes(u32);
+pub struct Mistakes(u64);
 
 impl Mistakes {
     /// No mistakes: the correct render.

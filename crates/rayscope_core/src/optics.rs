@@ -41,6 +41,21 @@ pub fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
     0.5 * (rs * rs + rp * rp)
 }
 
+/// [`fresnel`] as a tracer that writes rp with cos θi and cos θt exchanged computes it: the
+/// mean of rs² and rs², that is rs² (a catalogued mistake).
+#[must_use]
+pub(crate) fn fresnel_swapped(cos_i: f32, n1: f32, n2: f32) -> f32 {
+    let eta = n1 / n2;
+    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
+    if sin2_t >= 1.0 {
+        return 1.0;
+    }
+    let cos_t = (1.0 - sin2_t).sqrt();
+    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
+    let rp = (n2 * cos_t - n1 * cos_i) / (n2 * cos_t + n1 * cos_i);
+    0.5 * (rs * rs + rp * rp)
+}
+
 /// Refracted direction of unit `d` through unit normal `n` (facing `d`'s origin side) with
 /// `eta = n1 / n2`; `None` under total internal reflection.
 #[must_use]

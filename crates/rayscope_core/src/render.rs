@@ -460,13 +460,19 @@ impl<I: Intersect> Mistaken<'_, I> {
     /// True when the hit must be skipped: a triangle seen from the side the student's
     /// one-sided test rejects.
     #[inline]
-    fn culled(&self, ray: &Ray, hit: PrimRef) -> bool {
+    fn culled(&self, ray: &Ray, hit: &Hit) -> bool {
+        let PrimRef::Triangle(i) = hit.prim else {
+            return false;
+        };
+        if self.mistakes.has(Mistake::StrictEdges) {
+            let m = crate::mistakes::EDGE_MARGIN;
+            if hit.u < m || hit.v < m || hit.u + hit.v > 1.0 - m {
+                return true;
+            }
+        }
         if !self.mistakes.has(Mistake::OneSidedTriangles) {
             return false;
         }
-        let PrimRef::Triangle(i) = hit else {
-            return false;
-        };
         let front = self.scene.triangles[i as usize].geometric_normal().dot(ray.dir) < 0.0;
         // With reversed normals the student's front is rayscope's back.
         front == self.mistakes.has(Mistake::ReversedNormals)
@@ -509,7 +515,7 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
             let mut last: Last = None;
             for _ in 0..MAX_CULLED {
                 let hit = self.inner.intersect(ray, lo, t_max)?;
-                if !again(&hit, last) && !self.culled(ray, hit.prim) {
+                if !again(&hit, last) && !self.culled(ray, &hit) {
                     return Some(hit);
                 }
                 lo = past(&hit, last);
@@ -542,7 +548,7 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
             if repeat || seen.contains(&entity) {
                 continue;
             }
-            if self.culled(ray, hit.prim) {
+            if self.culled(ray, &hit) {
                 continue;
             }
             seen.push(entity);
@@ -564,14 +570,14 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
                 .filter(|h| h.t < t_max)
                 .map(|h| h.prim);
         }
-        if !self.mistakes.has(Mistake::OneSidedTriangles) {
+        if !self.mistakes.has(Mistake::OneSidedTriangles) && !self.mistakes.has(Mistake::StrictEdges) {
             return self.inner.occluder(ray, lo, t_max);
         }
         // Any hit blocks, whichever the student's nearest-hit rule would keep.
         let (mut lo, mut last): (f32, Last) = (lo, None);
         for _ in 0..MAX_CULLED {
             let hit = self.inner.intersect(ray, lo, t_max)?;
-            if !again(&hit, last) && !self.culled(ray, hit.prim) {
+            if !again(&hit, last) && !self.culled(ray, &hit) {
                 return Some(hit.prim);
             }
             lo = past(&hit, last);

@@ -268,6 +268,13 @@ fn mistakes_from_real_tracers_are_found() {
     ] {
         found_alone(bug, &scenes);
     }
+    for bug in ["eta-entering-inverted", "reflect-no-2", "fresnel-swapped"] {
+        found_alone(bug, &scenes);
+    }
+    found_alone(
+        "strict-edges",
+        &[course.scene("sample_scene_2.txt"), course.scene("sample_scene_1.txt")],
+    );
     // A turned camera, its angle read as radians by the student and as degrees by the flags.
     let path = rayscope_testkit::scene("whitted.txt");
     let file = load(&path);
@@ -441,8 +448,8 @@ fn a_mistake_no_catalogue_has_gets_no_name_but_where_and_what_next() {
     };
     let scene = course.scene("sample_scene_2.txt");
     for (bug, entity) in [
-        ("reflect-no-2", "MirrorSphere"),
-        ("eta-entering-inverted", "GlassSphere"),
+        ("reflect-sign", "MirrorSphere"),
+        ("cos-t-as-cos-i", "GlassSphere"),
         ("sphere-near-root-only", "GlassSphere"),
     ] {
         let d = run(&scene, &[bug], Options::new(W, H), &flags(1), true);
@@ -486,7 +493,7 @@ fn a_mistake_that_explains_a_part_is_named_for_that_part() {
     let scene = course.scene("sample_scene_2.txt");
     let d = run(
         &scene,
-        &["no-fresnel", "reflect-no-2"],
+        &["no-fresnel", "reflect-sign"],
         Options::new(W, H),
         &flags(1),
         true,

@@ -346,6 +346,8 @@ fn glass_mistakes_change_only_what_is_seen_in_glass() {
         Mistake::NoFresnel,
         Mistake::FresnelHalf,
         Mistake::Schlick,
+        Mistake::EtaEnteringInverted,
+        Mistake::FresnelSwapped,
     ] {
         // No ray inside a sphere meets its surface past the critical angle (it leaves at the
         // angle it entered at), so total internal reflection needs the glass slab of ours.
@@ -657,4 +659,36 @@ fn a_sum_never_reset_makes_each_pixel_the_sum_of_those_before_it() {
     // Past the first lit pixels every channel a surface has lit is saturated.
     let lit = wrong.iter().filter(|&&v| v == 255).count();
     assert!(lit * 2 > wrong.len(), "{lit} of {} channels saturated", wrong.len());
+}
+
+#[test]
+fn a_reflection_without_its_factor_2_changes_only_what_mirrors_and_glass_show() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let c = case(
+        &course.scene("sample_scene_2.txt"),
+        settings(64, 64),
+        Mistake::ReflectNo2,
+    );
+    c.only_where("seen in a mirror or glass", |t| {
+        hits_material(t, "Reflective") || hits_material(t, "Refractive")
+    });
+}
+
+#[test]
+fn a_too_strict_triangle_test_changes_only_what_triangles_show_or_shade() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for path in [course.scene("sample_scene_1.txt"), course.scene("sample_scene_2.txt")] {
+        let c = case(&path, settings(64, 64), Mistake::StrictEdges);
+        let file = c.file.clone();
+        let triangle = |h: &Option<rayscope_core::observer::RayHitInfo>| {
+            h.as_ref().is_some_and(|h| kind_of(&file, h.entity) == "Triangle")
+        };
+        c.only_where("meeting a triangle", |t| {
+            any_node(t, |n| triangle(&n.hit) || triangle(&n.blocker))
+        });
+    }
 }

@@ -201,6 +201,7 @@ impl<I: Intersect> Integrator<'_, I> {
                     return Li::default();
                 }
                 let (r, child) = Self::mirror(ray, s, path);
+                let r = self.mistaken_mirror(r, ray, s.normal);
                 Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, cx))
             }
             MaterialKind::Refractive => {

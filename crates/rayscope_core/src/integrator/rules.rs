@@ -8,7 +8,7 @@ use glam::Vec3A;
 
 use crate::math::Ray;
 use crate::mistakes::Mistake;
-use crate::optics::{fresnel, glass_rays, mirror_ray, schlick};
+use crate::optics::{fresnel, fresnel_swapped, glass_rays, mirror_ray, schlick};
 use crate::scene::{Intersect, Material};
 use crate::surface::Surface;
 
@@ -154,7 +154,7 @@ impl<I: Intersect> Integrator<'_, I> {
     /// along the incident ray, off the outward side, or (correctly) off the side the ray came from.
     #[cold]
     fn mistaken_reflection(&self, ray: &Ray, s: &Surface, n: Vec3A, eps: f32) -> Ray {
-        let r = mirror_ray(ray.dir, n, s.point, eps);
+        let r = self.mistaken_mirror(mirror_ray(ray.dir, n, s.point, eps), ray, n);
         if self.mistake(Mistake::GlassReflectionAlongRay) {
             Ray::new(s.point + ray.dir * eps, r.dir)
         } else if self.mistake(Mistake::GlassReflectionOutward) {
@@ -165,11 +165,29 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
+    /// `r`, the mirror image of `ray` about `n`, as a tracer with this render's mistakes reflects
+    /// it: without the formula's factor 2, d − (d · n) n.
+    #[inline]
+    pub(super) fn mistaken_mirror(&self, r: Ray, ray: &Ray, n: Vec3A) -> Ray {
+        if I::MISTAKEN && self.mistake(Mistake::ReflectNo2) {
+            let d = ray.dir - n * ray.dir.dot(n);
+            Ray::new(r.origin, d.normalize_or(r.dir))
+        } else {
+            r
+        }
+    }
+
     /// [`Self::glass`] as a tracer with this render's glass mistakes computes it.
     #[cold]
     pub(super) fn mistaken_glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
         let swap = !s.front_face && !self.mistake(Mistake::RefractionNoIndexSwap);
-        let (n1, n2) = if swap { (m.value, 1.0) } else { (1.0, m.value) };
+        let (n1, n2) = if s.front_face && self.mistake(Mistake::EtaEnteringInverted) {
+            (m.value, 1.0)
+        } else if swap {
+            (m.value, 1.0)
+        } else {
+            (1.0, m.value)
+        };
         let cos_i = (-ray.dir.dot(s.normal)).clamp(0.0, 1.0);
         let tir = {
             let eta = n1 / n2;
@@ -183,6 +201,8 @@ impl<I: Intersect> Integrator<'_, I> {
             0.5
         } else if self.mistake(Mistake::Schlick) {
             schlick(cos_i, n1, n2)
+        } else if self.mistake(Mistake::FresnelSwapped) {
+            fresnel_swapped(cos_i, n1, n2)
         } else {
             fresnel(cos_i, n1, n2)
         };

@@ -220,11 +220,11 @@ impl Student {
                 if depth >= self.max_depth() {
                     return DVec3::ZERO;
                 }
-                // Uncatalogued: the reflection formula with the factor 2 forgotten.
-                let r = if self.bug("reflect-no-2") {
-                    (ray.d - n * ray.d.dot(n)).normalize()
+                // Uncatalogued: the reflection formula with its sign wrong, d + 2 (d · n) n.
+                let r = if self.bug("reflect-sign") {
+                    (ray.d + n * 2.0 * ray.d.dot(n)).normalize()
                 } else {
-                    reflect(ray.d, n)
+                    self.reflect(ray.d, n)
                 };
                 self.trace(
                     Ray {
@@ -241,6 +241,15 @@ impl Student {
                 self.glass(ray, &hit, n, outside, obj.ior, depth)
             }
             _ => self.diffuse(&hit, n, ns, obj.color),
+        }
+    }
+
+    /// The student's one reflection function, for mirrors and glass.
+    fn reflect(&self, d: DVec3, n: DVec3) -> DVec3 {
+        if self.bug("reflect-no-2") {
+            (d - n * d.dot(n)).normalize()
+        } else {
+            reflect(d, n)
         }
     }
 
@@ -294,7 +303,7 @@ impl Student {
     }
 
     fn glass(&self, ray: Ray, hit: &Hit, n: DVec3, outside: bool, ior: f64, depth: u32) -> DVec3 {
-        // Uncatalogued: η = n instead of 1/n on the way in.
+        // η = n instead of 1/n on the way in.
         let (n1, n2) = if outside && self.bug("eta-entering-inverted") {
             (ior, 1.0)
         } else if outside || self.bug("refraction-no-index-swap") {
@@ -320,7 +329,7 @@ impl Student {
         };
         let reflected = Ray {
             o,
-            d: reflect(ray.d, n),
+            d: self.reflect(ray.d, n),
         };
         if k < 0.0 {
             if self.bug("no-tir") {
@@ -339,8 +348,14 @@ impl Student {
             let c = if n1 <= n2 { ci } else { cos_t };
             r0 + (1.0 - r0) * (1.0 - c).powi(5)
         } else {
-            let rs = (n1 * ci - n2 * cos_t) / (n1 * ci + n2 * cos_t);
-            let rp = (n2 * ci - n1 * cos_t) / (n2 * ci + n1 * cos_t);
+            // Uncatalogued: cos θt taken to be cos θi in the Fresnel terms.
+            let ct = if self.bug("cos-t-as-cos-i") { ci } else { cos_t };
+            let rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct);
+            let rp = if self.bug("fresnel-swapped") {
+                (n2 * ct - n1 * ci) / (n2 * ct + n1 * ci)
+            } else {
+                (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
+            };
             (rs * rs + rp * rp) / 2.0
         };
         let t = (ray.d * eta + n * (eta * cos_i - cos_t)).normalize();
@@ -447,12 +462,13 @@ impl Student {
         let inv = 1.0 / det;
         let tv = ray.o - a;
         let u = tv.dot(pv) * inv;
-        if !(0.0..=1.0).contains(&u) {
+        let m = if self.bug("strict-edges") { 0.02 } else { 0.0 };
+        if u < m || u > 1.0 - m {
             return None;
         }
         let qv = tv.cross(e1);
         let v = ray.d.dot(qv) * inv;
-        if v < 0.0 || u + v > 1.0 {
+        if v < m || u + v > 1.0 - m {
             return None;
         }
         let t = e2.dot(qv) * inv;
