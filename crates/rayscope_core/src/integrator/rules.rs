@@ -181,9 +181,9 @@ impl<I: Intersect> Integrator<'_, I> {
     #[cold]
     pub(super) fn mistaken_glass(&self, ray: &Ray, s: &Surface, m: &Material, path: PathState) -> Glass {
         let swap = !s.front_face && !self.mistake(Mistake::RefractionNoIndexSwap);
-        let (n1, n2) = if s.front_face && self.mistake(Mistake::EtaEnteringInverted) {
-            (m.value, 1.0)
-        } else if swap {
+        // Entering with η inverted is the indices of the way out.
+        let inverted = s.front_face && self.mistake(Mistake::EtaEnteringInverted);
+        let (n1, n2) = if swap || inverted {
             (m.value, 1.0)
         } else {
             (1.0, m.value)
