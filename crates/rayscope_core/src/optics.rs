@@ -30,6 +30,12 @@ pub fn reflect(d: Vec3A, n: Vec3A) -> Vec3A {
 #[must_use]
 #[inline]
 pub fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
+    fresnel_terms(cos_i, n1, n2, false)
+}
+
+/// The unpolarised reflectance, with rp's cosines exchanged when `swapped`.
+#[inline(always)]
+fn fresnel_terms(cos_i: f32, n1: f32, n2: f32, swapped: bool) -> f32 {
     let eta = n1 / n2;
     let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
     if sin2_t >= 1.0 {
@@ -37,7 +43,8 @@ pub fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
     }
     let cos_t = (1.0 - sin2_t).sqrt();
     let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
-    let rp = (n2 * cos_i - n1 * cos_t) / (n2 * cos_i + n1 * cos_t);
+    let (ci, ct) = if swapped { (cos_t, cos_i) } else { (cos_i, cos_t) };
+    let rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct);
     0.5 * (rs * rs + rp * rp)
 }
 
@@ -45,15 +52,7 @@ pub fn fresnel(cos_i: f32, n1: f32, n2: f32) -> f32 {
 /// mean of rs² and rs², that is rs² (a catalogued mistake).
 #[must_use]
 pub(crate) fn fresnel_swapped(cos_i: f32, n1: f32, n2: f32) -> f32 {
-    let eta = n1 / n2;
-    let sin2_t = eta * eta * (1.0 - cos_i * cos_i).max(0.0);
-    if sin2_t >= 1.0 {
-        return 1.0;
-    }
-    let cos_t = (1.0 - sin2_t).sqrt();
-    let rs = (n1 * cos_i - n2 * cos_t) / (n1 * cos_i + n2 * cos_t);
-    let rp = (n2 * cos_t - n1 * cos_i) / (n2 * cos_t + n1 * cos_i);
-    0.5 * (rs * rs + rp * rp)
+    fresnel_terms(cos_i, n1, n2, true)
 }
 
 /// Refracted direction of unit `d` through unit normal `n` (facing `d`'s origin side) with
