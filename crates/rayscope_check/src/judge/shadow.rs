@@ -224,7 +224,14 @@ impl Judge<'_> {
             Answer::NotLogged => {}
             Answer::Nothing => {
                 if let Some(b) = b {
+                    let before = f.len();
                     self.reported_reached(r, kind, li, seg, &b, values(None, Some(b.entity)), f, tally);
+                    // A blocker passed over, for the log-wide rule that may explain it.
+                    if f[before..].iter().any(|x| !x.code.is_tie()) {
+                        tally.skipped.size = tally.skipped.size.max(self.scene_size());
+                        let kept = self.kept_beyond(r.origin, r.direction, seg.dist);
+                        tally.skipped.pass(b.t, Some(kept));
+                    }
                 }
             }
             Answer::Found(e) => {
@@ -371,29 +378,6 @@ impl Judge<'_> {
     /// The tracer says the light is reached where the oracle finds `b` in the way.
     #[allow(clippy::too_many_arguments)]
     fn reported_reached(
-        &self,
-        r: &LoggedRay,
-        kind: &Kind,
-        li: u32,
-        seg: ToLight,
-        b: &RsHit,
-        v: Vec<Value>,
-        f: &mut Vec<Finding>,
-        tally: &mut Tally,
-    ) {
-        let before = f.len();
-        let dist = seg.dist;
-        self.reported_reached_verdict(r, kind, li, seg, b, v, f, tally);
-        if f[before..].iter().any(|x| !x.code.is_tie()) {
-            tally.skipped.size = tally.skipped.size.max(self.scene_size());
-            let kept = self.kept_beyond(r.origin, r.direction, dist);
-            tally.skipped.pass(b.t, Some(kept));
-        }
-    }
-
-    /// [`Self::reported_reached`]'s verdict on the ray alone.
-    #[allow(clippy::too_many_arguments)]
-    fn reported_reached_verdict(
         &self,
         r: &LoggedRay,
         kind: &Kind,
