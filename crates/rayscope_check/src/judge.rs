@@ -187,8 +187,6 @@ pub struct Skipped {
     pub earlier_in_file: u64,
     /// Passed-over rays whose kept hit lies nearer the world's origin.
     pub nearer_origin: u64,
-    /// Rays the tracer got right that were walked to the end, to test the two rules on.
-    pub walked: u64,
     /// A ray the tracer got right meets an entity listed earlier beyond its nearest hit: the
     /// file's order would have kept that one, so it is not the rule.
     pub order_refuted: bool,
@@ -206,7 +204,6 @@ impl Default for Skipped {
             size: 0.0,
             earlier_in_file: 0,
             nearer_origin: 0,
-            walked: 0,
             order_refuted: false,
             origin_refuted: false,
         }
@@ -226,7 +223,6 @@ impl Skipped {
         self.size = self.size.max(o.size);
         self.earlier_in_file += o.earlier_in_file;
         self.nearer_origin += o.nearer_origin;
-        self.walked += o.walked;
         self.order_refuted |= o.order_refuted;
         self.origin_refuted |= o.origin_refuted;
     }
@@ -795,7 +791,6 @@ impl<'a> Judge<'a> {
             return;
         }
         let (o, d) = (r.origin, r.direction);
-        s.walked += 1;
         let mut seen = vec![h.entity];
         let mut lo = h.t + margin;
         for _ in 0..64 {
@@ -809,6 +804,15 @@ impl<'a> Judge<'a> {
             seen.push(k.entity);
             s.order_refuted |= k.entity < h.entity;
             s.origin_refuted |= k.point.length() < h.point.length() - margin;
+        }
+    }
+
+    /// Counts a nearest hit at `t` the tracer passed over, unless the verdicts its ray just got,
+    /// `found`, are all ties; `kept` gives the rules' answers for it (see [`Skipped::pass`]).
+    fn passed_over(&self, found: &[Finding], t: f64, kept: impl FnOnce() -> Option<(bool, bool)>, s: &mut Skipped) {
+        if found.iter().any(|x| !x.code.is_tie()) {
+            s.size = s.size.max(self.scene_size());
+            s.pass(t, kept());
         }
     }
 

@@ -220,10 +220,7 @@ impl Judge<'_> {
     fn reported_nothing(&self, r: &LoggedRay, kind: &Kind, h: &RsHit, f: &mut Vec<Finding>, tally: &mut Tally) {
         let before = f.len();
         self.reported_nothing_verdict(r, kind, h, f, tally);
-        if f[before..].iter().any(|x| !x.code.is_tie()) {
-            tally.skipped.size = tally.skipped.size.max(self.scene_size());
-            tally.skipped.pass(h.t, None);
-        }
+        self.passed_over(&f[before..], h.t, || None, &mut tally.skipped);
     }
 
     /// [`Self::reported_nothing`]'s verdict on the ray alone.
@@ -404,12 +401,8 @@ impl Judge<'_> {
         let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
         let before = f.len();
         self.beyond_nearest_verdict(r, kind, c, ts, h, f, tally, l, &v);
-        if f[before..].iter().any(|x| !x.code.is_tie()) {
-            let earlier = c.entity.is_some_and(|e| e < h.entity);
-            let nearer = ps.length() < h.point.length();
-            tally.skipped.size = tally.skipped.size.max(self.scene_size());
-            tally.skipped.pass(h.t, Some((earlier, nearer)));
-        }
+        let kept = || Some((c.entity.is_some_and(|e| e < h.entity), ps.length() < h.point.length()));
+        self.passed_over(&f[before..], h.t, kept, &mut tally.skipped);
     }
 
     /// [`Self::beyond_nearest`]'s verdict on the ray alone.

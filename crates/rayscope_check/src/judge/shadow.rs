@@ -227,11 +227,8 @@ impl Judge<'_> {
                     let before = f.len();
                     self.reported_reached(r, kind, li, seg, &b, values(None, Some(b.entity)), f, tally);
                     // A blocker passed over, for the log-wide rule that may explain it.
-                    if f[before..].iter().any(|x| !x.code.is_tie()) {
-                        tally.skipped.size = tally.skipped.size.max(self.scene_size());
-                        let kept = self.kept_beyond(r.origin, r.direction, seg.dist);
-                        tally.skipped.pass(b.t, Some(kept));
-                    }
+                    let kept = || Some(self.kept_beyond(r.origin, r.direction, seg.dist));
+                    self.passed_over(&f[before..], b.t, kept, &mut tally.skipped);
                 }
             }
             Answer::Found(e) => {
