@@ -1007,6 +1007,36 @@ impl<'a> Judge<'a> {
                 kind,
             );
         }
+        sound &= self.judge_claim(r, &kind, rs.as_ref(), leave, t_max, f, tally);
+        if kind == Kind::Shadow {
+            if let Some(li) = light {
+                self.judge_blocker(r, &kind, li, rs.as_ref(), t_skip, leave, f, tally);
+            }
+        }
+        (
+            Eval {
+                rs,
+                sound,
+                origin: o,
+                dir: d,
+            },
+            kind,
+        )
+    }
+
+    /// Judges what the tracer says ray `r` hit against rayscope's answer `rs`; false when that
+    /// gave a verdict (the ray's children are then judged on their own answers only).
+    #[allow(clippy::too_many_arguments)]
+    fn judge_claim(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        rs: Option<&RsHit>,
+        leave: Option<&Leave>,
+        t_max: f64,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) -> bool {
         // What the tracer found.
         let claim = match r.hit {
             Answer::NotLogged => r.end.and_then(|end| self.segment_claim(r, end, t_max)),
@@ -1016,14 +1046,14 @@ impl<'a> Judge<'a> {
         let unnamed = matches!(r.hit, Answer::Found(HitClaim { entity: None, .. }));
         let claim = claim.map(|c| match c {
             Answer::Found(mut h) if unnamed => {
-                h.entity = self.entity_at(r, &h, rs.as_ref());
+                h.entity = self.entity_at(r, &h, rs);
                 Answer::Found(h)
             }
             other => other,
         });
         if let Some(claim) = claim {
             let before = f.len();
-            self.hit(r, &kind, claim, rs.as_ref(), leave, f, tally);
+            self.hit(r, kind, claim, rs, leave, f, tally);
             if unnamed {
                 for x in &mut f[before..] {
                     x.detail = x
@@ -1038,50 +1068,54 @@ impl<'a> Judge<'a> {
             hit_entities(&mut f[before..], claimed, rs.map(|h| h.entity));
             // After a tie the tracer's ray may go on from the other surface: its children are
             // judged on their own answers only.
-            sound &= f.len() == before;
+            return f.len() == before;
         }
-        if kind == Kind::Shadow {
-            if let (Some(li), blocked) = (light, r.blocked_by) {
-                let before = f.len();
-                // A blocker logged without a name is judged as the surface it stands for.
-                let judged = match blocked {
-                    Answer::Found(Some(e)) => Answer::Found(e),
-                    Answer::Found(None) => match self.unnamed_blocker(r, li, rs.as_ref(), leave) {
-                        Some(e) => Answer::Found(e),
-                        None => {
-                            self.blocked_by_nothing(r, &kind, li, f);
-                            Answer::NotLogged
-                        }
-                    },
-                    Answer::Nothing => Answer::Nothing,
-                    Answer::NotLogged => Answer::NotLogged,
-                };
-                if judged != Answer::NotLogged {
-                    self.blocked(r, &kind, li, rs.as_ref(), t_skip, judged, leave, f, tally);
+        true
+    }
+
+    /// Judges what shadow ray `r`, aimed at light `li`, says is in the way.
+    #[allow(clippy::too_many_arguments)]
+    fn judge_blocker(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        li: u32,
+        rs: Option<&RsHit>,
+        t_skip: f64,
+        leave: Option<&Leave>,
+        f: &mut Vec<Finding>,
+        tally: &mut Tally,
+    ) {
+        let blocked = r.blocked_by;
+        let before = f.len();
+        // A blocker logged without a name is judged as the surface it stands for.
+        let judged = match blocked {
+            Answer::Found(Some(e)) => Answer::Found(e),
+            Answer::Found(None) => match self.unnamed_blocker(r, li, rs, leave) {
+                Some(e) => Answer::Found(e),
+                None => {
+                    self.blocked_by_nothing(r, kind, li, f);
+                    Answer::NotLogged
                 }
-                if blocked == Answer::Found(None) {
-                    for v in f[before..].iter_mut().flat_map(|x| &mut x.values) {
-                        if v.what.starts_with("blocker of light") {
-                            v.yours = json!(shadow::UNNAMED_BLOCKER);
-                        }
-                    }
+            },
+            Answer::Nothing => Answer::Nothing,
+            Answer::NotLogged => Answer::NotLogged,
+        };
+        if judged != Answer::NotLogged {
+            self.blocked(r, kind, li, rs, t_skip, judged, leave, f, tally);
+        }
+        if blocked == Answer::Found(None) {
+            for v in f[before..].iter_mut().flat_map(|x| &mut x.values) {
+                if v.what.starts_with("blocker of light") {
+                    v.yours = json!(shadow::UNNAMED_BLOCKER);
                 }
-                let named = match judged {
-                    Answer::Found(e) => Some(e),
-                    _ => None,
-                };
-                blocker_entities(&mut f[before..], named, rs.map(|h| h.entity));
             }
         }
-        (
-            Eval {
-                rs,
-                sound,
-                origin: o,
-                dir: d,
-            },
-            kind,
-        )
+        let named = match judged {
+            Answer::Found(e) => Some(e),
+            _ => None,
+        };
+        blocker_entities(&mut f[before..], named, rs.map(|h| h.entity));
     }
 
     /// Where rayscope traces a ray cast from its parent's hit `lv`: the distance to skip so that

@@ -743,6 +743,76 @@ fn value_column(line: &str, key: &str, value: &str) -> (usize, usize) {
     }
 }
 
+/// Refuses a record whose pixel or sample lies outside the image being checked.
+fn in_range<'a>(
+    raw: &RawRay,
+    ctx: &LogContext,
+    shown: &dyn Fn() -> Cow<'a, str>,
+    err: &dyn Fn(usize, usize, String) -> Box<Diagnostic>,
+) -> Result<(), Box<Diagnostic>> {
+    if let Some([x, y]) = raw.pixel {
+        if x >= ctx.width || y >= ctx.height {
+            let (c, s) = key_column(&shown(), "pixel");
+            return Err(err(
+                c,
+                s,
+                format!(
+                    "pixel [{x}, {y}] is outside the {}×{} image being checked: pass the -w and -h your tracer rendered with",
+                    ctx.width, ctx.height
+                ),
+            ));
+        }
+    }
+    if let Some(s) = raw.sample {
+        if s >= ctx.spp {
+            let (c, span) = key_column(&shown(), "sample");
+            return Err(err(
+                c,
+                span,
+                format!(
+                    "sample {s} does not exist: at -x {} a pixel has {} samples (0 to {}); pass the -x your tracer used",
+                    ctx.aa,
+                    ctx.spp,
+                    ctx.spp - 1
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The scene's index of the light a shadow ray names (by name or by position).
+fn light_index<'a>(
+    light: Option<LightRef>,
+    ctx: &LogContext,
+    shown: &dyn Fn() -> Cow<'a, str>,
+    err: &dyn Fn(usize, usize, String) -> Box<Diagnostic>,
+) -> Result<Option<u32>, Box<Diagnostic>> {
+    let light = match light {
+        None => None,
+        Some(LightRef::Position(p)) => Some(light_at(ctx, DVec3::from_array(p)).ok_or_else(|| {
+            let (c, s) = key_column(&shown(), "light");
+            err(
+                c,
+                s,
+                format!("no light at {p:?} in the scene (its lights: {})", list_lights(ctx)),
+            )
+        })?),
+        Some(LightRef::Name(name)) => Some(ctx.lights.get(name.as_ref()).copied().ok_or_else(|| {
+            let (c, s) = value_column(&shown(), "light", &name);
+            err(
+                c,
+                s,
+                format!(
+                    "no light named '{name}' in the scene (its lights: {})",
+                    list_names(&ctx.light_list)
+                ),
+            )
+        })?),
+    };
+    Ok(light)
+}
+
 /// Parses one line: `Ok(None)` for a blank line.
 fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Result<Option<LoggedRay>, Box<Diagnostic>> {
     let bytes = bytes.strip_suffix(b"\r").unwrap_or(bytes);
@@ -796,34 +866,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
         };
         return Err(err(c, s, msg.into()));
     }
-    if let Some([x, y]) = raw.pixel {
-        if x >= ctx.width || y >= ctx.height {
-            let (c, s) = key_column(&shown(), "pixel");
-            return Err(err(
-                c,
-                s,
-                format!(
-                    "pixel [{x}, {y}] is outside the {}×{} image being checked: pass the -w and -h your tracer rendered with",
-                    ctx.width, ctx.height
-                ),
-            ));
-        }
-    }
-    if let Some(s) = raw.sample {
-        if s >= ctx.spp {
-            let (c, span) = key_column(&shown(), "sample");
-            return Err(err(
-                c,
-                span,
-                format!(
-                    "sample {s} does not exist: at -x {} a pixel has {} samples (0 to {}); pass the -x your tracer used",
-                    ctx.aa,
-                    ctx.spp,
-                    ctx.spp - 1
-                ),
-            ));
-        }
-    }
+    in_range(&raw, ctx, &shown, &err)?;
     let entity = |name: &str, key: &str| -> Result<u32, Box<Diagnostic>> {
         ctx.entities.get(name).copied().ok_or_else(|| {
             let (c, s) = value_column(&shown(), key, name);
@@ -856,28 +899,7 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
         Some(Some(BlockerRef::Blocked(true))) => Answer::Found(None),
         Some(Some(BlockerRef::Name(name))) => Answer::Found(Some(entity(&name, "blocked_by")?)),
     };
-    let light = match raw.light {
-        None => None,
-        Some(LightRef::Position(p)) => Some(light_at(ctx, vec(p)).ok_or_else(|| {
-            let (c, s) = key_column(&shown(), "light");
-            err(
-                c,
-                s,
-                format!("no light at {p:?} in the scene (its lights: {})", list_lights(ctx)),
-            )
-        })?),
-        Some(LightRef::Name(name)) => Some(ctx.lights.get(name.as_ref()).copied().ok_or_else(|| {
-            let (c, s) = value_column(&shown(), "light", &name);
-            err(
-                c,
-                s,
-                format!(
-                    "no light named '{name}' in the scene (its lights: {})",
-                    list_names(&ctx.light_list)
-                ),
-            )
-        })?),
-    };
+    let light = light_index(raw.light, ctx, &shown, &err)?;
     Ok(Some(LoggedRay {
         line: line_no,
         pixel: raw.pixel,

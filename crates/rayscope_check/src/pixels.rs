@@ -427,32 +427,13 @@ fn dist3(a: [f64; 3], b: [f32; 3]) -> f64 {
 #[must_use]
 pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[String]) -> Alignment {
     let nodes = &tree.nodes;
-    let ids: HashMap<i64, usize> = yours
-        .iter()
-        .enumerate()
-        .filter_map(|(i, r)| r.id.map(|id| (id, i)))
-        .collect();
-    let parent: Vec<Option<usize>> = yours
-        .iter()
-        .enumerate()
-        .map(|(i, r)| r.parent.and_then(|p| ids.get(&p).copied()).filter(|&p| p != i))
-        .collect();
-    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); yours.len()];
-    let mut roots = Vec::new();
-    for (i, p) in parent.iter().enumerate() {
-        match p {
-            Some(p) => kids[*p].push(i),
-            None => roots.push(i),
-        }
-    }
-    let mut rs_kids: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
-    let mut rs_roots = Vec::new();
-    for (i, n) in nodes.iter().enumerate() {
-        match n.parent.map(|p| p as usize).filter(|&p| p < nodes.len() && p != i) {
-            Some(p) => rs_kids[p].push(i),
-            None => rs_roots.push(i),
-        }
-    }
+    let Trees {
+        parent,
+        kids,
+        roots,
+        rs_kids,
+        rs_roots,
+    } = trees(yours, nodes);
     let same = |s: &ShownRay, n: &rayscope_core::RayNode| {
         if s.kind != n.kind.name() {
             return false;
@@ -491,29 +472,7 @@ pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[S
         let more = pair(&kids[i], &rs_kids[j], &mut mine, &mut theirs);
         stack.extend(more);
     }
-    // Rays the tree walk left unpaired (a log without parent links): by kind and origin.
-    let scale = nodes
-        .iter()
-        .map(|n| n.origin.iter().fold(1.0f64, |m, v| m.max(f64::from(v.abs()))))
-        .fold(1.0, f64::max);
-    let mut c: Vec<(f64, usize, usize)> = Vec::new();
-    for (i, s) in yours.iter().enumerate() {
-        if mine[i].is_some() || parent[i].is_some_and(|p| mine[p].is_some()) {
-            continue;
-        }
-        for (j, n) in nodes.iter().enumerate() {
-            if theirs[j].is_none() && same(s, n) && dist3(s.origin, n.origin) <= 0.05 * scale {
-                c.push((score(s, n), i, j));
-            }
-        }
-    }
-    c.sort_by(|x, y| x.0.total_cmp(&y.0));
-    for (_, i, j) in c {
-        if mine[i].is_none() && theirs[j].is_none() {
-            mine[i] = Some(j);
-            theirs[j] = Some(i);
-        }
-    }
+    pair_by_origin(yours, nodes, &parent, &mut mine, &mut theirs, &same, &score);
 
     let verdict = |i: usize| {
         let f = &yours[i].findings;
@@ -527,33 +486,6 @@ pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[S
     };
     let mut rows = Vec::new();
     let mut placed = vec![false; yours.len()];
-    // The student's own subtree under `i`, none of it paired.
-    fn only_yours(
-        i: usize,
-        depth: u32,
-        kids: &[Vec<usize>],
-        mine: &[Option<usize>],
-        placed: &mut [bool],
-        rows: &mut Vec<AlignedRow>,
-        verdict: &dyn Fn(usize) -> Option<PixelStatus>,
-    ) {
-        if placed[i] || depth > 64 {
-            return;
-        }
-        placed[i] = true;
-        rows.push(AlignedRow {
-            depth,
-            yours: Some(i),
-            rayscope: None,
-            shape: Shape::OnlyYours,
-            verdict: verdict(i),
-        });
-        for &k in &kids[i] {
-            if mine[k].is_none() {
-                only_yours(k, depth + 1, kids, mine, placed, rows, verdict);
-            }
-        }
-    }
     // Depth first over rayscope's tree.
     let mut todo: Vec<(usize, u32)> = rs_roots.iter().rev().map(|&j| (j, 0)).collect();
     while let Some((j, depth)) = todo.pop() {
@@ -599,6 +531,116 @@ pub fn align(yours: &[ShownRay], tree: &rayscope_core::RayTree, light_names: &[S
     let divergence =
         first(&|r| r.verdict == Some(PixelStatus::Disagrees)).or_else(|| first(&|r| r.shape != Shape::Both));
     Alignment { rows, divergence }
+}
+
+/// Pairs the rays the tree walk left unpaired (a log without parent links) by kind and origin,
+/// closest first.
+fn pair_by_origin(
+    yours: &[ShownRay],
+    nodes: &[rayscope_core::RayNode],
+    parent: &[Option<usize>],
+    mine: &mut [Option<usize>],
+    theirs: &mut [Option<usize>],
+    same: &dyn Fn(&ShownRay, &rayscope_core::RayNode) -> bool,
+    score: &dyn Fn(&ShownRay, &rayscope_core::RayNode) -> f64,
+) {
+    let scale = nodes
+        .iter()
+        .map(|n| n.origin.iter().fold(1.0f64, |m, v| m.max(f64::from(v.abs()))))
+        .fold(1.0, f64::max);
+    let mut c: Vec<(f64, usize, usize)> = Vec::new();
+    for (i, s) in yours.iter().enumerate() {
+        if mine[i].is_some() || parent[i].is_some_and(|p| mine[p].is_some()) {
+            continue;
+        }
+        for (j, n) in nodes.iter().enumerate() {
+            if theirs[j].is_none() && same(s, n) && dist3(s.origin, n.origin) <= 0.05 * scale {
+                c.push((score(s, n), i, j));
+            }
+        }
+    }
+    c.sort_by(|x, y| x.0.total_cmp(&y.0));
+    for (_, i, j) in c {
+        if mine[i].is_none() && theirs[j].is_none() {
+            mine[i] = Some(j);
+            theirs[j] = Some(i);
+        }
+    }
+}
+
+/// The parent links of both trees, as child lists and roots.
+struct Trees {
+    parent: Vec<Option<usize>>,
+    kids: Vec<Vec<usize>>,
+    roots: Vec<usize>,
+    rs_kids: Vec<Vec<usize>>,
+    rs_roots: Vec<usize>,
+}
+
+/// The student's rays `yours` and rayscope's `nodes` as trees; a link to a missing ray or to
+/// itself makes a root.
+fn trees(yours: &[ShownRay], nodes: &[rayscope_core::RayNode]) -> Trees {
+    let ids: HashMap<i64, usize> = yours
+        .iter()
+        .enumerate()
+        .filter_map(|(i, r)| r.id.map(|id| (id, i)))
+        .collect();
+    let parent: Vec<Option<usize>> = yours
+        .iter()
+        .enumerate()
+        .map(|(i, r)| r.parent.and_then(|p| ids.get(&p).copied()).filter(|&p| p != i))
+        .collect();
+    let mut kids: Vec<Vec<usize>> = vec![Vec::new(); yours.len()];
+    let mut roots = Vec::new();
+    for (i, p) in parent.iter().enumerate() {
+        match p {
+            Some(p) => kids[*p].push(i),
+            None => roots.push(i),
+        }
+    }
+    let mut rs_kids: Vec<Vec<usize>> = vec![Vec::new(); nodes.len()];
+    let mut rs_roots = Vec::new();
+    for (i, n) in nodes.iter().enumerate() {
+        match n.parent.map(|p| p as usize).filter(|&p| p < nodes.len() && p != i) {
+            Some(p) => rs_kids[p].push(i),
+            None => rs_roots.push(i),
+        }
+    }
+    Trees {
+        parent,
+        kids,
+        roots,
+        rs_kids,
+        rs_roots,
+    }
+}
+
+/// Adds the student's own subtree under ray `i`, none of it paired, to `rows`.
+fn only_yours(
+    i: usize,
+    depth: u32,
+    kids: &[Vec<usize>],
+    mine: &[Option<usize>],
+    placed: &mut [bool],
+    rows: &mut Vec<AlignedRow>,
+    verdict: &dyn Fn(usize) -> Option<PixelStatus>,
+) {
+    if placed[i] || depth > 64 {
+        return;
+    }
+    placed[i] = true;
+    rows.push(AlignedRow {
+        depth,
+        yours: Some(i),
+        rayscope: None,
+        shape: Shape::OnlyYours,
+        verdict: verdict(i),
+    });
+    for &k in &kids[i] {
+        if mine[k].is_none() {
+            only_yours(k, depth + 1, kids, mine, placed, rows, verdict);
+        }
+    }
 }
 
 #[cfg(test)]

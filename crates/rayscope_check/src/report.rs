@@ -433,73 +433,10 @@ impl Report {
             }
         }
         for c in &self.causes {
-            let _ = writeln!(
-                s,
-                "\n{} — the first wrong ray in {} pixel sample{} ({} ray{})",
-                c.name(),
-                c.samples,
-                if c.samples == 1 { "" } else { "s" },
-                c.rays,
-                if c.rays == 1 { "" } else { "s" }
-            );
-            let _ = writeln!(s, "  {}", c.summary);
-            for l in wrap(&c.explanation, 96) {
-                let _ = writeln!(s, "  {l}");
-            }
-            for f in &c.examples {
-                let _ = writeln!(s, "{}", example(f, trace_command(f)));
-            }
-            if c.rays > c.examples.len() as u64 {
-                let _ = writeln!(s, "  … and {} more", c.rays - c.examples.len() as u64);
-            }
-            if !c.catalogue.is_empty() {
-                let names: Vec<String> = c.catalogue.iter().map(|n| format!("'{n}'")).collect();
-                for l in wrap(
-                    &format!(
-                        "rayscope's catalogue of common mistakes has {} that show{} this way: see what {} does to the picture with `rayscope -f SCENE -o out.png --mistake {}` (rayscope mistakes describes {})",
-                        names.join(", "),
-                        if names.len() == 1 { "s" } else { "" },
-                        if names.len() == 1 { "it" } else { "each" },
-                        c.catalogue[0],
-                        if names.len() == 1 { "it" } else { "them" },
-                    ),
-                    96,
-                ) {
-                    let _ = writeln!(s, "  {l}");
-                }
-            }
-            if !c.consequences.is_empty() {
-                let list: Vec<String> = c
-                    .consequences
-                    .iter()
-                    .map(|k| format!("{} {}", k.count, k.code.as_str()))
-                    .collect();
-                for l in wrap(
-                    &format!(
-                        "follows from it (rays below it, or beside it on the same ray; fix the cause first): {}",
-                        list.join(", ")
-                    ),
-                    96,
-                ) {
-                    let _ = writeln!(s, "  {l}");
-                }
-            }
+            cause_text(&mut s, c, trace_command);
         }
         if let Some(i) = &self.image {
-            let _ = writeln!(s, "\nyour picture: {}", i.detail);
-            if let Some(code) = i.verdict {
-                let _ = writeln!(s, "\n{} — {}", code.as_str(), code.summary());
-                for l in wrap(code.explanation(), 96) {
-                    let _ = writeln!(s, "  {l}");
-                }
-            }
-            for e in &i.examples {
-                let _ = writeln!(
-                    s,
-                    "  pixel ({}, {}): your bytes {:?}, the course's conversion of your logged colour ({:.6}, {:.6}, {:.6}) is {:?}",
-                    e.pixel[0], e.pixel[1], e.yours, e.colour[0], e.colour[1], e.colour[2], e.expected
-                );
-            }
+            image_text(&mut s, i);
         }
         if let Some(n) = self.next.as_ref().filter(|_| self.disagree == 0) {
             next_text(&mut s, n, self.shaded_judged);
@@ -526,6 +463,80 @@ impl Report {
             }
         }
         s
+    }
+}
+
+/// Writes one cause of a report: its name, explanation, examples, catalogue entries and
+/// consequences.
+fn cause_text(s: &mut String, c: &CauseGroup, trace_command: &dyn Fn(&Finding) -> Option<String>) {
+    let _ = writeln!(
+        s,
+        "\n{} — the first wrong ray in {} pixel sample{} ({} ray{})",
+        c.name(),
+        c.samples,
+        if c.samples == 1 { "" } else { "s" },
+        c.rays,
+        if c.rays == 1 { "" } else { "s" }
+    );
+    let _ = writeln!(s, "  {}", c.summary);
+    for l in wrap(&c.explanation, 96) {
+        let _ = writeln!(s, "  {l}");
+    }
+    for f in &c.examples {
+        let _ = writeln!(s, "{}", example(f, trace_command(f)));
+    }
+    if c.rays > c.examples.len() as u64 {
+        let _ = writeln!(s, "  … and {} more", c.rays - c.examples.len() as u64);
+    }
+    if !c.catalogue.is_empty() {
+        let names: Vec<String> = c.catalogue.iter().map(|n| format!("'{n}'")).collect();
+        for l in wrap(
+            &format!(
+                "rayscope's catalogue of common mistakes has {} that show{} this way: see what {} does to the picture with `rayscope -f SCENE -o out.png --mistake {}` (rayscope mistakes describes {})",
+                names.join(", "),
+                if names.len() == 1 { "s" } else { "" },
+                if names.len() == 1 { "it" } else { "each" },
+                c.catalogue[0],
+                if names.len() == 1 { "it" } else { "them" },
+            ),
+            96,
+        ) {
+            let _ = writeln!(s, "  {l}");
+        }
+    }
+    if !c.consequences.is_empty() {
+        let list: Vec<String> = c
+            .consequences
+            .iter()
+            .map(|k| format!("{} {}", k.count, k.code.as_str()))
+            .collect();
+        for l in wrap(
+            &format!(
+                "follows from it (rays below it, or beside it on the same ray; fix the cause first): {}",
+                list.join(", ")
+            ),
+            96,
+        ) {
+            let _ = writeln!(s, "  {l}");
+        }
+    }
+}
+
+/// Writes the verdict on the student's picture.
+fn image_text(s: &mut String, i: &crate::image::ImageCheck) {
+    let _ = writeln!(s, "\nyour picture: {}", i.detail);
+    if let Some(code) = i.verdict {
+        let _ = writeln!(s, "\n{} — {}", code.as_str(), code.summary());
+        for l in wrap(code.explanation(), 96) {
+            let _ = writeln!(s, "  {l}");
+        }
+    }
+    for e in &i.examples {
+        let _ = writeln!(
+            s,
+            "  pixel ({}, {}): your bytes {:?}, the course's conversion of your logged colour ({:.6}, {:.6}, {:.6}) is {:?}",
+            e.pixel[0], e.pixel[1], e.yours, e.colour[0], e.colour[1], e.colour[2], e.expected
+        );
     }
 }
 

@@ -535,13 +535,16 @@ impl Judge<'_> {
         tally: &mut Tally,
     ) {
         let len = n.length();
-        let values = vec![Value {
-            what: "normal".into(),
-            yours: vjson(n),
-            rayscope: vjson(if h.front { h.own } else { -h.own }),
-        }];
+        // Built only for a verdict: this runs for every logged normal.
+        let values = || {
+            vec![Value {
+                what: "normal".into(),
+                yours: vjson(n),
+                rayscope: vjson(if h.front { h.own } else { -h.own }),
+            }]
+        };
         if len.is_nan() || len <= 0.0 {
-            f.push(self.finding(r, kind, Code::HitNormalWrong, "the normal is zero".into(), values));
+            f.push(self.finding(r, kind, Code::HitNormalWrong, "the normal is zero".into(), values()));
             return;
         }
         if (len - 1.0).abs() > self.tol.unit {
@@ -550,7 +553,7 @@ impl Judge<'_> {
                 kind,
                 Code::HitNormalNotUnit,
                 format!("the normal has length {len:.6}"),
-                values.clone(),
+                values(),
             ));
         }
         let nh = n / len;
@@ -569,7 +572,7 @@ impl Judge<'_> {
                     "{:.3}° from the surface's normal at this point",
                     a_plus.min(a_minus).to_degrees()
                 ),
-                values,
+                values(),
             ));
             return;
         }
@@ -588,7 +591,7 @@ impl Judge<'_> {
                     "on the front of '{}' the normal points away from the ray and is not the outward normal",
                     self.name(h.entity)
                 ),
-                values,
+                values(),
             ));
             return;
         }
@@ -599,7 +602,7 @@ impl Judge<'_> {
             } else {
                 format!("on the back of '{}' this normal faces the ray, while most of your back-face normals are the outward ones", self.name(h.entity))
             };
-            let fnd = self.finding(r, kind, Code::HitNormalInconsistent, detail, values);
+            let fnd = self.finding(r, kind, Code::HitNormalInconsistent, detail, values());
             // Counted on the side; `Tally::finish` decides which convention is the odd one out.
             let side = if outward { &mut tally.outward } else { &mut tally.facing };
             side.0 += 1;

@@ -9,6 +9,7 @@ use glam::DVec3;
 use rayscope_core::Stage;
 use rayscope_scene::MaterialKind;
 use serde_json::json;
+use smallvec::{smallvec, SmallVec};
 
 use super::{njson, vjson, Eval, Finding, Judge, Leave, Tally, Value, MIN_SHARE};
 use crate::geom::angle;
@@ -483,8 +484,9 @@ impl Judge<'_> {
             })
         };
         let facing = |li: usize| lv.shade.dot((light_pos(li) - lv.point).normalize_or_zero());
-        let mut tested = vec![false; lights.len()];
-        let mut reached = vec![false; lights.len()];
+        // Held in place for the few lights of a course scene: this runs for every diffuse hit.
+        let mut tested: SmallVec<[bool; 8]> = smallvec![false; lights.len()];
+        let mut reached: SmallVec<[bool; 8]> = smallvec![false; lights.len()];
         let mut unknown = false;
         for &k in kids.shadow {
             let Some(li) = aimed(k).filter(|&li| li < lights.len()) else {
@@ -500,7 +502,7 @@ impl Judge<'_> {
         }
         // A light this close to the surface's plane adds under 0.1 % of its colour: a tracer
         // that skips it by its own rounding of N·L loses nothing visible.
-        let untested: Vec<usize> = (0..lights.len())
+        let untested: SmallVec<[usize; 8]> = (0..lights.len())
             .filter(|&li| !tested[li] && facing(li) > 1e-3)
             .collect();
         if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {

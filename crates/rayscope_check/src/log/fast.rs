@@ -9,6 +9,8 @@
 
 use std::borrow::Cow;
 
+use wide::u8x16;
+
 use super::{BlockerRef, LightRef, RawHit, RawRay};
 
 /// A position in one record. Only strings can hold bytes outside ASCII (everything else must
@@ -28,6 +30,37 @@ const fn key(k: &[u8]) -> u128 {
         j += 1;
     }
     v | ((k.len() as u128) << 120)
+}
+
+/// A key as a record spells it when written without spaces: `"name":`, as sixteen bytes masked
+/// to its length, so that a key where it is expected is recognised by one comparison.
+struct Known {
+    key: u128,
+    text: u128,
+    mask: u128,
+    len: usize,
+}
+
+impl Known {
+    const fn new(k: &[u8]) -> Known {
+        let len = k.len() + 3;
+        assert!(len <= 16, "a key the reader expects fits in sixteen bytes");
+        let mut text = b'"' as u128;
+        let mut j = 0;
+        while j < k.len() {
+            text |= (k[j] as u128) << (8 * (j + 1));
+            j += 1;
+        }
+        text |= (b'"' as u128) << (8 * (k.len() + 1));
+        text |= (b':' as u128) << (8 * (k.len() + 2));
+        let mask = if len == 16 { u128::MAX } else { (1u128 << (8 * len)) - 1 };
+        Known {
+            key: key(k),
+            text,
+            mask,
+            len,
+        }
+    }
 }
 
 impl<'a> Cursor<'a> {
@@ -83,21 +116,18 @@ impl<'a> Cursor<'a> {
         let start = self.i;
         // Keys and names are a few bytes long: sixteen bytes looked at together hold most of them.
         if let Some(w) = b.get(start..start + 16) {
-            let w = u128::from_le_bytes(w.try_into().expect("sixteen bytes"));
-            const ONES: u128 = u128::MAX / 255;
-            const HIGH: u128 = ONES * 0x80;
-            // Bytes equal to zero, flagged in their top bit: the lowest flag is exact (a false
-            // one can only sit above a true one).
-            let zero = |x: u128| x.wrapping_sub(ONES) & !x & HIGH;
-            let quote = zero(w ^ (ONES * u128::from(b'"')));
+            let v = u8x16::new(w.try_into().expect("sixteen bytes"));
+            let quote = v.simd_eq(u8x16::splat(b'"')).to_bitmask();
             if quote != 0 {
-                let n = (quote.trailing_zeros() / 8) as usize;
-                let before = (1u128 << (8 * n)) - 1;
-                let control = w.wrapping_sub(ONES * 0x20) & !w & HIGH;
-                let backslash = zero(w ^ (ONES * u128::from(b'\\')));
+                let n = quote.trailing_zeros() as usize;
+                let before = (1u32 << n) - 1;
+                // Control characters are the bytes that a minimum with 0x1f leaves as they are.
+                let control = v.min(u8x16::splat(0x1f)).simd_eq(v).to_bitmask();
+                let backslash = v.simd_eq(u8x16::splat(b'\\')).to_bitmask();
                 if (control | backslash) & before == 0 {
                     self.i = start + n + 1;
-                    return Some((&b[start..start + n], w & HIGH & before == 0));
+                    // A byte outside ASCII has its top bit set.
+                    return Some((&b[start..start + n], v.to_bitmask() & before == 0));
                 }
             }
         }
@@ -232,7 +262,61 @@ impl<'a> Cursor<'a> {
         Some(if negative { -v } else { v })
     }
 
+    /// A decimal without an exponent, at most 7 digits before its point and 8 after, the byte
+    /// after it included in the sixteen bytes after its sign: its digits, read as an integer,
+    /// are below 2^53, so one division gives the correctly rounded value (see
+    /// [`Self::short_decimal`]). The digits are found sixteen bytes at a time and converted
+    /// eight at a time. Tracers print most coordinates this way. `None` for anything else.
+    #[inline]
+    fn decimal16(&mut self) -> Option<f64> {
+        const POW10: [f64; 9] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8];
+        let b = self.b;
+        let negative = b.get(self.i) == Some(&b'-');
+        let start = self.i + usize::from(negative);
+        let w: [u8; 16] = b.get(start..start + 16)?.try_into().ok()?;
+        let x = (u8x16::new(w) - u8x16::splat(b'0')).to_array();
+        let digit = u8x16::new(x).min(u8x16::splat(9)).simd_eq(u8x16::new(x)).to_bitmask();
+        let int = (!digit).trailing_zeros() as usize;
+        if int == 0 || int > 7 || (int > 1 && w[0] == b'0') {
+            return None;
+        }
+        let (frac, end) = if w[int] == b'.' {
+            let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
+            (f, int + 1 + f)
+        } else {
+            (0, int)
+        };
+        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(w[end], b'e' | b'E') {
+            return None;
+        }
+        // Each run of digits, first one in the lowest byte, moved to the top so that the bytes
+        // below them read as leading zeros.
+        let run = |from: usize, n: usize| {
+            let v = u64::from_le_bytes(x[from..from + 8].try_into().expect("eight bytes"));
+            if n == 0 {
+                0
+            } else {
+                eight_digits(v << (8 * (8 - n)))
+            }
+        };
+        let m = run(0, int) * POW10_U64[frac] + run(int + 1, frac);
+        let v = m as f64 / POW10[frac];
+        self.i = start + end;
+        Some(if negative { -v } else { v })
+    }
+
+    #[inline]
     fn f64(&mut self) -> Option<f64> {
+        match self.decimal16() {
+            Some(v) => Some(v),
+            None => self.f64_slow(),
+        }
+    }
+
+    /// [`Self::f64`] for numbers [`Self::decimal16`] does not read.
+    #[cold]
+    #[inline(never)]
+    fn f64_slow(&mut self) -> Option<f64> {
         if let Some(v) = self.short_decimal() {
             return Some(v);
         }
@@ -359,20 +443,53 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    /// The members of an object, each key handed to `field` with the cursor on its value.
+    /// The key `k` with its colon, when the record has exactly that text at the cursor.
     #[inline]
-    fn object(&mut self, mut field: impl FnMut(&mut Self, u128) -> Option<()>) -> Option<()> {
+    fn known_key(&mut self, k: &Known) -> bool {
+        let Some(w) = self.b.get(self.i..self.i + 16) else {
+            return false;
+        };
+        let v = u128::from_le_bytes(w.try_into().expect("sixteen bytes"));
+        let found = v & k.mask == k.text;
+        if found {
+            self.i += k.len;
+        }
+        found
+    }
+
+    /// The members of an object, each key handed to `field` with the cursor on its value.
+    /// Records written by one tracer list their keys in one order, most often `order` with
+    /// some left out: the keys of `order` after the last one found are tried by their text,
+    /// and any other key is read as a string.
+    #[inline]
+    fn object(&mut self, order: &[Known], mut field: impl FnMut(&mut Self, u128) -> Option<()>) -> Option<()> {
         if !self.eat(b'{') {
             return None;
         }
         if self.eat(b'}') {
             return Some(());
         }
+        let mut next = 0;
         loop {
-            let key = self.key()?;
-            if !self.eat(b':') {
-                return None;
-            }
+            let known = order
+                .get(next..)
+                .and_then(|rest| rest.iter().position(|k| self.known_key(k)));
+            let key = match known {
+                Some(p) => {
+                    next += p + 1;
+                    order[next - 1].key
+                }
+                None => {
+                    let key = self.key()?;
+                    if !self.eat(b':') {
+                        return None;
+                    }
+                    if let Some(p) = order.iter().position(|k| k.key == key) {
+                        next = p + 1;
+                    }
+                    key
+                }
+            };
             field(self, key)?;
             if self.eat(b'}') {
                 return Some(());
@@ -402,11 +519,9 @@ fn digit_run(b: &[u8], i: &mut usize, mut m: u64) -> (u64, usize) {
         }
         // The k digits, first one in the lowest byte, moved to the top so that the bytes below
         // them read as leading zeros.
-        let mut v = x << (8 * (8 - k));
-        v = (v.wrapping_mul(10) + (v >> 8)) & 0x00FF_00FF_00FF_00FF;
-        v = (v.wrapping_mul(100) + (v >> 16)) & 0x0000_FFFF_0000_FFFF;
-        v = (v.wrapping_mul(10_000) + (v >> 32)) & 0xFFFF_FFFF;
-        m = m.wrapping_mul(POW10_U64[k]).wrapping_add(v);
+        m = m
+            .wrapping_mul(POW10_U64[k])
+            .wrapping_add(eight_digits(x << (8 * (8 - k))));
         *i += k;
         if k < 8 {
             return (m, *i - start);
@@ -420,6 +535,15 @@ fn digit_run(b: &[u8], i: &mut usize, mut m: u64) -> (u64, usize) {
         *i += 1;
     }
     (m, *i - start)
+}
+
+/// The eight digit values (0 to 9) in the bytes of `v`, the first in the lowest byte, as one
+/// number.
+#[inline]
+fn eight_digits(mut v: u64) -> u64 {
+    v = (v.wrapping_mul(10) + (v >> 8)) & 0x00FF_00FF_00FF_00FF;
+    v = (v.wrapping_mul(100) + (v >> 16)) & 0x0000_FFFF_0000_FFFF;
+    (v.wrapping_mul(10_000) + (v >> 32)) & 0xFFFF_FFFF
 }
 
 /// 10^k for the digit counts [`digit_run`] reads at once.
@@ -441,7 +565,13 @@ fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
     const POINT: u128 = key(b"point");
     const NORMAL: u128 = key(b"normal");
     const ENTITY: u128 = key(b"entity");
-    c.object(|c, k| match k {
+    const ORDER: [Known; 4] = [
+        Known::new(b"t"),
+        Known::new(b"point"),
+        Known::new(b"normal"),
+        Known::new(b"entity"),
+    ];
+    c.object(&ORDER, |c, k| match k {
         T => once(&mut t, c.nullable(Cursor::f64)),
         POINT => once(&mut point, c.nullable(Cursor::vec3)),
         NORMAL => once(&mut normal, c.nullable(Cursor::vec3)),
@@ -475,7 +605,23 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
     let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
     let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
     let (mut hit_, mut light, mut blocked_by, mut color) = (None, None, None, None);
-    c.object(|c, k| match k {
+    // The order rayscope's kits and its own logs write.
+    const ORDER: [Known; 13] = [
+        Known::new(b"pixel"),
+        Known::new(b"sample"),
+        Known::new(b"id"),
+        Known::new(b"parent"),
+        Known::new(b"kind"),
+        Known::new(b"origin"),
+        Known::new(b"direction"),
+        Known::new(b"from"),
+        Known::new(b"to"),
+        Known::new(b"hit"),
+        Known::new(b"light"),
+        Known::new(b"blocked_by"),
+        Known::new(b"color"),
+    ];
+    c.object(&ORDER, |c, k| match k {
         PIXEL => once(&mut pixel, c.nullable(Cursor::pixel)),
         SAMPLE => once(&mut sample, c.nullable(Cursor::u32)),
         ID => once(&mut id, c.nullable(Cursor::i64)),
@@ -702,6 +848,33 @@ mod tests {
             }
             prop_assert_eq!(got, (m, j - start));
             prop_assert_eq!(i, j);
+        }
+    }
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(4000))]
+        /// Decimals, read sixteen bytes at a time where they fit, are read bit for bit as the
+        /// standard library reads them, and the cursor stops where JSON's grammar ends them.
+        #[test]
+        fn decimals_read_as_the_standard_library_reads_them(
+            negative in any::<bool>(),
+            int in "0|[1-9][0-9]{0,8}",
+            frac in proptest::option::of("[0-9]{1,10}"),
+            after in prop_oneof![Just(",".to_string()), Just("]".to_string()), Just("e5".to_string()),
+                Just(".".to_string()), "[ -~]{0,20}"],
+        ) {
+            let number = format!("{}{int}{}", if negative { "-" } else { "" },
+                frac.as_ref().map_or(String::new(), |f| format!(".{f}")));
+            let text = format!("{number}{after}");
+            let mut c = Cursor { b: text.as_bytes(), i: 0 };
+            let got = c.f64();
+            // Where the text after it would continue the number (an exponent, a point, a digit),
+            // the number read is another one: those are the other tests' business.
+            let continues = after.starts_with(|ch: char| matches!(ch, 'e' | 'E' | '.' | '0'..='9'));
+            if !continues || (after.starts_with('.') && frac.is_some()) {
+                let want: f64 = number.parse().expect("a number");
+                prop_assert_eq!(got.map(f64::to_bits), Some(want.to_bits()), "{}", text);
+                prop_assert_eq!(c.i, number.len(), "{}", text);
+            }
         }
     }
     proptest! {

@@ -746,46 +746,28 @@ enum NormalRule {
     FromCentre(DVec3),
 }
 
-/// The right answers for a ray, on the numbers as sent: where it meets the primitive is the
-/// oracle's (`hit_sphere`, `hit_plane`, the watertight triangle test), and whether it passes
-/// within rounding of a rim or an edge, so that a miss and a hit are both right, is the log
-/// checker's rule ([`crate::tie`]). The tolerances on t, the point and the normal admit a
-/// tracer computing in f32.
-pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
-    let size = match *shape {
-        Shape::Sphere { radius, .. } => radius,
-        Shape::Plane { .. } => 1.0,
-        Shape::Triangle { v } => (v[1] - v[0])
-            .length()
-            .max((v[2] - v[1]).length())
-            .max((v[0] - v[2]).length()),
-    };
-    let feature = match *shape {
-        Shape::Sphere { center, .. } => center,
-        Shape::Plane { point, .. } => point,
-        Shape::Triangle { v } => v[0],
-    };
-    // What rounding to f32 can move a coordinate by, and what that does to t.
-    let rounding = 8.0 * EPS32 * (o.length() + feature.length());
-    let mut e = Expect {
-        hit: None,
-        miss_ok: false,
-        at_origin_ok: false,
-        any_hit_ok: false,
-        tie: false,
-        other_t: None,
-        tol: 0.0,
-        zero: 0.0,
-        normal_tol: 0.0,
-    };
+/// How a ray meets a primitive, on the numbers as sent.
+struct Crossing {
+    /// The ray's roots against the surface, sorted, in units of `d`.
+    roots: Vec<f64>,
+    /// Whether the ray's line meets the primitive at all.
+    inside: bool,
+    /// Whether it passes within rounding of the primitive's rim or an edge.
+    near_boundary: bool,
+    normal_rule: NormalRule,
+    /// How much the division by the cosine of the angle of incidence magnifies rounding in t.
+    cond: f64,
+    /// Whether any hit (or none) is right: a ray in the surface's own plane.
+    any_hit_ok: bool,
+}
+
+/// Where `o + t d` meets `shape` (see [`Crossing`]), by the oracle's tests.
+fn crossing(shape: &Shape, o: DVec3, d: DVec3, tie_tol: f64) -> Crossing {
     // The oracle works along a unit direction; t as sent is in units of `d`.
     let len = d.length();
     let u = d / len;
-    let tie_tol = Tolerances::default().tie;
-    // How much the division by the cosine of the angle of incidence magnifies rounding in t.
     let mut cond = 1.0;
-    // Roots of the ray against the surface (sorted, in units of `d`), whether the ray's line
-    // meets the primitive at all, and whether it passes within rounding of its rim or an edge.
+    let mut any_hit_ok = false;
     let (roots, inside, near_boundary, normal_rule) = match *shape {
         Shape::Sphere { center, radius } => {
             let margin = rim_margin(center, radius, o, u);
@@ -808,12 +790,12 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
             match hit_plane(point, normal, o, u, f64::NEG_INFINITY, f64::INFINITY) {
                 None => {
                     if (point - o).dot(normal) == 0.0 {
-                        e.any_hit_ok = true;
+                        any_hit_ok = true;
                     }
                     (vec![], false, false, NormalRule::Fixed(n))
                 }
                 Some(t) if den.abs() < 1e-6 => {
-                    e.any_hit_ok = true;
+                    any_hit_ok = true;
                     (vec![t / len], true, true, NormalRule::Fixed(n))
                 }
                 Some(t) => {
@@ -847,13 +829,65 @@ pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
                 }
                 _ => {
                     if rel_det != 0.0 || (o - v[0]).dot(n) == 0.0 {
-                        e.any_hit_ok = true;
+                        any_hit_ok = true;
                     }
                     (vec![], false, false, NormalRule::Fixed(n))
                 }
             }
         }
     };
+    Crossing {
+        roots,
+        inside,
+        near_boundary,
+        normal_rule,
+        cond,
+        any_hit_ok,
+    }
+}
+
+/// The right answers for a ray, on the numbers as sent: where it meets the primitive is the
+/// oracle's (`hit_sphere`, `hit_plane`, the watertight triangle test), and whether it passes
+/// within rounding of a rim or an edge, so that a miss and a hit are both right, is the log
+/// checker's rule ([`crate::tie`]). The tolerances on t, the point and the normal admit a
+/// tracer computing in f32.
+pub fn expect(shape: &Shape, o: DVec3, d: DVec3) -> Expect {
+    let size = match *shape {
+        Shape::Sphere { radius, .. } => radius,
+        Shape::Plane { .. } => 1.0,
+        Shape::Triangle { v } => (v[1] - v[0])
+            .length()
+            .max((v[2] - v[1]).length())
+            .max((v[0] - v[2]).length()),
+    };
+    let feature = match *shape {
+        Shape::Sphere { center, .. } => center,
+        Shape::Plane { point, .. } => point,
+        Shape::Triangle { v } => v[0],
+    };
+    // What rounding to f32 can move a coordinate by, and what that does to t.
+    let rounding = 8.0 * EPS32 * (o.length() + feature.length());
+    let mut e = Expect {
+        hit: None,
+        miss_ok: false,
+        at_origin_ok: false,
+        any_hit_ok: false,
+        tie: false,
+        other_t: None,
+        tol: 0.0,
+        zero: 0.0,
+        normal_tol: 0.0,
+    };
+    let tie_tol = Tolerances::default().tie;
+    let Crossing {
+        roots,
+        inside,
+        near_boundary,
+        normal_rule,
+        cond,
+        any_hit_ok,
+    } = crossing(shape, o, d, tie_tol);
+    e.any_hit_ok = any_hit_ok;
     // A ray leaving a surface at a shallow angle meets it again within rounding over the sine.
     let zero = 1e-5 * size + rounding * cond.min(1e3);
     e.zero = zero;
