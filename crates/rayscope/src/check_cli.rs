@@ -11,8 +11,8 @@ use rayscope_check::image::{ImageCheck, LogNext};
 use rayscope_check::log::IdRole;
 use rayscope_check::{CheckOptions, Finding, Judge, LogContext, LogError};
 
-use super::{load_scene, replay_flags, settings, setup_threads, Failure};
 use crate::cli::CheckArgs;
+use crate::shared::{load_scene, settings, setup_threads, Failure};
 
 fn log_failure(e: LogError) -> Failure {
     match e {
@@ -64,7 +64,7 @@ fn picture(
             MAX_PICTURE_PIXELS >> 20
         )));
     }
-    let img = crate::commands::read_rgb8(png, a.opts.allow_large)?;
+    let img = crate::shared::read_rgb8(png, a.opts.allow_large)?;
     if (img.width(), img.height()) != (s.width, s.height) {
         return Err(Failure::input(format!(
             "'{}' is {}×{} but the flags ask for {}×{}: give check the -w and -h the picture was rendered with",
@@ -95,7 +95,7 @@ fn picture(
         s,
         (&ours, img.as_raw()),
         &logged,
-        &replay_flags(&a.opts),
+        &s.flags(),
         (&a.file.display().to_string(), &png.display().to_string()),
     );
     Ok((check, Some(next)))
@@ -150,13 +150,13 @@ pub fn check(a: &CheckArgs) -> Result<ExitCode, Failure> {
         report.next = LogNext::sparse(
             report.camera_rays,
             (settings.width, settings.height, judge.samples_per_pixel()),
-            &replay_flags(&a.opts),
+            &settings.flags(),
             &a.file.display().to_string(),
         );
     }
     let secs = start.elapsed().as_secs_f64();
 
-    let flags = replay_flags(&a.opts);
+    let flags = settings.flags();
     let file = a.file.display().to_string();
     let trace = |f: &Finding| {
         f.pixel.map(|[x, y]| {

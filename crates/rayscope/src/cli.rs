@@ -1,10 +1,14 @@
 //! Command-line flags (clap) and their conversion into validated library settings.
 
+use std::ffi::OsStr;
 use std::path::PathBuf;
 
+use clap::error::ErrorKind;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
+use rayscope_core::mistakes::catalogue_text;
 use rayscope_core::settings::Limits;
+use rayscope_core::Mistakes;
 use rayscope_core::{CameraSettings, Channel, DepthLimit, Edition, FovAxis, RenderSettings, Stage};
 
 /// Renders with more samples than this (counting `-x` grid positions, 16 a pixel at 64
@@ -42,7 +46,7 @@ pub enum Command {
     /// Print the ray tree of one pixel sample (text, or JSON with --json).
     Trace(TraceArgs),
     /// Compare two images: PSNR, share of differing pixels, optional heat map.
-    Diff(crate::diff_cli::DiffArgs),
+    Diff(DiffArgs),
     /// Benchmarks: time a render, or closest-hit throughput.
     #[command(subcommand)]
     Bench(BenchCommand),
@@ -57,7 +61,7 @@ pub enum Command {
     /// List the course's common mistakes that --mistake renders and diagnose looks for.
     Mistakes,
     /// Explain a wrong picture: where it differs from rayscope's, and which mistakes explain it.
-    Diagnose(crate::diagnose_cli::DiagnoseArgs),
+    Diagnose(DiagnoseArgs),
     /// Join the parts of a farm render (`--part K/N`) into the image one render would give.
     Merge(MergeArgs),
 }
@@ -322,7 +326,7 @@ pub struct RenderOpts {
     #[arg(long = "allow-large")]
     pub allow_large: bool,
     /// Render as a tracer with these common mistakes would (`--mistake help` lists them).
-    #[arg(long = "mistake", value_name = "NAME[,NAME…]", value_parser = crate::diagnose_cli::MistakeParser)]
+    #[arg(long = "mistake", value_name = "NAME[,NAME…]", value_parser = MistakeParser)]
     pub mistake: Option<rayscope_core::Mistakes>,
 }
 
@@ -716,6 +720,79 @@ fn parse_pixel(s: &str) -> Result<(u32, u32), String> {
     }
 }
 
+/// `rayscope diff`.
+#[derive(Debug, Clone, Args)]
+pub struct DiffArgs {
+    /// First image.
+    pub a: PathBuf,
+    /// Second image.
+    pub b: PathBuf,
+    /// Write a difference heat map here: each channel is that channel's |a − b|, with a scale
+    /// bar under the image.
+    #[arg(short = 'o', long = "output")]
+    pub output: Option<PathBuf>,
+    /// Heat map: the difference (in 8-bit levels) shown at full brightness; default: chosen
+    /// from the images (all but the 1 % most different of the differing pixels fit).
+    #[arg(long, value_name = "LEVELS", value_parser = clap::value_parser!(u8).range(1..=255))]
+    pub range: Option<u8>,
+    /// Heat map without the scale bar, the size of the images.
+    #[arg(long = "no-legend")]
+    pub no_legend: bool,
+    /// Succeed when PSNR ≥ DB instead of requiring identical images.
+    #[arg(long, value_name = "DB")]
+    pub tol: Option<f64>,
+    /// Scene the images were rendered from: say which entities the differing pixels show,
+    /// through rayscope's ray tree of each (render flags as for the render; the size is the
+    /// images' unless -w/-h say otherwise).
+    #[arg(long, value_name = "SCENE")]
+    pub scene: Option<PathBuf>,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// `rayscope diagnose`.
+#[derive(Debug, Clone, Args)]
+pub struct DiagnoseArgs {
+    /// Scene file the image was rendered from.
+    #[arg(short = 'f', long = "file", value_name = "SCENE")]
+    pub file: PathBuf,
+    /// The image to explain (PNG); its size is the render's unless -w/-h say otherwise.
+    #[arg(value_name = "IMAGE")]
+    pub image: PathBuf,
+    /// Print JSON instead of text.
+    #[arg(long)]
+    pub json: bool,
+    /// Try single mistakes and settings only, not pairs.
+    #[arg(long = "no-pairs")]
+    pub no_pairs: bool,
+    #[command(flatten)]
+    pub opts: RenderOpts,
+}
+
+/// Parses `--mistake` values; `help` prints the catalogue.
+#[derive(Debug, Clone, Copy)]
+pub struct MistakeParser;
+
+impl clap::builder::TypedValueParser for MistakeParser {
+    type Value = Mistakes;
+
+    fn parse_ref(&self, cmd: &clap::Command, _arg: Option<&clap::Arg>, value: &OsStr) -> Result<Mistakes, clap::Error> {
+        let s = value.to_string_lossy();
+        if s == "help" {
+            // Like --help: the catalogue on stdout, exit 0, whatever else the line lacks.
+            print!("{}", catalogue_text());
+            std::process::exit(0);
+        }
+        Mistakes::parse(&s).map_err(|e| {
+            clap::Error::raw(
+                ErrorKind::ValueValidation,
+                format!("invalid value for --mistake: {e}\n"),
+            )
+            .with_cmd(cmd)
+        })
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -764,7 +841,11 @@ mod tests {
             channel: Channel::Color,
             mistakes,
         };
-        for s in [all, RenderSettings::default()] {
+        let normals = RenderSettings {
+            channel: Channel::Normal,
+            ..RenderSettings::default()
+        };
+        for s in [all, RenderSettings::default(), normals] {
             let flags = s.flags();
             let args = std::iter::once("rayscope").chain(flags.split(' '));
             let back = T::try_parse_from(args)

@@ -13,39 +13,8 @@ use rayscope_core::farm;
 use rayscope_core::output::{check_writable, write_film, Format};
 use rayscope_core::{render, render_tiles_of, trace_pixel, RenderOutput, RenderSettings, Scene};
 
-use crate::cli::{
-    BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, MergeArgs, RenderArgs, RenderOpts, TraceArgs,
-};
-
-/// A failure with the exit code it maps to (1: failure, 2: usage or input, 130: interrupted).
-#[derive(Debug)]
-pub struct Failure {
-    /// Exit code.
-    pub code: u8,
-    /// Message, printed once after "error: ".
-    pub message: String,
-    /// The message is a complete diagnostic that carries its own "error:" heading.
-    pub diagnostic: bool,
-}
-
-impl Failure {
-    /// A usage or input error (exit 2).
-    pub(crate) fn input(message: impl Into<String>) -> Self {
-        Self {
-            code: 2,
-            message: message.into(),
-            diagnostic: false,
-        }
-    }
-    /// A failure (exit 1).
-    pub(crate) fn failed(message: impl Into<String>) -> Self {
-        Self {
-            code: 1,
-            message: message.into(),
-            diagnostic: false,
-        }
-    }
-}
+use crate::cli::{BenchCommand, BenchRaysArgs, BenchRenderArgs, Cli, Command, MergeArgs, RenderArgs, TraceArgs};
+use crate::shared::{load_file, load_scene, load_scene_for, settings, setup_threads, Failure};
 
 /// Runs the parsed command line.
 pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
@@ -55,63 +24,14 @@ pub fn run(cli: Cli) -> Result<ExitCode, Failure> {
         Some(Command::Diff(a)) => crate::diff_cli::diff(&a),
         Some(Command::Bench(BenchCommand::Render(a))) => bench_render(&a),
         Some(Command::Bench(BenchCommand::Rays(a))) => bench_rays(&a),
-        Some(Command::Debug(a)) => rayscope_debug_cli::debug(&a),
-        Some(Command::View(a)) => rayscope_debug_cli::view(&a),
+        Some(Command::Debug(a)) => crate::debug_cli::debug(&a),
+        Some(Command::View(a)) => crate::debug_cli::view(&a),
         Some(Command::Probe(a)) => crate::probe::run(&a),
-        Some(Command::Check(a)) => check_cli::check(&a),
+        Some(Command::Check(a)) => crate::check_cli::check(&a),
         Some(Command::Mistakes) => crate::diagnose_cli::list(),
         Some(Command::Diagnose(a)) => crate::diagnose_cli::diagnose(&a),
         Some(Command::Merge(a)) => merge_command(&a),
     }
-}
-
-#[path = "check_cli.rs"]
-mod check_cli;
-
-#[path = "debug_cli.rs"]
-mod rayscope_debug_cli;
-
-/// Builds the thread pool for `--threads` (global, once).
-pub fn setup_threads(opts: &RenderOpts) {
-    if let Some(n) = opts.threads {
-        // Fails only if a pool was already built, which cannot happen in this process.
-        let _ = rayon::ThreadPoolBuilder::new().num_threads(n as usize).build_global();
-    }
-}
-
-/// Loads and converts a scene, printing warnings unless quiet. Input errors exit with 2. The
-/// file's meshes are freed before the BVH build (see [`Scene::from_owned_file`]).
-pub fn load_scene(path: &Path, quiet: bool) -> Result<Scene, Failure> {
-    Ok(Scene::from_owned_file(load_file(path, quiet)?))
-}
-
-/// [`load_scene`] with the OBJ mistakes of `settings` made while loading.
-pub(crate) fn load_scene_for(path: &Path, quiet: bool, settings: &RenderSettings) -> Result<Scene, Failure> {
-    let mut file = load_file(path, quiet)?;
-    settings.mistakes.apply_to_file(&mut file);
-    Ok(Scene::from_owned_file(file))
-}
-
-/// Loads a scene file, printing warnings unless quiet. Input errors exit with 2.
-pub fn load_file(path: &Path, quiet: bool) -> Result<rayscope_scene::SceneFile, Failure> {
-    let file = rayscope_scene::load(path).map_err(|e| match e {
-        rayscope_scene::SceneError::Invalid(d) => Failure {
-            code: 2,
-            message: d.to_string(),
-            diagnostic: true,
-        },
-        other => Failure::input(other.to_string()),
-    })?;
-    if !quiet {
-        for w in &file.warnings {
-            eprintln!("{w}");
-        }
-    }
-    Ok(file)
-}
-
-fn settings(opts: &RenderOpts) -> Result<RenderSettings, Failure> {
-    opts.settings().map_err(Failure::input)
 }
 
 fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
@@ -187,12 +107,8 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
     let show = !opts.quiet && std::io::stderr().is_terminal();
     for frame in frames {
         let mut settings = base;
-        let mut frame_opts = opts.clone();
         if let Some(f) = frame {
             settings.camera = path.camera_at(base.camera, f);
-            frame_opts.cam_pos = settings.camera.position;
-            frame_opts.cam_axis = settings.camera.axis;
-            frame_opts.cam_angle = settings.camera.angle_deg;
         }
         let output = out_path(frame);
         let tiles = farm.part.map(|spec| {
@@ -206,20 +122,13 @@ fn render_command(args: &RenderArgs) -> Result<ExitCode, Failure> {
                 "warning: {} samples were NaN or infinite and were written as black; replay the first with:\n  rayscope trace -f {} --pixel {x},{y} --sample {s} {}",
                 out.nonfinite,
                 file.display(),
-                replay_flags(&frame_opts)
+                settings.flags()
             );
         }
         match (farm.part, &tiles, &hash) {
             (Some(spec), Some(tiles), Some(hash)) => {
-                let mut header = farm::PartHeader::new(
-                    file,
-                    hash.clone(),
-                    &settings,
-                    replay_flags(&frame_opts),
-                    frame,
-                    spec,
-                    tiles,
-                );
+                let mut header =
+                    farm::PartHeader::new(file, hash.clone(), &settings, settings.flags(), frame, spec, tiles);
                 header.nonfinite = out.nonfinite;
                 header.render_seconds = out.elapsed.as_secs_f64();
                 farm::write_part(&output, &header, &out.film).map_err(|e| Failure::failed(e.to_string()))?;
@@ -304,50 +213,6 @@ fn merge_command(a: &MergeArgs) -> Result<ExitCode, Failure> {
         );
     }
     Ok(ExitCode::SUCCESS)
-}
-
-fn replay_flags(o: &RenderOpts) -> String {
-    // Every flag that decides which rays a sample casts, so `trace` replays the same sample.
-    let v = |v: glam::Vec3| format!("{},{},{}", v.x, v.y, v.z);
-    let mut s = format!("-w {} -h {} -x {}", o.width, o.height, o.aa);
-    if o.ambient {
-        s.push_str(" -l");
-    }
-    s.push_str(&format!(
-        " -q {} -p {} -a {} -n {} -r {} -t {} --fov {} --max-depth {} --seed {}",
-        o.quality,
-        v(o.cam_pos),
-        v(o.cam_axis),
-        o.cam_angle,
-        o.aperture,
-        o.focal_length,
-        o.fov,
-        o.max_depth,
-        o.seed
-    ));
-    if o.fov_axis == crate::cli::FovAxisArg::Vertical {
-        s.push_str(" --fov-axis vertical");
-    }
-    if o.depth_limit == crate::cli::DepthLimitArg::All {
-        s.push_str(" --depth-limit all");
-    }
-    if o.edition == crate::cli::EditionArg::Y2021 {
-        s.push_str(" --edition 2021");
-    }
-    if o.aov != crate::cli::ChannelArg::Color {
-        s.push_str(&format!(" --aov {}", format!("{:?}", o.aov).to_lowercase()));
-    }
-    if let Some(m) = o.mistake.filter(|m| !m.is_empty()) {
-        s.push_str(&format!(" --mistake {m}"));
-    }
-    if let Some(stage) = o.stage {
-        s.push_str(match stage {
-            crate::cli::StageArg::One => " --stage 1",
-            crate::cli::StageArg::Two => " --stage 2",
-            crate::cli::StageArg::Three => " --stage 3",
-        });
-    }
-    s
 }
 
 /// Renders every tile, or only `tiles`, with an indicatif bar that appears only for renders
@@ -437,44 +302,6 @@ fn trace_command(a: &TraceArgs) -> Result<ExitCode, Failure> {
         print!("{}", crate::trace_text::format_tree(&tree, a.precision.into()));
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// Most pixels of an image `diff` and `diagnose` read: a render's budget without `--allow-large`
-/// (with it, a render's largest image).
-pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
-
-/// Reads the image at `path` as 8-bit RGB: a regular file only, its size read from its header and
-/// checked against [`MAX_IMAGE_PIXELS`] (or 2^30 with `allow_large`) before it is decoded.
-pub fn read_rgb8(path: &Path, allow_large: bool) -> Result<image::RgbImage, Failure> {
-    Ok(read_image(path, allow_large)?.to_rgb8())
-}
-
-/// An image file as decoded, alpha channel and all, with [`read_rgb8`]'s checks and messages.
-pub fn read_image(path: &Path, allow_large: bool) -> Result<image::DynamicImage, Failure> {
-    let cannot = |e: &dyn std::fmt::Display| Failure::input(format!("cannot read image '{}': {e}", path.display()));
-    let meta = std::fs::metadata(path).map_err(|e| cannot(&e))?;
-    if let Some(what) = rayscope_scene::input::not_a_file(&meta) {
-        return Err(cannot(&format!("it is {what}, not a file")));
-    }
-    let open = || {
-        image::ImageReader::open(path)
-            .and_then(image::ImageReader::with_guessed_format)
-            .map_err(|e| cannot(&e))
-    };
-    let (w, h) = open()?.into_dimensions().map_err(|e| cannot(&e))?;
-    let max = if allow_large { 1 << 30 } else { MAX_IMAGE_PIXELS };
-    if u64::from(w) * u64::from(h) > max {
-        let hint = if allow_large {
-            ""
-        } else {
-            " (--allow-large raises it to 2^30 where the command has it)"
-        };
-        return Err(cannot(&format!(
-            "its header says {w}×{h} = {} pixels, over the limit of {max}{hint}",
-            u64::from(w) * u64::from(h)
-        )));
-    }
-    open()?.decode().map_err(|e| cannot(&e))
 }
 
 fn bench_render(a: &BenchRenderArgs) -> Result<ExitCode, Failure> {

@@ -9,8 +9,8 @@ use rayscope_core::output::Format;
 use rayscope_debug::student::{self, StudentInput};
 use rayscope_debug::view::{auto_view, render_view, ImageMode, RayMode, RgbImage, ViewCamera, ViewOptions};
 
-use super::{load_file, load_scene, settings, setup_threads, Failure};
 use crate::cli::{DebugArgs, ViewArgs};
+use crate::shared::{load_file, load_scene, settings, setup_threads, Failure};
 
 /// `rayscope debug`: serve the visual debugger on a local port.
 pub fn debug(a: &DebugArgs) -> Result<ExitCode, Failure> {

@@ -1,78 +1,17 @@
-//! `rayscope mistakes`, `rayscope diagnose` and the `--mistake` flag's parser.
+//! `rayscope mistakes` and `rayscope diagnose`.
 
-use std::ffi::OsStr;
-use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::error::ErrorKind;
-use clap::parser::ValueSource;
-use clap::{Args, CommandFactory};
 use rayscope_core::diagnose::{diagnose as run_diagnosis, report_text, DiagnoseError, DiagnoseOptions, Image};
 use rayscope_core::mistakes::catalogue_text;
-use rayscope_core::Mistakes;
 
-use crate::cli::{Cli, RenderOpts};
-use crate::commands::{load_file, read_image, setup_threads, Failure};
-
-/// `rayscope diagnose`.
-#[derive(Debug, Clone, Args)]
-pub struct DiagnoseArgs {
-    /// Scene file the image was rendered from.
-    #[arg(short = 'f', long = "file", value_name = "SCENE")]
-    pub file: PathBuf,
-    /// The image to explain (PNG); its size is the render's unless -w/-h say otherwise.
-    #[arg(value_name = "IMAGE")]
-    pub image: PathBuf,
-    /// Print JSON instead of text.
-    #[arg(long)]
-    pub json: bool,
-    /// Try single mistakes and settings only, not pairs.
-    #[arg(long = "no-pairs")]
-    pub no_pairs: bool,
-    #[command(flatten)]
-    pub opts: RenderOpts,
-}
-
-/// Parses `--mistake` values; `help` prints the catalogue.
-#[derive(Debug, Clone, Copy)]
-pub struct MistakeParser;
-
-impl clap::builder::TypedValueParser for MistakeParser {
-    type Value = Mistakes;
-
-    fn parse_ref(&self, cmd: &clap::Command, _arg: Option<&clap::Arg>, value: &OsStr) -> Result<Mistakes, clap::Error> {
-        let s = value.to_string_lossy();
-        if s == "help" {
-            // Like --help: the catalogue on stdout, exit 0, whatever else the line lacks.
-            print!("{}", catalogue_text());
-            std::process::exit(0);
-        }
-        Mistakes::parse(&s).map_err(|e| {
-            clap::Error::raw(
-                ErrorKind::ValueValidation,
-                format!("invalid value for --mistake: {e}\n"),
-            )
-            .with_cmd(cmd)
-        })
-    }
-}
+use crate::cli::DiagnoseArgs;
+use crate::shared::{given, load_file, read_image, setup_threads, Failure};
 
 /// `rayscope mistakes`: the catalogue.
 pub fn list() -> Result<ExitCode, Failure> {
     print!("{}", catalogue_text());
     Ok(ExitCode::SUCCESS)
-}
-
-/// True when the command line set `id` on the subcommand `sub` itself.
-pub(crate) fn given(sub: &str, id: &str) -> bool {
-    Cli::command()
-        .try_get_matches()
-        .ok()
-        .and_then(|m| {
-            m.subcommand_matches(sub)
-                .map(|d| d.value_source(id) == Some(ValueSource::CommandLine))
-        })
-        .unwrap_or(false)
 }
 
 /// `rayscope diagnose`: exit 0 when the image matches, 1 with a diagnosis, 2 for bad input.

@@ -1,7 +1,6 @@
 //! `rayscope diff`: PSNR and differing pixels of two images, a per-channel heat map with its
 //! scale, and with `--scene` which entities the differing pixels show.
 
-use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::parser::ValueSource;
@@ -13,39 +12,8 @@ use rayscope_core::output::{check_writable, write_film};
 use rayscope_core::Film;
 use rayscope_debug::canvas::{Canvas, ID_NONE};
 
-use crate::cli::{Cli, RenderOpts};
-use crate::commands::{load_scene_for, read_rgb8, setup_threads, Failure};
-use crate::diagnose_cli::given;
-
-/// `rayscope diff`.
-#[derive(Debug, Clone, Args)]
-pub struct DiffArgs {
-    /// First image.
-    pub a: PathBuf,
-    /// Second image.
-    pub b: PathBuf,
-    /// Write a difference heat map here: each channel is that channel's |a − b|, with a scale
-    /// bar under the image.
-    #[arg(short = 'o', long = "output")]
-    pub output: Option<PathBuf>,
-    /// Heat map: the difference (in 8-bit levels) shown at full brightness; default: chosen
-    /// from the images (all but the 1 % most different of the differing pixels fit).
-    #[arg(long, value_name = "LEVELS", value_parser = clap::value_parser!(u8).range(1..=255))]
-    pub range: Option<u8>,
-    /// Heat map without the scale bar, the size of the images.
-    #[arg(long = "no-legend")]
-    pub no_legend: bool,
-    /// Succeed when PSNR ≥ DB instead of requiring identical images.
-    #[arg(long, value_name = "DB")]
-    pub tol: Option<f64>,
-    /// Scene the images were rendered from: say which entities the differing pixels show,
-    /// through rayscope's ray tree of each (render flags as for the render; the size is the
-    /// images' unless -w/-h say otherwise).
-    #[arg(long, value_name = "SCENE")]
-    pub scene: Option<PathBuf>,
-    #[command(flatten)]
-    pub opts: RenderOpts,
-}
+use crate::cli::{Cli, DiffArgs, RenderOpts};
+use crate::shared::{given, load_scene_for, read_rgb8, setup_threads, Failure};
 
 /// Height of the scale bar's strip for an image `width` pixels wide, and its font scale.
 fn legend_size(width: u32) -> (u32, u32) {

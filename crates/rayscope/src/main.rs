@@ -33,11 +33,14 @@ macro_rules! eprintln {
     }};
 }
 
+mod check_cli;
 mod cli;
 mod commands;
+mod debug_cli;
 mod diagnose_cli;
 mod diff_cli;
 mod probe;
+mod shared;
 mod trace_text;
 
 use std::process::ExitCode;

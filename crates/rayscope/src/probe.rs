@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use rayscope_check::probe;
 
 use crate::cli::ProbeArgs;
-use crate::commands::{load_file, Failure};
+use crate::shared::{load_file, Failure};
 
 /// Runs `rayscope probe`.
 pub fn run(a: &ProbeArgs) -> Result<ExitCode, Failure> {

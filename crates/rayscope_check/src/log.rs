@@ -15,9 +15,11 @@ use glam::DVec3;
 use rayon::prelude::*;
 use rayscope_scene::Diagnostic;
 use rustc_hash::FxHashMap;
-use serde::Deserialize;
 
 mod fast;
+mod raw;
+
+use raw::{BlockerRef, LightRef, RawRay};
 
 /// Why a ray was cast, as the log names it.
 #[derive(Debug, Clone, PartialEq, Eq)]
@@ -658,61 +660,6 @@ impl<R: Read> RaySource for JsonlReader<R> {
     fn place(&self, record: u64) -> String {
         format!("{}:{record}", self.path.display())
     }
-}
-
-/// Deserialises a field that may be absent (outer `None`), `null` or a value.
-fn present<'de, D, T>(d: D) -> Result<Option<Option<T>>, D::Error>
-where
-    D: serde::Deserializer<'de>,
-    T: Deserialize<'de>,
-{
-    Option::<T>::deserialize(d).map(Some)
-}
-
-#[derive(Debug, PartialEq, Deserialize)]
-struct RawHit<'a> {
-    t: Option<f64>,
-    point: Option<[f64; 3]>,
-    normal: Option<[f64; 3]>,
-    #[serde(borrow)]
-    entity: Option<Cow<'a, str>>,
-}
-
-/// A shadow ray's light as logged: its name, or its position for tracers whose lights have none.
-#[derive(Debug, PartialEq, Deserialize)]
-#[serde(untagged)]
-enum LightRef<'a> {
-    Name(#[serde(borrow)] Cow<'a, str>),
-    Position([f64; 3]),
-}
-
-/// A shadow ray's blocker as logged: its name, or only whether something blocks the light.
-#[derive(Debug, PartialEq, Deserialize)]
-#[serde(untagged)]
-enum BlockerRef<'a> {
-    Name(#[serde(borrow)] Cow<'a, str>),
-    Blocked(bool),
-}
-
-#[derive(Debug, PartialEq, Deserialize)]
-struct RawRay<'a> {
-    pixel: Option<[u32; 2]>,
-    sample: Option<u32>,
-    id: Option<i64>,
-    parent: Option<i64>,
-    #[serde(borrow)]
-    kind: Option<Cow<'a, str>>,
-    origin: Option<[f64; 3]>,
-    direction: Option<[f64; 3]>,
-    from: Option<[f64; 3]>,
-    to: Option<[f64; 3]>,
-    #[serde(default, deserialize_with = "present", borrow)]
-    hit: Option<Option<RawHit<'a>>>,
-    #[serde(borrow)]
-    light: Option<LightRef<'a>>,
-    #[serde(default, deserialize_with = "present", borrow)]
-    blocked_by: Option<Option<BlockerRef<'a>>>,
-    color: Option<[f64; 3]>,
 }
 
 /// The fields a ray record may have, for notes.

@@ -27,17 +27,15 @@ use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{Channel, FovAxis, RenderSettings, Scene, Stage};
 
-use crate::geom::d3;
-
 /// The corners of a triangle as the scene file gave them. The scene keeps a corner and two
 /// edges in f32; the other corners are put back on the f32 grid the file's coordinates were
 /// rounded to, so that a corner two triangles share is the same number in both (which the
 /// watertight test needs).
 #[must_use]
 pub fn corners(t: &Triangle) -> [DVec3; 3] {
-    let v0 = d3(t.v0());
+    let v0 = t.v0().as_dvec3();
     let snap = |v: DVec3| v.as_vec3().as_dvec3();
-    [v0, snap(v0 + d3(t.e1())), snap(v0 + d3(t.e2()))]
+    [v0, snap(v0 + t.e1().as_dvec3()), snap(v0 + t.e2().as_dvec3())]
 }
 
 /// The nearest `t` with `t_min < t < t_max` at which `o + t d` meets the plane through `point`
@@ -282,11 +280,15 @@ impl Oracle {
     #[must_use]
     pub fn new(scene: &Scene) -> Self {
         let mut o = Oracle {
-            planes: scene.planes.iter().map(|p| (d3(p.point), d3(p.normal))).collect(),
+            planes: scene
+                .planes
+                .iter()
+                .map(|p| (p.point.as_dvec3(), p.normal.as_dvec3()))
+                .collect(),
             spheres: scene
                 .spheres
                 .iter()
-                .map(|s| (d3(s.center), f64::from(s.radius)))
+                .map(|s| (s.center.as_dvec3(), f64::from(s.radius)))
                 .collect(),
             triangles: scene.triangles.iter().map(corners).collect(),
             plane_info: scene.plane_info.clone(),

@@ -101,6 +101,21 @@ pub enum Channel {
     Cost,
 }
 
+impl Channel {
+    /// The name `--aov` takes.
+    #[must_use]
+    pub fn name(self) -> &'static str {
+        match self {
+            Channel::Color => "color",
+            Channel::Normal => "normal",
+            Channel::Depth => "depth",
+            Channel::Entity => "entity",
+            Channel::Albedo => "albedo",
+            Channel::Cost => "cost",
+        }
+    }
+}
+
 /// Everything that decides what a render produces.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct RenderSettings {
@@ -157,7 +172,7 @@ impl Default for RenderSettings {
 
 impl RenderSettings {
     /// The command-line flags that give these settings: the size, then each setting that is not
-    /// the default (the debug channel has no flag).
+    /// the default.
     #[must_use]
     pub fn flags(&self) -> String {
         let d = RenderSettings::default();
@@ -197,6 +212,7 @@ impl RenderSettings {
         add(c.focal_length != dc.focal_length, format!("-t {}", c.focal_length));
         add(self.seed != d.seed, format!("--seed {}", self.seed));
         add(!self.mistakes.is_empty(), format!("--mistake {}", self.mistakes));
+        add(self.channel != d.channel, format!("--aov {}", self.channel.name()));
         f
     }
 }

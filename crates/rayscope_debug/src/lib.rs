@@ -12,12 +12,14 @@
 pub mod canvas;
 pub mod encode;
 pub mod guard;
+mod limits;
 mod net;
 pub mod server;
 pub mod student;
 pub mod view;
 
-pub use server::{serve, start, DebugError, RunningServer, ServeConfig, ServerLimits};
+pub use limits::ServerLimits;
+pub use server::{serve, start, DebugError, RunningServer, ServeConfig};
 pub use view::{
     auto_view, pick, render_view, ForeignRay, ImageMode, RayMode, RgbImage, Selection, ViewCamera, ViewFrame,
     ViewOptions,

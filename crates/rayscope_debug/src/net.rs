@@ -17,7 +17,7 @@ use tokio::net::{TcpListener, TcpStream};
 use tokio::sync::Semaphore;
 use tokio::time::Sleep;
 
-use crate::server::ServerLimits;
+use crate::limits::ServerLimits;
 
 /// Largest request head (request line and headers) in bytes.
 pub const MAX_HEAD_BYTES: usize = 16 * 1024;

@@ -12,6 +12,8 @@
 //! `eprint!`, so these lines show under plain `cargo test`), with a running count and, once per
 //! test binary, how to enable them. With `CI=true` a missing prerequisite is a failure instead.
 
+pub mod module_graph;
+
 use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicUsize, Ordering};

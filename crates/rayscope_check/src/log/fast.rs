@@ -11,7 +11,7 @@ use std::borrow::Cow;
 
 use wide::u8x16;
 
-use super::{BlockerRef, LightRef, RawHit, RawRay};
+use super::raw::{BlockerRef, LightRef, RawHit, RawRay};
 
 /// A position in one record. Only strings can hold bytes outside ASCII (everything else must
 /// be JSON's punctuation, literals and numbers), so each string is checked to be UTF-8 on its

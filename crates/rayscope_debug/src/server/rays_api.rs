@@ -33,14 +33,6 @@ use crate::student::{self, StudentInput};
 
 /// Largest ray log the debugger accepts as an upload.
 pub const MAX_LOG_BYTES: u64 = 4 << 30;
-/// Uploads up to this size are kept in memory to judge again after a settings change; larger
-/// ones are judged once and marked stale after a change (the page sends them again). The default
-/// of [`ServerLimits::keep_log_bytes`].
-pub const KEEP_LOG_BYTES: usize = 64 << 20;
-/// Rays of a judged log kept for display by default ([`ServerLimits::ray_detail_cap`]): a kept
-/// ray costs up to about 3 KiB with its verdicts (measured: 320,000 rays that disagree took
-/// 950 MiB), so at most twice this many (samples that disagree) stay within about 150 MiB.
-pub const RAY_DETAIL_CAP: usize = 25_000;
 /// How long a new upload waits for the one it replaces to stop.
 const REPLACE_WAIT: Duration = Duration::from_secs(5);
 /// The blocks a kept upload is stored in: no copy of the whole log is ever made, and a block
