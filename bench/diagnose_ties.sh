@@ -4,8 +4,8 @@
 # -x 4, 400×400 and 400×300, and each picture must match rayscope's render by the ties of its
 # rays. Runs the ignored test `full_matrix` of crates/rayscope_core/tests/ties.rs in release and
 # prints per case the pixels that differ, those within their tie bounds, those beyond, the
-# largest distance in levels outside the bounds, and the seconds (student's render and diagnose
-# together). Exits non-zero if any case does not match.
+# largest distance in levels outside the bounds, the seconds of the student's render and diagnose
+# together, and of diagnose alone. Exits non-zero if any case does not match.
 #
 #   bench/diagnose_ties.sh
 #

@@ -142,15 +142,15 @@ fn full_matrix() {
         return;
     };
     println!(
-        "{:<26} {:<8} {:>3} {:>8} {:>10} {:>6} {:>7} {:>6} {:>8}",
-        "scene", "size", "aa", "matches", "differing", "ties", "beyond", "worst", "seconds"
+        "{:<26} {:<8} {:>3} {:>8} {:>10} {:>6} {:>7} {:>6} {:>8} {:>10}",
+        "scene", "size", "aa", "matches", "differing", "ties", "beyond", "worst", "seconds", "diagnose s"
     );
     for path in course_scenes(&course) {
         for aa in [1, 4] {
             for (w, h) in [(400, 400), (400, 300)] {
                 let (d, secs) = correct_matches(&path, w, h, aa);
                 println!(
-                    "{:<26} {:<8} {:>3} {:>8} {:>10} {:>6} {:>7} {:>6} {:>8.1}",
+                    "{:<26} {:<8} {:>3} {:>8} {:>10} {:>6} {:>7} {:>6} {:>8.1} {:>10.1}",
                     path.file_name().unwrap_or_default().to_string_lossy(),
                     format!("{w}x{h}"),
                     aa,
@@ -159,7 +159,8 @@ fn full_matrix() {
                     d.ties.tie_pixels,
                     d.ties.beyond_ties,
                     d.ties.worst_levels,
-                    secs
+                    secs,
+                    d.seconds
                 );
             }
         }
