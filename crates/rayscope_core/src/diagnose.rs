@@ -5,17 +5,26 @@
 //! Before any search it says what is plain ([`Obvious`]): a black, white or one-coloured image,
 //! one upside down, mirrored or transposed, saved with gamma, or with an alpha channel.
 //!
+//! **The match rule.** An image *is* a render when every pixel lies within that pixel's tie
+//! bounds (`ties.rs`): where a ray of the pixel's samples passes within rounding of an edge, a
+//! rim, a seam of two surfaces at the same distance, a shadow boundary or the critical angle, or
+//! a shadow ray's blocker lies within the offsets correct tracers use of its origin, two
+//! correct tracers may see either side, and the bounds span the colours of both sides;
+//! everywhere else they are rayscope's colour, and the byte next to it only where the colour
+//! lies within rounding of a byte boundary. The decision never rests on a share of pixels or a
+//! PSNR: a render is called the image (the image matches, or an explanation is offered as its
+//! cause by matching) only by this rule.
+//!
 //! The search is two passes. The coarse pass renders every candidate on a sparse grid of the
-//! image's pixels (about [`DiagnoseOptions::coarse_samples`] samples) and scores it against the
-//! same pixels of the student's image; the best few are then rendered at full size and ranked.
-//! Each pass scores a candidate by the better of two PSNRs: pixel for pixel, and between block
-//! averages of both images (a "downsampled" comparison, which sees speckle such as shadow acne
-//! as the darkening it is even where the speckles themselves fall on other pixels). The
-//! pixel-for-pixel one is robust: it leaves out up to `OUTLIERS` of the pixels, worst first,
-//! among those whose colour some pixel next to them has in rayscope's render. Where two surfaces
-//! meet at exactly the same distance (the course's box edges) which one a ray sees is
-//! floating-point noise, and two correct tracers disagree there by up to the whole colour, but
-//! each shows a colour of one side of the edge.
+//! image's pixels (about [`DiagnoseOptions::coarse_samples`] samples), and at the pixels where
+//! the image lies beyond the ties of rayscope's render, and scores it against the same pixels
+//! of the student's image; the best few are then rendered at full size, checked by the match
+//! rule and ranked. Scores rank candidates, they decide nothing: the better of two PSNRs, pixel
+//! for pixel and between block averages of both images (a "downsampled" comparison, which sees
+//! speckle such as shadow acne as the darkening it is even where the speckles themselves fall
+//! on other pixels). The pixel-for-pixel one is robust: it leaves out up to `OUTLIERS` of the
+//! pixels, worst first, among those whose colour some pixel next to them has in rayscope's
+//! render, so that a render off only at edges ranks above one off everywhere.
 
 use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::AtomicBool;
@@ -39,17 +48,13 @@ use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
 
 mod explained;
+mod ties;
 
 use explained::{block_means, Traced, BLOCK};
 pub use explained::{Explained, NextStep, PartExplained};
 
-/// An image whose robust PSNR (dB, [`OUTLIERS`] left out) against a render reaches this is that
-/// render: an independent correct tracer's images reach 79 dB or more against rayscope's (the
-/// course's own scene-1 image 72 dB with every pixel counted), while the subtlest catalogue
-/// entries stay below 60 (Schlick's approximation 57 dB, rounded colours 51 dB).
-pub(crate) const MATCH_DB: f64 = 65.0;
-
-/// Largest share of the pixels the robust PSNR leaves out (see the module's notes).
+/// Largest share of the pixels the robust PSNR, a ranking score, leaves out (see the module's
+/// notes).
 pub(crate) const OUTLIERS: f64 = 0.01;
 
 /// Slack, in levels, of the neighbourhood test that excuses a pixel (see [`near_in`]).
@@ -134,14 +139,14 @@ pub struct Explanation {
     #[serde(serialize_with = "ser_db")]
     pub psnr_db: f64,
     /// The same without up to `OUTLIERS` of the pixels: the worst of those whose colour a
-    /// neighbouring pixel of the render has.
+    /// neighbouring pixel of the render has (a ranking score).
     #[serde(serialize_with = "ser_db")]
     pub robust_db: f64,
     /// PSNR of the two images averaged over blocks of `BLOCK`×`BLOCK` pixels.
     #[serde(serialize_with = "ser_db")]
     pub psnr_downsampled_db: f64,
-    /// True when the image is this render: [`Self::robust_db`] ≥ `MATCH_DB`, or for a
-    /// one-coloured image (the colour of most pixels of many renders) [`Self::psnr_db`].
+    /// True when the image is this render: every pixel lies within the render's tie bounds
+    /// (see the module's notes).
     pub matches: bool,
     /// How much of the difference this render reproduces, overall and per part (null for a
     /// recursion limit found behind a match).
@@ -173,7 +178,7 @@ pub struct Diagnosis {
     #[serde(serialize_with = "ser_db")]
     pub psnr_db: f64,
     /// The same without up to `OUTLIERS` of the pixels (those a neighbour's colour explains);
-    /// the image matches when this is at least `MATCH_DB`.
+    /// a score, not the match rule.
     #[serde(serialize_with = "ser_db")]
     pub robust_db: f64,
     /// PSNR after averaging both over `BLOCK`×`BLOCK` blocks.
@@ -189,6 +194,8 @@ pub struct Diagnosis {
     pub max_channel_diff: u8,
     /// The box around the differing pixels.
     pub region: Option<Region>,
+    /// The differing pixels against the ties of rayscope's render (the match rule).
+    pub ties: TieSummary,
     /// Where the differences are, largest share first.
     pub attribution: Vec<Share>,
     /// Explanations, best first: those that match ([`Explanation::matches`]), then those that
@@ -202,6 +209,36 @@ pub struct Diagnosis {
     pub candidates: usize,
     /// Wall time of the diagnosis in seconds.
     pub seconds: f64,
+}
+
+/// The image against the ties of rayscope's render: how many of the pixels that differ lie
+/// within their tie bounds (see the module's notes).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize)]
+pub struct TieSummary {
+    /// Pixels whose colour is not rayscope's.
+    pub differing_pixels: u64,
+    /// Of those, the pixels checked against their tie bounds: all of them when the image
+    /// matches; otherwise the check stops after the first batch with a pixel beyond them.
+    pub checked_pixels: u64,
+    /// Checked pixels within their tie bounds: where two correct tracers may disagree.
+    pub tie_pixels: u64,
+    /// Checked pixels beyond their tie bounds (none when the image matches).
+    pub beyond_ties: u64,
+    /// Largest distance, in levels, of a channel outside its tie bounds, over the checked
+    /// pixels (0 when the image matches).
+    pub worst_levels: u8,
+}
+
+impl TieSummary {
+    fn of(v: &ties::Verdict) -> TieSummary {
+        TieSummary {
+            differing_pixels: v.differing,
+            checked_pixels: v.checked,
+            tie_pixels: v.ties,
+            beyond_ties: v.beyond.len() as u64,
+            worst_levels: v.worst,
+        }
+    }
 }
 
 /// Something plain about the image that [`diagnose`] says before any search.
@@ -480,7 +517,9 @@ impl Candidate {
             .sum()
     }
 
-    fn explain(&self, base: &RenderSettings, m: Metrics) -> Explanation {
+    /// The explanation this candidate is, with its scores `m` and whether its render is the
+    /// image (`matches`, by the tie rule).
+    fn explain(&self, base: &RenderSettings, m: Metrics, matches: bool) -> Explanation {
         let mut mistakes = Vec::new();
         let mut settings = Vec::new();
         let mut words = Vec::new();
@@ -561,9 +600,9 @@ impl Candidate {
             psnr_db: m.psnr,
             robust_db: m.robust,
             psnr_downsampled_db: m.blurred,
-            matches: m.robust >= MATCH_DB,
+            matches,
             explained: None,
-            cause: m.robust >= MATCH_DB,
+            cause: matches,
         }
     }
 }
@@ -1002,7 +1041,7 @@ pub fn diagnose(
         obvious.push(p);
     } else {
         let as_is = Metrics::of(&ours, &judged, w, h, BLOCK, true);
-        if as_is.score() < MATCH_DB {
+        if !ties::judge(scenes.get(base.mistakes), &base, &ours, &judged, false).matches {
             let flipped = flip_rows(&judged, w, h);
             let mirrored = mirror_columns(&judged, w, h);
             let other = RenderSettings {
@@ -1061,7 +1100,9 @@ pub fn diagnose(
             }
         }
         let now = Metrics::of(&ours, &judged, w, h, BLOCK, true);
-        if now.score() < MATCH_DB && !base.mistakes.has(Mistake::Gamma) {
+        if !base.mistakes.has(Mistake::Gamma)
+            && !ties::judge(scenes.get(base.mistakes), &base, &ours, &judged, false).matches
+        {
             let encoded = RenderSettings {
                 mistakes: base.mistakes.with(Mistake::Gamma),
                 ..base
@@ -1108,13 +1149,8 @@ pub fn diagnose(
         base.edition
     });
     let cmp = compare_rgb8(&ours, image.rgb);
-    // A one-coloured image is matched pixel for pixel: its colour is also that of most pixels
-    // of many renders, which leaving outliers out would call a match.
-    let mut matches = if constant {
-        m0.psnr >= MATCH_DB
-    } else {
-        m0.robust >= MATCH_DB
-    };
+    let verdict = ties::judge(scenes.get(base.mistakes), &base, &ours, image.rgb, false);
+    let mut matches = verdict.matches;
 
     let (differing, threshold) = differing_pixels(&ours, image.rgb);
     let region = (!differing.is_empty()).then(|| {
@@ -1163,17 +1199,9 @@ pub fn diagnose(
             threshold,
             differs: &differs,
             traced: &traced,
+            beyond: &verdict.beyond,
         };
-        let (mut found, n) = search(&mut scenes, &base, image, opts, &full, m0.score(), &against);
-        for e in &mut found {
-            // A one-coloured picture is the colour of most pixels of many renders: only an
-            // identical one is its match, not one that leaving outliers out makes so.
-            e.matches = if constant {
-                e.psnr_db >= MATCH_DB
-            } else {
-                e.robust_db >= MATCH_DB
-            };
-        }
+        let (found, n) = search(&mut scenes, &base, image, opts, &full, &against);
         explanations = found;
         tried += n;
     }
@@ -1201,6 +1229,7 @@ pub fn diagnose(
         threshold,
         max_channel_diff: cmp.max_diff,
         region,
+        ties: TieSummary::of(&verdict),
         attribution,
         explanations,
         next,
@@ -1210,7 +1239,8 @@ pub fn diagnose(
 }
 
 /// The recursion limit among `depths` whose full render is closest to `image`, pixel for pixel,
-/// when it is at least 3 dB closer than `psnr` (the image's PSNR against `base`) and matches.
+/// when it is at least 3 dB closer than `psnr` (the image's PSNR against `base`) and matches
+/// (the tie rule).
 fn closer_depth(
     scenes: &Scenes<'_>,
     base: &RenderSettings,
@@ -1220,19 +1250,24 @@ fn closer_depth(
     psnr: f64,
 ) -> Option<Explanation> {
     let (w, h) = (base.width, base.height);
-    let tried: Vec<(Candidate, Metrics)> = depths
+    let tried: Vec<(Candidate, Metrics, Vec<u8>)> = depths
         .par_iter()
         .map(|&a| {
             let c = Candidate(vec![a]);
-            let m = Metrics::of(&full(scenes, &c.settings(base)), image.rgb, w, h, BLOCK, true);
-            (c, m)
+            let bytes = full(scenes, &c.settings(base));
+            let m = Metrics::of(&bytes, image.rgb, w, h, BLOCK, true);
+            (c, m, bytes)
         })
         .collect();
     let (c, m) = tried
         .into_iter()
-        .filter(|(_, m)| m.psnr >= psnr + 3.0 && m.robust >= MATCH_DB)
+        .filter(|(c, m, bytes)| {
+            let s = c.settings(base);
+            m.psnr >= psnr + 3.0 && ties::judge(scenes.get(s.mistakes), &s, bytes, image.rgb, false).matches
+        })
+        .map(|(c, m, _)| (c, m))
         .max_by(|a, b| (a.1.psnr - a.0.penalty()).total_cmp(&(b.1.psnr - b.0.penalty())))?;
-    Some(c.explain(base, m))
+    Some(c.explain(base, m, true))
 }
 
 /// The pixels to log next when a student's ray log holds no mistake but their picture differs
@@ -1305,17 +1340,24 @@ struct Against<'a> {
     threshold: u8,
     differs: &'a [bool],
     traced: &'a Traced,
+    /// Pixels (row-major) where the image lies beyond the ties of rayscope's render, as far as
+    /// the match rule looked.
+    beyond: &'a [u32],
 }
 
-/// The search: every candidate on the coarse grid, then the best at full size. Returns the
-/// explanations that beat `baseline` (the correct render's score) and the candidates tried.
+/// Most of the pixels beyond the ties of rayscope's render the coarse pass renders each
+/// candidate at, besides its grid.
+const FOCUS: usize = 64;
+
+/// The search: every candidate on the coarse grid and at the pixels beyond the ties of
+/// rayscope's render, then the best at full size. Returns the explanations (renders that are
+/// the image, or explain a part of its difference) and the candidates tried.
 fn search(
     scenes: &mut Scenes<'_>,
     base: &RenderSettings,
     image: Image<'_>,
     opts: &DiagnoseOptions,
     full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
-    baseline: f64,
     against: &Against<'_>,
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
@@ -1331,18 +1373,31 @@ fn search(
         })
         .collect();
     let score = |bytes: &[u8]| Metrics::of(bytes, &theirs, gw, gh, 2, gw == w).score();
+    // A difference of a few pixels (a minimum hit distance, a recursion limit deep in a mirror)
+    // may miss the grid: the pixels where the image lies beyond the ties are rendered too.
+    let step = against.beyond.len().div_ceil(FOCUS).max(1);
+    let focus: Vec<(u32, u32)> = (against.beyond.iter().step_by(step)).map(|&i| (i % w, i / w)).collect();
+    let focus_theirs: Vec<u8> = focus
+        .iter()
+        .flat_map(|&(x, y)| {
+            let p = ((y * w + x) * 3) as usize;
+            image.rgb[p..p + 3].to_vec()
+        })
+        .collect();
 
     let mut candidates: Vec<Candidate> = vec![Candidate(Vec::new())];
     candidates.extend(singles.iter().map(|&a| Candidate(vec![a])));
     for c in &candidates {
         scenes.prepare(c.settings(base).mistakes);
     }
+    // Each candidate's grid and focus pixels, as one byte string (grid first), and its score.
+    let pixels: Vec<(u32, u32)> = grid.iter().chain(&focus).copied().collect();
     let eval = |scenes: &Scenes<'_>, cs: &[Candidate]| -> Vec<(Vec<u8>, f64)> {
         cs.par_iter()
             .map(|c| {
                 let s = c.settings(base);
-                let bytes = render_pixels(scenes.get(s.mistakes), &s, &grid);
-                let sc = score(&bytes);
+                let bytes = render_pixels(scenes.get(s.mistakes), &s, &pixels);
+                let sc = score(&bytes[..grid.len() * 3]);
                 (bytes, sc)
             })
             .collect()
@@ -1401,7 +1456,7 @@ fn search(
             let mut g = 0i64;
             for ((c, t), o) in bytes
                 .chunks_exact(3)
-                .zip(theirs.chunks_exact(3))
+                .zip(theirs.chunks_exact(3).chain(focus_theirs.chunks_exact(3)))
                 .zip(coarse_base.chunks_exact(3))
             {
                 match (same(t, o), same(c, t)) {
@@ -1432,7 +1487,7 @@ fn search(
             more += 1;
         }
     }
-    let confirmed: Vec<(usize, Metrics, Explained)> = picked
+    let confirmed: Vec<(usize, Metrics, Explained, bool)> = picked
         .into_iter()
         .map(|i| {
             let s = candidates[i].settings(base);
@@ -1446,18 +1501,19 @@ fn search(
                 against.differs,
                 against.traced,
             );
-            (i, Metrics::of(&bytes, image.rgb, w, h, BLOCK, true), ex)
+            let matches = ties::judge(scenes.get(s.mistakes), &s, &bytes, image.rgb, false).matches;
+            (i, Metrics::of(&bytes, image.rgb, w, h, BLOCK, true), ex, matches)
         })
         .collect();
     // A candidate is an explanation when its render is the image (a match) or reproduces a
     // real part of the difference; one that merely scores better is not offered.
-    let mut ranked: Vec<&(usize, Metrics, Explained)> = confirmed
+    let mut ranked: Vec<&(usize, Metrics, Explained, bool)> = confirmed
         .iter()
-        .filter(|(_, m, ex)| m.robust >= MATCH_DB && m.score() >= baseline + 3.0 || !against.plain && ex.partial())
+        .filter(|(_, _, ex, matches)| *matches || !against.plain && ex.partial())
         .collect();
-    // Between equal scores (two renders that both match once outliers are left out) the one
-    // closer pixel for pixel comes first, so the match rule cannot hide which one the image is.
-    let cause = |c: &(usize, Metrics, Explained)| c.1.robust >= MATCH_DB || !against.plain && c.2.full();
+    // Between equal scores (two renders that both match) the one closer pixel for pixel comes
+    // first.
+    let cause = |c: &(usize, Metrics, Explained, bool)| c.3 || !against.plain && c.2.full();
     // Explained differing pixels, less half of those broken: how partial explanations rank.
     let net = |ex: &Explained| ex.pixels as f64 - 0.5 * ex.new_pixels as f64;
     ranked.sort_by(|x, y| {
@@ -1477,26 +1533,29 @@ fn search(
     let alone = |a: &Atom| {
         confirmed
             .iter()
-            .find(|(j, _, _)| candidates[*j].0 == [*a])
-            .map(|(_, m, ex)| (m.score(), net(ex)))
+            .find(|(j, ..)| candidates[*j].0 == [*a])
+            .map(|(_, m, ex, matches)| (m.score(), net(ex), *matches))
     };
-    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m, _)| m.score());
+    let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m, ..)| m.score());
     let explanations = ranked
         .into_iter()
         .filter(|c| {
-            let (i, m, ex) = c;
+            let (i, m, ex, matches) = c;
             let atoms = &candidates[*i].0;
+            // A half that scores as well is as good only if it matches wherever the pair does.
             let redundant = atoms.len() > 1
                 && atoms.iter().any(|a| {
-                    alone(a).is_some_and(|(score, px)| score >= m.score() - 0.5 || !cause(c) && px >= 0.95 * net(ex))
+                    alone(a).is_some_and(|(score, px, half)| {
+                        (half || !matches) && score >= m.score() - 0.5 || !cause(c) && px >= 0.95 * net(ex)
+                    })
                 });
-            !redundant && (m.score() >= best - 6.0 || !against.plain && ex.partial())
+            !redundant && (*matches || m.score() >= best - 6.0 || !against.plain && ex.partial())
         })
         .take(opts.report)
         .map(|c| Explanation {
             explained: Some(c.2.clone()),
             cause: cause(c),
-            ..candidates[c.0].explain(base, c.1)
+            ..candidates[c.0].explain(base, c.1, c.3)
         })
         .collect();
     (explanations, tried)
@@ -1564,23 +1623,28 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
     } else {
         "Your image"
     };
-    if d.matches || (turned && d.explanations.is_empty() && d.robust_db >= MATCH_DB) {
-        out.push_str(&format!(
-            "{yours} matches rayscope's render ({}, {} without the worst 1 % of pixels; {} of {} pixels differ by {} or more levels).\n",
-            db(d.psnr_db),
-            db(d.robust_db),
-            d.differing_pixels,
-            d.total_pixels,
-            d.threshold
-        ));
+    // Turned back, the image is judged by the match rule too; no pixel beyond its ties is a
+    // match there.
+    if d.matches || (turned && d.explanations.is_empty() && d.ties.beyond_ties == 0) {
+        if d.ties.differing_pixels == 0 {
+            out.push_str(&format!(
+                "{yours} matches rayscope's render: identical, pixel for pixel.\n"
+            ));
+        } else {
+            out.push_str(&format!(
+                "{yours} matches rayscope's render (PSNR {}; the {} of {} pixels that are not rayscope's colour differ only where two correct tracers may: a ray of theirs passes within rounding of an edge, a rim, a seam or a shadow's edge, or their colour lies within rounding of a byte boundary).\n",
+                db(d.psnr_db),
+                d.ties.differing_pixels,
+                d.total_pixels
+            ));
+        }
         out.push_str(&edition);
         return out;
     }
     out.push_str(&headline(d));
     out.push_str(&format!(
-        "{yours} differs from rayscope's: PSNR {} ({} without the worst 1 % of pixels, {} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
+        "{yours} differs from rayscope's: PSNR {} ({} downsampled {BLOCK}×), {} of {} pixels ({:.1} %) differ by {} or more levels (at most {}).\n",
         db(d.psnr_db),
-        db(d.robust_db),
         db(d.psnr_downsampled_db),
         d.differing_pixels,
         d.total_pixels,
@@ -1706,25 +1770,13 @@ fn match_how(d: &Diagnosis, e: &Explanation) -> String {
             "identical".to_string()
         }
     };
-    // What the image was before, in the measure that shows a difference.
-    let was = if d.robust_db.is_infinite() {
-        format!("{} pixel for pixel", db(d.psnr_db))
-    } else {
-        db(d.robust_db)
-    };
+    let was = db(d.psnr_db);
     if e.psnr_db.is_infinite() {
         format!("exactly (was {was})")
-    } else if e.robust_db.is_infinite() {
-        format!(
-            "at {} pixel for pixel, identical without the worst 1 % of pixels (was {was})",
-            db(e.psnr_db)
-        )
     } else {
         format!(
-            "at {} ({} downsampled; was {})",
-            db(e.robust_db),
-            db(e.psnr_downsampled_db),
-            was
+            "at {}, each pixel that differs within its ties (was {was})",
+            db(e.psnr_db)
         )
     }
 }
@@ -1859,6 +1911,7 @@ mod tests {
             threshold: 2,
             max_channel_diff: 9,
             region: None,
+            ties: TieSummary::default(),
             attribution: Vec::new(),
             explanations: Vec::new(),
             next: None,

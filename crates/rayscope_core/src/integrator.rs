@@ -59,6 +59,7 @@ use crate::rng::Rng;
 pub(crate) use crate::sampling::concentric_disk;
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, RenderSettings, Stage};
+use crate::surface::Surface;
 
 mod camera_packets;
 mod one_path;
@@ -148,9 +149,22 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     /// True when some material is glass that absorbs (Beer's law, [`Self::absorb`]), so a path
     /// can travel inside a medium.
     pub(crate) media: bool,
+    /// How far secondary rays start off their surface ([`Self::offset`]), in the one-path
+    /// engine: rayscope's own offset in every render; `diagnose`'s ties trace with the other
+    /// offsets correct tracers use.
+    pub(crate) offset_rule: OffsetRule,
     /// Set when the render is cancelled: every ray traced after that returns black at once, so
     /// a cancel reaches inside a path however deep it branches.
     cancel: &'a AtomicBool,
+}
+
+/// How far secondary rays start off the surface they leave.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) enum OffsetRule {
+    /// [`Surface::offset`] (1e-5 of the coordinates' size) times this factor.
+    Scaled(f32),
+    /// This distance whatever the coordinates (the course's 1e-5).
+    Absolute(f32),
 }
 
 /// The cancel flag of integrators that are never cancelled.
@@ -237,6 +251,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
                 .materials
                 .iter()
                 .any(|m| m.absorbs(settings.stage, settings.edition)),
+            offset_rule: OffsetRule::Scaled(1.0),
             cancel: &NEVER_CANCELLED,
         }
         .with_point_lit()
@@ -248,6 +263,27 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[must_use]
     pub(crate) fn with_cancel(self, cancel: &'a AtomicBool) -> Self {
         Self { cancel, ..self }
+    }
+
+    /// The same integrator, its secondary rays leaving their surface by `rule` (one-path
+    /// engine only).
+    #[must_use]
+    pub(crate) fn with_offset_rule(self, rule: OffsetRule) -> Self {
+        Self {
+            offset_rule: rule,
+            ..self
+        }
+    }
+
+    /// How far rays leaving `s`, hit by `ray`, start off it by [`Self::offset_rule`]: exactly
+    /// [`Surface::offset`] in every render.
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn offset(&self, s: &Surface, ray: &Ray) -> f32 {
+        match self.offset_rule {
+            OffsetRule::Scaled(k) => s.offset(ray) * k,
+            OffsetRule::Absolute(eps) => eps,
+        }
     }
 
     /// True once the render is cancelled; the paths then return black and the render loop
@@ -416,7 +452,16 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[must_use]
     #[inline(always)]
     pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {
+        self.camera_ray_nudged(x, y, s, rng, [0.0; 2])
+    }
+
+    /// [`Self::camera_ray`] through the sample's image position moved by `nudge` (normalised
+    /// image coordinates; adding zero leaves the position exactly as it was).
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn camera_ray_nudged(&self, x: u32, y: u32, s: u32, rng: &mut Rng, nudge: [f32; 2]) -> Ray {
         let (u, v) = self.position_in_cell(x, y, s, rng);
+        let (u, v) = (u + nudge[0], v + nudge[1]);
         if self.thin_lens() {
             self.camera
                 .lens_ray(u, v, concentric_disk(rng.next_f32(), rng.next_f32()))

@@ -8,7 +8,7 @@ use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
 
 use crate::film::Film;
-use crate::geometry::PrimRef;
+use crate::geometry::{PrimRef, Primitive};
 use crate::integrator::{Counters, Engine, Integrator, Job, WaveWork};
 use crate::math::Ray;
 use crate::mistakes::{Mistake, Mistakes};
@@ -477,6 +477,23 @@ impl<I: Intersect> Mistaken<'_, I> {
         // With reversed normals the student's front is rayscope's back.
         front == self.mistakes.has(Mistake::ReversedNormals)
     }
+
+    /// The nearest plane the ray meets after `lo` and no farther than `t` (a hit the walk steps
+    /// past) plus the walk's step, below `t_max`: a triangle lying in a plane (a slab's face on
+    /// the ground) is met at the same distance as the plane, and stepping past the culled
+    /// triangle would step past the plane too, which the student's test of each entity keeps.
+    fn coplanar_plane(&self, ray: &Ray, lo: f32, t: f32, t_max: f32) -> Option<Hit> {
+        let hi = (t + t.abs() * 1e-5).min(t_max);
+        (self.scene.planes.iter().enumerate())
+            .filter_map(|(k, p)| p.intersect(ray, lo, hi).map(|h| (k, h.t)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+            .map(|(k, t)| Hit {
+                t,
+                u: 0.0,
+                v: 0.0,
+                prim: PrimRef::Plane(k as u32),
+            })
+    }
 }
 
 /// Most culled hits one query steps past before it gives up (a ray grazing a mesh can meet many).
@@ -517,6 +534,9 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
                 let hit = self.inner.intersect(ray, lo, t_max)?;
                 if !again(&hit, last) && !self.culled(ray, &hit) {
                     return Some(hit);
+                }
+                if let Some(p) = self.coplanar_plane(ray, lo, hit.t, t_max) {
+                    return Some(p);
                 }
                 lo = past(&hit, last);
                 last = Some((hit.prim, hit.t));
@@ -579,6 +599,9 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
             let hit = self.inner.intersect(ray, lo, t_max)?;
             if !again(&hit, last) && !self.culled(ray, &hit) {
                 return Some(hit.prim);
+            }
+            if let Some(p) = self.coplanar_plane(ray, lo, hit.t, t_max) {
+                return Some(p.prim);
             }
             lo = past(&hit, last);
             last = Some((hit.prim, hit.t));

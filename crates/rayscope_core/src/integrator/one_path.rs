@@ -47,13 +47,28 @@ impl<I: Intersect> Integrator<'_, I> {
     /// Colour of one sample of pixel (`x`, `y`).
     #[inline]
     pub fn sample<O: RayObserver>(&self, x: u32, y: u32, s: u32, obs: &mut O, c: &mut Counters) -> Vec3A {
+        self.sample_nudged(x, y, s, [0.0; 2], obs, c)
+    }
+
+    /// [`Self::sample`] with the camera ray through the sample's image position moved by
+    /// `nudge` (normalised image coordinates): what a sample that close to this one gives.
+    #[inline]
+    pub(crate) fn sample_nudged<O: RayObserver>(
+        &self,
+        x: u32,
+        y: u32,
+        s: u32,
+        nudge: [f32; 2],
+        obs: &mut O,
+        c: &mut Counters,
+    ) -> Vec3A {
         let y = if self.mistake(Mistake::ImageFlipped) {
             self.settings.height - 1 - y
         } else {
             y
         };
         let mut rng = self.sample_rng(x, y, s);
-        let ray = self.camera_ray(x, y, s, &mut rng);
+        let ray = self.camera_ray_nudged(x, y, s, &mut rng, nudge);
         c.camera += 1;
         if self.settings.channel != Channel::Color {
             return self.channel(&ray, obs);
@@ -200,7 +215,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 if !every_material && path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
-                let (r, child) = Self::mirror(ray, s, path);
+                let (r, child) = self.mirror(ray, s, path);
                 let r = self.mistaken_mirror(r, ray, s.normal);
                 Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, cx))
             }
@@ -389,7 +404,7 @@ impl<I: Intersect> Integrator<'_, I> {
         }
         let frame = (t, b, n, wo);
         let lambert = matches!(bsdf, Bsdf::Lambert { .. });
-        let origin = s.outside(ray);
+        let origin = s.point + s.normal * self.offset(s, ray);
         let lit = PointLit {
             albedo: m.color.into(),
             brdf: (!lambert).then_some((&bsdf, frame)),
@@ -553,10 +568,12 @@ impl<I: Intersect> Integrator<'_, I> {
         cx: &mut PathCx<'_, O>,
     ) -> Vec3A {
         let mut sum = Vec3A::ZERO;
+        // `Surface::outside` when the scale is 1, bit for bit.
+        let eps = self.offset(s, ray);
         let origin = if I::MISTAKEN {
-            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, s.offset(ray))
+            mistakes::shadow_origin(self.isect.mistakes(), s.point, s.normal, eps)
         } else {
-            s.outside(ray)
+            s.point + s.normal * eps
         };
         for (li, light) in self.scene.lights.iter().enumerate() {
             if li > 0 && self.mistake(Mistake::FirstLightOnly) {

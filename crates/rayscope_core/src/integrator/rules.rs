@@ -138,7 +138,7 @@ impl<I: Intersect> Integrator<'_, I> {
         if I::MISTAKEN {
             return self.mistaken_glass(ray, s, m, path);
         }
-        let eps = s.offset(ray);
+        let eps = self.offset(s, ray);
         let (kr, reflected, refracted) = glass_rays(ray.dir, s.normal, s.point, eps, s.front_face, m.value);
         let (refl_medium, refr_medium) = self.glass_media(s, m, path);
         Glass {
@@ -213,7 +213,7 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             s.normal
         };
-        let eps = s.offset(ray);
+        let eps = self.offset(s, ray);
         let refracted = if tir {
             None
         } else {
@@ -267,8 +267,8 @@ impl<I: Intersect> Integrator<'_, I> {
 
     /// A mirror's reflected ray and its path.
     #[inline]
-    pub(super) fn mirror(ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
-        let eps = s.offset(ray);
+    pub(super) fn mirror(&self, ray: &Ray, s: &Surface, path: PathState) -> (Ray, PathState) {
+        let eps = self.offset(s, ray);
         (mirror_ray(ray.dir, s.normal, s.point, eps), path.mirrored())
     }
 

@@ -425,7 +425,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let m = &self.scene.materials[s.material as usize];
         let att = self.transmittance(path, t);
         let (r, p) = if m.kind == MaterialKind::Reflective {
-            Self::mirror(&ray, &s, path)
+            self.mirror(&ray, &s, path)
         } else {
             let g = self.glass(&ray, &s, m, path);
             if path.branch {

@@ -19,6 +19,9 @@ pub struct Options {
     /// `--cam-axis` and `--cam-angle` (degrees).
     pub cam_axis: DVec3,
     pub cam_angle: f64,
+    /// Where in its pixel the picture's sample grid sits, moved by this many pixels (x, y):
+    /// a camera off by a fraction of a pixel.
+    pub shift: [f64; 2],
 }
 
 impl Options {
@@ -30,6 +33,7 @@ impl Options {
             max_depth: 8,
             cam_axis: DVec3::Z,
             cam_angle: 0.0,
+            shift: [0.0; 2],
         }
     }
 }
@@ -171,8 +175,8 @@ impl Student {
                         } else {
                             ((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64)
                         };
-                        let u = (x as f64 + ox) / w as f64;
-                        let v = (y as f64 + oy) / h as f64;
+                        let u = (x as f64 + ox + self.opts.shift[0]) / w as f64;
+                        let v = (y as f64 + oy + self.opts.shift[1]) / h as f64;
                         let d = DVec3::new((2.0 * u - 1.0) * sx, (1.0 - 2.0 * v) * sy, 1.0).normalize();
                         sum += self.trace(
                             Ray {

@@ -854,10 +854,12 @@ function compareDiagnosis(d) {
   const turned = obvious.some((o) => o.code === "mirrored" || o.code === "transposed");
   const plain = obvious.find((o) => ["black", "white", "constant"].includes(o.code));
   const yours = turned ? "Turned back, your image" : "Your image";
-  if (r.matches || (turned && !r.explanations.length && (r.robust_db == null || r.robust_db >= 65))) {
+  // The match rule is the ties' (docs/mistakes.md): turned back, no pixel beyond them is a match too.
+  if (r.matches || (turned && !r.explanations.length && r.ties.beyond_ties === 0)) {
     box.className = r.matches ? "diagnosis ok" : "diagnosis bad";
     box.append(el("b", {}, `${yours} matches rayscope's render.`),
-      el("p", {}, `PSNR ${db(r.psnr_db)}; ${db(r.robust_db)} leaving out the worst 1 % of pixels (two correct tracers differ there, where two surfaces meet at the same distance). ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels.`));
+      el("p", {}, r.ties.differing_pixels === 0 ? "Identical, pixel for pixel."
+        : `PSNR ${db(r.psnr_db)}; the ${r.ties.differing_pixels} of ${r.total_pixels} pixels that are not rayscope's colour differ only where two correct tracers may: a ray of theirs passes within rounding of an edge, a rim, a seam or a shadow's edge, or their colour lies within rounding of a byte boundary.`));
     return;
   }
   box.className = "diagnosis bad";
@@ -877,7 +879,7 @@ function compareDiagnosis(d) {
     : first.cause ? `Explained: ${first.summary} accounts for the whole difference.`
     : `No known mistake explains all of your picture; ${first.summary} ${partText(first)}.`;
   if (head) box.append(el("b", { id: "diagnosis-headline" }, head));
-  box.append(el("p", {}, `${yours} differs from rayscope's: PSNR ${db(r.psnr_db)} (${db(r.robust_db)} leaving out the worst 1 % of pixels); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
+  box.append(el("p", {}, `${yours} differs from rayscope's: PSNR ${db(r.psnr_db)} (${db(r.psnr_downsampled_db)} on 4×4 averages); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
       (r.region ? ` They lie in columns ${r.region.x0}–${r.region.x1 - 1}, rows ${r.region.y0}–${r.region.y1 - 1}.` : "")));
   if (r.attribution && r.attribution.length) {
     const ul = el("ul", { id: "diagnosis-where" });
@@ -901,12 +903,10 @@ function compareDiagnosis(d) {
     box.append(ol);
   };
   list(r.explanations.filter((e) => e.cause), "What explains it, best first:", "explanations", (e) => {
-    const how = e.psnr_db == null ? "exactly"
-      : e.robust_db == null ? `at ${db(e.psnr_db)} pixel for pixel, identical leaving out the worst 1 % of pixels`
-      : `at ${db(e.robust_db)} (${db(e.psnr_downsampled_db)} on 4×4 averages)`;
+    const how = e.psnr_db == null ? "exactly" : `at ${db(e.psnr_db)}, each pixel that differs within its ties`;
     // A one-coloured picture is what many renders are: an identical one is a lead, not its match.
     if (plain && e.psnr_db == null) return `${e.summary} renders it too, pixel for pixel: one way to get this picture. `;
-    if (e.matches) return `Your image matches ${e.summary}, ${how}; rayscope's render is at ${db(r.robust_db)}. `;
+    if (e.matches) return `Your image matches ${e.summary}, ${how}; rayscope's render is at ${db(r.psnr_db)}. `;
     return `${e.summary} accounts for the whole difference: its render reproduces ${e.explained.percent.toFixed(0)} % of the differing pixels (speckle on average over 4×4 blocks). `;
   });
   list(r.explanations.filter((e) => !e.cause), "What explains a part of it:", "partial-explanations", (e) => `${e.summary} ${partText(e)}. `);
