@@ -182,6 +182,9 @@ fn top_level_layering_ignores_a_module_and_its_children_but_not_siblings() {
     write("b.rs", "use crate::a::S; pub struct T;");
     let sibling = std::panic::catch_unwind(|| rayscope_testkit::module_graph::assert_top_level_acyclic("x", &dir, 1));
     std::fs::remove_dir_all(&dir).unwrap();
-    let message = *sibling.expect_err("a and b refer to each other").downcast::<String>().unwrap();
+    let message = *sibling
+        .expect_err("a and b refer to each other")
+        .downcast::<String>()
+        .unwrap();
     assert!(message.contains("a -> b") && message.contains("b -> a"), "{message}");
 }
