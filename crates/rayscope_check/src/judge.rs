@@ -994,22 +994,11 @@ impl<'a> Judge<'a> {
                 }
             }
         }
-        if toward_light_behind {
-            // A shadow ray toward a light behind the surface contributes nothing whatever it
-            // meets, so what the tracer says about it is not judged.
-            return (
-                Eval {
-                    rs,
-                    sound,
-                    origin: o,
-                    dir: d,
-                },
-                kind,
-            );
-        }
-        sound &= self.judge_claim(r, &kind, rs.as_ref(), leave, t_max, f, tally);
-        if kind == Kind::Shadow {
-            if let Some(li) = light {
+        // A shadow ray toward a light behind the surface contributes nothing whatever it meets,
+        // so what the tracer says about it is not judged.
+        if !toward_light_behind {
+            sound &= self.judge_claim(r, &kind, rs.as_ref(), leave, t_max, f, tally);
+            if let (Kind::Shadow, Some(li)) = (&kind, light) {
                 self.judge_blocker(r, &kind, li, rs.as_ref(), t_skip, leave, f, tally);
             }
         }
