@@ -23,6 +23,7 @@
 //! row 0 at the top.
 
 use glam::{DMat3, DVec3};
+use wide::f64x4;
 use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{Channel, FovAxis, RenderSettings, Scene, Stage};
@@ -90,7 +91,12 @@ pub struct OracleRay {
     pub o: DVec3,
     /// Unit direction.
     pub d: DVec3,
-    inv: DVec3,
+    /// The direction as an array, indexed by axis without a match per access.
+    da: [f64; 3],
+    /// Origin and reciprocal direction in the lanes of the box test; the fourth lane (origin 0,
+    /// reciprocal 1) meets the fourth lane of every box, which spans everything.
+    o4: f64x4,
+    inv4: f64x4,
     /// The direction's largest axis, and the two others (in the order that keeps winding).
     k: [usize; 3],
     /// Shear that maps the direction to (0, 0, 1).
@@ -116,7 +122,9 @@ impl OracleRay {
         Self {
             o,
             d,
-            inv: d.recip(),
+            da: d.to_array(),
+            o4: f64x4::new([o.x, o.y, o.z, 0.0]),
+            inv4: f64x4::new([1.0 / d.x, 1.0 / d.y, 1.0 / d.z, 1.0]),
             k: [kx, ky, kz],
             s: DVec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]),
         }
@@ -160,7 +168,11 @@ impl OracleRay {
     #[inline]
     fn sheared(&self, v: &[DVec3; 3]) -> ([f64; 3], [f64; 3]) {
         let [kx, ky, kz] = self.k;
-        let (a, b, c) = (v[0] - self.o, v[1] - self.o, v[2] - self.o);
+        let (a, b, c) = (
+            (v[0] - self.o).to_array(),
+            (v[1] - self.o).to_array(),
+            (v[2] - self.o).to_array(),
+        );
         let (ax, ay) = (a[kx] - self.s.x * a[kz], a[ky] - self.s.y * a[kz]);
         let (bx, by) = (b[kx] - self.s.x * b[kz], b[ky] - self.s.y * b[kz]);
         let (cx, cy) = (c[kx] - self.s.x * c[kz], c[ky] - self.s.y * c[kz]);
@@ -175,16 +187,17 @@ impl OracleRay {
 
     /// True when the ray meets the box `lo`..`hi` grown by `pad` somewhere in `t_min..=t_max`.
     #[inline]
-    fn meets_box(&self, lo: &[f64; 3], hi: &[f64; 3], pad: f64, t_min: f64, t_max: f64) -> bool {
-        let (mut near, mut far) = (t_min, t_max);
-        for a in 0..3 {
-            let t0 = (lo[a] - pad - self.o[a]) * self.inv[a];
-            let t1 = (hi[a] + pad - self.o[a]) * self.inv[a];
-            // `max` and `min` ignore a NaN (0 × ∞: an origin on a face the ray runs along), so
-            // such a slab does not cull; the boxes are padded, so nothing lies on their faces.
-            near = near.max(t0.min(t1));
-            far = far.min(t0.max(t1));
-        }
+    fn meets_box(&self, lo: f64x4, hi: f64x4, pad: f64, t_min: f64, t_max: f64) -> bool {
+        let pad = f64x4::splat(pad);
+        let t0 = (lo - pad - self.o4) * self.inv4;
+        let t1 = (hi + pad - self.o4) * self.inv4;
+        // A slab gives NaN (0 × ∞) only for a ray that runs in the plane of one of its faces;
+        // the boxes are padded past their primitives, so such a ray meets none of them, and
+        // whether that slab culls does not change the answer.
+        let [n0, n1, n2, n3] = t0.min(t1).to_array();
+        let [f0, f1, f2, f3] = t0.max(t1).to_array();
+        let near = t_min.max(n0.max(n1)).max(n2.max(n3));
+        let far = t_max.min(f0.min(f1)).min(f2.min(f3));
         near <= far
     }
 }
@@ -241,8 +254,8 @@ pub enum NearKind {
 /// inner node's children are nodes `first` and `first + 1`.
 #[derive(Debug, Clone, Copy)]
 struct Node {
-    lo: [f64; 3],
-    hi: [f64; 3],
+    lo: f64x4,
+    hi: f64x4,
     first: u32,
     count: u32,
     axis: u8,
@@ -316,8 +329,8 @@ impl Oracle {
         }
         if !items.is_empty() {
             o.nodes.push(Node {
-                lo: [0.0; 3],
-                hi: [0.0; 3],
+                lo: f64x4::ZERO,
+                hi: f64x4::ZERO,
                 first: 0,
                 count: 0,
                 axis: 0,
@@ -339,8 +352,9 @@ impl Oracle {
         }
         // Padded past the rounding of the box test, so a primitive never lies on a face.
         let pad = 1e-9 * lo.abs().max(hi.abs()).max_element().max(1.0);
-        self.nodes[n].lo = (lo - DVec3::splat(pad)).to_array();
-        self.nodes[n].hi = (hi + DVec3::splat(pad)).to_array();
+        let (lo, hi) = (lo - DVec3::splat(pad), hi + DVec3::splat(pad));
+        self.nodes[n].lo = f64x4::new([lo.x, lo.y, lo.z, f64::NEG_INFINITY]);
+        self.nodes[n].hi = f64x4::new([hi.x, hi.y, hi.z, f64::INFINITY]);
         if items.len() <= LEAF {
             // Leaves are made left to right over the items, so the references placed before
             // this leaf are its offset.
@@ -374,7 +388,7 @@ impl Oracle {
         while top > 0 {
             top -= 1;
             let node = &self.nodes[stack[top] as usize];
-            if !ray.meets_box(&node.lo, &node.hi, pad, t_min, *t_max) {
+            if !ray.meets_box(node.lo, node.hi, pad, t_min, *t_max) {
                 continue;
             }
             if node.count > 0 {
@@ -384,7 +398,7 @@ impl Oracle {
                 }
             } else {
                 // The nearer child is visited first, so its hits prune the farther one.
-                let (near, far) = if ray.d[node.axis as usize] >= 0.0 {
+                let (near, far) = if ray.da[usize::from(node.axis)] >= 0.0 {
                     (node.first, node.first + 1)
                 } else {
                     (node.first + 1, node.first)
