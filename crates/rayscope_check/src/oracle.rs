@@ -23,10 +23,10 @@
 //! row 0 at the top.
 
 use glam::{DMat3, DVec3};
-use wide::f64x4;
 use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{Channel, FovAxis, RenderSettings, Scene, Stage};
+use wide::f64x4;
 
 /// The corners of a triangle as the scene file gave them. The scene keeps a corner and two
 /// edges in f32; the other corners are put back on the f32 grid the file's coordinates were

@@ -291,11 +291,11 @@ impl Judge<'_> {
             if kinds[i] == Kind::Shadow {
                 continue;
             }
-            let Some(ev) = evals[i].filter(|e| e.sound) else {
+            let Some(ev) = evals[i].as_ref().filter(|e| e.sound) else {
                 continue;
             };
             let ch = children(i, findings);
-            let d = self.decision(i, rays, parent, evals, kinds, &ev, &ch, &logs, &mut findings[i]);
+            let d = self.decision(i, rays, parent, evals, kinds, ev, &ch, &logs, &mut findings[i]);
             if matches!(d, Decision::Judged) {
                 tally.shaded_judged += 1;
             } else {
@@ -519,19 +519,14 @@ impl Judge<'_> {
         }
         let m = &self.scene.materials[lv.material as usize];
         let albedo = m.color.as_dvec3();
-        // Each reached light's term, by the course's rule and by the usual mistakes.
+        // Each reached light's term by the course's rule, and the slack rounding allows.
         let mut t = DiffuseTerms::default();
-        for (li, _) in reached.iter().enumerate().filter(|(_, &x)| x) {
+        let lit_by = || reached.iter().enumerate().filter(|(_, &x)| x).map(|(li, _)| li);
+        for li in lit_by() {
             let to = light_pos(li) - lv.point;
             let cos = lv.shade.dot(to.normalize_or_zero());
-            let cl = lights[li].color.as_dvec3();
-            let term = albedo * cl;
+            let term = albedo * lights[li].color.as_dvec3();
             t.exact += term * cos.max(0.0);
-            t.unclamped += term * cos;
-            t.falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
-            t.no_albedo += cl * cos.max(0.0);
-            t.no_light += albedo * cos.max(0.0);
-            t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
             // The light's direction may be taken from the offset origin of the shadow ray, and
             // the normal is known to its rounding.
             let from_origin = kids
@@ -544,6 +539,18 @@ impl Judge<'_> {
         }
         if fits(c, t.exact, t.slack) {
             return Decision::Judged;
+        }
+        // The same terms by the usual mistakes, needed only for a colour that does not fit.
+        for li in lit_by() {
+            let to = light_pos(li) - lv.point;
+            let cos = lv.shade.dot(to.normalize_or_zero());
+            let cl = lights[li].color.as_dvec3();
+            let term = albedo * cl;
+            t.unclamped += term * cos;
+            t.falloff += term * cos.max(0.0) / to.length_squared().max(1e-300);
+            t.no_albedo += cl * cos.max(0.0);
+            t.no_light += albedo * cos.max(0.0);
+            t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
         }
         let name = self.name(lv.entity);
         let lit: Vec<&str> = reached
