@@ -48,10 +48,12 @@ use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
 
 mod explained;
+mod families;
 mod ties;
 
 use explained::{block_means, Traced, BLOCK};
 pub use explained::{Explained, NextStep, PartExplained};
+pub use families::Fitted;
 
 /// Largest share of the pixels the robust PSNR, a ranking score, leaves out (see the module's
 /// notes).
@@ -202,6 +204,10 @@ pub struct Diagnosis {
     /// explain a part of the difference ([`Explained`]); a render that does neither is no
     /// explanation and is not listed. Empty when the image matches or nothing explains it.
     pub explanations: Vec<Explanation>,
+    /// Families of mistakes whose parameter, fitted to the image, explains a part of it where
+    /// the course's value does not (the Fresnel weight of glass): beneath a catalogued cause, the
+    /// value the image shows; where no catalogued mistake explains that part, the finding itself.
+    pub fitted: Vec<Fitted>,
     /// Where no explanation matches: the pixels to log with the student's own tracer and the
     /// commands that judge them.
     pub next: Option<NextStep>,
@@ -1205,6 +1211,11 @@ pub fn diagnose(
         explanations = found;
         tried += n;
     }
+    let fitted = if matches || constant || !fitted_applies(explanations.first()) {
+        Vec::new()
+    } else {
+        families::fit(scenes.get(base.mistakes), &base, image.rgb)
+    };
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(Obvious::turned_back);
     let next = if matches || explanations.first().is_some_and(|e| e.cause) {
@@ -1232,9 +1243,30 @@ pub fn diagnose(
         ties: TieSummary::of(&verdict),
         attribution,
         explanations,
+        fitted,
         next,
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Catalogued mistakes that are members of the Fresnel family [`families`] fits.
+const FRESNEL_MISTAKES: [Mistake; 4] = [
+    Mistake::NoFresnel,
+    Mistake::FresnelHalf,
+    Mistake::Schlick,
+    Mistake::FresnelSwapped,
+];
+
+/// True when the families are fitted beside the best explanation `best`: there is none, it is
+/// not the cause, or it is a member of a family fitted.
+fn fitted_applies(best: Option<&Explanation>) -> bool {
+    best.is_none_or(|e| {
+        !e.cause
+            || (e.settings.is_empty()
+                && e.mistakes
+                    .iter()
+                    .all(|m| FRESNEL_MISTAKES.iter().any(|f| f.name() == m)))
     })
 }
 
@@ -1742,15 +1774,23 @@ fn headline(d: &Diagnosis) -> String {
     if plain && !d.explanations.is_empty() {
         return String::new();
     }
+    let fitted = fitted_lines(d);
     match d.explanations.first() {
         Some(e) if e.matches => format!(
-            "Explained: your image is rayscope's render with {} ({}).\n",
+            "Explained: your image is rayscope's render with {} ({}).\n{fitted}",
             e.summary,
             match_how(d, e)
         ),
-        Some(e) if e.cause => format!("Explained: {} {}.\n", e.summary, whole_how(e)),
+        Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
+        None if !d.fitted.is_empty() => {
+            let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
+            format!(
+                "No known mistake explains your picture; your glass's Fresnel weight differs: {}\n",
+                found.join(" ")
+            )
+        }
         Some(e) => format!(
-            "No known mistake explains all of your picture; {} {}.\n",
+            "No known mistake explains all of your picture; {} {}.\n{fitted}",
             e.summary,
             partial_how(e)
         ),
@@ -1759,6 +1799,14 @@ fn headline(d: &Diagnosis) -> String {
             d.candidates
         ),
     }
+}
+
+/// The fitted families beneath a catalogued cause, one indented line each.
+fn fitted_lines(d: &Diagnosis) -> String {
+    d.fitted
+        .iter()
+        .map(|f| format!("  and your glass's fitted weight: {}\n", f.text))
+        .collect()
 }
 
 /// How closely a matching explanation's render is the image, against what the image was.
@@ -1914,6 +1962,7 @@ mod tests {
             ties: TieSummary::default(),
             attribution: Vec::new(),
             explanations: Vec::new(),
+            fitted: Vec::new(),
             next: None,
             candidates: 1,
             seconds: 0.0,

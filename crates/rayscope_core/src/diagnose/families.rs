@@ -1,0 +1,59 @@
+//! Mistakes as families with a parameter, fitted to the student's pixels: where the catalogue
+//! holds a few members of a family, the picture itself says which member the student's tracer
+//! is, with the fitted value against the course's. The family fitted is the Fresnel weight of
+//! glass as a function of the angle of incidence (`fresnel.rs`): it is worked out from
+//! rayscope's own rays of the render (`trees.rs`), whose glass hits split the same way whatever
+//! weight a tracer gives them.
+//!
+//! A fit is a finding only when the course's exact weight does not explain the glass's pixels
+//! to within rounding and the fitted family does: the course's answer is the null hypothesis.
+
+use std::collections::BTreeMap;
+
+use serde::Serialize;
+
+use crate::integrator::Integrator;
+use crate::scene::Scene;
+use crate::settings::RenderSettings;
+
+mod fresnel;
+mod trees;
+
+/// A family's parameter fitted to the student's pixels.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Fitted {
+    /// What was fitted and which member fits: `fresnel-none`, `fresnel-half`,
+    /// `fresnel-constant`, `fresnel-schlick` or `fresnel-curve`.
+    pub code: &'static str,
+    /// One sentence for the student, the fitted value against the course's.
+    pub text: String,
+    /// The figures: the pixels fitted, the residuals (levels, root mean square) of the fit and
+    /// of the course's answer, and the family's values (weights as fractions, angles in degrees).
+    pub numbers: BTreeMap<&'static str, f64>,
+}
+
+/// Largest number of pixels traced to find the glass's (a grid over the image).
+const MAX_TRACED: u32 = 40_000;
+
+/// The families fitted to `theirs` (RGB8 of `settings`' size) from rayscope's rays of `scene`
+/// under `settings`, which carry no mistake: those whose fit explains the student's pixels
+/// where the course's answer does not.
+pub(crate) fn fit(scene: &Scene, settings: &RenderSettings, theirs: &[u8]) -> Vec<Fitted> {
+    if !settings.mistakes.is_empty()
+        || !scene
+            .materials
+            .iter()
+            .any(|m| m.kind == rayscope_scene::MaterialKind::Refractive)
+    {
+        return Vec::new();
+    }
+    let mut integ = Integrator::new(scene, settings);
+    // Every glass branch traced: a weight other than the course's may make a pruned one count.
+    integ.branch_cutoff = 0.0;
+    let (w, h) = (settings.width, settings.height);
+    let total = w * h;
+    let stride = total.div_ceil(MAX_TRACED).max(1);
+    let pixels: Vec<u32> = (0..total).step_by(stride as usize).collect();
+    let glass = trees::glass_pixels(&integ, theirs, w, &pixels);
+    fresnel::fit(&glass).into_iter().collect()
+}
