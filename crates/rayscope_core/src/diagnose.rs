@@ -1258,16 +1258,19 @@ const FRESNEL_MISTAKES: [Mistake; 4] = [
     Mistake::FresnelSwapped,
 ];
 
+/// True when `e` changes no setting and its mistakes are all members of the Fresnel family.
+fn fresnel_members(e: &Explanation) -> bool {
+    e.settings.is_empty()
+        && !e.mistakes.is_empty()
+        && e.mistakes
+            .iter()
+            .all(|m| FRESNEL_MISTAKES.iter().any(|f| f.name() == m))
+}
+
 /// True when the families are fitted beside the best explanation `best`: there is none, it is
 /// not the cause, or it is a member of a family fitted.
 fn fitted_applies(best: Option<&Explanation>) -> bool {
-    best.is_none_or(|e| {
-        !e.cause
-            || (e.settings.is_empty()
-                && e.mistakes
-                    .iter()
-                    .all(|m| FRESNEL_MISTAKES.iter().any(|f| f.name() == m)))
-    })
+    best.is_none_or(|e| !e.cause || fresnel_members(e))
 }
 
 /// The recursion limit among `depths` whose full render is closest to `image`, pixel for pixel,
@@ -1782,7 +1785,7 @@ fn headline(d: &Diagnosis) -> String {
             match_how(d, e)
         ),
         Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
-        None if !d.fitted.is_empty() => {
+        e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
             let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
             format!(
                 "No known mistake explains your picture; your glass's Fresnel weight differs: {}\n",

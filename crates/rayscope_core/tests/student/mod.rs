@@ -22,6 +22,8 @@ pub struct Options {
     /// Where in its pixel the picture's sample grid sits, moved by this many pixels (x, y):
     /// a camera off by a fraction of a pixel.
     pub shift: [f64; 2],
+    /// A glass that reflects this share at every angle (total internal reflection aside).
+    pub fresnel_constant: Option<f64>,
 }
 
 impl Options {
@@ -34,6 +36,7 @@ impl Options {
             cam_axis: DVec3::Z,
             cam_angle: 0.0,
             shift: [0.0; 2],
+            fresnel_constant: None,
         }
     }
 }
@@ -343,7 +346,16 @@ impl Student {
         }
         let cos_t = k.sqrt();
         let ci = cos_i.abs();
-        let kr = if self.bug("no-fresnel") {
+        let kr = if let Some(c) = self.opts.fresnel_constant {
+            c
+        } else if self.bug("fresnel-one-plus-i-dot-n") {
+            // Uncatalogued: (1 + I·N)² with the outward normal, as some students write it
+            // (leaving the glass it is (1 + cos θi)², at least 1).
+            (1.0 + ray.d.dot(hit.n)).powi(2)
+        } else if self.bug("fresnel-one-plus-i-dot-n-facing") {
+            // Uncatalogued: (1 + I·N)² with the normal facing the ray, (1 − cos θi)².
+            (1.0 + ray.d.dot(n)).powi(2)
+        } else if self.bug("no-fresnel") {
             0.0
         } else if self.bug("fresnel-half") {
             0.5

@@ -1,0 +1,181 @@
+//! `diagnose` fits the Fresnel weight of the student's glass to their picture: a constant share
+//! and an uncatalogued curve are fitted back to what the student's tracer (`student/`) planted,
+//! catalogued Fresnel mistakes keep their name with the fitted weight beneath, and a correct
+//! picture or a mistake that is not about the weight gets no Fresnel finding.
+
+mod student;
+
+use std::path::{Path, PathBuf};
+
+use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Diagnosis, Image};
+use rayscope_core::{RenderSettings, Stage};
+use student::{Options, Student};
+
+const W: u32 = 80;
+const H: u32 = 60;
+
+fn scene2() -> Option<PathBuf> {
+    rayscope_testkit::course().map(|c| c.scene("sample_scene_2.txt"))
+}
+
+/// The diagnosis of the student's picture of `path` with `bugs` and `opts`, under stage-2 flags.
+fn run(path: &Path, bugs: &[&'static str], opts: Options) -> Diagnosis {
+    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let img = Student::new(&file, bugs, opts).render();
+    let image = Image {
+        width: opts.width,
+        height: opts.height,
+        rgb: &img,
+        alpha: None,
+    };
+    let flags = RenderSettings {
+        width: opts.width,
+        height: opts.height,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let search = DiagnoseOptions {
+        pairs: false,
+        coarse_samples: 2_400,
+        ..DiagnoseOptions::default()
+    };
+    diagnose(&file, &flags, image, &search).expect("the sizes agree")
+}
+
+/// The planted share of a glass that reflects a constant one is fitted back, and said as the
+/// finding: no catalogued mistake is that glass.
+#[test]
+fn a_constant_reflectance_is_fitted_back() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    for c in [0.028, 0.12] {
+        let opts = Options {
+            fresnel_constant: Some(c),
+            ..Options::new(W, H)
+        };
+        let d = run(&scene, &[], opts);
+        let text = report_text(&d, "scene.txt");
+        let f = d
+            .fitted
+            .first()
+            .unwrap_or_else(|| panic!("{c}: nothing fitted\n{text}"));
+        assert_eq!(f.code, "fresnel-constant", "{c}:\n{text}");
+        let fitted = f.numbers["constant"];
+        assert!((fitted - c).abs() <= 0.002, "{c}: fitted {fitted}\n{text}");
+        assert!(d.explanations.iter().all(|e| !e.cause), "{c}:\n{text}");
+        let first = text.lines().next().unwrap_or_default();
+        let share = format!("{:.1} %", 100.0 * c);
+        let share = if c >= 0.1 { format!("{:.0} %", 100.0 * c) } else { share };
+        assert!(
+            first.starts_with(
+                "No known mistake explains your picture; your glass's Fresnel weight differs: Your glass reflects "
+            ) && first.contains(&format!("reflects {share} at every angle"))
+                && first.contains(
+                    "the exact Fresnel weight goes from 2.8 % at normal incidence to 100 % at grazing angles"
+                ),
+            "{c}:\n{text}"
+        );
+    }
+}
+
+/// (1 + I·N)², an uncatalogued curve, is fitted at the angles reported to within a few
+/// percent of what the student's tracer computes there, and named by no catalogue mistake.
+#[test]
+fn an_uncatalogued_curve_is_fitted_at_the_angles_reported() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let d = run(&scene, &["fresnel-one-plus-i-dot-n-facing"], Options::new(W, H));
+    let text = report_text(&d, "scene.txt");
+    let f = d.fitted.first().unwrap_or_else(|| panic!("nothing fitted\n{text}"));
+    assert_eq!(f.code, "fresnel-curve", "{text}");
+    for (key, deg) in [("fitted_0", 0.0f64), ("fitted_60", 60.0), ("fitted_80", 80.0)] {
+        let planted = (1.0 - deg.to_radians().cos()).powi(2);
+        let fitted = f.numbers[key];
+        assert!(
+            (fitted - planted).abs() <= 0.03,
+            "{key}: fitted {fitted}, planted {planted}\n{text}"
+        );
+    }
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(
+        text.starts_with("No known mistake explains your picture; your glass's Fresnel weight differs: Your glass's reflected share, fitted from "),
+        "{text}"
+    );
+}
+
+/// cos θt taken for cos θi makes the Fresnel terms a constant, ((n₁ − n₂)/(n₁ + n₂))²: the fit
+/// says so, and no catalogued mistake is named for it.
+#[test]
+fn cos_t_as_cos_i_is_described_by_its_fitted_weight() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let d = run(&scene, &["cos-t-as-cos-i"], Options::new(W, H));
+    let text = report_text(&d, "scene.txt");
+    let f = d.fitted.first().unwrap_or_else(|| panic!("nothing fitted\n{text}"));
+    let r0 = (0.4f64 / 2.4).powi(2);
+    assert_eq!(f.code, "fresnel-constant", "{text}");
+    assert!((f.numbers["constant"] - r0).abs() <= 0.002, "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(text.starts_with("No known mistake explains"), "{text}");
+}
+
+/// The catalogued Fresnel mistakes keep their catalogue headline, with the fitted weight
+/// beneath it.
+#[test]
+fn catalogued_fresnel_mistakes_keep_their_name_and_get_the_fit_beneath() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    for (bug, code) in [
+        ("no-fresnel", "fresnel-none"),
+        ("fresnel-half", "fresnel-half"),
+        ("schlick", "fresnel-schlick"),
+        ("fresnel-swapped", "fresnel-curve"),
+    ] {
+        let d = run(&scene, &[bug], Options::new(W, H));
+        let text = report_text(&d, "scene.txt");
+        let e = d
+            .explanations
+            .first()
+            .unwrap_or_else(|| panic!("{bug}: no explanation\n{text}"));
+        assert!(e.cause && e.mistakes == [bug], "{bug}:\n{text}");
+        assert!(text.starts_with("Explained: "), "{bug}:\n{text}");
+        let codes: Vec<&str> = d.fitted.iter().map(|f| f.code).collect();
+        assert_eq!(codes, [code], "{bug}:\n{text}");
+        let second = text.lines().nth(1).unwrap_or_default();
+        assert!(
+            second.starts_with("  and your glass's fitted weight: "),
+            "{bug}:\n{text}"
+        );
+    }
+}
+
+/// A correct picture, and mistakes that are not about the weight, get no Fresnel finding.
+#[test]
+fn no_fresnel_finding_without_a_fresnel_mistake() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let ours = rayscope_testkit::scene("whitted.txt");
+    for (path, bugs) in [
+        (&scene, &[][..]),
+        (&ours, &[][..]),
+        (&scene, &["first-light-only"][..]),
+        (&scene, &["sphere-near-root-only"][..]),
+        (&scene, &["refraction-no-index-swap"][..]),
+        (&ours, &["refraction-no-index-swap"][..]),
+    ] {
+        let d = run(path, bugs, Options::new(W, H));
+        let text = report_text(&d, "scene.txt");
+        assert!(
+            d.fitted.is_empty(),
+            "{} {bugs:?}: {:?}\n{text}",
+            path.display(),
+            d.fitted
+        );
+        assert!(!text.contains("fitted"), "{bugs:?}:\n{text}");
+    }
+}
