@@ -179,3 +179,17 @@ fn no_fresnel_finding_without_a_fresnel_mistake() {
         assert!(!text.contains("fitted"), "{bugs:?}:\n{text}");
     }
 }
+
+/// (1 + I·N)² with the outward normal is at least 1 leaving the glass, which turns the glass
+/// black or white: clipped bytes that tell no weight. Nothing is fitted and nothing named.
+#[test]
+fn a_weight_past_one_gets_no_finding_and_no_name() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let d = run(&scene, &["fresnel-one-plus-i-dot-n"], Options::new(W, H));
+    let text = report_text(&d, "scene.txt");
+    assert!(d.fitted.is_empty(), "{:?}\n{text}", d.fitted);
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(text.starts_with("No known mistake explains"), "{text}");
+}

@@ -128,6 +128,9 @@ struct Fit {
     rms: f64,
     /// Pixels kept (the fitted ones less the trimmed).
     pixels: usize,
+    /// Each parameter's standard error: the residual over the square root of its diagonal
+    /// element of JᵀJ (the hold's [`HOLD`] included).
+    sigma: Vec<f64>,
 }
 
 /// The residuals of `px` under `m` with `p`: Σ r², and with `normal`, JᵀJ and Jᵀr added to it.
@@ -278,8 +281,25 @@ fn fit_member(pixels: &[&PixelTrees], m: Member, p0: &[f64]) -> Fit {
         .collect();
     let params = least_squares(&kept, m, &p, p0);
     let (sum, n) = cost(&kept, m, &params);
+    let rms = (sum / n.max(1) as f64).sqrt();
+    let k = m.params();
+    let jtj = kept
+        .par_iter()
+        .fold(
+            || (vec![0.0; k * k], vec![0.0; k]),
+            |(mut a, mut b), px| {
+                residuals(px, m, &params, Some((&mut a, &mut b)));
+                (a, b)
+            },
+        )
+        .map(|(a, _)| a)
+        .reduce(
+            || vec![0.0; k * k],
+            |a, b| a.iter().zip(b).map(|(x, y)| x + y).collect(),
+        );
     Fit {
-        rms: (sum / n.max(1) as f64).sqrt(),
+        sigma: (0..k).map(|i| rms / (jtj[i * k + i] + HOLD).sqrt()).collect(),
+        rms,
         params,
         pixels: kept.len(),
     }
@@ -441,7 +461,11 @@ fn curve_text(
     let leave = ENTER_KNOTS.len();
     // Leaving: at normal incidence and at 0.8 of the critical angle.
     let (k0, k1) = (leave, leave + 3);
-    let differs = [k0, k1].iter().any(|&k| (f.params[k] - course[k]).abs() > 0.02);
+    // Said where the fit tells it from the course's: by more than 2 % and 3 standard errors.
+    let differs = [k0, k1].iter().any(|&k| {
+        let d = (f.params[k] - course[k]).abs();
+        d > 0.02 && d > 3.0 * f.sigma[k]
+    });
     if differs {
         let critical = (1.0 / ior).min(1.0).asin().to_degrees();
         let deg = (LEAVE_KNOTS[3] * critical).round();
