@@ -32,7 +32,10 @@ const MIN_PIXELS: usize = 30;
 const ENTER_KNOTS: [f64; 10] = [0.0, 0.05, 0.1, 0.173_648, 0.25, 0.35, 0.5, 0.7, 0.85, 1.0];
 
 /// Where the leaving curve has its knots: angles of incidence as shares of the critical angle.
-const LEAVE_KNOTS: [f64; 8] = [0.0, 0.5, 0.7, 0.8, 0.87, 0.93, 0.97, 1.0];
+const LEAVE_KNOTS: [f64; 9] = [0.0, 0.3, 0.5, 0.65, 0.8, 0.87, 0.93, 0.97, 1.0];
+
+/// The leaving knot the report names beside normal incidence: 0.8 of the critical angle.
+const LEAVE_SAID: usize = 4;
 
 /// Tikhonov weight (levels² per unit of weight²) holding a curve's knots that no pixel sees at
 /// the course's values.
@@ -128,8 +131,8 @@ struct Fit {
     rms: f64,
     /// Pixels kept (the fitted ones less the trimmed).
     pixels: usize,
-    /// Each parameter's standard error: the residual over the square root of its diagonal
-    /// element of JᵀJ (the hold's [`HOLD`] included).
+    /// Each parameter's standard error: the residual times the square root of its diagonal
+    /// element of (JᵀJ + [`HOLD`])⁻¹.
     sigma: Vec<f64>,
 }
 
@@ -297,8 +300,19 @@ fn fit_member(pixels: &[&PixelTrees], m: Member, p0: &[f64]) -> Fit {
             || vec![0.0; k * k],
             |a, b| a.iter().zip(b).map(|(x, y)| x + y).collect(),
         );
+    let mut held = jtj;
+    for i in 0..k {
+        held[i * k + i] += HOLD;
+    }
+    // Each parameter's variance is rms² times its diagonal element of (JᵀJ + HOLD)⁻¹.
+    let sigma = (0..k)
+        .map(|i| {
+            let unit: Vec<f64> = (0..k).map(|j| f64::from(u8::from(i == j))).collect();
+            solve(held.clone(), unit).map_or(f64::INFINITY, |col| rms * col[i].max(0.0).sqrt())
+        })
+        .collect();
     Fit {
-        sigma: (0..k).map(|i| rms / (jtj[i * k + i] + HOLD).sqrt()).collect(),
+        sigma,
         rms,
         params,
         pixels: kept.len(),
@@ -460,7 +474,7 @@ fn curve_text(
     let course = course_knots(ior);
     let leave = ENTER_KNOTS.len();
     // Leaving: at normal incidence and at 0.8 of the critical angle.
-    let (k0, k1) = (leave, leave + 3);
+    let (k0, k1) = (leave, leave + LEAVE_SAID);
     // Said where the fit tells it from the course's: by more than 2 % and 3 standard errors.
     let differs = [k0, k1].iter().any(|&k| {
         let d = (f.params[k] - course[k]).abs();
@@ -468,7 +482,7 @@ fn curve_text(
     });
     if differs {
         let critical = (1.0 / ior).min(1.0).asin().to_degrees();
-        let deg = (LEAVE_KNOTS[3] * critical).round();
+        let deg = (LEAVE_KNOTS[LEAVE_SAID] * critical).round();
         numbers.insert("leaving_0", f.params[k0]);
         numbers.insert("leaving_at", f.params[k1]);
         numbers.insert("leaving_at_degrees", deg);
