@@ -31,6 +31,7 @@ fn run(path: &Path, bugs: &[&'static str], opts: Options) -> Diagnosis {
     let flags = RenderSettings {
         width: opts.width,
         height: opts.height,
+        aa: opts.aa,
         stage: Stage::Two,
         ..RenderSettings::default()
     };
@@ -75,6 +76,36 @@ fn a_constant_reflectance_is_fitted_back() {
                     "the exact Fresnel weight goes from 2.8 % at normal incidence to 100 % at grazing angles"
                 ),
             "{c}:\n{text}"
+        );
+    }
+}
+
+/// A constant share is fitted back from every sample of anti-aliased pixels, and in a scene of
+/// ours with two glasses of other indices (1.5 and 1.33).
+#[test]
+fn a_constant_reflectance_is_fitted_back_anti_aliased_and_in_our_scene() {
+    let Some(course) = scene2() else {
+        return;
+    };
+    let ours = rayscope_testkit::scene("whitted.txt");
+    for (path, aa) in [(&course, 2), (&ours, 1)] {
+        let opts = Options {
+            fresnel_constant: Some(0.12),
+            aa,
+            ..Options::new(W, H)
+        };
+        let d = run(path, &[], opts);
+        let text = report_text(&d, "scene.txt");
+        let f = d
+            .fitted
+            .first()
+            .unwrap_or_else(|| panic!("{}: nothing fitted\n{text}", path.display()));
+        assert_eq!(f.code, "fresnel-constant", "{}:\n{text}", path.display());
+        let fitted = f.numbers["constant"];
+        assert!(
+            (fitted - 0.12).abs() <= 0.002,
+            "{}: fitted {fitted}\n{text}",
+            path.display()
         );
     }
 }

@@ -44,15 +44,22 @@ const HOLD: f64 = 1.0;
 /// A member of the family.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Member {
+    /// The course's exact unpolarised weight.
     Course,
+    /// No reflection: 0 at every angle.
     None,
+    /// Half and half at every angle.
     Half,
+    /// Schlick's approximation.
     Schlick,
+    /// One share at every angle (fitted).
     Constant,
+    /// Piecewise linear in the angle, entering and leaving apart (fitted at the knots).
     Curve,
 }
 
 impl Member {
+    /// How many parameters the member has.
     fn params(self) -> usize {
         match self {
             Member::Constant => 1,
@@ -61,6 +68,7 @@ impl Member {
         }
     }
 
+    /// The member's code in [`Fitted::code`].
     fn code(self) -> &'static str {
         match self {
             Member::Course => "fresnel-exact",
