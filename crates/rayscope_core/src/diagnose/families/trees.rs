@@ -285,3 +285,128 @@ pub(crate) fn glass_pixels<I: Intersect>(
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use std::path::Path;
+
+    use super::*;
+    use crate::settings::{Edition, RenderSettings, Stage};
+
+    /// Evaluated with the course's weights, each glass pixel's trees give rayscope's colour of
+    /// it: through a mirror, through coloured glass that absorbs (Beer's law) and past total
+    /// internal reflection.
+    #[test]
+    fn the_course_weights_give_rayscopes_colour() {
+        let text = r#"
+Material "Grey" Diffuse (.8, .8, .8) 1
+Material "Red" Diffuse (1, .3, .3) 1
+Material "Tinted" Refractive (.9, .5, .2) 1.5
+Material "Mirror" Reflective (0, 0, 0) 1
+PointLight "L" (0, 0.8, 1.5) (.8, .8, .8)
+Sphere "Glass" (0.2, -0.2, 1.5) 0.3 "Tinted"
+Sphere "Ball" (-0.35, 0.1, 2.2) 0.3 "Mirror"
+Plane "Floor" (0, -1, 0) (0, 1, 0) "Grey"
+Plane "Back" (0, 0, 3) (0, 0, -1) "Red"
+"#;
+        let file = rayscope_scene::parse_str(text, Path::new("t.txt")).unwrap();
+        let scene = Scene::from_file(&file);
+        let settings = RenderSettings {
+            width: 40,
+            height: 30,
+            aa: 2,
+            // Glass absorbs in the full renderer's 2022 edition; without ambient light or
+            // emitters its glass still splits into both rays.
+            stage: Stage::Full,
+            edition: Edition::Y2022,
+            ..RenderSettings::default()
+        };
+        let mut integ = Integrator::new(&scene, &settings);
+        integ.branch_cutoff = 0.0;
+        let pixels: Vec<u32> = (0..40 * 30).collect();
+        let found = glass_pixels(&integ, &vec![0; 40 * 30 * 3], 40, &pixels);
+        assert!(found.len() > 60, "{} glass pixels", found.len());
+        let mut mirrored = 0;
+        for px in &found {
+            let (x, y) = (px.index % 40, px.index / 40);
+            let spp = integ.samples_per_pixel();
+            let mean = (0..spp)
+                .map(|s| integ.sample(x, y, s, &mut crate::observer::NoObserver, &mut Counters::default()))
+                .fold(Vec3A::ZERO, |a, v| a + v)
+                / spp as f32;
+            let v = px.eval(&|h, _| h.course, 0, &mut []);
+            for c in 0..3 {
+                let ours = 255.0 * f64::from(mean[c]);
+                assert!(
+                    (v[c] - ours).abs() <= 1e-3 * ours.max(1.0),
+                    "({x}, {y}) {v:?} against {mean:?}"
+                );
+            }
+            mirrored += usize::from(px.trees.iter().any(|t| matches!(t.last(), Some(Op::Gain { .. }))));
+        }
+        assert!(mirrored > 0, "no glass pixel seen in the mirror");
+        let absorbs = found
+            .iter()
+            .flat_map(|px| px.trees.iter().flatten())
+            .any(|op| match op {
+                Op::Glass { a, .. } | Op::Gain { a, .. } => a.iter().any(|k| (k - 1.0).abs() > 1e-3),
+                Op::Leaf(_) => false,
+            });
+        assert!(absorbs, "no hit absorbs");
+    }
+
+    /// The derivatives `eval` gives are those of its colour: a weight that is a·cos θi + b,
+    /// against differences of the colour.
+    #[test]
+    fn eval_differentiates_its_colour() {
+        let text = r#"
+Material "Grey" Diffuse (.8, .7, .6) 1
+Material "Glass" Refractive (0, 0, 0) 1.5
+PointLight "L" (0, 0.8, 1.5) (.8, .8, .8)
+Sphere "Glass" (0, -0.2, 1.5) 0.4 "Glass"
+Plane "Floor" (0, -1, 0) (0, 1, 0) "Grey"
+Plane "Back" (0, 0, 3) (0, 0, -1) "Grey"
+"#;
+        let file = rayscope_scene::parse_str(text, Path::new("t.txt")).unwrap();
+        let scene = Scene::from_file(&file);
+        let settings = RenderSettings {
+            width: 20,
+            height: 15,
+            stage: Stage::Two,
+            ..RenderSettings::default()
+        };
+        let integ = Integrator::new(&scene, &settings);
+        let pixels: Vec<u32> = (0..20 * 15).collect();
+        let found = glass_pixels(&integ, &vec![0; 20 * 15 * 3], 20, &pixels);
+        assert!(!found.is_empty());
+        let weight = |p: [f64; 2]| {
+            move |h: &GlassHit, g: &mut [f64]| {
+                if g.len() == 2 {
+                    g[0] = h.cos_i;
+                    g[1] = 1.0;
+                }
+                p[0] * h.cos_i + p[1]
+            }
+        };
+        let p = [0.1, 0.05];
+        let e = 1e-6;
+        for px in &found {
+            let mut grad = [[0.0; 3]; 2];
+            px.eval(&weight(p), 2, &mut grad);
+            for j in 0..2 {
+                let (mut up, mut down) = (p, p);
+                up[j] += e;
+                down[j] -= e;
+                let (a, b) = (px.eval(&weight(up), 0, &mut []), px.eval(&weight(down), 0, &mut []));
+                for c in 0..3 {
+                    let numeric = (a[c] - b[c]) / (2.0 * e);
+                    assert!(
+                        (numeric - grad[j][c]).abs() <= 1e-4 * numeric.abs().max(1.0),
+                        "{numeric} against {:?}",
+                        grad[j]
+                    );
+                }
+            }
+        }
+    }
+}
