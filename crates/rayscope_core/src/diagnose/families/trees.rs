@@ -294,8 +294,7 @@ mod tests {
     use crate::settings::{Edition, RenderSettings, Stage};
 
     /// Evaluated with the course's weights, each glass pixel's trees give rayscope's colour of
-    /// it: through a mirror, through coloured glass that absorbs (Beer's law) and past total
-    /// internal reflection.
+    /// it: through coloured glass that absorbs (Beer's law), and through a mirror.
     #[test]
     fn the_course_weights_give_rayscopes_colour() {
         let text = r#"
