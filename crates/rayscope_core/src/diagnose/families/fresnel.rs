@@ -1,6 +1,7 @@
 //! The Fresnel weight of glass, fitted to the student's pixels: the course's exact unpolarised
 //! weight, none (0), a half, Schlick's approximation, a constant (fitted), and a general curve
-//! (fitted: piecewise linear in the angle, entering and leaving the glass apart). Each member
+//! (fitted at knots: piecewise linear in cos θi entering the glass, in the angle's share of the
+//! critical angle leaving it). Each member
 //! is fitted by least squares over the channels of the glass's pixels that the weight changes by
 //! at least [`SENSITIVE`] levels and that are not clipped, leaving out the [`TRIM`] worst pixels
 //! (edges and rims, where two tracers' rays may meet different things), and fits when its
@@ -54,7 +55,8 @@ enum Member {
     Schlick,
     /// One share at every angle (fitted).
     Constant,
-    /// Piecewise linear in the angle, entering and leaving apart (fitted at the knots).
+    /// Piecewise linear, entering and leaving apart (fitted at [`ENTER_KNOTS`] and
+    /// [`LEAVE_KNOTS`]).
     Curve,
 }
 
