@@ -7,13 +7,9 @@ use clap::error::ErrorKind;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use glam::Vec3;
 use rayscope_core::mistakes::catalogue_text;
-use rayscope_core::settings::Limits;
+use rayscope_core::settings::{unit_camera_axis, Limits, Ranges, Setting};
 use rayscope_core::Mistakes;
 use rayscope_core::{CameraSettings, Channel, DepthLimit, Edition, FovAxis, RenderSettings, Stage};
-
-/// Renders with more samples than this (counting `-x` grid positions, 16 a pixel at 64
-/// megapixels) need `--allow-large`.
-const SAMPLE_BUDGET: u64 = 16 * 8192 * 8192;
 
 /// rayscope: a ray tracer and visual ray debugger for the COMP30019 scene format.
 ///
@@ -260,7 +256,7 @@ pub struct RenderOpts {
     #[arg(short = 'w', long = "width", default_value_t = 400, allow_hyphen_values = true, value_parser = parse_size)]
     pub width: u32,
     /// Image height in pixels.
-    #[arg(short = 'h', long = "height", default_value_t = 400, allow_hyphen_values = true, value_parser = parse_size)]
+    #[arg(short = 'h', long = "height", default_value_t = 400, allow_hyphen_values = true, value_parser = parse_height)]
     pub height: u32,
     /// Anti-aliasing: an N×N grid of samples per pixel.
     #[arg(short = 'x', long = "aa-mult", default_value_t = 1, allow_hyphen_values = true, value_parser = parse_aa, value_name = "N")]
@@ -333,20 +329,6 @@ pub struct RenderOpts {
 impl RenderOpts {
     /// Validates the flags together and converts them into render settings.
     pub fn settings(&self) -> Result<RenderSettings, String> {
-        let pixels = self.width as u64 * self.height as u64;
-        // Normalised in f64: a tiny but non-zero axis is a valid direction even where its squared
-        // length would underflow in f32.
-        let axis = self.cam_axis.as_dvec3().normalize_or_zero();
-        if axis == glam::DVec3::ZERO && self.cam_angle != 0.0 {
-            return Err("--cam-axis must not be (0, 0, 0) when --cam-angle is not 0: a rotation needs an axis".into());
-        }
-        let samples = pixels * (self.aa as u64).pow(2);
-        if samples > SAMPLE_BUDGET && !self.allow_large {
-            return Err(format!(
-                "{samples} samples ({}×{} pixels at -x {}) is over the budget; pass --allow-large",
-                self.width, self.height, self.aa
-            ));
-        }
         let settings = RenderSettings {
             width: self.width,
             height: self.height,
@@ -369,11 +351,7 @@ impl RenderOpts {
             },
             camera: CameraSettings {
                 position: self.cam_pos,
-                axis: if axis == glam::DVec3::ZERO {
-                    self.cam_axis
-                } else {
-                    axis.as_vec3()
-                },
+                axis: unit_camera_axis(self.cam_axis),
                 angle_deg: self.cam_angle,
                 fov_deg: self.fov,
                 fov_axis: match self.fov_axis {
@@ -633,20 +611,24 @@ pub struct CheckArgs {
     pub opts: RenderOpts,
 }
 
-fn parse_whole(s: &str, lo: u32, hi: u32, what: &str) -> Result<u32, String> {
+/// A whole-number `setting`, within the command line's range of it ([`Ranges::COMMAND_LINE`]).
+fn parse_whole(s: &str, setting: Setting) -> Result<u32, String> {
     match s.trim().parse::<i64>() {
-        Ok(v) if v >= i64::from(lo) && v <= i64::from(hi) => Ok(v as u32),
-        Ok(v) => Err(format!("{what} must be from {lo} to {hi}, found {v}")),
+        Ok(v) => Ranges::COMMAND_LINE.whole(setting, v),
         Err(_) => Err(format!("expected a whole number, found '{s}'")),
     }
 }
 
 fn parse_size(s: &str) -> Result<u32, String> {
-    parse_whole(s, 1, 1 << 20, "an image side")
+    parse_whole(s, Setting::Width)
+}
+
+fn parse_height(s: &str) -> Result<u32, String> {
+    parse_whole(s, Setting::Height)
 }
 
 fn parse_aa(s: &str) -> Result<u32, String> {
-    parse_whole(s, 1, 64, "the anti-aliasing multiplier")
+    parse_whole(s, Setting::Aa)
 }
 
 fn parse_finite(s: &str) -> Result<f32, String> {

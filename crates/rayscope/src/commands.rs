@@ -159,6 +159,8 @@ fn merge_command(a: &MergeArgs) -> Result<ExitCode, Failure> {
     if !a.allow_large {
         limits.pixel_hint = " (8192×8192); pass --allow-large to merge it anyway";
     }
+    // Merging traces no ray: the parts' samples are already taken.
+    limits.max_grid_samples = None;
     let m = farm::merge_within(&a.parts, a.allow_missing, &limits).map_err(|e| Failure::input(e.0))?;
     let (w, h) = (m.film.width, m.film.height);
     if !m.missing_parts.is_empty() {

@@ -119,7 +119,10 @@ fn invalid_flags_exit_with_2_and_say_why() {
     assert_usage_error(&["-f", s, "-o", "x.png", "-h", "-5"], "--height");
     assert_usage_error(&["-f", s, "-o", "x.png", "-x", "0"], "--aa-mult");
     assert_usage_error(&["-f", s, "-o", "x.png", "-p", "1,2"], "expected three numbers");
-    assert_usage_error(&["-f", s, "-o", "x.png", "-a", "0,0,0", "-n", "45"], "--cam-axis");
+    assert_usage_error(
+        &["-f", s, "-o", "x.png", "-a", "0,0,0", "-n", "45"],
+        "-a (camera axis) must not be (0, 0, 0)",
+    );
     assert_usage_error(&["-f", s, "-o", "x.png", "-r", "-1"], "0 or more");
     assert_usage_error(&["-f", s, "-o", "x.png", "--fov", "180"], "between 0 and 180");
     assert_usage_error(

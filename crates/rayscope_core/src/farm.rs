@@ -786,6 +786,8 @@ mod tests {
     fn the_fuzz_seeds_are_judged_by_the_field_that_lies() {
         let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../fuzz/corpus/part_header");
         let limits = Limits {
+            ranges: crate::settings::Ranges::COMMAND_LINE,
+            max_grid_samples: None,
             max_pixels: 8192 * 8192,
             memory_bytes: 2 << 30,
             max_samples: None,

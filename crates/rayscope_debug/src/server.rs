@@ -55,10 +55,9 @@ use rayon::prelude::*;
 use rayscope_core::integrator::Integrator;
 use rayscope_core::reference::ReferenceIntersector;
 use rayscope_core::scene::{Intersect, Scene};
-use rayscope_core::settings::{Limits, BYTES_PER_PIXEL};
-use rayscope_core::{render, trace_pixel_with, Channel, FovAxis, RenderSettings, Stage};
+use rayscope_core::settings::{Limits, Ranges, SettingsPatch};
+use rayscope_core::{render, trace_pixel_with, Channel, RenderSettings};
 use rayscope_scene::{SceneFile, Shape};
-use serde::Deserialize;
 use serde_json::{json, Value};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
@@ -75,7 +74,7 @@ pub use crate::limits::{KEEP_LOG_BYTES, RAY_DETAIL_CAP};
 pub use rays_api::MAX_LOG_BYTES;
 
 /// Largest image the debugger renders, per side.
-pub const MAX_IMAGE_SIDE: u32 = 2048;
+pub const MAX_IMAGE_SIDE: u32 = Ranges::DEBUGGER.max_side;
 /// Largest view frame, per side.
 pub const MAX_VIEW_SIDE: u32 = 2560;
 /// Most debug rays drawn in one frame.
@@ -170,60 +169,12 @@ impl RunningServer {
     }
 }
 
-/// What one debugger render may use: images up to [`MAX_IMAGE_SIDE`] a side, and at most 2^28
-/// samples counting every `-q` path (about a minute of path tracing on two cores), so no request
-/// can start a render that outlives the user's patience; a new request cancels it in any case.
-const DEBUGGER_LIMITS: Limits = Limits {
-    max_pixels: (MAX_IMAGE_SIDE as u64) * (MAX_IMAGE_SIDE as u64),
-    memory_bytes: (MAX_IMAGE_SIDE as u64) * (MAX_IMAGE_SIDE as u64) * BYTES_PER_PIXEL,
-    max_samples: Some(1 << 28),
-    pixel_hint: "",
-    memory_hint: "",
-};
-
-/// Checks that settings fit the debugger's limits.
+/// Checks that settings fit the debugger's limits ([`Limits::debugger`]).
 ///
 /// # Errors
-/// A message naming the offending setting.
+/// A message naming the offending setting and the bound it breaks.
 pub fn check_settings(s: &RenderSettings) -> Result<(), String> {
-    if s.width == 0 || s.height == 0 || s.width > MAX_IMAGE_SIDE || s.height > MAX_IMAGE_SIDE {
-        return Err(format!(
-            "image size {}×{} is outside 1..={MAX_IMAGE_SIDE} per side in the debugger",
-            s.width, s.height
-        ));
-    }
-    if !(1..=16).contains(&s.aa) {
-        return Err(format!("aa {} is outside 1..=16", s.aa));
-    }
-    s.check(&DEBUGGER_LIMITS)?;
-    if s.max_depth > 64 {
-        return Err("depth limit must be at most 64".into());
-    }
-    if s.quality > 16 {
-        return Err("quality must be at most 16".into());
-    }
-    let c = &s.camera;
-    if !(c.fov_deg > 0.0 && c.fov_deg < 180.0) {
-        return Err("fov must be between 0 and 180 degrees (exclusive)".into());
-    }
-    for (name, v) in [("cam_pos", c.position), ("cam_axis", c.axis)] {
-        if !v.is_finite() || v.abs().max_element() > 1e6 {
-            return Err(format!("{name} must be finite and within ±1e6"));
-        }
-    }
-    if !c.angle_deg.is_finite() || c.angle_deg.abs() > 1e5 {
-        return Err("cam_angle must be a finite number of degrees".into());
-    }
-    if c.axis.length_squared() == 0.0 && c.angle_deg != 0.0 {
-        return Err("cam_axis must not be (0, 0, 0) when cam_angle is not 0".into());
-    }
-    if !(c.aperture_radius.is_finite() && (0.0..=100.0).contains(&c.aperture_radius)) {
-        return Err("aperture must be between 0 and 100".into());
-    }
-    if !(c.focal_length.is_finite() && c.focal_length > 0.0 && c.focal_length <= 1e6) {
-        return Err("focal length must be greater than 0".into());
-    }
-    Ok(())
+    s.check(&Limits::debugger())
 }
 
 /// Starts the server on a background thread and returns once it listens.
@@ -764,107 +715,7 @@ fn scene_json(cfg: &ServeConfig) -> Value {
 }
 
 fn settings_json(s: &RenderSettings) -> Value {
-    let c = &s.camera;
-    json!({
-        "width": s.width,
-        "height": s.height,
-        "aa": s.aa,
-        "stage": match s.stage { Stage::One => "1", Stage::Two => "2", Stage::Full => "full" },
-        "ambient": s.ambient,
-        "quality": s.quality,
-        "max_depth": s.max_depth,
-        "seed": s.seed,
-        "fov": c.fov_deg,
-        "fov_axis": match c.fov_axis { FovAxis::Horizontal => "horizontal", FovAxis::Vertical => "vertical" },
-        "cam_pos": c.position.to_array(),
-        "cam_axis": c.axis.to_array(),
-        "cam_angle": c.angle_deg,
-        "aperture": c.aperture_radius,
-        "focal_length": c.focal_length,
-    })
-}
-
-/// A partial settings update from the UI.
-#[derive(Debug, Default, Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SettingsPatch {
-    width: Option<u32>,
-    height: Option<u32>,
-    aa: Option<u32>,
-    stage: Option<String>,
-    ambient: Option<bool>,
-    quality: Option<u32>,
-    max_depth: Option<u32>,
-    seed: Option<u64>,
-    fov: Option<f32>,
-    fov_axis: Option<String>,
-    cam_pos: Option<[f32; 3]>,
-    cam_axis: Option<[f32; 3]>,
-    cam_angle: Option<f32>,
-    aperture: Option<f32>,
-    focal_length: Option<f32>,
-}
-
-impl SettingsPatch {
-    fn apply(self, s: &RenderSettings) -> Result<RenderSettings, String> {
-        let mut s = *s;
-        if let Some(v) = self.width {
-            s.width = v;
-        }
-        if let Some(v) = self.height {
-            s.height = v;
-        }
-        if let Some(v) = self.aa {
-            s.aa = v;
-        }
-        if let Some(v) = self.stage {
-            s.stage = match v.as_str() {
-                "1" => Stage::One,
-                "2" => Stage::Two,
-                "3" | "full" => Stage::Full,
-                other => return Err(format!("stage must be 1, 2 or full, not '{other}'")),
-            };
-        }
-        if let Some(v) = self.ambient {
-            s.ambient = v;
-        }
-        if let Some(v) = self.quality {
-            s.quality = v;
-        }
-        if let Some(v) = self.max_depth {
-            s.max_depth = v;
-        }
-        if let Some(v) = self.seed {
-            s.seed = v;
-        }
-        if let Some(v) = self.fov {
-            s.camera.fov_deg = v;
-        }
-        if let Some(v) = self.fov_axis {
-            s.camera.fov_axis = match v.as_str() {
-                "horizontal" => FovAxis::Horizontal,
-                "vertical" => FovAxis::Vertical,
-                other => return Err(format!("fov_axis must be horizontal or vertical, not '{other}'")),
-            };
-        }
-        if let Some(v) = self.cam_pos {
-            s.camera.position = Vec3::from(v);
-        }
-        if let Some(v) = self.cam_axis {
-            s.camera.axis = Vec3::from(v);
-        }
-        if let Some(v) = self.cam_angle {
-            s.camera.angle_deg = v;
-        }
-        if let Some(v) = self.aperture {
-            s.camera.aperture_radius = v;
-        }
-        if let Some(v) = self.focal_length {
-            s.camera.focal_length = v;
-        }
-        check_settings(&s)?;
-        Ok(s)
-    }
+    serde_json::to_value(SettingsPatch::of(s)).unwrap_or(Value::Null)
 }
 
 /// An API error: status and message, answered as JSON.
@@ -1150,7 +1001,8 @@ async fn api_post_settings(State(st): State<Arc<AppState>>, headers: HeaderMap, 
     let patch: SettingsPatch =
         serde_json::from_slice(&body).map_err(|e| ApiError::bad(format!("invalid settings JSON: {e}")))?;
     let current = st.lock().settings;
-    let new = patch.apply(&current).map_err(ApiError::bad)?;
+    let new = patch.apply(&current);
+    check_settings(&new).map_err(ApiError::bad)?;
     let changed = new != current;
     let job = if changed || st.lock().job.state == JobState::Cancelled {
         {
