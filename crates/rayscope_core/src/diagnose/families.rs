@@ -8,29 +8,15 @@
 //! A fit is a finding only when the course's exact weight does not explain the glass's pixels
 //! to within rounding and the fitted family does: the course's answer is the null hypothesis.
 
-use std::collections::BTreeMap;
-
-use serde::Serialize;
-
 use crate::integrator::Integrator;
 use crate::scene::Scene;
 use crate::settings::RenderSettings;
 
+mod fitted;
 mod fresnel;
 mod trees;
 
-/// A family's parameter fitted to the student's pixels.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Fitted {
-    /// What was fitted and which member fits: `fresnel-none`, `fresnel-half`,
-    /// `fresnel-constant`, `fresnel-schlick` or `fresnel-curve`.
-    pub code: &'static str,
-    /// One sentence for the student, the fitted value against the course's.
-    pub text: String,
-    /// The figures: the pixels fitted, the residuals (levels, root mean square) of the fit and
-    /// of the course's answer, and the family's values (weights as fractions, angles in degrees).
-    pub numbers: BTreeMap<&'static str, f64>,
-}
+pub use fitted::Fitted;
 
 /// Largest number of pixels traced to find the glass's (a grid over the image).
 const MAX_TRACED: u32 = 40_000;

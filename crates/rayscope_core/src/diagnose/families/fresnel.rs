@@ -11,8 +11,8 @@ use std::collections::BTreeMap;
 
 use rayon::prelude::*;
 
+use super::fitted::Fitted;
 use super::trees::{GlassHit, PixelTrees};
-use super::Fitted;
 use crate::optics::{fresnel, schlick};
 
 /// A pixel is fitted where the weight changes its colour: a half against none moves a channel
