@@ -614,33 +614,20 @@ impl Candidate {
 }
 
 /// The flags of `s` that [`diagnose`] decides: size, stage, anti-aliasing, recursion limit,
-/// field-of-view axis and mistakes.
+/// edition, field-of-view axis and mistakes.
 fn render_flags(s: &RenderSettings) -> String {
-    let mut f = format!("-w {} -h {}", s.width, s.height);
-    f.push_str(match s.stage {
-        crate::settings::Stage::One => " --stage 1",
-        crate::settings::Stage::Two => " --stage 2",
-        crate::settings::Stage::Full => "",
-    });
-    if s.aa != 1 {
-        f.push_str(&format!(" -x {}", s.aa));
-    }
-    if s.depth_limit == DepthLimit::All {
-        f.push_str(" --depth-limit all");
-    }
-    if s.max_depth != RenderSettings::default().max_depth || s.depth_limit == DepthLimit::All {
-        f.push_str(&format!(" --max-depth {}", s.max_depth));
-    }
-    if s.edition != Edition::default() {
-        f.push_str(&format!(" --edition {}", s.edition.year()));
-    }
-    if s.camera.fov_axis == FovAxis::Vertical {
-        f.push_str(" --fov-axis vertical");
-    }
-    if !s.mistakes.is_empty() {
-        f.push_str(&format!(" --mistake {}", s.mistakes));
-    }
-    f
+    use crate::settings::Setting;
+    s.flags_only(&[
+        Setting::Width,
+        Setting::Height,
+        Setting::Stage,
+        Setting::Aa,
+        Setting::DepthLimit,
+        Setting::MaxDepth,
+        Setting::Edition,
+        Setting::FovAxis,
+        Setting::Mistakes,
+    ])
 }
 
 /// Atoms that cannot be combined: two values of one setting, or two ways of doing one thing.
