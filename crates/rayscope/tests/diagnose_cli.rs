@@ -225,6 +225,12 @@ fn an_every_material_depth_limit_is_explained_not_matched() {
     assert_eq!(d["matches"], false, "{d:#}");
     let e = &d["explanations"][0];
     assert_eq!(e["settings"][0], "--depth-limit all --max-depth 3", "{d:#}");
+    // The same change as data, in the debugger's settings keys, for a front end to apply.
+    assert_eq!(
+        e["patch"],
+        serde_json::json!({"max_depth": 3, "depth_limit": "all"}),
+        "{d:#}"
+    );
     assert!(e["psnr_db"].is_null(), "rayscope's own render is exact: {d:#}");
     assert!(
         e["flags"].as_str().unwrap().contains("--depth-limit all --max-depth 3"),

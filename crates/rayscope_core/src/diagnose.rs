@@ -45,7 +45,7 @@ use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::NoObserver;
 use crate::render::{render, Mistaken};
 use crate::scene::{Intersect, Scene};
-use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Stage};
+use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Setting, SettingsPatch, Stage};
 
 mod explained;
 mod families;
@@ -132,6 +132,9 @@ pub struct Explanation {
     pub mistakes: Vec<String>,
     /// Settings changed from the flags, as flags (`-x 1`, `--max-depth 3`, `--fov-axis vertical`).
     pub settings: Vec<String>,
+    /// The same settings changes as data, in the debugger's settings API's keys (`aa`,
+    /// `max_depth`, `depth_limit`, `fov_axis`): what a front end applies to render it.
+    pub patch: SettingsPatch,
     /// Human-readable description.
     pub summary: String,
     /// Flags that render this explanation with rayscope: the size, stage, the settings the
@@ -597,10 +600,12 @@ impl Candidate {
                 }
             }
         }
-        let flags = render_flags(&self.settings(base));
+        let candidate = self.settings(base);
+        let flags = render_flags(&candidate);
         Explanation {
             mistakes,
             settings,
+            patch: settings_patch(base, &candidate),
             summary: words.join(" + "),
             flags,
             psnr_db: m.psnr,
@@ -613,34 +618,32 @@ impl Candidate {
     }
 }
 
+/// The settings [`diagnose`] varies that `s` changes from `base`.
+fn settings_patch(base: &RenderSettings, s: &RenderSettings) -> SettingsPatch {
+    let changed = |setting: Setting| s.differs(base, setting);
+    SettingsPatch {
+        aa: changed(Setting::Aa).then_some(s.aa),
+        max_depth: changed(Setting::MaxDepth).then_some(s.max_depth),
+        depth_limit: changed(Setting::DepthLimit).then_some(s.depth_limit),
+        fov_axis: changed(Setting::FovAxis).then_some(s.camera.fov_axis),
+        ..SettingsPatch::default()
+    }
+}
+
 /// The flags of `s` that [`diagnose`] decides: size, stage, anti-aliasing, recursion limit,
-/// field-of-view axis and mistakes.
+/// edition, field-of-view axis and mistakes.
 fn render_flags(s: &RenderSettings) -> String {
-    let mut f = format!("-w {} -h {}", s.width, s.height);
-    f.push_str(match s.stage {
-        crate::settings::Stage::One => " --stage 1",
-        crate::settings::Stage::Two => " --stage 2",
-        crate::settings::Stage::Full => "",
-    });
-    if s.aa != 1 {
-        f.push_str(&format!(" -x {}", s.aa));
-    }
-    if s.depth_limit == DepthLimit::All {
-        f.push_str(" --depth-limit all");
-    }
-    if s.max_depth != RenderSettings::default().max_depth || s.depth_limit == DepthLimit::All {
-        f.push_str(&format!(" --max-depth {}", s.max_depth));
-    }
-    if s.edition != Edition::default() {
-        f.push_str(&format!(" --edition {}", s.edition.year()));
-    }
-    if s.camera.fov_axis == FovAxis::Vertical {
-        f.push_str(" --fov-axis vertical");
-    }
-    if !s.mistakes.is_empty() {
-        f.push_str(&format!(" --mistake {}", s.mistakes));
-    }
-    f
+    s.flags_only(&[
+        Setting::Width,
+        Setting::Height,
+        Setting::Stage,
+        Setting::Aa,
+        Setting::DepthLimit,
+        Setting::MaxDepth,
+        Setting::Edition,
+        Setting::FovAxis,
+        Setting::Mistakes,
+    ])
 }
 
 /// Atoms that cannot be combined: two values of one setting, or two ways of doing one thing.

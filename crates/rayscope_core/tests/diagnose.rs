@@ -346,6 +346,12 @@ fn free_settings_are_blamed_before_code() {
         true,
     );
     assert_eq!(names(&d, 0), ["-x 1"], "{}", summary(&d));
+    let patch = d.explanations[0].patch;
+    assert_eq!(
+        (patch.aa, patch.max_depth, patch.depth_limit, patch.fov_axis),
+        (Some(1), None, None, None),
+        "the change as data: {patch:?}"
+    );
     // A recursion limit of 2 is a setting too.
     let d = run(
         &course.scene("sample_scene_2.txt"),

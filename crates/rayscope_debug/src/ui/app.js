@@ -819,18 +819,6 @@ function compareAttribution(shares, n, threshold) {
   }
   $("attribution-box").querySelector("h4 .dim").textContent = `(${n} pixels differ by ${threshold} or more levels: what rayscope's ray of each ends on; through mirrors, the thing reflected)`;
 }
-// A diagnosis's settings change ("-x 2", "--max-depth 3", "--fov-axis vertical") as a patch.
-function flagsPatch(flags) {
-  const patch = {};
-  for (const f of flags) {
-    const [k, v] = f.split(" ");
-    if (k === "-x") patch.aa = Number(v);
-    else if (k === "--max-depth") patch.max_depth = Number(v);
-    else if (k === "--fov-axis") patch.fov_axis = v;
-    else return null;
-  }
-  return patch;
-}
 function compareDiagnosis(d) {
   const box = $("diagnosis");
   box.innerHTML = "";
@@ -903,7 +891,7 @@ function compareDiagnosis(d) {
     for (const e of items) {
       const li = el("li", { "data-settings": e.settings.join(" "), "data-mistakes": e.mistakes.join(" ") }, says(e),
         el("br"), el("span", { class: "dim" }, "see it: "), el("code", {}, `rayscope -f ${scene} -o explained.png ${e.flags}`));
-      const patch = e.mistakes.length ? null : flagsPatch(e.settings);
+      const patch = e.mistakes.length || !Object.keys(e.patch).length ? null : e.patch;
       if (patch) li.append(" ", el("button", { onclick: () => applySettings(patch) }, "render with this here"));
       ol.append(li);
     }
