@@ -274,13 +274,13 @@ pub struct RenderOpts {
     #[arg(short = 'n', long = "cam-angle", default_value_t = 0.0, value_parser = parse_finite, allow_hyphen_values = true, value_name = "DEG")]
     pub cam_angle: f32,
     /// Lens radius for depth of field (0: pinhole).
-    #[arg(short = 'r', long = "aperture-radius", default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_non_negative, value_name = "R")]
+    #[arg(short = 'r', long = "aperture-radius", default_value_t = 0.0, allow_hyphen_values = true, value_parser = parse_aperture, value_name = "R")]
     pub aperture: f32,
     /// Distance in focus.
-    #[arg(short = 't', long = "focal-length", default_value_t = 1.0, allow_hyphen_values = true, value_parser = parse_positive, value_name = "D")]
+    #[arg(short = 't', long = "focal-length", default_value_t = 1.0, allow_hyphen_values = true, value_parser = parse_focal_length, value_name = "D")]
     pub focal_length: f32,
     /// Quality: more samples for stochastic effects.
-    #[arg(short = 'q', long = "quality", default_value_t = 0, value_parser = clap::value_parser!(u32).range(0..=16), value_name = "Q")]
+    #[arg(short = 'q', long = "quality", default_value_t = 0, value_parser = parse_quality, value_name = "Q")]
     pub quality: u32,
     /// Render only up to this stage of the course.
     #[arg(long, value_enum)]
@@ -292,7 +292,7 @@ pub struct RenderOpts {
     #[arg(long = "fov-axis", value_enum, default_value_t = FovAxisArg::Horizontal)]
     pub fov_axis: FovAxisArg,
     /// Most secondary bounces for mirrors and glass (N; see --depth-limit).
-    #[arg(long = "max-depth", default_value_t = 8, value_parser = clap::value_parser!(u32).range(0..=1000), value_name = "N")]
+    #[arg(long = "max-depth", default_value_t = 8, value_parser = parse_max_depth, value_name = "N")]
     pub max_depth: u32,
     /// What --max-depth N stops. The camera ray has depth 0 and each reflected, refracted or
     /// bounce ray one more than the ray whose hit sent it. mirror-glass: a mirror or glass hit on
@@ -643,31 +643,28 @@ fn parse_finite(s: &str) -> Result<f32, String> {
     }
 }
 
-fn parse_non_negative(s: &str) -> Result<f32, String> {
-    let v = parse_finite(s)?;
-    if v >= 0.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be 0 or more, found {s}"))
-    }
+fn parse_quality(s: &str) -> Result<u32, String> {
+    parse_whole(s, Setting::Quality)
 }
 
-fn parse_positive(s: &str) -> Result<f32, String> {
-    let v = parse_finite(s)?;
-    if v > 0.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be greater than 0, found {s}"))
-    }
+fn parse_max_depth(s: &str) -> Result<u32, String> {
+    parse_whole(s, Setting::MaxDepth)
+}
+
+fn parse_real(s: &str, setting: Setting) -> Result<f32, String> {
+    Ranges::COMMAND_LINE.real(setting, parse_finite(s)?)
+}
+
+fn parse_aperture(s: &str) -> Result<f32, String> {
+    parse_real(s, Setting::Aperture)
+}
+
+fn parse_focal_length(s: &str) -> Result<f32, String> {
+    parse_real(s, Setting::FocalLength)
 }
 
 fn parse_fov(s: &str) -> Result<f32, String> {
-    let v = parse_finite(s)?;
-    if v > 0.0 && v < 180.0 {
-        Ok(v)
-    } else {
-        Err(format!("must be between 0 and 180 degrees (exclusive), found {s}"))
-    }
+    parse_real(s, Setting::Fov)
 }
 
 /// Parses "x,y,z" (spaces and surrounding parentheses allowed) into a finite vector.

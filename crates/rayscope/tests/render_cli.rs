@@ -6,6 +6,7 @@ use std::fs;
 
 use common::{rayscope, render, scenes};
 use predicates::prelude::*;
+use rayscope_core::settings::{Ranges, Setting};
 
 #[test]
 fn renders_png_exr_and_ppm() {
@@ -124,7 +125,14 @@ fn invalid_flags_exit_with_2_and_say_why() {
         "-a (camera axis) must not be (0, 0, 0)",
     );
     assert_usage_error(&["-f", s, "-o", "x.png", "-r", "-1"], "0 or more");
-    assert_usage_error(&["-f", s, "-o", "x.png", "--fov", "180"], "between 0 and 180");
+    // The core's words for the ranges, the ones the debugger's settings API answers with too.
+    let core = |setting, v| Ranges::COMMAND_LINE.real(setting, v).unwrap_err();
+    assert_usage_error(&["-f", s, "-o", "x.png", "--fov", "180"], &core(Setting::Fov, 180.0));
+    assert_usage_error(&["-f", s, "-o", "x.png", "-t", "0"], &core(Setting::FocalLength, 0.0));
+    assert_usage_error(
+        &["-f", s, "-o", "x.png", "-q", "17"],
+        &Ranges::COMMAND_LINE.whole(Setting::Quality, 17).unwrap_err(),
+    );
     assert_usage_error(
         &["-f", s, "-o", "x.png", "-w", "100000", "-h", "100000"],
         "--allow-large",

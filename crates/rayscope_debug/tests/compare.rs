@@ -287,11 +287,15 @@ fn a_settings_change_compares_again_and_never_shows_a_stale_psnr() {
     let first = post_image(addr, &png(&theirs, W, H));
     let before = first["psnr"].as_f64().unwrap();
 
+    // The diagnosis names the setting as data in the settings API's own keys: what the panel's
+    // "render with this here" button sends back.
+    let d = diagnosed(addr);
+    let patch = &d["diagnosis"]["result"]["explanations"][0]["patch"];
+    assert_eq!(*patch, serde_json::json!({"fov_axis": "vertical"}), "{d}");
+
     // The field of view's axis set as the student's: a new render, and the comparison is only
     // ever made against it.
-    let new_job = post_settings(addr, r#"{"fov_axis": "vertical"}"#)["job"]
-        .as_u64()
-        .unwrap();
+    let new_job = post_settings(addr, &patch.to_string())["job"].as_u64().unwrap();
     let end = Instant::now() + Duration::from_secs(60);
     let after = loop {
         let v = get(addr, "/api/compare");
