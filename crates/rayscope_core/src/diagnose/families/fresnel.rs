@@ -393,6 +393,11 @@ pub(super) fn fit(all: &[PixelTrees]) -> Option<Fitted> {
 }
 
 /// A weight as a percentage for a sentence.
+/// The weights at normal incidence, 60° and 80°, as "a, b, c".
+fn pcts(v: [f64; 3]) -> String {
+    v.map(pct).join(", ")
+}
+
 fn pct(v: f64) -> String {
     if v.abs() < 0.1 {
         format!("{:.1} %", 100.0 * v)
@@ -446,13 +451,11 @@ fn finding(m: Member, f: &Fit, course: &Fit, ior: f64) -> Fitted {
             )
         }
         Member::Schlick => format!(
-            "Your glass's Fresnel weight is Schlick's approximation (fitted from {n} pixels): {}, {} and {} at normal incidence, 60° and 80°; the exact Fresnel weight: {}, {}, {}.",
+            "Your glass's Fresnel weight is Schlick's approximation (fitted from {n} pixels): {}, {} and {} at normal incidence, 60° and 80°; the exact Fresnel weight: {}.",
             pct(yours[0]),
             pct(yours[1]),
             pct(yours[2]),
-            pct(exact[0]),
-            pct(exact[1]),
-            pct(exact[2])
+            pcts(exact)
         ),
         Member::Course | Member::Curve => curve_text(f, n, yours, exact, ior, &mut numbers),
     };
@@ -473,13 +476,11 @@ fn curve_text(
     numbers: &mut BTreeMap<&'static str, f64>,
 ) -> String {
     let mut text = format!(
-        "Your glass's reflected share, fitted from {n} pixels: {} at normal incidence, {} at 60°, {} at 80°; the exact Fresnel weight: {}, {}, {}",
+        "Your glass's reflected share, fitted from {n} pixels: {} at normal incidence, {} at 60°, {} at 80°; the exact Fresnel weight: {}",
         pct(yours[0]),
         pct(yours[1]),
         pct(yours[2]),
-        pct(exact[0]),
-        pct(exact[1]),
-        pct(exact[2])
+        pcts(exact)
     );
     let course = course_knots(ior);
     let leave = ENTER_KNOTS.len();
