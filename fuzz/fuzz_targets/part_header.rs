@@ -7,12 +7,14 @@
 
 use libfuzzer_sys::fuzz_target;
 use rayscope_core::farm::{read_part_header, PartHeader, MAX_HEADER_BYTES};
-use rayscope_core::settings::Limits;
+use rayscope_core::settings::{Limits, Ranges};
 
 /// The command line's limits without `--allow-large`, without asking the system for its memory.
 const LIMITS: Limits = Limits {
+    ranges: Ranges::COMMAND_LINE,
     max_pixels: 8192 * 8192,
     memory_bytes: 2 << 30,
+    max_grid_samples: Some(16 * 8192 * 8192),
     max_samples: None,
     pixel_hint: "",
     memory_hint: "",
