@@ -280,3 +280,90 @@ fn every_refusal_is_a_json_error() {
     assert_eq!(request(addr, "GET", "/api/scene", b"").0, 200);
     server.stop();
 }
+
+/// A value outside its range, sent to the settings API, is refused in the core's words: the
+/// command line's words exactly where the bound is the command line's, and the debugger's own
+/// bound named as the debugger's where it is narrower; the settings stay as they were.
+#[test]
+fn out_of_range_settings_are_refused_in_the_words_the_command_line_uses() {
+    use rayscope_core::settings::{Ranges, Setting};
+    let server = start_server(SCENE, 40, 30);
+    let addr = server.addr;
+    let cli = Ranges::COMMAND_LINE;
+    let dbg = Ranges::DEBUGGER;
+    // (request body, the core's words, the command line's words where the range is the command
+    // line's; None where the debugger's range is narrower, so its message names its own range)
+    let cases: Vec<(&str, String, Option<String>)> = vec![
+        (r#"{"width": 0}"#, refused(dbg.whole(Setting::Width, 0)), None),
+        (r#"{"width": 4096}"#, refused(dbg.whole(Setting::Width, 4096)), None),
+        (r#"{"aa": 0}"#, refused(dbg.whole(Setting::Aa, 0)), None),
+        (r#"{"aa": 17}"#, refused(dbg.whole(Setting::Aa, 17)), None),
+        (
+            r#"{"quality": 17}"#,
+            refused(dbg.whole(Setting::Quality, 17)),
+            Some(refused(cli.whole(Setting::Quality, 17))),
+        ),
+        (r#"{"max_depth": 65}"#, refused(dbg.whole(Setting::MaxDepth, 65)), None),
+        (
+            r#"{"fov": 180}"#,
+            refused(dbg.real(Setting::Fov, 180.0)),
+            Some(refused(cli.real(Setting::Fov, 180.0))),
+        ),
+        (
+            r#"{"fov": 0}"#,
+            refused(dbg.real(Setting::Fov, 0.0)),
+            Some(refused(cli.real(Setting::Fov, 0.0))),
+        ),
+        (r#"{"aperture": -1}"#, refused(dbg.real(Setting::Aperture, -1.0)), None),
+        (
+            r#"{"aperture": 1000}"#,
+            refused(dbg.real(Setting::Aperture, 1000.0)),
+            None,
+        ),
+        (
+            r#"{"focal_length": 0}"#,
+            refused(dbg.real(Setting::FocalLength, 0.0)),
+            None,
+        ),
+        (r#"{"cam_angle": 1e6}"#, refused(dbg.real(Setting::CamAngle, 1e6)), None),
+        (
+            r#"{"cam_pos": [2e6, 0, 0]}"#,
+            refused(dbg.coordinates(Setting::CamPos, glam::Vec3::new(2e6, 0.0, 0.0))),
+            None,
+        ),
+        (
+            r#"{"cam_axis": [0, 0, 0], "cam_angle": 30}"#,
+            refused(rayscope_core::settings::check_camera_axis(glam::Vec3::ZERO, 30.0)),
+            Some(refused(rayscope_core::settings::check_camera_axis(
+                glam::Vec3::ZERO,
+                30.0,
+            ))),
+        ),
+    ];
+    for (body, core, command_line) in cases {
+        let a = send(
+            addr,
+            "POST",
+            "/api/settings",
+            &[("Content-Type", "application/json")],
+            body.as_bytes(),
+        );
+        assert_eq!(a.code, 400, "{body}: {}", a.text());
+        assert_eq!(a.error(), core, "{body}: the API's words are the core's");
+        match command_line {
+            Some(words) => assert_eq!(a.error(), words, "{body}: the command line's words"),
+            None => assert!(
+                a.error().contains(" in the debugger, found "),
+                "{body}: the debugger's own bound says it is the debugger's: {}",
+                a.error()
+            ),
+        }
+    }
+    assert_eq!(width(addr), 40, "no refused request changed the settings");
+    server.stop();
+}
+
+/// The message of a value the core refuses.
+fn refused<T: std::fmt::Debug>(r: Result<T, String>) -> String {
+    r.expect_err("out of range")
+}
