@@ -564,55 +564,9 @@ fn diagnose_names_real_students_mistakes_in_a_template_shaped_tracer() {
             Some(("--max-depth 2", "every ray from depth 3 on")),
         ),
     ] {
-        let Some(mut cmd) = tracer(Lang::CSharp) else {
+        let Some((d, text)) = csharp_diagnosis(scene, bug, w, h) else {
             return;
         };
-        let dir = tempfile::tempdir().expect("temp dir");
-        let ppm = dir.path().join("out.ppm");
-        let out = cmd
-            .arg("-f")
-            .arg(scene)
-            .args([
-                "-w",
-                &w.to_string(),
-                "-h",
-                &h.to_string(),
-                "--bug",
-                bug,
-                "--serial",
-                "-o",
-            ])
-            .arg(&ppm)
-            .env_remove("RAYSCOPE_LOG")
-            .output()
-            .expect("run the tracer");
-        assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
-        let rgb: Vec<u8> = std::fs::read_to_string(&ppm)
-            .expect("the picture")
-            .split_whitespace()
-            .skip(4)
-            .map(|t| t.parse().expect("a byte"))
-            .collect();
-        let file = rayscope_scene::load(scene).expect("scene");
-        let flags = RenderSettings {
-            width: w,
-            height: h,
-            stage: Stage::Two,
-            ..RenderSettings::default()
-        };
-        let image = rayscope_core::diagnose::Image {
-            width: w,
-            height: h,
-            rgb: &rgb,
-            alpha: None,
-        };
-        let opts = rayscope_core::diagnose::DiagnoseOptions {
-            pairs: false,
-            coarse_samples: 2_400,
-            ..Default::default()
-        };
-        let d = rayscope_core::diagnose::diagnose(&file, &flags, image, &opts).expect("the sizes agree");
-        let text = rayscope_core::diagnose::report_text(&d, &scene.display().to_string());
         match named {
             None => assert!(d.matches, "{bug}:\n{text}"),
             Some((name, said)) => {
@@ -625,4 +579,76 @@ fn diagnose_names_real_students_mistakes_in_a_template_shaped_tracer() {
             }
         }
     }
+}
+
+/// The template-shaped C# tracer's stage-2 picture of `scene` with `bug`, `w`×`h`, diagnosed
+/// from the picture alone, with the report; `None` where Mono is missing.
+fn csharp_diagnosis(scene: &Path, bug: &str, w: u32, h: u32) -> Option<(rayscope_core::diagnose::Diagnosis, String)> {
+    let mut cmd = tracer(Lang::CSharp)?;
+    let dir = tempfile::tempdir().expect("temp dir");
+    let ppm = dir.path().join("out.ppm");
+    let out = cmd
+        .arg("-f")
+        .arg(scene)
+        .args([
+            "-w",
+            &w.to_string(),
+            "-h",
+            &h.to_string(),
+            "--bug",
+            bug,
+            "--serial",
+            "-o",
+        ])
+        .arg(&ppm)
+        .env_remove("RAYSCOPE_LOG")
+        .output()
+        .expect("run the tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let rgb: Vec<u8> = std::fs::read_to_string(&ppm)
+        .expect("the picture")
+        .split_whitespace()
+        .skip(4)
+        .map(|t| t.parse().expect("a byte"))
+        .collect();
+    let file = rayscope_scene::load(scene).expect("scene");
+    let flags = RenderSettings {
+        width: w,
+        height: h,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let image = rayscope_core::diagnose::Image {
+        width: w,
+        height: h,
+        rgb: &rgb,
+        alpha: None,
+    };
+    let opts = rayscope_core::diagnose::DiagnoseOptions {
+        pairs: false,
+        coarse_samples: 2_400,
+        ..Default::default()
+    };
+    let d = rayscope_core::diagnose::diagnose(&file, &flags, image, &opts).expect("the sizes agree");
+    let text = rayscope_core::diagnose::report_text(&d, &scene.display().to_string());
+    Some((d, text))
+}
+
+/// Shadow rays that start on their surface in the template-shaped C# tracer (double precision,
+/// no offset): the acne falls where the tracer's own rounding puts it, and `diagnose` names it
+/// on the first line from how the picture looks.
+#[test]
+fn diagnose_recognises_the_template_tracer_s_shadow_acne() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_2.txt");
+    let Some((d, text)) = csharp_diagnosis(&scene, "shadow-no-offset", 160, 120) else {
+        return;
+    };
+    let first = text.lines().next().unwrap_or_default();
+    assert!(first.contains("shadow acne ('no-shadow-offset')"), "{text}");
+    let r = d.recognised.first().expect("recognised");
+    assert!(r.share > 0.8, "{r:?}");
+    assert!(r.entities.iter().any(|e| e.contains("Wall")), "{r:?}");
 }

@@ -47,10 +47,12 @@ use crate::render::{render, Mistaken};
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Setting, SettingsPatch, Stage};
 
+mod acne;
 mod explained;
 mod families;
 mod ties;
 
+pub use acne::Recognised;
 use explained::{block_means, Traced, BLOCK};
 pub use explained::{Explained, NextStep, PartExplained};
 pub use families::Fitted;
@@ -211,6 +213,9 @@ pub struct Diagnosis {
     /// the course's value does not (the Fresnel weight of glass): beneath a catalogued cause, the
     /// value the image shows; where no catalogued mistake explains that part, the finding itself.
     pub fitted: Vec<Fitted>,
+    /// Mistakes recognised from how the picture looks (shadow acne: specks of lost light where
+    /// rayscope's render is smooth), where no catalogued render is the cause.
+    pub recognised: Vec<Recognised>,
     /// Where no explanation matches: the pixels to log with the student's own tracer and the
     /// commands that judge them.
     pub next: Option<NextStep>,
@@ -1219,6 +1224,13 @@ pub fn diagnose(
     } else {
         families::fit(scenes.get(base.mistakes), &base, image.rgb)
     };
+    let recognised = if matches || constant || explanations.first().is_some_and(|e| e.cause) {
+        Vec::new()
+    } else {
+        acne::recognise(scenes.file, &base, &ours, image.rgb, &differing, &traced)
+            .into_iter()
+            .collect()
+    };
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(Obvious::turned_back);
     let next = if matches || explanations.first().is_some_and(|e| e.cause) {
@@ -1247,6 +1259,7 @@ pub fn diagnose(
         attribution,
         explanations,
         fitted,
+        recognised,
         next,
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
@@ -1770,7 +1783,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
 
 /// The report's first line after what is plain: the cause, or what part of the picture is
 /// explained, or that no known mistake explains it.
-fn headline(d: &Diagnosis) -> String {
+pub fn headline(d: &Diagnosis) -> String {
     // A one-coloured picture is said first, and many renders are that colour too: which one
     // is the cause the picture cannot tell.
     let plain = d
@@ -1788,6 +1801,7 @@ fn headline(d: &Diagnosis) -> String {
             match_how(d, e)
         ),
         Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
+        _ if !d.recognised.is_empty() => recognised_lines(d),
         e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
             let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
             format!(
@@ -1805,6 +1819,24 @@ fn headline(d: &Diagnosis) -> String {
             d.candidates
         ),
     }
+}
+
+/// The headline of a mistake recognised from how the picture looks, and how much of the
+/// difference it accounts for.
+fn recognised_lines(d: &Diagnosis) -> String {
+    let mut out = String::new();
+    for r in &d.recognised {
+        out.push_str(&format!("Recognised from how your picture looks: {}\n", r.text));
+        if r.share < 0.9 {
+            out.push_str(&format!(
+                "  That is {} of the {} differing pixels ({:.0} %); the rest is not explained by it.\n",
+                r.pixels,
+                d.differing_pixels,
+                100.0 * r.share
+            ));
+        }
+    }
+    out
 }
 
 /// The fitted families beneath a catalogued cause, one indented line each.
@@ -1969,6 +2001,7 @@ mod tests {
             attribution: Vec::new(),
             explanations: Vec::new(),
             fitted: Vec::new(),
+            recognised: Vec::new(),
             next: None,
             candidates: 1,
             seconds: 0.0,

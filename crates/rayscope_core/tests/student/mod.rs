@@ -75,6 +75,8 @@ struct Hit {
     n: DVec3,
     /// The interpolated normal of a smooth mesh, on the same side as `n`.
     shading: DVec3,
+    /// The direction of the ray that hit.
+    dir: DVec3,
     obj: usize,
 }
 
@@ -233,13 +235,14 @@ impl Student {
                 } else {
                     self.reflect(ray.d, n)
                 };
-                self.trace(
-                    Ray {
-                        o: hit.p + n * EPS,
-                        d: r,
-                    },
-                    depth + 1,
-                )
+                // Uncatalogued: the reflected ray starts on the mirror (acne of the mirror's own
+                // rays, not of shadows).
+                let o = if self.bug("no-mirror-offset") {
+                    hit.p
+                } else {
+                    hit.p + n * EPS
+                };
+                self.trace(Ray { o, d: r }, depth + 1)
             }
             MaterialKind::Refractive => {
                 if depth >= self.max_depth() {
@@ -272,6 +275,12 @@ impl Student {
     fn diffuse(&self, hit: &Hit, n: DVec3, ns: DVec3, color: DVec3) -> DVec3 {
         let origin = if self.bug("no-shadow-offset") {
             hit.p
+        } else if self.bug("no-shadow-offset-single") {
+            // Uncatalogued as such: no offset, with the distance kept in single precision (a
+            // Unity `float`), so the point lies off the surface by up to about 1e-7 of the
+            // distance, below it wherever rounding says: acne on other pixels than rayscope's.
+            let single = f64::from(hit.t as f32);
+            hit.p + hit.dir * (single - hit.t)
         } else if self.bug("huge-shadow-offset") {
             hit.p + n * 0.1
         } else {
@@ -449,6 +458,7 @@ impl Student {
                         p: ray.o + ray.d * t,
                         n,
                         shading,
+                        dir: ray.d,
                         obj: i,
                     });
                 }

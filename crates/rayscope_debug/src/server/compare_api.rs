@@ -22,7 +22,7 @@
 //! [`Diagnosis`]: rayscope_core::diagnose::Diagnosis
 
 use rayscope_core::compare::{compare_rgb8, heatmap};
-use rayscope_core::diagnose::{attribution, diagnose, differing_pixels, report_text, DiagnoseOptions, Image};
+use rayscope_core::diagnose::{attribution, diagnose, differing_pixels, headline, report_text, DiagnoseOptions, Image};
 
 use super::rays_api::their_image;
 use super::*;
@@ -248,7 +248,11 @@ fn diagnosis(st: &Arc<AppState>, img: &Arc<RgbImage>, settings: RenderSettings) 
         }));
         let scene_name = st2.scene_json["path"].as_str().unwrap_or("scene.txt").to_string();
         let result = match outcome {
-            Ok(Ok(d)) => Ok(json!({"result": d, "text": report_text(&d, &scene_name)})),
+            Ok(Ok(d)) => Ok(json!({
+                "result": d,
+                "headline": headline(&d),
+                "text": report_text(&d, &scene_name),
+            })),
             Ok(Err(e)) => Err(e.to_string()),
             Err(_) => Err("the diagnosis failed (a bug in rayscope: please report it)".to_string()),
         };

@@ -1,0 +1,94 @@
+//! Shadow acne is recognised by what it looks like — specks of lost light on lit surfaces where
+//! rayscope's picture is smooth — wherever the student's own rounding puts the specks, and
+//! named on the report's first line; pictures with other mistakes, speckled ones included, are
+//! never called acne.
+
+mod student;
+
+use std::path::Path;
+
+use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Diagnosis, Image};
+use rayscope_core::{RenderSettings, Stage};
+use student::{Options, Student};
+
+/// The diagnosis of the student's stage-2 picture of `path` with `bugs`, `w`×`h`, and its report.
+fn run(path: &Path, bugs: &[&'static str], w: u32, h: u32) -> (Diagnosis, String) {
+    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let opts = Options::new(w, h);
+    let img = Student::new(&file, bugs, opts).render();
+    let image = Image {
+        width: w,
+        height: h,
+        rgb: &img,
+        alpha: None,
+    };
+    let flags = RenderSettings {
+        width: w,
+        height: h,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let search = DiagnoseOptions {
+        pairs: false,
+        coarse_samples: 2_400,
+        ..DiagnoseOptions::default()
+    };
+    let d = diagnose(&file, &flags, image, &search).expect("the sizes agree");
+    let text = report_text(&d, &path.display().to_string());
+    (d, text)
+}
+
+/// A shadow ray that starts on its surface, with the hit point in double or in single precision
+/// (whose specks fall on other pixels than any render of rayscope's): the first line names
+/// shadow acne, and the recognised finding says which lights the specks lose.
+#[test]
+fn shadow_acne_is_named_wherever_the_tracer_s_rounding_puts_it() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_2.txt");
+    for bug in ["no-shadow-offset-single", "no-shadow-offset"] {
+        let (d, text) = run(&scene, &[bug], 160, 120);
+        let first = text.lines().next().unwrap_or_default();
+        assert!(first.contains("'no-shadow-offset'"), "{bug}:\n{text}");
+        if bug == "no-shadow-offset-single" {
+            let r = d
+                .recognised
+                .first()
+                .unwrap_or_else(|| panic!("{bug}: not recognised:\n{text}"));
+            assert_eq!(r.code, "shadow-acne");
+            assert!(
+                first.starts_with("Recognised from how your picture looks: shadow acne"),
+                "{text}"
+            );
+            assert!(r.text.contains("Light1") && r.text.contains("Light2"), "{}", r.text);
+            assert!(r.share > 0.8, "acne is most of the difference: {r:?}");
+        }
+    }
+}
+
+/// Mistakes that darken, brighten or speckle other things than shadows are never called acne:
+/// whole shadows too long or missing, a light left out, fall-off, the mirror's own rays starting
+/// on the mirror (black specks on the mirror), a hit rule that skips near surfaces.
+#[test]
+fn other_mistakes_are_not_called_acne() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_2.txt");
+    for bug in [
+        "shadow-past-light",
+        "huge-shadow-offset",
+        "first-light-only",
+        "light-falloff",
+        "no-mirror-offset",
+        "min-hit-distance",
+        "strict-edges",
+        "reflect-sign",
+    ] {
+        let (d, text) = run(&scene, &[bug], 160, 120);
+        assert!(d.recognised.is_empty(), "{bug}: called acne:\n{text}");
+        let first = text.lines().next().unwrap_or_default();
+        assert!(!first.contains("acne"), "{bug}:\n{text}");
+    }
+}
