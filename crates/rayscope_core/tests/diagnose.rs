@@ -313,6 +313,40 @@ fn mistakes_from_real_tracers_are_found() {
     assert!(d.matches, "{}", summary(&d));
 }
 
+/// Mistakes in the sphere and plane tests and in the diffuse sum, each found alone where it
+/// shows.
+#[test]
+fn sphere_plane_and_diffuse_sum_mistakes_are_found() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // Scene 1's diffuse sphere has radius 0.5; scene 2's mirror and glass 0.35 and 0.25.
+    found_alone(
+        "sphere-normal-unnormalised",
+        &[course.scene("sample_scene_1.txt"), course.scene("sample_scene_2.txt")],
+    );
+    // Only refracted rays start inside a sphere.
+    found_alone(
+        "sphere-near-root-behind",
+        &[
+            course.scene("sample_scene_2.txt"),
+            rayscope_testkit::scene("whitted.txt"),
+        ],
+    );
+    // Black wherever there is a plane. In scene 2's closed box and under our still life's back
+    // wall a shadow test blocked beyond the light blackens everything too; scene 1 is open.
+    found_alone("plane-hits-behind", &[course.scene("sample_scene_1.txt")]);
+    // Only interpolated normals turn from a light the face sees: the bunny, and a coarse ball
+    // of ours lit from the side and the front.
+    found_alone(
+        "n-dot-l-unclamped",
+        &[
+            course.scene("sample_scene_obj.txt"),
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/smooth_ball.txt"),
+        ],
+    );
+}
+
 #[test]
 fn pairs_of_mistakes_are_found() {
     let Some(course) = rayscope_testkit::course() else {
