@@ -434,6 +434,10 @@ impl Mistake {
             // only: most answers follow neither convention the same way, and the front-face
             // hits break the one the back-face hits set.
             Mistake::ReversedNormals => &["triangle: normal-flipped"],
+            Mistake::SphereNormalUnnormalised => &["sphere: normal-not-unit"],
+            // From the centre, too, the near root lies behind the origin.
+            Mistake::SphereNearRootBehind => &["sphere inside: behind-origin", "sphere centre: behind-origin"],
+            Mistake::PlaneHitsBehind => &["plane away: behind-origin"],
             _ => &[],
         }
     }
