@@ -400,6 +400,8 @@ impl Student {
         }
     }
 
+    /// The nearest hit below `t_max`; each entity's test rejects hits at or before `t_min`
+    /// itself (the plane's, with `plane-hits-behind`, none).
     fn closest(&self, ray: Ray, t_max: f64) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         // Whether the student compares hits by their distance along the ray.
