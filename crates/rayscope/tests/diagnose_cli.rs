@@ -376,9 +376,9 @@ fn a_constant_picture_is_said_first_and_explained_by_no_near_miss() {
         }
     }
 
-    // In the course's scene 1 no mistake renders black everywhere. Those that leave only a few
-    // pixels lit come near a black picture, as do many others: none is offered as its cause,
-    // and the student is sent to the rays instead.
+    // In the course's scene 1 only a plane test that accepts hits behind the ray renders black
+    // everywhere (the picture the issue's tester saw): it is offered as one way to get this
+    // picture, a lead the text does not call the cause.
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
@@ -389,21 +389,19 @@ fn a_constant_picture_is_said_first_and_explained_by_no_near_miss() {
         text.starts_with("Your image is entirely black: every byte is 0 (64×48 pixels)"),
         "{text}"
     );
-    assert!(d["explanations"].as_array().unwrap().is_empty(), "{d:#}");
-    let second = text.lines().nth(1).unwrap_or_default();
-    assert!(second.starts_with("No known mistake explains your picture"), "{text}");
+    let names: Vec<&str> = (d["explanations"].as_array().unwrap().iter())
+        .flat_map(|e| e["mistakes"].as_array().unwrap())
+        .filter_map(|m| m.as_str())
+        .collect();
+    assert_eq!(names, ["plane-hits-behind"], "{d:#}");
     assert!(
-        !text.contains("your image matches") && !text.contains("comes closest"),
+        text.contains("Many mistakes give a picture that is black everywhere")
+            && text.contains("'plane-hits-behind' (")
+            && text.contains("renders it too, black everywhere")
+            && text.contains("one way to get this picture"),
         "{text}"
     );
-    let pixels = d["next"]["pixels"].as_array().unwrap();
-    assert!(!pixels.is_empty() && pixels.len() <= 6, "{d:#}");
-    assert!(
-        text.contains("RAYSCOPE_LOG=rays.jsonl RAYSCOPE_LOG_PIXELS=\"")
-            && text.contains("rayscope check -f ")
-            && text.contains("rayscope trace -f "),
-        "{text}"
-    );
+    assert!(!text.contains("your image matches"), "{text}");
 }
 
 #[test]

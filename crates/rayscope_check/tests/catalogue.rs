@@ -15,7 +15,11 @@ fn case(m: Mistake) -> (&'static str, u32, u32, std::ops::Range<u32>) {
     match m {
         // A pane of glass 0.03 thick: the course's scenes have nothing that near another surface.
         Mistake::MinHitDistance => return ("thin_pane.txt", 40, 40, 0..40),
-        Mistake::NearestByOriginDistance => return ("sample_scene_2.txt", 40, 40, 0..40),
+        Mistake::NearestByOriginDistance | Mistake::SphereNearRootBehind => {
+            return ("sample_scene_2.txt", 40, 40, 0..40);
+        }
+        // Only interpolated normals turn from a light the face sees: a coarse smooth ball.
+        Mistake::NdotLUnclamped => return ("smooth_ball.txt", 64, 48, 0..48),
         Mistake::FirstHitInSceneOrder | Mistake::CamAngleRadians | Mistake::AccumulatorNotReset => {
             return ("sample_scene_1.txt", 40, 40, 0..40);
         }
@@ -41,7 +45,9 @@ fn check_mistake(course: &rayscope_testkit::Course, m: Mistake) -> Report {
     let (file, w, h, rows) = case(m);
     let path = match file {
         "glass_cube.txt" => std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/glass_cube.txt"),
-        "thin_pane.txt" => rayscope_testkit::workspace().join("crates/rayscope_core/tests/scenes/thin_pane.txt"),
+        "thin_pane.txt" | "smooth_ball.txt" => rayscope_testkit::workspace()
+            .join("crates/rayscope_core/tests/scenes")
+            .join(file),
         _ => course.scene(file),
     };
     let parsed = rayscope_scene::load(&path).expect("scene");

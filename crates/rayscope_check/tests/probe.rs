@@ -13,6 +13,9 @@ use rayscope_core::mistakes::Mistake;
 const STUDENT_SWITCHES: &[(Mistake, &str)] = &[
     (Mistake::OneSidedTriangles, "triangle-one-sided"),
     (Mistake::ReversedNormals, "triangle-reversed-normals"),
+    (Mistake::SphereNormalUnnormalised, "sphere-normal-unnormalised"),
+    (Mistake::SphereNearRootBehind, "sphere-inside"),
+    (Mistake::PlaneHitsBehind, "plane-behind"),
 ];
 
 fn manifest(rel: &str) -> PathBuf {

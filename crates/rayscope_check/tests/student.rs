@@ -410,11 +410,10 @@ fn refracted_rays_leaving_a_mirror_are_named() {
     );
 }
 
-/// A mistake that must be the report's one headline, whatever verdicts follow from it.
-fn assert_one_headline(run: Run<'_>, code: Code) {
-    let Some(r) = run.check() else {
-        return;
-    };
+/// A mistake that must be the report's one headline, whatever verdicts follow from it; the
+/// report, where the tracer ran.
+fn assert_one_headline(run: Run<'_>, code: Code) -> Option<Report> {
+    let r = run.check()?;
     let t = text(&r);
     assert!(
         t.lines().next().is_some_and(|l| l.contains(code.as_str())),
@@ -424,6 +423,7 @@ fn assert_one_headline(run: Run<'_>, code: Code) {
     );
     assert_eq!(r.causes.len(), 1, "bug '{}' has more than one headline:\n{t}", run.bug);
     assert!(r.causes[0].code == code || r.causes[0].or == Some(code), "{t}");
+    Some(r)
 }
 
 /// Mistakes whose consequences outnumber them: each is the report's one headline, and what it
@@ -433,19 +433,37 @@ fn a_mistake_heads_the_report_above_its_consequences() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    for (bug, code) in [
-        ("reflect-no-2", Code::ReflectionNotMirror),
-        ("sphere-normal-unnormalised", Code::HitNormalNotUnit),
-        ("eta-inverted", Code::RefractionIndicesNotSwapped),
-        ("near-root-inside", Code::HitBehindOrigin),
+    // With the catalogue's name for the mistake where the tracer makes it as the catalogue
+    // describes it (its eta-inverted inverts η leaving the glass too).
+    for (bug, code, catalogued) in [
+        ("reflect-no-2", Code::ReflectionNotMirror, Some("reflect-no-2")),
+        (
+            "sphere-normal-unnormalised",
+            Code::HitNormalNotUnit,
+            Some("sphere-normal-unnormalised"),
+        ),
+        ("eta-inverted", Code::RefractionIndicesNotSwapped, None),
+        (
+            "near-root-inside",
+            Code::HitBehindOrigin,
+            Some("sphere-near-root-behind"),
+        ),
     ] {
-        assert_one_headline(
+        let r = assert_one_headline(
             Run {
                 bug,
                 ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
             },
             code,
         );
+        if let (Some(r), Some(name)) = (r, catalogued) {
+            assert!(
+                r.causes[0].catalogue.contains(&name),
+                "{bug}:
+{}",
+                text(&r)
+            );
+        }
     }
 }
 

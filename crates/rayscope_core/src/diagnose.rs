@@ -680,6 +680,10 @@ struct Contents {
     single_triangles: bool,
     meshes: bool,
     mesh_normals: bool,
+    /// Spheres, and spheres whose radius is not 1.
+    spheres: bool,
+    spheres_not_unit: bool,
+    planes: bool,
     lights: usize,
 }
 
@@ -705,6 +709,10 @@ impl Contents {
                 .any(|e| matches!(e.shape, Shape::Triangle { .. } | Shape::Mesh { .. })),
             meshes: mesh(&|m| !m.triangles.is_empty()),
             mesh_normals: mesh(&|m| m.triangles.iter().any(|t| t.normals.is_some())),
+            spheres: file.entities.iter().any(|e| matches!(e.shape, Shape::Sphere { .. })),
+            spheres_not_unit: (file.entities.iter())
+                .any(|e| matches!(e.shape, Shape::Sphere { radius, .. } if radius != 1.0)),
+            planes: file.entities.iter().any(|e| matches!(e.shape, Shape::Plane { .. })),
             lights: file.lights.len(),
         }
     }
@@ -736,6 +744,11 @@ impl Contents {
             M::StrictEdges => self.triangles,
             M::ObjNoZFlip => self.meshes,
             M::ObjFlatNormals => self.mesh_normals,
+            M::SphereNormalUnnormalised => self.spheres_not_unit,
+            M::SphereNearRootBehind => self.spheres,
+            M::PlaneHitsBehind => self.planes,
+            // Elsewhere a light behind the surface is blocked by the surface itself.
+            M::NdotLUnclamped => self.mesh_normals && self.lights > 0,
             M::CamAngleRadians => s.camera.angle_deg != 0.0 && s.camera.axis != glam::Vec3::ZERO,
             M::MinHitDistance | M::FirstHitInSceneOrder | M::AccumulatorNotReset => true,
             // With the camera at the origin, only rays from other points choose differently.

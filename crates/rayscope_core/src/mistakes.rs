@@ -89,6 +89,14 @@ pub enum Mistake {
     FresnelSwapped,
     /// The triangle's inside test rejects hits near its edges.
     StrictEdges,
+    /// A sphere's normal is p − c, not divided by the radius.
+    SphereNormalUnnormalised,
+    /// From inside a sphere, the root behind the ray's origin is taken.
+    SphereNearRootBehind,
+    /// The plane test accepts hits behind the ray's origin (t < 0).
+    PlaneHitsBehind,
+    /// N·L is not clamped at 0: lights behind the shading normal subtract.
+    NdotLUnclamped,
 }
 
 /// What the catalogue says about a mistake.
@@ -134,7 +142,7 @@ pub(crate) const GAMMA: f32 = 1.0 / 2.2;
 
 impl Mistake {
     /// Every mistake, in catalogue order.
-    pub const ALL: [Mistake; 34] = [
+    pub const ALL: [Mistake; 38] = [
         Mistake::FovVertical,
         Mistake::AspectIgnored,
         Mistake::PixelCorners,
@@ -169,6 +177,10 @@ impl Mistake {
         Mistake::ReflectNo2,
         Mistake::FresnelSwapped,
         Mistake::StrictEdges,
+        Mistake::SphereNormalUnnormalised,
+        Mistake::SphereNearRootBehind,
+        Mistake::PlaneHitsBehind,
+        Mistake::NdotLUnclamped,
     ];
 
     /// The catalogue entry.
@@ -377,7 +389,31 @@ impl Mistake {
                 "strict-edges",
                 "rejects triangle hits within 0.02 of an edge in barycentric coordinates (u > ε, u + v < 1 − ε)",
                 "thin cracks along every triangle's edges, through which what lies behind shows",
-                "Stage 1: the nearest hit along each ray",
+                NEAREST,
+            ),
+            Mistake::SphereNormalUnnormalised => (
+                "sphere-normal-unnormalised",
+                "takes a sphere's normal as p − c without dividing by the radius r, and shades, offsets, reflects and refracts with it; with r = 1 that changes nothing",
+                "diffuse spheres of radius under 1 are lit too dimly (N·L times r), over 1 too brightly; mirror and glass spheres of radius under 1 turn black, their rays bent back into the sphere; spheres of radius 1 are unaffected",
+                SHADOWS,
+            ),
+            Mistake::SphereNearRootBehind => (
+                "sphere-near-root-behind",
+                "returns a sphere's near root t₀ whenever its far root t₁ lies ahead, also when t₀ < 0: a ray starting inside the sphere hits it behind its origin",
+                "glass spheres go dark, showing only faint reflections of the room: a ray inside meets the sphere again where it entered, until the recursion limit",
+                NEAREST,
+            ),
+            Mistake::PlaneHitsBehind => (
+                "plane-hits-behind",
+                "accepts a plane hit at any t (it only checks that d · n ≠ 0), also behind the ray's origin; the nearest hit is then the most negative one",
+                "an entirely black image wherever the scene has a plane: camera rays stop on a plane behind the camera, and every shadow ray is blocked by one",
+                NEAREST,
+            ),
+            Mistake::NdotLUnclamped => (
+                "n-dot-l-unclamped",
+                "adds albedo × light × N·L without the clamp at 0, so a light behind the shading normal whose shadow ray gets through subtracts",
+                "smooth models darken in a band where the interpolated normal turns from a light the face still sees while another light shines; elsewhere a light behind a surface is blocked by the surface itself and nothing changes",
+                SHADOWS,
             ),
         };
         MistakeInfo {
@@ -398,6 +434,10 @@ impl Mistake {
             // only: most answers follow neither convention the same way, and the front-face
             // hits break the one the back-face hits set.
             Mistake::ReversedNormals => &["triangle: normal-flipped"],
+            Mistake::SphereNormalUnnormalised => &["sphere: normal-not-unit"],
+            // From the centre, too, the near root lies behind the origin.
+            Mistake::SphereNearRootBehind => &["sphere inside: behind-origin", "sphere centre: behind-origin"],
+            Mistake::PlaneHitsBehind => &["plane away: behind-origin"],
             _ => &[],
         }
     }
@@ -437,6 +477,9 @@ impl Mistake {
             Mistake::ReflectNo2 => &["reflection.not-mirror"],
             Mistake::FresnelSwapped => &["shading.fresnel-swapped-cosines"],
             Mistake::StrictEdges => &["hit.triangle-edge"],
+            Mistake::SphereNormalUnnormalised => &["hit.normal-not-unit"],
+            Mistake::SphereNearRootBehind | Mistake::PlaneHitsBehind => &["hit.behind-origin"],
+            Mistake::NdotLUnclamped => &["shading.diffuse"],
         }
     }
 

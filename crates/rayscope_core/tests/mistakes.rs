@@ -692,3 +692,157 @@ fn a_too_strict_triangle_test_changes_only_what_triangles_show_or_shade() {
         });
     }
 }
+
+/// The scene file with its spheres' radii set to `r`.
+fn spheres_of_radius(file: &SceneFile, r: f64) -> SceneFile {
+    let mut f = file.clone();
+    for e in &mut f.entities {
+        if let rayscope_scene::Shape::Sphere { radius, .. } = &mut e.shape {
+            *radius = r;
+        }
+    }
+    f
+}
+
+#[test]
+fn unnormalised_sphere_normals_change_only_what_spheres_show_and_nothing_at_radius_1() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let base = settings(64, 64);
+    let m = Mistake::SphereNormalUnnormalised;
+    for path in [course.scene("sample_scene_1.txt"), course.scene("sample_scene_2.txt")] {
+        let c = case(&path, base, m);
+        let file = c.file.clone();
+        c.only_where("meeting a sphere", |t| {
+            any_node(t, |n| {
+                n.hit.as_ref().is_some_and(|h| kind_of(&file, h.entity) == "Sphere")
+            })
+        });
+        // The normals the mistaken render shades with are the unit ones times the radius.
+        let wrong = trees(&file, &with(&base, m));
+        let right = trees(&file, &base);
+        for (w, r) in wrong.iter().zip(&right) {
+            let (Some(wh), Some(rh)) = (&w.nodes[0].hit, &r.nodes[0].hit) else {
+                continue;
+            };
+            if let rayscope_scene::Shape::Sphere { radius, .. } = file.entities[rh.entity as usize].shape {
+                assert_eq!(wh.entity, rh.entity);
+                for k in 0..3 {
+                    let want = rh.normal[k] * radius as f32;
+                    assert!((wh.normal[k] - want).abs() < 1e-6, "{:?} vs {want}", wh.normal);
+                }
+            }
+        }
+        // With radius 1, p − c is the unit normal: nothing changes.
+        let unit = spheres_of_radius(&file, 1.0);
+        assert_eq!(bytes(&unit, &base), bytes(&unit, &with(&base, m)), "{}", path.display());
+    }
+    // Scene 1's only sphere is diffuse, of radius 0.5: N·L halves, and the sphere darkens.
+    let c = case(&course.scene("sample_scene_1.txt"), base, m);
+    c.direction(-1);
+}
+
+#[test]
+fn a_sphere_hit_behind_the_origin_changes_only_what_glass_shows() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let base = settings(64, 64);
+    let m = Mistake::SphereNearRootBehind;
+    let c = case(&course.scene("sample_scene_2.txt"), base, m);
+    c.only_where("seen through glass", |t| hits_material(t, "Refractive"));
+    // Every ray that travels inside the glass meets it behind its origin, where it entered.
+    let wrong = trees(&c.file, &with(&base, m));
+    let mut inside = 0;
+    for t in &wrong {
+        for n in &t.nodes {
+            let parent = n.parent.map(|p| &t.nodes[p as usize]);
+            let entered = n.kind == RayKind::Refraction
+                && parent.is_some_and(|p| {
+                    p.hit
+                        .as_ref()
+                        .is_some_and(|h| h.front_face && h.material_kind == "Refractive")
+                });
+            if entered {
+                let h = n.hit.as_ref().expect("a ray inside glass hits it");
+                assert!(h.t < 0.0 && h.material_kind == "Refractive" && h.front_face, "{h:?}");
+                inside += 1;
+            }
+        }
+    }
+    assert!(inside > 0, "no ray entered the glass");
+    // Camera and shadow rays start outside every sphere: without glass nothing changes.
+    let file = load(&course.scene("sample_scene_1.txt"));
+    assert_eq!(bytes(&file, &base), bytes(&file, &with(&base, m)));
+}
+
+#[test]
+fn plane_hits_behind_the_origin_blacken_every_scene_with_a_plane_and_no_other() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let base = settings(48, 48);
+    let m = Mistake::PlaneHitsBehind;
+    for path in [course.scene("sample_scene_1.txt"), course.scene("sample_scene_2.txt")] {
+        let c = case(&path, base, m);
+        assert!(c.wrong.iter().all(|&v| v == 0), "{}: not all black", path.display());
+        // A camera ray that meets a plane behind the camera stops on the farthest such plane
+        // behind it, and every diffuse hit's shadow rays are blocked.
+        let wrong = trees(&c.file, &with(&base, m));
+        for t in &wrong {
+            let d = glam::Vec3::from(t.nodes[0].direction);
+            let behind = c.file.entities.iter().enumerate().filter_map(|(k, e)| match e.shape {
+                rayscope_scene::Shape::Plane { point, normal } => {
+                    let (p, n) = (point.as_vec3(), normal.as_vec3().normalize());
+                    let t = p.dot(n) / d.dot(n);
+                    (t < 0.0).then_some((k, t))
+                }
+                _ => None,
+            });
+            let farthest = behind.min_by(|a, b| a.1.total_cmp(&b.1));
+            let hit = t.nodes[0].hit.as_ref();
+            match farthest {
+                Some((k, _)) => {
+                    let h = hit.expect("a hit behind the camera");
+                    assert!(h.entity as usize == k && h.t < 0.0, "{h:?}");
+                }
+                None => assert!(hit.is_none_or(|h| h.t > 0.0)),
+            }
+            for n in &t.nodes {
+                assert!(n.kind != RayKind::Shadow || n.blocked_by.is_some(), "a light reached");
+            }
+        }
+    }
+    // Without its planes scene 2 renders as it should.
+    let mut file = load(&course.scene("sample_scene_2.txt"));
+    file.entities
+        .retain(|e| !matches!(e.shape, rayscope_scene::Shape::Plane { .. }));
+    assert_eq!(bytes(&file, &base), bytes(&file, &with(&base, m)));
+}
+
+#[test]
+fn n_dot_l_unclamped_darkens_only_where_an_unblocked_light_lies_behind_the_shading_normal() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let m = Mistake::NdotLUnclamped;
+    for path in [
+        course.scene("sample_scene_obj.txt"),
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/scenes/smooth_ball.txt"),
+    ] {
+        let c = case(&path, settings(64, 64), m);
+        c.direction(-1);
+        c.only_where("lit past a reached light that adds nothing", |t| {
+            any_node(t, |n| {
+                n.kind == RayKind::Shadow && n.blocked_by.is_none() && !lit(n.value)
+            })
+        });
+    }
+    // Without interpolated normals every light behind a surface is blocked by that surface.
+    for name in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+        let file = load(&course.scene(name));
+        let base = settings(48, 48);
+        assert_eq!(bytes(&file, &base), bytes(&file, &with(&base, m)), "{name}");
+    }
+}

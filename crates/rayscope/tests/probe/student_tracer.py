@@ -8,6 +8,8 @@ PROBE_MISTAKES (comma-separated) picks the mistakes:
   plane-parallel-inf   the same division done the C# way: t becomes +-infinity and is returned
   triangle-strict      Moller-Trumbore with > / < where >= / <= belong (edges and corners miss)
   normal-unnormalised  sphere normal P - C, triangle normal (v1 - v0) x (v2 - v0) not normalised
+  sphere-normal-unnormalised  sphere normal P - C only (triangles' normals normalised)
+  plane-behind         the plane test checks only that d . n is not 0: hits behind the origin too
   triangle-reversed-normals  triangle normal (v2 - v0) x (v1 - v0), never turned towards the ray
 and, not a mistake,
   float32              every operation rounded to single precision, like a tracer using float
@@ -101,7 +103,7 @@ class Sphere:
             return None
         p = ray.origin + ray.direction * t
         n = p - self.center
-        if "normal-unnormalised" not in MISTAKES:
+        if "normal-unnormalised" not in MISTAKES and "sphere-normal-unnormalised" not in MISTAKES:
             n = n * r(1.0 / self.radius)
         return RayHit(p, n, ray.direction)
 
@@ -121,7 +123,7 @@ class Plane:
             if abs(denom) < 1e-12:
                 return None
             t = r(num / denom)
-        if not t > EPSILON:
+        if not t > EPSILON and "plane-behind" not in MISTAKES:
             return None
         return RayHit(ray.origin + ray.direction * t, self.normal, ray.direction)
 

@@ -173,6 +173,13 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             s
         };
+        let unscaled;
+        let s = if self.mistake(Mistake::SphereNormalUnnormalised) {
+            unscaled = self.unnormalised_sphere_normal(hit, s);
+            &unscaled
+        } else {
+            s
+        };
         if O::ENABLED {
             cx.obs.hit(id, self.scene, hit.t, s);
         }
@@ -266,6 +273,22 @@ impl<I: Intersect> Integrator<'_, I> {
             normal: -s.normal,
             shading_normal: -s.shading_normal,
             front_face: false,
+            ..*s
+        }
+    }
+
+    /// The surface as a tracer with [`Mistake::SphereNormalUnnormalised`] sees it: a sphere's
+    /// normals p − c, the unit normals times the radius. (The glass rules clamp cos θi at 1, so
+    /// glass spheres of radius over 1 bend as with cos θi = 1 where p − c makes it larger.)
+    #[cold]
+    fn unnormalised_sphere_normal(&self, hit: &Hit, s: &Surface) -> Surface {
+        let PrimRef::Sphere(i) = hit.prim else {
+            return *s;
+        };
+        let r = self.scene.spheres[i as usize].radius;
+        Surface {
+            normal: s.normal * r,
+            shading_normal: s.shading_normal * r,
             ..*s
         }
     }
@@ -575,6 +598,9 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             s.point + s.normal * eps
         };
+        // A student's N·L without its clamp at 0 adds the negative terms of lights behind the
+        // shading normal that its shadow rays reach.
+        let unclamped = self.mistake(Mistake::NdotLUnclamped);
         for (li, light) in self.scene.lights.iter().enumerate() {
             if li > 0 && self.mistake(Mistake::FirstLightOnly) {
                 break;
@@ -601,7 +627,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 self.isect
                     .occluder(&shadow, 0.0, reach)
                     .map(|p| self.scene.prim_info(p).0)
-            } else if cos <= 0.0 || self.isect.occluded(&shadow, 0.0, reach) {
+            } else if (cos <= 0.0 && !unclamped) || self.isect.occluded(&shadow, 0.0, reach) {
                 // Shadow rays behind the surface cannot contribute; only the recorder needs them traced.
                 Some(u32::MAX)
             } else {
@@ -613,7 +639,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 cx.obs
                     .shadow(id, self.scene, name, blocker, nearest.as_ref().map(|(t, s)| (*t, s)));
             }
-            let contrib = if blocker.is_none() && cos > 0.0 {
+            let contrib = if blocker.is_none() && (cos > 0.0 || unclamped) {
                 match lit.brdf {
                     None => point_light_contribution(lit.albedo, Vec3A::from(light.color), cos),
                     Some((bsdf, (t, b, n, wo))) => {

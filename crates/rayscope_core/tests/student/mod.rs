@@ -306,7 +306,12 @@ impl Student {
             {
                 continue;
             }
-            let mut add = color * *col * ns.dot(l).max(0.0);
+            let cos = if self.bug("n-dot-l-unclamped") {
+                ns.dot(l)
+            } else {
+                ns.dot(l).max(0.0)
+            };
+            let mut add = color * *col * cos;
             if self.bug("light-falloff") {
                 add /= dist * dist;
             }
@@ -404,6 +409,8 @@ impl Student {
         }
     }
 
+    /// The nearest hit below `t_max`; each entity's test rejects hits at or before `t_min`
+    /// itself (the plane's, with `plane-hits-behind`, none).
     fn closest(&self, ray: Ray, t_max: f64) -> Option<Hit> {
         let mut best: Option<Hit> = None;
         // Whether the student compares hits by their distance along the ray.
@@ -417,15 +424,17 @@ impl Student {
             let found = match &obj.geo {
                 Geo::Plane { p, n } => {
                     let dn = ray.d.dot(*n);
-                    if dn.abs() < 1e-12 {
-                        None
-                    } else {
-                        let t = (*p - ray.o).dot(*n) / dn;
-                        Some((t, *n, *n))
-                    }
+                    let t = (*p - ray.o).dot(*n) / dn;
+                    // Only d · n ≠ 0 checked: a hit behind the origin is accepted.
+                    let ahead = t > self.t_min() || self.bug("plane-hits-behind");
+                    (dn.abs() >= 1e-12 && ahead).then_some((t, *n, *n))
                 }
-                Geo::Sphere { c, r } => sphere(ray, *c, *r, self.t_min(), self.bug("sphere-near-root-only")).map(|t| {
-                    let n = (ray.o + ray.d * t - *c) / *r;
+                Geo::Sphere { c, r } => self.sphere(ray, *c, *r).map(|t| {
+                    let n = if self.bug("sphere-normal-unnormalised") {
+                        ray.o + ray.d * t - *c
+                    } else {
+                        (ray.o + ray.d * t - *c) / *r
+                    };
                     (t, n, n)
                 }),
                 Geo::Tri(tri) => self.triangle(ray, tri, limit),
@@ -452,7 +461,7 @@ impl Student {
                     Some(b) if self.bug("nearest-by-origin-distance") => p.length() < b.p.length(),
                     Some(_) => false,
                 };
-                if t > self.t_min() && t < limit && better {
+                if t < limit && better {
                     best = Some(Hit {
                         t,
                         p: ray.o + ray.d * t,
@@ -465,6 +474,31 @@ impl Student {
             }
         }
         best
+    }
+
+    /// The nearer root ahead of the ray, or none. Uncatalogued, `sphere-near-root-only`: the
+    /// near root or nothing, so a ray from inside the sphere (through glass) misses it.
+    /// `sphere-near-root-behind`: the near root whenever the far one lies ahead, so a ray from
+    /// inside hits the sphere behind its origin.
+    fn sphere(&self, ray: Ray, c: DVec3, r: f64) -> Option<f64> {
+        let t_min = self.t_min();
+        let oc = ray.o - c;
+        let b = oc.dot(ray.d);
+        let disc = b * b - (oc.dot(oc) - r * r);
+        if disc < 0.0 {
+            return None;
+        }
+        let s = disc.sqrt();
+        let t0 = -b - s;
+        if t0 > t_min {
+            return Some(t0);
+        }
+        if self.bug("sphere-near-root-only") {
+            return None;
+        }
+        let t1 = -b + s;
+        let near = if self.bug("sphere-near-root-behind") { t0 } else { t1 };
+        (t1 > t_min).then_some(near)
     }
 
     /// Möller–Trumbore; returns t, the face normal and the shading normal (interpolated for
@@ -519,27 +553,6 @@ impl Student {
 
 fn reflect(d: DVec3, n: DVec3) -> DVec3 {
     (d - n * 2.0 * d.dot(n)).normalize()
-}
-
-/// `near_only`, an uncatalogued mistake: the near root or nothing, so a ray from inside the
-/// sphere (through glass) misses it.
-fn sphere(ray: Ray, c: DVec3, r: f64, t_min: f64, near_only: bool) -> Option<f64> {
-    let oc = ray.o - c;
-    let b = oc.dot(ray.d);
-    let disc = b * b - (oc.dot(oc) - r * r);
-    if disc < 0.0 {
-        return None;
-    }
-    let s = disc.sqrt();
-    let t0 = -b - s;
-    if t0 > t_min {
-        return Some(t0);
-    }
-    if near_only {
-        return None;
-    }
-    let t1 = -b + s;
-    (t1 > t_min).then_some(t1)
 }
 
 fn sphere_touches(ray: Ray, c: DVec3, r: f64) -> bool {
