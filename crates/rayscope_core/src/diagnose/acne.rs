@@ -41,6 +41,9 @@ const MIN_PIECES: usize = 12;
 const MAX_PIECE: f64 = 16.0;
 /// Largest share of the pixels that lost light with all four neighbours lost too.
 const MAX_INTERIOR: f64 = 0.4;
+/// Least mean step (in shares of a light) between a pixel's lost share and its neighbours' for
+/// the loss to be uneven: a wrong shadow, a missing light or a fall-off changes it smoothly.
+const MIN_ROUGHNESS: f64 = 0.15;
 
 /// A mistake recognised from how the picture looks.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -83,7 +86,10 @@ pub(crate) fn recognise(
         .map(|k| render_pixels(&without_light(file, base, k), base, &pixels))
         .collect();
     let mut lost = vec![false; ours.len() / 3];
-    let mut lights_lost = vec![0u64; lights];
+    // The share of the lights' light each pixel lost (the sum of its shares): 0 where the pixel
+    // is rayscope's colour, NaN where the fit does not explain it.
+    let mut share = vec![0.0f32; ours.len() / 3];
+    let mut lights_lost = vec![0.0f64; lights];
     for (j, &i) in differing.iter().enumerate() {
         let p = i as usize * 3;
         let c = rgb(&ours[p..p + 3]);
@@ -106,11 +112,12 @@ pub(crate) fn recognise(
         let loss = (0..3).map(|ch| c[ch] - fit[ch]).fold(0.0f32, f32::max);
         if rms <= FIT_LEVELS && loss >= LOST_LEVELS {
             lost[i as usize] = true;
+            share[i as usize] = a.iter().sum();
             for (k, ak) in a.iter().enumerate() {
-                if *ak >= 0.5 {
-                    lights_lost[k] += 1;
-                }
+                lights_lost[k] += f64::from(*ak);
             }
+        } else {
+            share[i as usize] = f32::NAN;
         }
     }
     // Only pixels where rayscope's render is smooth tell a speck from an edge.
@@ -123,7 +130,11 @@ pub(crate) fn recognise(
     let direct = direct_diffuse_share(traced, &lost);
     let (pieces, interior) = pieces(&speck, &lost, w, h);
     let mean = speck.len() as f64 / pieces.max(1) as f64;
-    if speck.len() < MIN_PIXELS || pieces < MIN_PIECES || mean > MAX_PIECE || interior > MAX_INTERIOR || direct < 0.5 {
+    let specks = pieces >= MIN_PIECES && mean <= MAX_PIECE && interior <= MAX_INTERIOR;
+    // With anti-aliasing the specks are smaller than a pixel: each pixel loses the share of its
+    // samples that hit their own surface, which changes from pixel to pixel.
+    let uneven = roughness(&speck, &share, w, h);
+    if speck.len() < MIN_PIXELS || direct < 0.5 || !(specks || uneven >= MIN_ROUGHNESS) {
         return None;
     }
     let explained = lost.iter().filter(|&&l| l).count() as u64;
@@ -132,7 +143,7 @@ pub(crate) fn recognise(
         .lights
         .iter()
         .zip(&lights_lost)
-        .filter(|(_, &n)| n > 0)
+        .filter(|(_, &n)| n > 0.2 * lights_lost.iter().copied().fold(0.0, f64::max))
         .map(|(l, _)| l.name.clone())
         .collect();
     let also = if elsewhere {
@@ -140,10 +151,15 @@ pub(crate) fn recognise(
     } else {
         ""
     };
+    let how = if specks {
+        "the light of {} in scattered specks"
+    } else {
+        "a share of the light of {} that changes unevenly from pixel to pixel (specks smaller than a pixel, averaged by your anti-aliasing)"
+    };
     let text = format!(
-        "shadow acne ('{}'): {explained} pixels lose the light of {} in scattered specks where rayscope's picture is smooth, on {}{also}. Your shadow rays hit the surface they start from: start each one a little off the surface, on the light's side (the hit point plus about 1e-4 times the normal turned towards the light), or ignore blockers nearer than that.",
+        "shadow acne ('{}'): {explained} pixels lose {} where rayscope's picture is smooth, on {}{also}. Your shadow rays hit the surface they start from: start each one a little off the surface, on the light's side (the hit point plus about 1e-4 times the normal turned towards the light), or ignore blockers nearer than that.",
         Mistake::NoShadowOffset.name(),
-        list(&names, 3),
+        how.replace("{}", &list(&names, 3)),
         list(&entities, 4),
     );
     let numbers = BTreeMap::from([
@@ -152,6 +168,7 @@ pub(crate) fn recognise(
         ("mean_piece", mean),
         ("interior_share", interior),
         ("direct_diffuse_share", direct),
+        ("roughness", uneven),
     ]);
     Some(Recognised {
         code: "shadow-acne",
@@ -259,6 +276,34 @@ fn pieces(px: &[u32], lost: &[bool], w: u32, h: u32) -> (usize, f64) {
         }
     }
     (count, interior as f64 / px.len().max(1) as f64)
+}
+
+/// The mean distance between the lost share of each pixel of `px` and the mean of its four
+/// neighbours' (those the fit explains).
+fn roughness(px: &[u32], share: &[f32], w: u32, h: u32) -> f64 {
+    let mut sum = 0.0f64;
+    let mut n = 0u64;
+    for &i in px {
+        let (x, y) = (i % w, i / w);
+        let around = [
+            (x > 0).then(|| i - 1),
+            (x + 1 < w).then(|| i + 1),
+            (y > 0).then(|| i - w),
+            (y + 1 < h).then(|| i + w),
+        ];
+        let known: Vec<f32> = around
+            .into_iter()
+            .flatten()
+            .map(|j| share[j as usize])
+            .filter(|v| !v.is_nan())
+            .collect();
+        if !known.is_empty() {
+            let mean = known.iter().sum::<f32>() / known.len() as f32;
+            sum += f64::from((share[i as usize] - mean).abs());
+            n += 1;
+        }
+    }
+    sum / n.max(1) as f64
 }
 
 /// Among the traced pixels that lost light, the share on a diffuse surface seen directly.
