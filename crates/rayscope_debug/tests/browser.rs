@@ -1206,6 +1206,8 @@ async fn logged_rows(c: &Client) -> Result<(Vec<String>, usize), String> {
     Ok((pixels, red))
 }
 
+/// The picture at `png` diagnosed, its next step's buttons used, then the log of `log`'s rays
+/// at the chosen pixels and the top rows (written to `dir`) loaded.
 async fn drive_next_pixels(c: &Client, url: &str, png: &Path, log: &str, dir: &Path) -> Result<(), String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
     open_page(c, url, "32x24", 30).await?;
@@ -1232,41 +1234,12 @@ async fn drive_next_pixels(c: &Client, url: &str, png: &Path, log: &str, dir: &P
     let pixels: Vec<[u32; 2]> = serde_json::from_value(next["pixels"].clone()).map_err(|x| x.to_string())?;
     let env = next["log_env"].as_str().ok_or("no log_env")?.to_string();
     assert!(pixels.len() >= 2, "{next}");
-    let chosen: std::collections::BTreeSet<String> = pixels.iter().map(|[x, y]| format!("{x},{y}")).collect();
     assert_eq!(
         text(c, "#diagnosis-log-pixels").await?,
         format!("Show these {} pixels", pixels.len())
     );
 
-    // "copy": the variables go to the clipboard; where the clipboard refuses, they are selected.
-    let copied = c
-        .execute_async(
-            r#"const [done] = arguments;
-            Object.defineProperty(navigator, "clipboard", { configurable: true,
-              value: { writeText: (t) => { window.copiedText = t; return Promise.resolve(); } } });
-            document.getElementById("diagnosis-copy-env").click();
-            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.copiedText]), 300);"#,
-            vec![],
-        )
-        .await
-        .map_err(e)?;
-    assert_eq!(copied, json!(["clipboard", env]));
-    let selected = c
-        .execute_async(
-            r#"const [done] = arguments;
-            Object.defineProperty(navigator, "clipboard", { configurable: true,
-              value: { writeText: () => Promise.reject(new Error("not allowed")) } });
-            window.getSelection().removeAllRanges();
-            document.getElementById("diagnosis-copy-env").click();
-            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.getSelection().toString()]), 300);"#,
-            vec![],
-        )
-        .await
-        .map_err(e)?;
-    assert!(
-        (selected[0] == "copied" || selected[0] == "selected") && selected[1] == env,
-        "{selected}"
-    );
+    check_copy(c, &env).await?;
 
     // "Show these pixels": ringed on the picture in their own colour, the first traced.
     c.find(Locator::Css("#diagnosis-log-pixels"))
@@ -1310,6 +1283,51 @@ async fn drive_next_pixels(c: &Client, url: &str, png: &Path, log: &str, dir: &P
     tokio::time::sleep(Duration::from_millis(500)).await;
     shot(c, "15-next-pixels-ringed.png").await;
 
+    check_chosen_in_log(c, log, dir, &pixels).await
+}
+
+/// "copy" puts `env` on the clipboard; where the clipboard refuses, it selects `env`.
+async fn check_copy(c: &Client, env: &str) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    let copied = c
+        .execute_async(
+            r#"const [done] = arguments;
+            Object.defineProperty(navigator, "clipboard", { configurable: true,
+              value: { writeText: (t) => { window.copiedText = t; return Promise.resolve(); } } });
+            document.getElementById("diagnosis-copy-env").click();
+            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.copiedText]), 300);"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert_eq!(copied, json!(["clipboard", env]));
+    let selected = c
+        .execute_async(
+            r#"const [done] = arguments;
+            Object.defineProperty(navigator, "clipboard", { configurable: true,
+              value: { writeText: () => Promise.reject(new Error("not allowed")) } });
+            window.getSelection().removeAllRanges();
+            document.getElementById("diagnosis-copy-env").click();
+            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.getSelection().toString()]), 300);"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert!(
+        (selected[0] == "copied" || selected[0] == "selected") && selected[1] == env,
+        "{selected}"
+    );
+
+    Ok(())
+}
+
+/// The student's log of the chosen `pixels` (the first selected) and of the top four rows,
+/// loaded: the verdict map and the list show only the chosen pixels until "show all".
+async fn check_chosen_in_log(c: &Client, log: &str, dir: &Path, pixels: &[[u32; 2]]) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    let chosen: std::collections::BTreeSet<String> = pixels.iter().map(|[x, y]| format!("{x},{y}")).collect();
+    let rings = pixels.len().to_string();
+    let [x0, y0] = pixels[0];
     // The student's log of those pixels and of the top four rows: the verdict map and the list
     // show only the chosen pixels.
     let sparse = log_of_pixels(log, |x, y| y < 4 || chosen.contains(&format!("{x},{y}")));
