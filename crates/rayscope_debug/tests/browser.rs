@@ -417,16 +417,7 @@ fn student_log_in_chromium() {
     let Some((chromium, driver)) = chromium_and_driver() else {
         return;
     };
-    let python = Command::new("python3")
-        .arg("--version")
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !python {
-        rayscope_testkit::not_run(
-            "needs python3",
-            "No python3 found on PATH: the student-style tracer that writes the log is a Python script.",
-            "To run it, install Python 3 (Debian: apt-get install python3).",
-        );
+    if !python3() {
         return;
     }
     let (w, h) = (32u32, 24u32);
@@ -449,6 +440,23 @@ fn student_log_in_chromium() {
         (c, r)
     });
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Whether python3 runs, after reporting the test as not run (a failure under CI=true) where it
+/// does not: the student-style tracer that writes the logs is a Python script.
+fn python3() -> bool {
+    let python = Command::new("python3")
+        .arg("--version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !python {
+        rayscope_testkit::not_run(
+            "needs python3",
+            "No python3 found on PATH: the student-style tracer that writes the log is a Python script.",
+            "To run it, install Python 3 (Debian: apt-get install python3).",
+        );
+    }
+    python
 }
 
 /// The ray log of rayscope_check's student-style tracer on `scene` at `w`×`h`, run with `args`.
@@ -1126,5 +1134,269 @@ async fn drive_compare(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     let fit = fits_panel(c, "#image-b").await?;
     assert_eq!(fit["fits"], true, "{fit}");
     shot(c, "14-compare-after-settings.png").await;
+    Ok(())
+}
+
+/// A picture no catalogued mistake explains (the student-style tracer's sphere test compares
+/// |o − c|² with r, not r²), diagnosed in the page: "Show these pixels" rings the pixels the
+/// diagnosis says to log next on the picture and traces the first; "copy" puts the logging
+/// variables on the clipboard, or selects them where the clipboard refuses. The student's log of
+/// those pixels and of the top rows, loaded afterwards, is shown only at those pixels, on the
+/// verdict map and in the list of logged pixels, until "show all".
+#[test]
+fn diagnosis_next_pixels_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    if !python3() {
+        return;
+    }
+    let (w, h) = (32u32, 24u32);
+    let scene_path = rayscope_testkit::scene("whitted.txt");
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-next-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let ppm = dir.join("mine.ppm");
+    let log = student_tracer_log(
+        &scene_path,
+        w,
+        h,
+        &["--bug", "radius-not-squared", "--image", &ppm.to_string_lossy()],
+    );
+    let png = dir.join("mine.png");
+    image::open(&ppm).unwrap().to_rgb8().save(&png).unwrap();
+
+    let (_server, url) = serve_stage_two(scene_path, w, h);
+    let (png2, dir2) = (png.clone(), dir.clone());
+    in_chromium(&chromium, &driver, &url, "next-failure.png", |c, url| async move {
+        let r = drive_next_pixels(&c, &url, &png2, &log, &dir2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The lines of a JSON Lines ray log whose pixel `keep` accepts.
+fn log_of_pixels(log: &str, keep: impl Fn(u64, u64) -> bool) -> String {
+    let mut out = String::new();
+    for line in log.lines() {
+        let ray: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
+        let (x, y) = (ray["pixel"][0].as_u64().unwrap(), ray["pixel"][1].as_u64().unwrap());
+        if keep(x, y) {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    out
+}
+
+/// The pixels of the rows of the list of logged pixels, as "x,y", and how many say "disagrees".
+async fn logged_rows(c: &Client) -> Result<(Vec<String>, usize), String> {
+    let v = c
+        .execute(
+            r##"return [...document.querySelectorAll("#rays-logged-list tbody tr")].map((tr) => [tr.cells[0].textContent, tr.cells[1].textContent]);"##,
+            vec![],
+        )
+        .await
+        .map_err(|e| e.to_string())?;
+    let rows: Vec<[String; 2]> = serde_json::from_value(v).map_err(|e| e.to_string())?;
+    let red = rows.iter().filter(|r| r[1] == "disagrees").count();
+    let pixels = rows
+        .iter()
+        .map(|r| r[0].trim_matches(['(', ')']).replace(", ", ","))
+        .collect();
+    Ok((pixels, red))
+}
+
+/// The picture at `png` diagnosed, its next step's buttons used, then the log of `log`'s rays
+/// at the chosen pixels and the top rows (written to `dir`) loaded.
+async fn drive_next_pixels(c: &Client, url: &str, png: &Path, log: &str, dir: &Path) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    open_page(c, url, "32x24", 30).await?;
+    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the diagnosis", 120, || async {
+        attr(c, "#diagnosis", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let diagnosis = text(c, "#diagnosis").await?;
+    assert_eq!(state, "done", "{diagnosis}");
+    assert!(diagnosis.starts_with("No known mistake explains"), "{diagnosis}");
+    // The pixels to log next and their variables, as the server's diagnosis has them.
+    let next = c
+        .execute_async(
+            r#"const [done] = arguments;
+            fetch("/api/compare").then((r) => r.json()).then((v) => done(v.diagnosis.result.next));"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    let pixels: Vec<[u32; 2]> = serde_json::from_value(next["pixels"].clone()).map_err(|x| x.to_string())?;
+    let env = next["log_env"].as_str().ok_or("no log_env")?.to_string();
+    assert!(pixels.len() >= 2, "{next}");
+    assert_eq!(
+        text(c, "#diagnosis-log-pixels").await?,
+        format!("Show these {} pixels", pixels.len())
+    );
+
+    check_copy(c, &env).await?;
+
+    // "Show these pixels": ringed on the picture in their own colour, the first traced.
+    c.find(Locator::Css("#diagnosis-log-pixels"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    let rings = pixels.len().to_string();
+    wait_for("the rings of the chosen pixels", 20, || async {
+        attr(c, "#image-overlay", "data-chosen").await.filter(|v| *v == rings)
+    })
+    .await;
+    let ringed = c
+        .execute(
+            r#"const ov = document.getElementById("image-overlay");
+            const d = ov.getContext("2d").getImageData(0, 0, ov.width, ov.height).data;
+            let n = 0;
+            for (let i = 0; i < d.length; i += 4) if (d[i + 3] > 200 && Math.abs(d[i] - 199) < 24 && Math.abs(d[i + 1] - 125) < 24 && d[i + 2] > 230) n++;
+            return n;"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert!(
+        ringed.as_u64().is_some_and(|n| n > 20 * pixels.len() as u64),
+        "{ringed}"
+    );
+    let [x0, y0] = pixels[0];
+    let head = wait_for("the first chosen pixel's ray tree", 30, || async {
+        let t = text(c, "#tree-head").await.ok()?;
+        t.starts_with(&format!("pixel ({x0}, {y0}),")).then_some(t)
+    })
+    .await;
+    let bar = text(c, "#rays-only").await?;
+    assert_eq!(
+        bar,
+        format!("showing {} chosen pixels — show all", pixels.len()),
+        "{bar}\n{head}"
+    );
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    shot(c, "15-next-pixels-ringed.png").await;
+
+    check_chosen_in_log(c, log, dir, &pixels).await
+}
+
+/// "copy" puts `env` on the clipboard; where the clipboard refuses, it selects `env`.
+async fn check_copy(c: &Client, env: &str) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    let copied = c
+        .execute_async(
+            r#"const [done] = arguments;
+            Object.defineProperty(navigator, "clipboard", { configurable: true,
+              value: { writeText: (t) => { window.copiedText = t; return Promise.resolve(); } } });
+            document.getElementById("diagnosis-copy-env").click();
+            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.copiedText]), 300);"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert_eq!(copied, json!(["clipboard", env]));
+    let selected = c
+        .execute_async(
+            r#"const [done] = arguments;
+            Object.defineProperty(navigator, "clipboard", { configurable: true,
+              value: { writeText: () => Promise.reject(new Error("not allowed")) } });
+            window.getSelection().removeAllRanges();
+            document.getElementById("diagnosis-copy-env").click();
+            setTimeout(() => done([document.getElementById("diagnosis-copy-env").dataset.copied, window.getSelection().toString()]), 300);"#,
+            vec![],
+        )
+        .await
+        .map_err(e)?;
+    assert!(
+        (selected[0] == "copied" || selected[0] == "selected") && selected[1] == env,
+        "{selected}"
+    );
+
+    Ok(())
+}
+
+/// The student's log of the chosen `pixels` (the first selected) and of the top four rows,
+/// loaded: the verdict map and the list show only the chosen pixels until "show all".
+async fn check_chosen_in_log(c: &Client, log: &str, dir: &Path, pixels: &[[u32; 2]]) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    let chosen: std::collections::BTreeSet<String> = pixels.iter().map(|[x, y]| format!("{x},{y}")).collect();
+    let rings = pixels.len().to_string();
+    let [x0, y0] = pixels[0];
+    // The student's log of those pixels and of the top four rows: the verdict map and the list
+    // show only the chosen pixels.
+    let sparse = log_of_pixels(log, |x, y| y < 4 || chosen.contains(&format!("{x},{y}")));
+    let logged = (0..4)
+        .flat_map(|y| (0..32).map(move |x| format!("{x},{y}")))
+        .chain(chosen.iter().cloned())
+        .collect::<std::collections::BTreeSet<_>>()
+        .len();
+    let path = dir.join("my_rays.jsonl");
+    std::fs::write(&path, sparse).unwrap();
+    let input = c.find(Locator::Css("#rays-file")).await.map_err(e)?;
+    input.send_keys(&path.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the log to be judged", 60, || async {
+        attr(c, "#rays-summary", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let summary = text(c, "#rays-summary").await?;
+    assert_eq!(state, "done", "{summary}");
+    wait_for("the list of the chosen pixels", 30, || async {
+        attr(c, "#rays-logged", "data-rows").await.filter(|v| *v == rings)
+    })
+    .await;
+    let (listed, red) = logged_rows(c).await?;
+    assert_eq!(
+        listed.iter().cloned().collect::<std::collections::BTreeSet<_>>(),
+        chosen
+    );
+    assert_eq!(attr(c, "#image-overlay", "data-markers").await, Some(rings.clone()));
+    assert_eq!(attr(c, "#image-overlay", "data-verdicts").await, Some(red.to_string()));
+    assert!(red > 0, "none of the chosen pixels disagrees: {summary}");
+    let head = wait_for("the first chosen pixel's rays", 30, || async {
+        let t = text(c, "#rays-pixel-head").await.ok()?;
+        t.starts_with(&format!("pixel ({x0}, {y0}):")).then_some(t)
+    })
+    .await;
+    tokio::time::sleep(Duration::from_millis(500)).await;
+    shot(c, "16-next-pixels-log-filtered.png").await;
+
+    // "show all": every logged pixel again, no rings of chosen pixels.
+    c.find(Locator::Css("#rays-only-clear"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    let all = logged.to_string();
+    wait_for("the list of every logged pixel", 20, || async {
+        attr(c, "#rays-logged", "data-rows").await.filter(|v| *v == all)
+    })
+    .await;
+    assert_eq!(
+        attr(c, "#image-overlay", "data-markers").await,
+        Some(all.clone()),
+        "{head}"
+    );
+    assert_eq!(attr(c, "#image-overlay", "data-chosen").await, None);
+    let disagree = attr(c, "#rays-summary", "data-disagree").await;
+    assert_eq!(attr(c, "#image-overlay", "data-verdicts").await, disagree);
+    assert!(
+        !c.find(Locator::Css("#rays-only"))
+            .await
+            .map_err(e)?
+            .is_displayed()
+            .await
+            .map_err(e)?,
+        "the chosen pixels' bar stays after 'show all'"
+    );
+    shot(c, "17-next-pixels-show-all.png").await;
     Ok(())
 }

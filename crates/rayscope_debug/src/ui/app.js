@@ -703,6 +703,7 @@ async function theirImageUpload(file) {
     const s = await api(`/api/rays/image?name=${encodeURIComponent(file.name)}`, { method: "POST", headers: { "content-type": "image/png" }, body: file });
     raysOnSummary(s);
     raysPoll();
+    raysChoose(null);
     cmp.data = null;
     compareDropImages();
     comparePoll();
@@ -752,6 +753,7 @@ function compareDropImages() {
 }
 function compareClearDetails() {
   compareDropImages();
+  raysChoose(null);
   $("diagnosis").innerHTML = "";
   $("diagnosis").dataset.state = "none";
   $("attribution-box").classList.add("hidden");
@@ -895,11 +897,49 @@ function compareDiagnosis(d) {
     return `${e.summary} accounts for the whole difference: its render reproduces ${e.explained.percent.toFixed(0)} % of the differing pixels (speckle on average over 4×4 blocks). `;
   });
   list(r.explanations.filter((e) => !e.cause), "What explains a part of it:", "partial-explanations", (e) => `${e.summary} ${partText(e)}. `);
-  if (r.next) {
-    box.append(el("p", {}, "To find out what your tracer does there, log its rays at these pixels (the logging kits: docs/check.md) and let rayscope judge them:"),
-      el("pre", { id: "diagnosis-next" }, `${r.next.log_env} <run your tracer>\n${r.next.check_command}\n${r.next.trace_command}`));
-  }
+  if (r.next) diagnosisNext(box, r.next);
   box.append(el("p", { class: "dim" }, `${r.candidates} renders tried in ${(d.millis / 1000).toFixed(1)} s; \`rayscope mistakes\` lists the catalogue.`));
+}
+// The next step: the pixels to log, as the logging kits' variables, and the commands to run
+// after. One button marks those pixels on the picture (with a ray log loaded, the verdict map and
+// the list of logged pixels then show only them), another copies the variables.
+function diagnosisNext(box, next) {
+  const env = el("span", { id: "diagnosis-log-env" }, next.log_env);
+  const pre = el("pre", { id: "diagnosis-next" }, env, ` <run your tracer>\n${next.check_command}\n${next.trace_command}`);
+  const n = next.pixels.length;
+  const show = el("button", {
+    type: "button", id: "diagnosis-log-pixels", "data-pixels": next.pixels.map((p) => p.join(",")).join(" "),
+    title: "Ring these pixels on the picture and trace the first; with your ray log loaded, the verdict map and the list of logged pixels show only them",
+    onclick: () => raysChoose(next.pixels),
+  }, `Show these ${n} pixel${n === 1 ? "" : "s"}`);
+  const note = el("span", { id: "diagnosis-copy-note", class: "dim" });
+  const copy = el("button", { type: "button", id: "diagnosis-copy-env", title: "Copy the variables to the clipboard", onclick: () => copyText(next.log_env, env, copy, note) }, "copy");
+  box.append(el("p", {}, "To find out what your tracer does there, log its rays at these pixels (the logging kits: docs/check.md) and let rayscope judge them:"),
+    el("div", { class: "next-actions" }, show, copy, note), pre);
+}
+// Copies `text` to the clipboard where the browser lets the page (a secure context), otherwise
+// selects `node`, whose text it is, and asks the browser to copy the selection; `note` says
+// which happened and `button.dataset.copied` records it: "clipboard", "copied" or "selected".
+async function copyText(text, node, button, note) {
+  let how = "selected";
+  try {
+    if (navigator.clipboard && navigator.clipboard.writeText) {
+      await navigator.clipboard.writeText(text);
+      how = "clipboard";
+    }
+  } catch (_) {
+    how = "selected";
+  }
+  if (how === "selected") {
+    const range = document.createRange();
+    range.selectNodeContents(node);
+    const sel = window.getSelection();
+    sel.removeAllRanges();
+    sel.addRange(range);
+    try { if (document.execCommand("copy")) how = "copied"; } catch (_) { how = "selected"; }
+  }
+  button.dataset.copied = how;
+  note.textContent = how === "selected" ? "selected: press Ctrl+C (⌘C) to copy" : "copied";
 }
 // Sets some settings as the inspector would.
 async function applySettings(patch) {
@@ -997,6 +1037,8 @@ function compareReadout(r) {
 const rays = {
   summary: null, file: null, mapJob: -1, mapCanvas: null, mapData: null,
   imageVersion: 0, imageKey: "", theirData: null, rsData: null, pollTimer: null, resending: false, pixelSeq: 0,
+  chosen: null,                     // [[x, y], …]: the pixels a diagnosis says to log next, when shown
+  only: null,                       // Set of "x,y" of those pixels: the verdict map and the list show only them
 };
 // Logs of at most this many pixels (and at most a quarter of the image) get a marker per pixel.
 const MAX_MARKERS = 4096;
@@ -1004,6 +1046,7 @@ const RAYS_STATUS = { "46,204,113": "agrees", "241,196,15": "only ties", "255,38
 function raysJudged() { return rays.summary && rays.summary.judged ? rays.summary.judged : null; }
 function raysSizeMatches(w, h) { return st.settings && w === st.settings.width && h === st.settings.height; }
 function raysSetupInput() {
+  $("rays-only-clear").addEventListener("click", () => raysChoose(null));
   $("rays-file").addEventListener("change", () => { const f = $("rays-file").files[0]; if (f) raysUpload(f); $("rays-file").value = ""; });
   $("rays-image-file").addEventListener("change", () => { const f = $("rays-image-file").files[0]; if (f) theirImageUpload(f); $("rays-image-file").value = ""; });
   $("show-verdicts").addEventListener("change", () => { drawOverlay(); requestView(); });
@@ -1207,8 +1250,30 @@ function raysLoadRendered() {
   if (st.renderedJob < 0) return;
   raysImageData(`/api/image.png?channel=color&job=${st.renderedJob}`, (d) => { rays.rsData = d; });
 }
-// The logged pixels of a sparse log, those that disagree first, filtered by verdict; a row
-// selects its pixel.
+// Chooses the pixels a diagnosis says to log next (`null`: none): they are ringed on the picture,
+// the first is selected so that its ray tree shows, and the verdict map and the list of logged
+// pixels show only them until "show all".
+function raysChoose(pixels) {
+  if (!pixels && !rays.chosen) return;
+  rays.chosen = pixels && pixels.length ? pixels.map(([x, y]) => [x, y]) : null;
+  rays.only = rays.chosen ? new Set(rays.chosen.map(([x, y]) => `${x},${y}`)) : null;
+  const bar = $("rays-only");
+  if (rays.chosen) {
+    const n = rays.chosen.length;
+    $("rays-only-count").textContent = `${n} chosen pixel${n === 1 ? "" : "s"}`;
+  }
+  if (bar.classList.contains("hidden") === !!rays.chosen) {
+    bar.classList.toggle("hidden", !rays.chosen);
+    refitImage();
+  }
+  raysLoggedList();
+  if (rays.chosen) selectPixel(rays.chosen[0][0], rays.chosen[0][1]);
+  else drawOverlay();
+}
+// Whether the pixel is shown while some pixels are chosen (all are when none is).
+const raysShown = (x, y) => !rays.only || rays.only.has(`${x},${y}`);
+// The logged pixels of a sparse log, those that disagree first, filtered by verdict and to the
+// chosen pixels; a row selects its pixel.
 function raysLoggedList() {
   const box = $("rays-logged");
   box.classList.toggle("hidden", !rays.logged);
@@ -1216,7 +1281,7 @@ function raysLoggedList() {
   const want = $("rays-logged-filter").value;
   const rank = { disagrees: 0, "only ties": 1, agrees: 2 };
   const rows = rays.logged
-    .filter((p) => !want || p[2] === want)
+    .filter((p) => (!want || p[2] === want) && raysShown(p[0], p[1]))
     .sort((a, b) => rank[a[2]] - rank[b[2]] || a[1] - b[1] || a[0] - b[0]);
   const tb = $("rays-logged-list").querySelector("tbody");
   tb.innerHTML = "";
@@ -1229,15 +1294,33 @@ function raysLoggedList() {
 }
 
 function raysDrawOverlay(g, z) {
+  raysDrawVerdicts(g, z);
+  raysDrawChosen(g, z);
+}
+// The verdict map over the image (only the chosen pixels' verdicts while some are chosen), with
+// `data-verdicts` the number of pixels shown red.
+function raysDrawVerdicts(g, z) {
   const ov = $("image-overlay");
   const j = raysJudged();
   if (!j || !rays.mapCanvas || !$("show-verdicts").checked || !raysSizeMatches(rays.mapCanvas.width, rays.mapCanvas.height)) { delete ov.dataset.verdicts; return; }
   g.imageSmoothingEnabled = false;
-  g.drawImage(rays.mapCanvas, 0, 0, rays.mapCanvas.width * z, rays.mapCanvas.height * z);
-  ov.dataset.verdicts = `${j.pixels.disagrees}`;
+  if (rays.chosen) {
+    const m = rays.mapData;
+    let red = 0;
+    for (const [x, y] of rays.chosen) {
+      if (x >= m.width || y >= m.height) continue;
+      g.drawImage(rays.mapCanvas, x, y, 1, 1, x * z, y * z, z, z);
+      const i = (y * m.width + x) * 4;
+      if (RAYS_STATUS[`${m.data[i]},${m.data[i + 1]},${m.data[i + 2]}`] === "disagrees") red++;
+    }
+    ov.dataset.verdicts = String(red);
+  } else {
+    g.drawImage(rays.mapCanvas, 0, 0, rays.mapCanvas.width * z, rays.mapCanvas.height * z);
+    ov.dataset.verdicts = `${j.pixels.disagrees}`;
+  }
   // Rings of a fixed screen size around the logged pixels of a sparse log: at a zoom below one
   // screen pixel per image pixel, the map alone would lose them.
-  const marks = rays.logged || [];
+  const marks = (rays.logged || []).filter(([x, y]) => raysShown(x, y));
   const colour = { disagrees: "#ff2626", "only ties": "#f1c40f", agrees: "#2ecc71" };
   g.lineWidth = 2;
   for (const [x, y, s] of marks) {
@@ -1247,6 +1330,26 @@ function raysDrawOverlay(g, z) {
     g.stroke();
   }
   ov.dataset.markers = String(marks.length);
+}
+// The chosen pixels' rings: larger than the logged pixels' and of a colour of their own, over a
+// dark ring so that they show on any picture; `data-chosen` counts them.
+const CHOSEN_COLOUR = "#c77dff";
+function raysDrawChosen(g, z) {
+  const ov = $("image-overlay");
+  const s = st.settings;
+  const marks = (rays.chosen || []).filter(([x, y]) => s && x < s.width && y < s.height);
+  if (!marks.length) { delete ov.dataset.chosen; return; }
+  const r = Math.max(7, 1.1 * z);
+  for (const [colour, width] of [["rgba(0,0,0,0.7)", 4.5], [CHOSEN_COLOUR, 2]]) {
+    g.strokeStyle = colour;
+    g.lineWidth = width;
+    for (const [x, y] of marks) {
+      g.beginPath();
+      g.arc((x + 0.5) * z, (y + 0.5) * z, r, 0, 2 * Math.PI);
+      g.stroke();
+    }
+  }
+  ov.dataset.chosen = String(marks.length);
 }
 function raysRgbAt(d, p) {
   if (!d || !raysSizeMatches(d.width, d.height)) return null;
