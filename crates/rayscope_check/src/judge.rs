@@ -679,6 +679,12 @@ const MIN_SHARE: f64 = 0.01;
 const SURFACE_ROUNDING: f64 = 1e-6;
 
 impl<'a> Judge<'a> {
+    /// True when the catalogue's mistake `m` can show in a picture of the judged scene under the
+    /// judged settings: only those are named beside a verdict.
+    pub(crate) fn can_show(&self, m: rayscope_core::Mistake) -> bool {
+        rayscope_core::contents::SceneContents::of(self.scene).can_show(m, self.settings)
+    }
+
     /// A judge for `scene` rendered with `settings`.
     #[must_use]
     pub fn new(scene: &'a Scene, settings: &'a RenderSettings) -> Self {

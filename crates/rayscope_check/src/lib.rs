@@ -328,7 +328,7 @@ pub(crate) fn run(
     tally.finish();
     judge.fold_surfaces(&mut tally);
     let (skipped, first) = source.skipped();
-    Ok(Some(Report::new(
+    let mut report = Report::new(
         tally,
         skipped,
         first.map(ToString::to_string),
@@ -338,7 +338,9 @@ pub(crate) fn run(
             judging,
             total: start.elapsed(),
         },
-    )))
+    );
+    report.keep_catalogue(|m| judge.can_show(m));
+    Ok(Some(report))
 }
 
 #[cfg(test)]

@@ -243,6 +243,19 @@ pub struct Report {
 }
 
 impl Report {
+    /// Keeps beside each cause only the catalogue's mistakes `keep` accepts (those that can show
+    /// in the scene judged: no OBJ mistake for a scene without meshes).
+    pub fn keep_catalogue(&mut self, keep: impl Fn(rayscope_core::Mistake) -> bool) {
+        for c in &mut self.causes {
+            c.catalogue.retain(|name| {
+                rayscope_core::Mistake::ALL
+                    .into_iter()
+                    .find(|m| m.name() == *name)
+                    .is_some_and(&keep)
+            });
+        }
+    }
+
     /// The report of a finished tally.
     #[must_use]
     pub fn new(t: Tally, skipped: u64, first_skipped: Option<String>, tolerances: Tolerances, timing: Timing) -> Self {

@@ -485,8 +485,9 @@ fn a_too_strict_triangle_test_is_named_as_such_not_as_one_sided() {
 }
 
 /// A mistake no catalogue has (a sphere test that compares with r, not r²): the report's one
-/// headline says the spheres' intersection is wrong and names them, and its examples are rays
-/// that meet a sphere, with the tracer's numbers beside rayscope's.
+/// headline says the spheres' intersection is wrong and names them, offers no catalogued mistake
+/// that cannot show in the scene, and its examples are rays that meet a sphere, with the
+/// tracer's numbers beside rayscope's.
 #[test]
 fn an_uncatalogued_mistake_gets_a_truthful_headline_with_the_numbers() {
     let Some(course) = rayscope_testkit::course() else {
@@ -508,6 +509,10 @@ fn an_uncatalogued_mistake_gets_a_truthful_headline_with_the_numbers() {
         head.contains("spheres") && head.contains("'MirrorSphere'") && head.contains("'GlassSphere'"),
         "{t}"
     );
+    // The scene has no OBJ model: the catalogue's OBJ mistakes, which show as the same verdict,
+    // are not offered.
+    assert!(first.catalogue.iter().all(|n| !n.starts_with("obj-")), "{t}");
+    assert!(!t.contains("obj-no-z-flip"), "{t}");
     for ex in &first.examples {
         let entity = ex
             .values

@@ -32,15 +32,15 @@ use std::time::Instant;
 
 use glam::{Vec3, Vec3A};
 use rayon::prelude::*;
-use rayscope_scene::{SceneFile, Shape};
+use rayscope_scene::SceneFile;
 use serde::{Serialize, Serializer};
 
 use crate::camera::FovAxis;
 use crate::compare::compare_rgb8;
+use crate::contents::SceneContents;
 use crate::edition::edition_matters;
 use crate::film::to_byte;
 use crate::integrator::{Counters, Integrator};
-use crate::material::Material;
 use crate::mistakes::{Mistake, Mistakes};
 use crate::observer::NoObserver;
 use crate::render::{render, Mistaken};
@@ -670,95 +670,14 @@ fn exclusive(a: Atom, b: Atom) -> bool {
     whitens(a) || whitens(b) || ga != 0 && ga == gb
 }
 
-/// What the scene contains, to skip mistakes that cannot show in it.
-struct Contents {
-    glass: bool,
-    specular: bool,
-    /// Emissive or Glossy surfaces: in the full renderer their hits send rays of their own.
-    sampled: bool,
-    triangles: bool,
-    single_triangles: bool,
-    meshes: bool,
-    mesh_normals: bool,
-    /// Spheres, and spheres whose radius is not 1.
-    spheres: bool,
-    spheres_not_unit: bool,
-    planes: bool,
-    lights: usize,
-}
-
-impl Contents {
-    fn of(file: &SceneFile) -> Contents {
-        let used = |f: fn(&Material) -> bool| {
-            (file.entities.iter()).any(|e| f(&Material::from_def(&file.materials[e.material])))
-        };
-        let mesh = |f: &dyn Fn(&rayscope_scene::Mesh) -> bool| {
-            file.entities
-                .iter()
-                .any(|e| matches!(&e.shape, Shape::Mesh { mesh, .. } if f(mesh)))
-        };
-        Contents {
-            glass: used(Material::is_glass),
-            // Mirrors and glass: what sends reflection rays at stage 2.
-            specular: used(|m| m.sends_reflection_rays(Stage::Two)),
-            sampled: used(|m| m.emission().is_some() || m.scatters_at_random()),
-            single_triangles: file.entities.iter().any(|e| matches!(e.shape, Shape::Triangle { .. })),
-            triangles: file
-                .entities
-                .iter()
-                .any(|e| matches!(e.shape, Shape::Triangle { .. } | Shape::Mesh { .. })),
-            meshes: mesh(&|m| !m.triangles.is_empty()),
-            mesh_normals: mesh(&|m| m.triangles.iter().any(|t| t.normals.is_some())),
-            spheres: file.entities.iter().any(|e| matches!(e.shape, Shape::Sphere { .. })),
-            spheres_not_unit: (file.entities.iter())
-                .any(|e| matches!(e.shape, Shape::Sphere { radius, .. } if radius != 1.0)),
-            planes: file.entities.iter().any(|e| matches!(e.shape, Shape::Plane { .. })),
-            lights: file.lights.len(),
-        }
-    }
-
-    fn shows(&self, m: Mistake, s: &RenderSettings) -> bool {
-        use Mistake as M;
-        match m {
-            // Covered by the settings atoms that give the same renders.
-            M::FovVertical | M::RecursionLimit3 => false,
-            M::AspectIgnored => s.width != s.height,
-            M::PixelCorners | M::ImageFlipped | M::RoundedColours | M::Gamma => true,
-            M::NoShadowOffset | M::HugeShadowOffset | M::LightFalloff | M::ShadowPastLight | M::AmbientTerm => {
-                self.lights > 0
-            }
-            M::FirstLightOnly => self.lights > 1,
-            M::OneSidedTriangles => self.triangles,
-            M::ReversedNormals => self.single_triangles,
-            M::RefractionNoNormalFlip
-            | M::RefractionNoIndexSwap
-            | M::NoTir
-            | M::NoFresnel
-            | M::FresnelHalf
-            | M::Schlick
-            | M::GlassReflectionAlongRay
-            | M::GlassReflectionOutward
-            | M::EtaEnteringInverted
-            | M::FresnelSwapped => self.glass,
-            M::ReflectNo2 => self.specular,
-            M::StrictEdges => self.triangles,
-            M::ObjNoZFlip => self.meshes,
-            M::ObjFlatNormals => self.mesh_normals,
-            M::SphereNormalUnnormalised => self.spheres_not_unit,
-            M::SphereNearRootBehind => self.spheres,
-            M::PlaneHitsBehind => self.planes,
-            // Elsewhere a light behind the surface is blocked by the surface itself.
-            M::NdotLUnclamped => self.mesh_normals && self.lights > 0,
-            M::CamAngleRadians => s.camera.angle_deg != 0.0 && s.camera.axis != glam::Vec3::ZERO,
-            M::MinHitDistance | M::FirstHitInSceneOrder | M::AccumulatorNotReset => true,
-            // With the camera at the origin, only rays from other points choose differently.
-            M::NearestByOriginDistance => self.specular || s.camera.position != glam::Vec3::ZERO,
-        }
-    }
+/// True when mistake `m` is worth trying as an atom: it can show in the scene, and no setting
+/// atom gives the same renders (the field of view's axis, the recursion limits).
+fn worth_trying(contents: &SceneContents, m: Mistake, s: &RenderSettings) -> bool {
+    !matches!(m, Mistake::FovVertical | Mistake::RecursionLimit3) && contents.can_show(m, s)
 }
 
 /// The single atoms worth trying for this scene and these settings.
-fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
+fn atoms(contents: &SceneContents, base: &RenderSettings) -> Vec<Atom> {
     let mut out = Vec::new();
     for n in 1..=4 {
         if n != base.aa {
@@ -774,7 +693,7 @@ fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
         out.push(Atom::Setting(SettingChange::Fov(other)));
     }
     for m in Mistake::ALL {
-        if contents.shows(m, base) && !base.mistakes.has(m) {
+        if worth_trying(contents, m, base) && !base.mistakes.has(m) {
             out.push(Atom::Mistake(m));
         }
     }
@@ -784,7 +703,7 @@ fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
 /// The recursion limits worth trying: other depths for mirrors and glass, and where the full
 /// renderer sends rays from other surfaces too (`-l`, emissive or glossy surfaces), every
 /// material stopped at a depth (at stage 2 that is the same image as some mirror-glass depth).
-fn depth_atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
+fn depth_atoms(contents: &SceneContents, base: &RenderSettings) -> Vec<Atom> {
     let mut out = Vec::new();
     let mut depths: Vec<u32> = (1..=5).collect();
     if base.max_depth <= 5 {
@@ -1201,7 +1120,7 @@ pub fn diagnose(
     if matches && m0.psnr.is_finite() {
         // A match with pixels left over: the match rule must not hide a recursion limit, whose
         // differences are few pixels deep in mirrors or bounces.
-        let contents = Contents::of(scenes.file);
+        let contents = SceneContents::of(scenes.get(base.mistakes));
         let depths = depth_atoms(&contents, &base);
         tried += depths.len();
         if let Some(e) = closer_depth(&scenes, &base, image, &depths, &full, m0.psnr) {
@@ -1240,7 +1159,13 @@ pub fn diagnose(
     let recognised = if matches || constant || explanations.first().is_some_and(|e| e.cause) {
         Vec::new()
     } else {
-        acne::recognise(scenes.file, &base, &ours, image.rgb, &differing, &traced)
+        let without = |k: usize, pixels: &[(u32, u32)]| {
+            let mut f = scenes.file.clone();
+            Scenes::key(base.mistakes).apply_to_file(&mut f);
+            f.lights.remove(k);
+            render_pixels(&Scene::from_owned_file(f), &base, pixels)
+        };
+        acne::recognise(scenes.file, &without, &base, &ours, image.rgb, &differing, &traced)
             .into_iter()
             .collect()
     };
@@ -1425,7 +1350,7 @@ fn search(
     against: &Against<'_>,
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
-    let contents = Contents::of(scenes.file);
+    let contents = SceneContents::of(scenes.get(base.mistakes));
     let singles = atoms(&contents, base);
     let spp = u64::from(base.aa * base.aa);
     let (grid, gw, gh) = coarse_grid(w, h, spp, opts.coarse_samples);

@@ -8,6 +8,7 @@ pub mod animation;
 pub mod bsdf;
 pub mod camera;
 pub mod compare;
+pub mod contents;
 pub mod diagnose;
 pub mod edition;
 pub mod farm;

@@ -18,9 +18,7 @@ use rayscope_scene::SceneFile;
 use serde::Serialize;
 
 use super::explained::Traced;
-use super::{render_pixels, Scenes};
 use crate::mistakes::Mistake;
-use crate::scene::Scene;
 use crate::settings::{RenderSettings, Stage};
 
 /// Most lights tried one by one; a scene with more is not judged.
@@ -65,10 +63,15 @@ pub struct Recognised {
     pub numbers: BTreeMap<&'static str, f64>,
 }
 
+/// Renders pixels of the scene under `base` with one light removed: light `k`, the pixels, RGB8.
+pub(crate) type WithoutLight<'a> = &'a (dyn Fn(usize, &[(u32, u32)]) -> Vec<u8> + Sync);
+
 /// Shadow acne in `theirs`, if the picture shows it: `ours` is rayscope's render under `base`
-/// (RGB8, `base`'s size), `differing` the pixels where they differ and `traced` their parts.
+/// (RGB8, `base`'s size), `differing` the pixels where they differ and `traced` their parts;
+/// `without` renders pixels with a light removed.
 pub(crate) fn recognise(
     file: &SceneFile,
+    without: WithoutLight<'_>,
     base: &RenderSettings,
     ours: &[u8],
     theirs: &[u8],
@@ -82,9 +85,7 @@ pub(crate) fn recognise(
     let w = base.width;
     let pixels: Vec<(u32, u32)> = differing.iter().map(|&i| (i % w, i / w)).collect();
     // Each light's part of each differing pixel: rayscope's colour less the colour without it.
-    let parts: Vec<Vec<u8>> = (0..lights)
-        .map(|k| render_pixels(&without_light(file, base, k), base, &pixels))
-        .collect();
+    let parts: Vec<Vec<u8>> = (0..lights).map(|k| without(k, &pixels)).collect();
     let mut lost = vec![false; ours.len() / 3];
     // The share of the lights' light each pixel lost (the sum of its shares): 0 where the pixel
     // is rayscope's colour, NaN where the fit does not explain it.
@@ -179,14 +180,6 @@ pub(crate) fn recognise(
         share: explained as f64 / differing.len() as f64,
         numbers,
     })
-}
-
-/// The scene of `file` (with `base`'s scene-changing mistakes) without light `k`.
-fn without_light(file: &SceneFile, base: &RenderSettings, k: usize) -> Scene {
-    let mut f = file.clone();
-    Scenes::key(base.mistakes).apply_to_file(&mut f);
-    f.lights.remove(k);
-    Scene::from_owned_file(f)
 }
 
 fn rgb(b: &[u8]) -> [f32; 3] {
