@@ -3,14 +3,15 @@
 //! make — catalogued or not — and without any, diagnosed with the command line's defaults (pairs
 //! included). `every_case` is ignored by default; `bench/diagnose_cases.sh` runs it in release
 //! and prints one row per case: the scene, the mistake, the seconds of the diagnosis, and the
-//! start of the report's first line.
+//! start of the report's first line. With `RAYSCOPE_CASE=MISTAKE` it runs that case alone and
+//! prints its whole report.
 
 mod student;
 
 use std::path::Path;
 use std::time::Instant;
 
-use rayscope_core::diagnose::{diagnose, headline, DiagnoseOptions, Image};
+use rayscope_core::diagnose::{diagnose, headline, report_text, DiagnoseOptions, Image};
 use rayscope_core::{RenderSettings, Stage};
 use student::{Options, Student};
 
@@ -73,7 +74,11 @@ fn every_case() {
     let (w, h) = (400, 400);
     println!("{:<22} {:<32} {:>8}  first line", "scene", "mistake", "seconds");
     let mut slowest = 0.0f64;
+    let only = std::env::var("RAYSCOPE_CASE").ok();
     for (scene, bug) in CASES {
+        if only.as_deref().is_some_and(|o| o != bug) {
+            continue;
+        }
         let path = course.scene(scene);
         let file = load(&path);
         let bugs: Vec<&'static str> = if bug == "none" { Vec::new() } else { vec![bug] };
@@ -106,6 +111,9 @@ fn every_case() {
                 .collect()
         };
         println!("{scene:<22} {bug:<32} {secs:>8.2}  {first}");
+        if only.is_some() {
+            println!("{}", report_text(&d, scene));
+        }
     }
     println!("slowest: {slowest:.2} s");
 }
