@@ -739,10 +739,12 @@ impl Contents {
     }
 }
 
-/// The single atoms worth trying for this scene and these settings.
-fn atoms(contents: &Contents, base: &RenderSettings) -> Vec<Atom> {
+/// The single atoms worth trying for this scene and these settings: anti-aliasing levels 1 to
+/// 4, or only `aa_level` where the image's edges show that level.
+fn atoms(contents: &Contents, base: &RenderSettings, aa_level: Option<u32>) -> Vec<Atom> {
     let mut out = Vec::new();
-    for n in 1..=4 {
+    let levels: Vec<u32> = aa_level.map_or_else(|| (1..=4).collect(), |n| vec![n]);
+    for n in levels {
         if n != base.aa {
             out.push(Atom::Setting(SettingChange::Aa(n)));
         }
@@ -1191,6 +1193,12 @@ pub fn diagnose(
             explanations.push(e);
         }
     }
+    // What the edges say about the anti-aliasing, before the search: it tries no other level.
+    let aa = if matches || constant {
+        families::AaReading::default()
+    } else {
+        families::read_aa(scenes.get(base.mistakes), &base, &ours, image.rgb)
+    };
     let traced = if matches {
         Traced::default()
     } else {
@@ -1209,19 +1217,24 @@ pub fn diagnose(
             differs: &differs,
             traced: &traced,
             beyond: &verdict.beyond,
+            aa_level: aa.level,
         };
         let (found, n) = search(&mut scenes, &base, image, opts, &full, &against);
         explanations = found;
         tried += n;
     }
-    let fitted = if matches || constant || !fitted_applies(explanations.first()) {
+    let mut fitted = if matches || constant || !fitted_applies(explanations.first()) {
         Vec::new()
     } else {
         families::fit(scenes.get(base.mistakes), &base, image.rgb)
     };
+    let best = explanations.first();
+    if let Some(f) = aa.fitted.filter(|_| best.is_none_or(|e| !e.cause || aa_members(e))) {
+        fitted.insert(0, f);
+    }
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(Obvious::turned_back);
-    let next = if matches || explanations.first().is_some_and(|e| e.cause) {
+    let next = if matches || best.is_some_and(|e| e.cause) || only_allowed(&fitted) {
         None
     } else {
         NextStep::new(
@@ -1270,8 +1283,19 @@ fn fresnel_members(e: &Explanation) -> bool {
             .all(|m| FRESNEL_MISTAKES.iter().any(|f| f.name() == m))
 }
 
-/// True when the families are fitted beside the best explanation `best`: there is none, it is
-/// not the cause, or it is a member of a family fitted.
+/// True when `e` changes the anti-aliasing level or puts the samples at the cells' corners
+/// ('pixel-corners') and nothing else: a member of the anti-aliasing family.
+fn aa_members(e: &Explanation) -> bool {
+    e.settings.iter().all(|s| s.starts_with("-x ")) && e.mistakes.iter().all(|m| m == Mistake::PixelCorners.name())
+}
+
+/// True when `fitted` holds findings and every one is a correct way too (random samples).
+fn only_allowed(fitted: &[Fitted]) -> bool {
+    !fitted.is_empty() && fitted.iter().all(|f| f.allowed)
+}
+
+/// True when the Fresnel family is fitted beside the best explanation `best`: there is none,
+/// it is not the cause, or it is a member of the family.
 fn fitted_applies(best: Option<&Explanation>) -> bool {
     best.is_none_or(|e| !e.cause || fresnel_members(e))
 }
@@ -1381,6 +1405,9 @@ struct Against<'a> {
     /// Pixels (row-major) where the image lies beyond the ties of rayscope's render, as far as
     /// the match rule looked.
     beyond: &'a [u32],
+    /// The anti-aliasing level the image's edges show, where they show one: no other level is
+    /// tried.
+    aa_level: Option<u32>,
 }
 
 /// Most of the pixels beyond the ties of rayscope's render the coarse pass renders each
@@ -1400,7 +1427,7 @@ fn search(
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
     let contents = Contents::of(scenes.file);
-    let singles = atoms(&contents, base);
+    let singles = atoms(&contents, base, against.aa_level);
     let spp = u64::from(base.aa * base.aa);
     let (grid, gw, gh) = coarse_grid(w, h, spp, opts.coarse_samples);
     let theirs: Vec<u8> = grid
@@ -1788,12 +1815,15 @@ fn headline(d: &Diagnosis) -> String {
             match_how(d, e)
         ),
         Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
-        e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
+        _ if only_allowed(&d.fitted) => {
             let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
             format!(
-                "No known mistake explains your picture; your glass's Fresnel weight differs: {}\n",
+                "Your image is rayscope's render but for its anti-aliasing: {}\n",
                 found.join(" ")
             )
+        }
+        e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
+            format!("No known mistake explains your picture; {}\n", fitted_findings(&d.fitted))
         }
         Some(e) => format!(
             "No known mistake explains all of your picture; {} {}.\n{fitted}",
@@ -1807,11 +1837,31 @@ fn headline(d: &Diagnosis) -> String {
     }
 }
 
+/// The fitted families' findings as a headline: "your glass's Fresnel weight differs: …",
+/// family by family.
+fn fitted_findings(fitted: &[Fitted]) -> String {
+    let mut families: Vec<&str> = fitted.iter().map(Fitted::family).collect();
+    families.dedup();
+    let said: Vec<String> = families
+        .iter()
+        .map(|&family| {
+            let found: Vec<&str> = (fitted.iter().filter(|f| f.family() == family))
+                .map(|f| f.text.as_str())
+                .collect();
+            format!("your {family} differs: {}", found.join(" "))
+        })
+        .collect();
+    said.join("; ")
+}
+
 /// The fitted families beneath a catalogued cause, one indented line each.
 fn fitted_lines(d: &Diagnosis) -> String {
     d.fitted
         .iter()
-        .map(|f| format!("  and your glass's fitted weight: {}\n", f.text))
+        .map(|f| match f.family() {
+            "anti-aliasing" => format!("  and your anti-aliasing, fitted: {}\n", f.text),
+            _ => format!("  and your glass's fitted weight: {}\n", f.text),
+        })
         .collect()
 }
 
