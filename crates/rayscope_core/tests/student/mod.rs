@@ -210,14 +210,17 @@ impl Student {
     /// Where sample (`i`, `j`) sits in its pixel.
     fn offset(&self, i: u32, j: u32, rng: &mut Rng) -> (f64, f64) {
         let n = f64::from(self.opts.aa);
-        let [c, e] = if self.bug("pixel-corners") { [0.0; 2] } else { self.opts.grid };
+        let [c, e] = if self.bug("pixel-corners") {
+            [0.0; 2]
+        } else {
+            self.opts.grid
+        };
         let at = |k: u32| (f64::from(k) + c) / (n + e);
         match self.opts.jitter {
             None => (at(i), at(j)),
-            Some(seed) if self.opts.jitter_in_cells => (
-                (f64::from(i) + rng.next(seed)) / n,
-                (f64::from(j) + rng.next(seed)) / n,
-            ),
+            Some(seed) if self.opts.jitter_in_cells => {
+                ((f64::from(i) + rng.next(seed)) / n, (f64::from(j) + rng.next(seed)) / n)
+            }
             Some(seed) => (rng.next(seed), rng.next(seed)),
         }
     }

@@ -37,6 +37,11 @@ const EDGE_LEVELS: u8 = 3;
 /// A pixel differs from rayscope's render when a channel is this many levels off.
 const DIFF_LEVELS: u8 = 2;
 
+/// Largest share of the differing pixels whose colour no sample positions near them give:
+/// above it, something other than the sample grid makes the picture differ, and its edges are
+/// not read.
+const MAX_BEYOND: f64 = 0.05;
+
 /// A pixel tells the members apart when their colours for it span this many levels in a
 /// channel.
 const SENSITIVE: u8 = 2;
@@ -50,10 +55,6 @@ const FIT_RMS: f64 = 0.6;
 /// Fewest pixels that tell the members apart for a reading.
 const MIN_PIXELS: usize = 30;
 
-/// Largest share of the differing pixels that no member changes: above it, something other
-/// than the sample grid makes the picture differ, and the edges are not read.
-const MAX_UNEXPLAINED: f64 = 0.05;
-
 /// Side of the fine grid of positions a pixel's mean colour and spread are taken from (a
 /// multiple of the levels 1, 2, 3, 4, 6 and 8, whose cells it tiles).
 const FINE: u32 = 24;
@@ -61,6 +62,14 @@ const FINE: u32 = 24;
 /// Random samples fit when the pixels' squared distances from their mean, over the member's
 /// spread, average at most this (1 for noise of exactly that spread).
 const NOISE_Z2: f64 = 2.0;
+
+/// Random samples fit only when the drifts a fixed grid leaves explain at most this χ² of
+/// the pixels' distances from their means (three degrees of freedom: one in a million for
+/// noise).
+const SYSTEMATIC: f64 = 30.0;
+
+/// Pixels each level's shift is screened over.
+const SCREEN_PIXELS: usize = 60;
 
 /// Most pixels the shift is searched over (the fit is then checked on all of them).
 const SHIFT_PIXELS: usize = 120;
@@ -149,6 +158,10 @@ struct Pixel {
     x: u32,
     y: u32,
     theirs: [u8; 3],
+    /// The student's pixel differs from rayscope's.
+    differs: bool,
+    /// How many pixels of its kind (differing, or an edge that does not) it stands for.
+    weight: f64,
 }
 
 /// rayscope's colour at offset (`ox`, `oy`) inside pixel (`x`, `y`), as the render's sample
@@ -183,17 +196,14 @@ fn spread<T: Copy>(v: &[T], most: usize) -> Vec<T> {
     v.iter().step_by(stride).copied().collect()
 }
 
-/// The pixels the fit looks at: those that differ from rayscope's render `ours`, and edges of
-/// it that do not; and which of them differ.
-fn pool(ours: &[u8], theirs: &[u8], w: u32, h: u32) -> (Vec<Pixel>, Vec<bool>) {
+/// The pixels the fit looks at: up to [`POOL`] of those that differ from rayscope's render
+/// `ours`, and as many of its edges that do not; and the share of the differing pixels whose
+/// colour lies beyond what rayscope's colours around them span, which no sample positions near
+/// the pixel give.
+fn pool(ours: &[u8], theirs: &[u8], w: u32, h: u32) -> (Vec<Pixel>, f64) {
     let at = |i: u32, c: usize| ours[(i * 3) as usize + c];
-    let (mut differing, mut edges) = (Vec::new(), Vec::new());
+    let (mut differing, mut edges, mut beyond) = (Vec::new(), Vec::new(), 0usize);
     for i in 0..w * h {
-        let p = (i * 3) as usize;
-        if (0..3).any(|c| ours[p + c].abs_diff(theirs[p + c]) >= DIFF_LEVELS) {
-            differing.push(i);
-            continue;
-        }
         let (x, y) = (i % w, i / w);
         let (mut lo, mut hi) = ([u8::MAX; 3], [0u8; 3]);
         for yy in y.saturating_sub(1)..=(y + 1).min(h - 1) {
@@ -204,40 +214,63 @@ fn pool(ours: &[u8], theirs: &[u8], w: u32, h: u32) -> (Vec<Pixel>, Vec<bool>) {
                 }
             }
         }
-        if (0..3).any(|c| hi[c] - lo[c] >= EDGE_LEVELS) {
+        let p = (i * 3) as usize;
+        if (0..3).any(|c| ours[p + c].abs_diff(theirs[p + c]) >= DIFF_LEVELS) {
+            differing.push(i);
+            let t = &theirs[p..p + 3];
+            if (0..3).any(|c| t[c].saturating_add(DIFF_LEVELS) < lo[c] || t[c] > hi[c].saturating_add(DIFF_LEVELS)) {
+                beyond += 1;
+            }
+        } else if (0..3).any(|c| hi[c] - lo[c] >= EDGE_LEVELS) {
             edges.push(i);
         }
     }
-    let d = spread(&differing, POOL);
-    let e = spread(&edges, POOL);
-    let flags = d.iter().map(|_| true).chain(e.iter().map(|_| false)).collect();
-    let pixels = d
+    let share = beyond as f64 / differing.len().max(1) as f64;
+    let kinds = [
+        (spread(&differing, POOL), differing.len(), true),
+        (spread(&edges, POOL), edges.len(), false),
+    ];
+    let pixels = kinds
         .into_iter()
-        .chain(e)
-        .map(|i| {
-            let p = (i * 3) as usize;
-            Pixel {
-                x: i % w,
-                y: i / w,
-                theirs: [theirs[p], theirs[p + 1], theirs[p + 2]],
-            }
+        .flat_map(|(some, all, differs)| {
+            let weight = all as f64 / some.len().max(1) as f64;
+            some.into_iter().map(move |i| {
+                let p = (i * 3) as usize;
+                Pixel {
+                    x: i % w,
+                    y: i / w,
+                    theirs: [theirs[p], theirs[p + 1], theirs[p + 2]],
+                    differs,
+                    weight,
+                }
+            })
         })
         .collect();
-    (pixels, flags)
+    (pixels, share)
 }
 
-/// Root mean square residual, in levels, of `pred` against the pixels' colours, without the
-/// [`TRIM`] worst pixels.
+/// Root mean square residual, in levels, of `pred` against the pixels' colours, each pixel
+/// weighted by what it stands for, without the [`TRIM`] worst pixels' share of the weight.
 fn rms(pixels: &[&Pixel], pred: &[[u8; 3]]) -> f64 {
-    let mut se: Vec<f64> = pixels
+    let mut se: Vec<(f64, f64)> = pixels
         .iter()
         .zip(pred)
-        .map(|(p, q)| (0..3).map(|c| f64::from(p.theirs[c].abs_diff(q[c])).powi(2)).sum())
+        .map(|(p, q)| {
+            let e = (0..3).map(|c| f64::from(p.theirs[c].abs_diff(q[c])).powi(2)).sum();
+            (e, p.weight)
+        })
         .collect();
-    se.sort_by(|a, b| a.total_cmp(b));
-    let keep = se.len() - (se.len() as f64 * TRIM).ceil() as usize;
-    let sum: f64 = se[..keep].iter().sum();
-    (sum / (3 * keep.max(1)) as f64).sqrt()
+    se.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let total: f64 = se.iter().map(|e| e.1).sum();
+    let (mut sum, mut kept) = (0.0, 0.0);
+    for (e, w) in se {
+        if kept + w > total * (1.0 - TRIM) && kept > 0.0 {
+            break;
+        }
+        sum += e * w;
+        kept += w;
+    }
+    (sum / (3.0 * kept).max(f64::MIN_POSITIVE)).sqrt()
 }
 
 /// The fixed members tried before any shift is fitted, simplest first.
@@ -259,8 +292,8 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
     declared: u32,
 ) -> Reading {
     let (w, h) = (integ.settings.width, integ.settings.height);
-    let (pool, differs) = pool(ours, theirs, w, h);
-    if pool.is_empty() {
+    let (pool, beyond) = pool(ours, theirs, w, h);
+    if pool.is_empty() || beyond > MAX_BEYOND {
         return Reading::default();
     }
     let members = fixed_members();
@@ -277,16 +310,17 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
             })
         })
         .collect();
-    let n_differing = differs.iter().filter(|&&d| d).count();
-    let unexplained = differs.iter().zip(&telling).filter(|(&d, &t)| d && !t).count();
-    let pixels: Vec<&Pixel> = pool.iter().zip(&telling).filter(|(_, &t)| t).map(|(p, _)| p).collect();
-    if pixels.len() < MIN_PIXELS || unexplained as f64 > MAX_UNEXPLAINED * n_differing as f64 {
+    // The pixels that tell the members apart, and those that differ whatever the members
+    // tell: a member fits only where it explains them too.
+    let kept: Vec<bool> = pool.iter().zip(&telling).map(|(p, &t)| t || p.differs).collect();
+    let pixels: Vec<&Pixel> = pool.iter().zip(&kept).filter(|(_, &k)| k).map(|(p, _)| p).collect();
+    if telling.iter().filter(|&&t| t).count() < MIN_PIXELS {
         return Reading::default();
     }
     let column = |k: usize| -> Vec<[u8; 3]> {
         preds
             .iter()
-            .zip(&telling)
+            .zip(&kept)
             .filter(|(_, &t)| t)
             .map(|(ps, _)| ps[k])
             .collect()
@@ -322,26 +356,12 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
             fitted: Some(finding(m, r, &facts)),
         };
     }
-    // The course's grid moved: searched at the declared level and at the level whose course
-    // grid comes closest.
-    let nearest = fits
-        .iter()
-        .filter_map(|&(m, r)| matches!(m, Member::Course(_)).then_some((m.level(), r)))
-        .min_by(|a, b| a.1.total_cmp(&b.1))
-        .map_or(declared, |f| f.0);
-    let mut levels = vec![declared];
-    if nearest != declared {
-        levels.push(nearest);
-    }
-    for n in levels {
-        let m = fit_shift(integ, &pixels, n);
-        let r = rms(&pixels, &predict_all(integ, &pixels, m));
-        if r <= FIT_RMS {
-            return Reading {
-                level: Some(n),
-                fitted: Some(finding(m, r, &facts)),
-            };
-        }
+    let (m, r) = fit_shifts(integ, &pixels);
+    if r <= FIT_RMS {
+        return Reading {
+            level: Some(m.level()),
+            fitted: Some(finding(m, r, &facts)),
+        };
     }
     read_jitter(integ, &pixels, &facts)
 }
@@ -365,14 +385,19 @@ struct Facts {
     course_rms: f64,
 }
 
-/// The course's grid at level `n` moved by the shift that fits `pixels` best: each axis
-/// searched in sixteenths of a pixel, then in sixty-fourths around the best.
-fn fit_shift<I: crate::scene::Intersect + Sync>(integ: &Integrator<'_, I>, pixels: &[&Pixel], n: u32) -> Member {
-    let some = spread(pixels, SHIFT_PIXELS);
-    let cost = |s: [f64; 2]| rms(&some, &predict_all(integ, &some, Member::Shifted(n, s)));
-    let mut s = [0.0f64; 2];
+/// The course's grid at level `n` moved by the shift that fits `pixels` best, searched from
+/// `from` axis by axis in the steps of `schedule` (step, steps each way), and its residual.
+fn fit_shift<I: crate::scene::Intersect + Sync>(
+    integ: &Integrator<'_, I>,
+    pixels: &[&Pixel],
+    n: u32,
+    from: [f64; 2],
+    schedule: &[(f64, i32)],
+) -> ([f64; 2], f64) {
+    let cost = |s: [f64; 2]| rms(pixels, &predict_all(integ, pixels, Member::Shifted(n, s)));
+    let mut s = from;
     let mut now = cost(s);
-    for (step, reach) in [(1.0 / 16.0, 8), (1.0 / 16.0, 8), (1.0 / 64.0, 3)] {
+    for &(step, reach) in schedule {
         for axis in 0..2 {
             let centre = s[axis];
             for k in -reach..=reach {
@@ -388,7 +413,34 @@ fn fit_shift<I: crate::scene::Intersect + Sync>(integ: &Integrator<'_, I>, pixel
             }
         }
     }
-    Member::Shifted(n, s)
+    (s, now)
+}
+
+/// The course's grid moved, at the level and by the shift that fit `pixels` best: every level
+/// screened in eighths of a pixel over a few pixels, the two best searched in sixteenths and
+/// then sixty-fourths, and the best checked on all of them.
+fn fit_shifts<I: crate::scene::Intersect + Sync>(integ: &Integrator<'_, I>, pixels: &[&Pixel]) -> (Member, f64) {
+    let few = spread(pixels, SCREEN_PIXELS);
+    let mut screened: Vec<(u32, [f64; 2], f64)> = (1..=MAX_LEVEL)
+        .map(|n| {
+            let (s, r) = fit_shift(integ, &few, n, [0.0; 2], &[(0.125, 4), (0.125, 4)]);
+            (n, s, r)
+        })
+        .collect();
+    screened.sort_by(|a, b| a.2.total_cmp(&b.2));
+    let some = spread(pixels, SHIFT_PIXELS);
+    let fine = [(1.0 / 16.0, 2), (1.0 / 64.0, 3), (1.0 / 64.0, 3)];
+    let (n, s, _) = screened
+        .into_iter()
+        .take(2)
+        .map(|(n, from, _)| {
+            let (s, r) = fit_shift(integ, &some, n, from, &fine);
+            (n, s, r)
+        })
+        .min_by(|a, b| a.2.total_cmp(&b.2))
+        .unwrap_or((1, [0.0; 2], f64::INFINITY));
+    let m = Member::Shifted(n, s);
+    (m, rms(pixels, &predict_all(integ, pixels, m)))
 }
 
 /// The pixels' mean colour and its spread for random samples: per pixel and channel, in
@@ -398,6 +450,11 @@ struct Spread {
     /// Per level in [`JITTER_LEVELS`]: the variance over the pixel (samples anywhere) and the
     /// mean of the cells' variances over the cell count (one sample in each cell).
     var: Vec<([f64; 3], [f64; 3])>,
+    /// What moving the samples changes, per channel: the right column's mean less the left's,
+    /// the bottom row's less the top's, and the border's less the whole pixel's (samples spread
+    /// wider or narrower). A fixed grid other than the course's leaves residuals along these;
+    /// noise does not.
+    drift: [[f64; 3]; 3],
 }
 
 /// Levels whose cells the [`FINE`] grid tiles.
@@ -443,51 +500,131 @@ fn spread_of<I: crate::scene::Intersect>(integ: &Integrator<'_, I>, p: &Pixel) -
             (pixel, cells)
         })
         .collect();
-    Spread { mean, var }
+    let line = |at: &dyn Fn(usize) -> usize| -> [f64; 3] {
+        [0, 1, 2].map(|k| (0..f).map(|t| v[at(t)][k]).sum::<f64>() / f as f64)
+    };
+    let (left, right) = (line(&|t| t * f), line(&|t| t * f + f - 1));
+    let (top, bottom) = (line(&|t| t), line(&|t| (f - 1) * f + t));
+    let drift = [
+        [0, 1, 2].map(|k| right[k] - left[k]),
+        [0, 1, 2].map(|k| bottom[k] - top[k]),
+        [0, 1, 2].map(|k| (left[k] + right[k] + top[k] + bottom[k]) / 4.0 - mean[k]),
+    ];
+    Spread { mean, var, drift }
+}
+
+/// One channel of a pixel under random samples: the student's distance from the mean colour
+/// (levels), what the pixel stands for, and the drifts a fixed grid would leave.
+struct Channel {
+    r: f64,
+    weight: f64,
+    drift: [f64; 3],
+    /// Per level in [`JITTER_LEVELS`], the variance over the pixel and within the cells, with
+    /// the byte's rounding.
+    var: Vec<[f64; 2]>,
+}
+
+/// The channels random samples are judged on: those of `pixels` not clipped.
+fn channels(pixels: &[&Pixel], spreads: &[Spread]) -> Vec<Channel> {
+    let mean_weight = pixels.iter().map(|p| p.weight).sum::<f64>() / pixels.len().max(1) as f64;
+    let mut out = Vec::new();
+    for (p, s) in pixels.iter().zip(spreads) {
+        for c in 0..3 {
+            if matches!(p.theirs[c], 0 | 255) || s.mean[c] >= 255.0 {
+                continue;
+            }
+            out.push(Channel {
+                // The byte truncates: its middle is half a level up; its rounding adds 1/12.
+                r: f64::from(p.theirs[c]) + 0.5 - s.mean[c],
+                weight: p.weight / mean_weight,
+                drift: s.drift.map(|d| d[c]),
+                var: s.var.iter().map(|v| [v.0[c], v.1[c]].map(|x| x + 1.0 / 12.0)).collect(),
+            });
+        }
+    }
+    out
+}
+
+/// How much of the channels' distances from their means the drifts explain, in units of the
+/// noise (χ² of the weighted least-squares fit of the distances to the drifts): small for
+/// noise, large for a fixed grid that is not the course's.
+fn systematic(ch: &[Channel], l: usize, k: usize) -> f64 {
+    let mut a = [[0.0f64; 3]; 3];
+    let mut b = [0.0f64; 3];
+    for c in ch {
+        let w = c.weight / c.var[l][k];
+        for i in 0..3 {
+            b[i] += w * c.drift[i] * c.r;
+            for j in 0..3 {
+                a[i][j] += w * c.drift[i] * c.drift[j];
+            }
+        }
+    }
+    // Solves a x = b by elimination (a is symmetric and positive semi-definite).
+    let mut m = a;
+    let mut x = b;
+    for col in 0..3 {
+        let piv = m[col][col];
+        if piv.abs() < 1e-9 {
+            continue;
+        }
+        for row in 0..3 {
+            if row != col {
+                let f = m[row][col] / piv;
+                for j in 0..3 {
+                    m[row][j] -= f * m[col][j];
+                }
+                x[row] -= f * x[col];
+            }
+        }
+    }
+    (0..3)
+        .filter(|&i| m[i][i].abs() >= 1e-9)
+        .map(|i| b[i] * x[i] / m[i][i])
+        .sum()
 }
 
 /// Random samples: the member whose spread makes the pixels likeliest, when the pixels are
-/// noise of that spread about their mean colour.
+/// noise of that spread about their mean colour and nothing along the drifts a fixed grid
+/// leaves.
 fn read_jitter<I: crate::scene::Intersect + Sync>(
     integ: &Integrator<'_, I>,
     pixels: &[&Pixel],
     facts: &Facts,
 ) -> Reading {
     let spreads: Vec<Spread> = pixels.par_iter().map(|p| spread_of(integ, p)).collect();
-    // Per member (level, stratified): log-likelihood, Σ z², channels.
-    let mut best: Option<(u32, bool, f64, f64, usize)> = None;
-    for (l, &n) in JITTER_LEVELS.iter().enumerate() {
-        for cells in [false, true] {
-            let (mut ll, mut z2, mut count) = (0.0, 0.0, 0usize);
-            for (p, s) in pixels.iter().zip(&spreads) {
-                let var = if cells { s.var[l].1 } else { s.var[l].0 };
-                for c in 0..3 {
-                    if matches!(p.theirs[c], 0 | 255) || s.mean[c] >= 255.0 {
-                        continue;
-                    }
-                    // The byte truncates: its middle is half a level up; its rounding adds 1/12.
-                    let v = var[c] + 1.0 / 12.0;
-                    let z = (f64::from(p.theirs[c]) + 0.5 - s.mean[c]).powi(2) / v;
-                    ll -= 0.5 * (z + v.ln());
-                    z2 += z;
-                    count += 1;
-                }
+    let ch = channels(pixels, &spreads);
+    if ch.len() < MIN_PIXELS {
+        return Reading::default();
+    }
+    let total: f64 = ch.iter().map(|c| c.weight).sum();
+    // The likeliest member (level, stratified) with its log-likelihood and mean z².
+    let mut best: Option<(usize, usize, f64, f64)> = None;
+    for l in 0..JITTER_LEVELS.len() {
+        for k in 0..2 {
+            let (mut ll, mut z2) = (0.0, 0.0);
+            for c in &ch {
+                let v = c.var[l][k];
+                let z = c.r * c.r / v;
+                ll -= 0.5 * c.weight * (z + v.ln());
+                z2 += c.weight * z;
             }
             if best.is_none_or(|b| ll > b.2) {
-                best = Some((n, cells, ll, z2, count));
+                best = Some((l, k, ll, z2 / total));
             }
         }
     }
-    let Some((n, cells, _, z2, count)) = best else {
+    let Some((l, k, _, mean_z2)) = best else {
         return Reading::default();
     };
-    let mean_z2 = z2 / count.max(1) as f64;
-    if count < MIN_PIXELS || mean_z2 > NOISE_Z2 {
+    let drift = systematic(&ch, l, k);
+    if mean_z2 > NOISE_Z2 || drift > SYSTEMATIC {
         return Reading::default();
     }
+    let n = JITTER_LEVELS[l];
     Reading {
         level: Some(n),
-        fitted: Some(jitter_finding(n, cells, mean_z2, facts)),
+        fitted: Some(jitter_finding(n, k == 1, mean_z2, facts)),
     }
 }
 
