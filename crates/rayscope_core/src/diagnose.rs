@@ -740,10 +740,15 @@ impl Contents {
 }
 
 /// The single atoms worth trying for this scene and these settings: anti-aliasing levels 1 to
-/// 4, or only `aa_level` where the image's edges show that level.
+/// 4, or only `aa_level` where the image's edges show that level (none at stage 1).
 fn atoms(contents: &Contents, base: &RenderSettings, aa_level: Option<u32>) -> Vec<Atom> {
     let mut out = Vec::new();
-    let levels: Vec<u32> = aa_level.map_or_else(|| (1..=4).collect(), |n| vec![n]);
+    // Stage 1 takes one sample a pixel whatever -x says.
+    let levels: Vec<u32> = match aa_level {
+        _ if base.stage == Stage::One => Vec::new(),
+        Some(n) => vec![n],
+        None => (1..=4).collect(),
+    };
     for n in levels {
         if n != base.aa {
             out.push(Atom::Setting(SettingChange::Aa(n)));

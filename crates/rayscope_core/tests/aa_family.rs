@@ -1,7 +1,8 @@
 //! `diagnose` fits the student's anti-aliasing sample grid to their picture: grids the
 //! student's tracer (`student/`) plants (cells' corners, spaced inside the pixel, shifted by
 //! 3/8 px, 3×3 where the flags say 4×4) are fitted back and said against the course's; the
-//! correct grid, and samples jittered within each cell, give no finding.
+//! correct grid, samples jittered within each cell, and a stage-1 picture anti-aliased as
+//! `-x` asks give no finding.
 
 mod student;
 
@@ -95,7 +96,10 @@ fn samples_at_the_cells_corners_are_fitted_beneath_their_catalogue_name() {
     };
     let d = run(&path, opts, 4, Stage::Two);
     let text = report_text(&d, "scene.txt");
-    let e = d.explanations.first().unwrap_or_else(|| panic!("no explanation\n{text}"));
+    let e = d
+        .explanations
+        .first()
+        .unwrap_or_else(|| panic!("no explanation\n{text}"));
     assert!(e.cause && e.mistakes == ["pixel-corners"], "{text}");
     let f = aa_finding(&d);
     assert_eq!(f.code, "aa-corner", "{text}");
@@ -128,7 +132,10 @@ fn a_grid_shifted_by_three_eighths_is_fitted_back() {
         let s = f.numbers[key];
         assert!((s - 0.375).abs() <= 1.0 / 64.0, "{key} {s}\n{text}");
     }
-    assert!(text.contains("0.375 px right and 0.375 px down of the course's"), "{text}");
+    assert!(
+        text.contains("0.375 px right and 0.375 px down of the course's"),
+        "{text}"
+    );
 }
 
 /// 3×3 samples where the flags say 4×4: the edges show the level, and the search's `-x 3` is
@@ -138,13 +145,26 @@ fn three_by_three_samples_under_a_declared_four_are_read_from_the_edges() {
     let Some(path) = scene("sample_scene_1.txt") else {
         return;
     };
-    let d = run(&path, Options { aa: 3, ..Options::new(W, H) }, 4, Stage::Two);
+    let d = run(
+        &path,
+        Options {
+            aa: 3,
+            ..Options::new(W, H)
+        },
+        4,
+        Stage::Two,
+    );
     let text = report_text(&d, "scene.txt");
-    let e = d.explanations.first().unwrap_or_else(|| panic!("no explanation\n{text}"));
+    let e = d
+        .explanations
+        .first()
+        .unwrap_or_else(|| panic!("no explanation\n{text}"));
     assert!(e.matches && e.settings == ["-x 3"], "{text}");
     // No other level is proposed: the edges contradict them.
     assert!(
-        d.explanations.iter().all(|e| e.settings.iter().all(|s| s == "-x 3" || !s.starts_with("-x"))),
+        d.explanations
+            .iter()
+            .all(|e| e.settings.iter().all(|s| s == "-x 3" || !s.starts_with("-x"))),
         "{text}"
     );
     let f = aa_finding(&d);
@@ -158,11 +178,23 @@ fn three_by_three_samples_under_a_declared_four_are_read_from_the_edges() {
 /// The course's grid, at -x 1 and -x 4, gives no finding, nor does a glass scene's.
 #[test]
 fn the_course_s_grid_gives_no_finding() {
-    for (name, aa) in [("sample_scene_1.txt", 1), ("sample_scene_1.txt", 4), ("sample_scene_2.txt", 2)] {
+    for (name, aa) in [
+        ("sample_scene_1.txt", 1),
+        ("sample_scene_1.txt", 4),
+        ("sample_scene_2.txt", 2),
+    ] {
         let Some(path) = scene(name) else {
             return;
         };
-        let d = run(&path, Options { aa, ..Options::new(W, H) }, aa, Stage::Two);
+        let d = run(
+            &path,
+            Options {
+                aa,
+                ..Options::new(W, H)
+            },
+            aa,
+            Stage::Two,
+        );
         let text = report_text(&d, "scene.txt");
         assert!(d.matches, "{name} -x {aa}:\n{text}");
         assert!(d.fitted.is_empty(), "{name} -x {aa}: {:?}\n{text}", d.fitted);
@@ -193,4 +225,43 @@ fn samples_jittered_within_their_cells_are_allowed() {
         text.starts_with("Your image is rayscope's render but for its anti-aliasing: Your anti-aliasing samples are jittered at random within each cell of the pixel's 4×4 grid"),
         "{text}"
     );
+}
+
+/// A stage-1 picture anti-aliased on the course's -x 4 grid (students honour -x at stage 1
+/// too) is said to be allowed; one at 2×2 under -x 4 is read as 2×2.
+#[test]
+fn a_stage_one_picture_anti_aliased_as_asked_is_allowed() {
+    let Some(path) = scene("sample_scene_1.txt") else {
+        return;
+    };
+    let opts = Options {
+        aa: 4,
+        stage1: true,
+        ..Options::new(W, H)
+    };
+    let d = run(&path, opts, 4, Stage::One);
+    let text = report_text(&d, "scene.txt");
+    let f = aa_finding(&d);
+    assert_eq!(
+        (f.code, f.allowed, f.numbers["level"]),
+        ("aa-stage1", true, 4.0),
+        "{text}"
+    );
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(d.next.is_none(), "{text}");
+    assert!(
+        text.starts_with("Your image is rayscope's render but for its anti-aliasing: Your stage-1 picture is anti-aliased on the -x 4 grid"),
+        "{text}"
+    );
+    let d = run(&path, Options { aa: 2, ..opts }, 4, Stage::One);
+    let text = report_text(&d, "scene.txt");
+    let f = aa_finding(&d);
+    assert_eq!(
+        (f.code, f.allowed, f.numbers["level"]),
+        ("aa-level", false, 2.0),
+        "{text}"
+    );
+    // The stage-1 picture without anti-aliasing is rayscope's, whatever -x says.
+    let d = run(&path, Options { aa: 1, ..opts }, 4, Stage::One);
+    assert!(d.matches && d.fitted.is_empty(), "{}", report_text(&d, "scene.txt"));
 }

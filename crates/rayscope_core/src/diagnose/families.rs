@@ -60,5 +60,11 @@ pub(crate) fn read_aa(scene: &Scene, settings: &RenderSettings, ours: &[u8], the
     if integ.stochastic && settings.stage == crate::settings::Stage::Full {
         return AaReading::default();
     }
-    aa::read(&integ, ours, theirs, settings.aa.max(1))
+    let asked = settings.aa.max(1);
+    let declared = if settings.stage == crate::settings::Stage::One {
+        1
+    } else {
+        asked
+    };
+    aa::read(&integ, ours, theirs, declared, asked)
 }

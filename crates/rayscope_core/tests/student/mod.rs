@@ -31,6 +31,8 @@ pub struct Options {
     /// anywhere in the pixel, or with `jitter_in_cells` one anywhere in each cell of the grid.
     pub jitter: Option<u64>,
     pub jitter_in_cells: bool,
+    /// Stage 1: the closest hit's material colour, black where nothing is hit.
+    pub stage1: bool,
 }
 
 impl Options {
@@ -47,6 +49,7 @@ impl Options {
             grid: [0.5, 0.0],
             jitter: None,
             jitter_in_cells: false,
+            stage1: false,
         }
     }
 }
@@ -242,6 +245,9 @@ impl Student {
             return DVec3::ZERO;
         };
         let obj = &self.objs[hit.obj];
+        if self.opts.stage1 {
+            return obj.color;
+        }
         let reversed = obj.is_triangle && self.bug("reversed-normals");
         let outside = hit.n.dot(ray.d) < 0.0;
         // Turn the normal towards the ray, unless the student trusts the winding.

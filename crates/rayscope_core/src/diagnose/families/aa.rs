@@ -284,12 +284,14 @@ fn fixed_members() -> Vec<Member> {
 }
 
 /// Reads the student's anti-aliasing from `theirs` (RGB8 of the settings' size) against
-/// rayscope's render `ours` under `integ`'s settings, which ask for `-x declared`.
+/// rayscope's render `ours` under `integ`'s settings, whose grid is `declared`×`declared` for
+/// the command line's `-x asked` (one sample at stage 1, whatever `-x` says).
 pub(crate) fn read<I: crate::scene::Intersect + Sync>(
     integ: &Integrator<'_, I>,
     ours: &[u8],
     theirs: &[u8],
     declared: u32,
+    asked: u32,
 ) -> Reading {
     let (w, h) = (integ.settings.width, integ.settings.height);
     let (pool, beyond) = pool(ours, theirs, w, h);
@@ -337,6 +339,7 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
     let facts = Facts {
         pixels: pixels.len(),
         declared,
+        asked,
         course_rms,
     };
     if course_rms <= FIT_RMS {
@@ -379,8 +382,10 @@ fn predict_all<I: crate::scene::Intersect + Sync>(
 struct Facts {
     /// Pixels fitted.
     pixels: usize,
-    /// The `-x` the flags ask for.
+    /// Samples per axis of rayscope's render.
     declared: u32,
+    /// The command line's `-x` (`declared` but at stage 1).
+    asked: u32,
     /// Residual of the course's grid at `declared`, in levels.
     course_rms: f64,
 }
@@ -646,7 +651,7 @@ fn jitter_finding(n: u32, cells: bool, mean_z2: f64, facts: &Facts) -> Fitted {
     let count = if n == d {
         String::new()
     } else {
-        format!(" ({n}×{n} a pixel, where the flags ask for {d}×{d}: -x {n})")
+        format!(" ({n}×{n} a pixel, where rayscope's render takes {d}×{d})")
     };
     let text = if cells {
         format!(
@@ -694,10 +699,28 @@ fn finding(m: Member, rms: f64, facts: &Facts) -> Fitted {
     let count = if n == d {
         String::new()
     } else {
-        format!(", {n}×{n} a pixel where the flags ask for {d}×{d}")
+        format!(", {n}×{n} a pixel where rayscope's render takes {d}×{d}")
     };
     let from = format!("fitted from {} edge pixels", facts.pixels);
     let (code, text) = match m {
+        // Stage 1 anti-aliased with the command line's -x: a student who honours -x there.
+        Member::Course(_) if n == facts.asked && n != d => {
+            return Fitted {
+                code: "aa-stage1",
+                text: format!(
+                    "Your stage-1 picture is anti-aliased on the -x {n} grid, {n}×{n} samples a pixel at the cells' centres ({from}) — that is allowed where -x is asked for at stage 1: the course's own stage-1 images take one ray through each pixel's centre whatever -x says, and so does rayscope's --stage 1."
+                ),
+                numbers,
+                allowed: true,
+            };
+        }
+        Member::Course(_) if facts.asked != d => (
+            "aa-level",
+            format!(
+                "Your stage-1 picture has {n}×{n} samples a pixel where -x {a} asks for {a}×{a} ({from}); the course's own stage-1 images take one ray through each pixel's centre whatever -x says.",
+                a = facts.asked
+            ),
+        ),
         Member::Course(_) => (
             "aa-level",
             format!(
