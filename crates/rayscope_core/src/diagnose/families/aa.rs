@@ -558,10 +558,10 @@ fn systematic(ch: &[Channel], l: usize, k: usize) -> f64 {
     let mut b = [0.0f64; 3];
     for c in ch {
         let w = c.weight / c.var[l][k];
-        for i in 0..3 {
-            b[i] += w * c.drift[i] * c.r;
-            for j in 0..3 {
-                a[i][j] += w * c.drift[i] * c.drift[j];
+        for ((ai, bi), &di) in a.iter_mut().zip(&mut b).zip(&c.drift) {
+            *bi += w * di * c.r;
+            for (aij, &dj) in ai.iter_mut().zip(&c.drift) {
+                *aij += w * di * dj;
             }
         }
     }
@@ -573,14 +573,13 @@ fn systematic(ch: &[Channel], l: usize, k: usize) -> f64 {
         if piv.abs() < 1e-9 {
             continue;
         }
-        for row in 0..3 {
-            if row != col {
-                let f = m[row][col] / piv;
-                for j in 0..3 {
-                    m[row][j] -= f * m[col][j];
-                }
-                x[row] -= f * x[col];
+        let (pivot_row, pivot_x) = (m[col], x[col]);
+        for row in (0..3).filter(|&r| r != col) {
+            let f = m[row][col] / piv;
+            for (mrj, &mcj) in m[row].iter_mut().zip(&pivot_row) {
+                *mrj -= f * mcj;
             }
+            x[row] -= f * pivot_x;
         }
     }
     (0..3)
