@@ -861,19 +861,23 @@ function compareDiagnosis(d) {
     const where = best ? `${best.percent.toFixed(0)} % of ${best.entity}${best.seen_in.length ? ` (seen in ${best.seen_in.join(" in ")})` : ""}'s differing pixels, ` : "";
     return `explains ${where}${x.percent.toFixed(0)} % of all the differing pixels`;
   };
-  // A fitted family (the glass's Fresnel weight) heads the report where no Fresnel mistake of the catalogue explains it, and follows the headline otherwise.
+  // A fitted family (the glass's Fresnel weight, the anti-aliasing samples) heads the report where no catalogued mistake of that family explains it, and follows the headline otherwise; what is fitted and allowed (random samples) heads it as no mistake.
   const fitted = r.fitted || [];
   const fresnelNames = ["no-fresnel", "fresnel-half", "schlick", "fresnel-swapped"];
   const fresnelFirst = first && !first.settings.length && first.mistakes.length && first.mistakes.every((m) => fresnelNames.includes(m));
   const fittedHead = fitted.length && !(first && first.cause) && !fresnelFirst;
+  const allowed = fitted.length && fitted.every((f) => f.allowed);
+  const family = (f) => f.code.startsWith("aa-") ? "anti-aliasing" : "glass's Fresnel weight";
+  const families = [...new Set(fitted.map(family))].map((fam) => `your ${fam} differs: ${fitted.filter((f) => family(f) === fam).map((f) => f.text).join(" ")}`);
   const head = plain && first ? null
-    : fittedHead ? `No known mistake explains your picture; your glass's Fresnel weight differs: ${fitted.map((f) => f.text).join(" ")}`
+    : fittedHead && allowed ? `Your image is rayscope's render but for its anti-aliasing: ${fitted.map((f) => f.text).join(" ")}`
+    : fittedHead ? `No known mistake explains your picture; ${families.join("; ")}`
     : !first ? `No known mistake explains your picture: no setting or catalogued mistake (alone or in pairs, ${r.candidates} renders tried) reproduces it or a part of it.`
     : first.matches ? `Explained: your image is rayscope's render with ${first.summary}.`
     : first.cause ? `Explained: ${first.summary} accounts for the whole difference.`
     : `No known mistake explains all of your picture; ${first.summary} ${partText(first)}.`;
   if (head) box.append(el("b", { id: "diagnosis-headline" }, head));
-  if (!fittedHead) for (const f of fitted) box.append(el("p", { class: "fitted", "data-code": f.code }, `And your glass's fitted weight: ${f.text}`));
+  if (!fittedHead) for (const f of fitted) box.append(el("p", { class: "fitted", "data-code": f.code }, family(f) === "anti-aliasing" ? `And your anti-aliasing, fitted: ${f.text}` : `And your glass's fitted weight: ${f.text}`));
   box.append(el("p", {}, `${yours} differs from rayscope's: PSNR ${db(r.psnr_db)} (${db(r.psnr_downsampled_db)} on 4×4 averages); ${r.differing_pixels} of ${r.total_pixels} pixels differ by ${r.threshold} or more levels, by up to ${r.max_channel_diff}.` +
       (r.region ? ` They lie in columns ${r.region.x0}–${r.region.x1 - 1}, rows ${r.region.y0}–${r.region.y1 - 1}.` : "")));
   if (r.attribution && r.attribution.length) {
