@@ -265,3 +265,25 @@ fn a_stage_one_picture_anti_aliased_as_asked_is_allowed() {
     let d = run(&path, Options { aa: 1, ..opts }, 4, Stage::One);
     assert!(d.matches && d.fitted.is_empty(), "{}", report_text(&d, "scene.txt"));
 }
+
+/// Samples anywhere in the pixel, at random, are allowed too, and no mistake is named.
+#[test]
+fn samples_jittered_over_the_pixel_are_allowed() {
+    let Some(path) = scene("sample_scene_1.txt") else {
+        return;
+    };
+    let opts = Options {
+        aa: 4,
+        jitter: Some(11),
+        ..Options::new(W, H)
+    };
+    let d = run(&path, opts, 4, Stage::Two);
+    let text = report_text(&d, "scene.txt");
+    let f = aa_finding(&d);
+    assert_eq!((f.code, f.allowed), ("aa-jittered", true), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(
+        text.starts_with("Your image is rayscope's render but for its anti-aliasing: Your samples are jittered at random within the pixel"),
+        "{text}"
+    );
+}

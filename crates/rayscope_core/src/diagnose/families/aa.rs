@@ -28,7 +28,7 @@ const MAX_LEVEL: u32 = 8;
 
 /// Most pixels taken of each kind: pixels that differ from rayscope's render, and edge pixels
 /// of rayscope's render that do not.
-const POOL: usize = 200;
+const POOL: usize = 150;
 
 /// A pixel of rayscope's render is on an edge when the pixels around it span this many levels
 /// in a channel.
@@ -68,8 +68,8 @@ const NOISE_Z2: f64 = 2.0;
 /// noise).
 const SYSTEMATIC: f64 = 30.0;
 
-/// Pixels each level's shift is screened over.
-const SCREEN_PIXELS: usize = 60;
+/// Most pixels random samples are judged on.
+const JITTER_PIXELS: usize = 200;
 
 /// Most pixels the shift is searched over (the fit is then checked on all of them).
 const SHIFT_PIXELS: usize = 120;
@@ -359,7 +359,19 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
             fitted: Some(finding(m, r, &facts)),
         };
     }
-    let (m, r) = fit_shifts(integ, &pixels);
+    // The course's grid moved: at the declared level, and at the level whose course grid
+    // comes closest.
+    let nearest = fits
+        .iter()
+        .filter(|(m, _)| matches!(m, Member::Course(_)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(declared, |f| f.0.level());
+    let levels = if nearest == declared {
+        vec![declared]
+    } else {
+        vec![declared, nearest]
+    };
+    let (m, r) = fit_shifts(integ, &pixels, &levels);
     if r <= FIT_RMS {
         return Reading {
             level: Some(m.level()),
@@ -379,6 +391,7 @@ fn predict_all<I: crate::scene::Intersect + Sync>(
 }
 
 /// What every finding's sentence and figures need.
+#[derive(Clone, Copy)]
 struct Facts {
     /// Pixels fitted.
     pixels: usize,
@@ -421,25 +434,20 @@ fn fit_shift<I: crate::scene::Intersect + Sync>(
     (s, now)
 }
 
-/// The course's grid moved, at the level and by the shift that fit `pixels` best: every level
-/// screened in eighths of a pixel over a few pixels, the two best searched in sixteenths and
-/// then sixty-fourths, and the best checked on all of them.
-fn fit_shifts<I: crate::scene::Intersect + Sync>(integ: &Integrator<'_, I>, pixels: &[&Pixel]) -> (Member, f64) {
-    let few = spread(pixels, SCREEN_PIXELS);
-    let mut screened: Vec<(u32, [f64; 2], f64)> = (1..=MAX_LEVEL)
-        .map(|n| {
-            let (s, r) = fit_shift(integ, &few, n, [0.0; 2], &[(0.125, 4), (0.125, 4)]);
-            (n, s, r)
-        })
-        .collect();
-    screened.sort_by(|a, b| a.2.total_cmp(&b.2));
+/// The course's grid moved, at the one of `levels` and by the shift that fit `pixels` best:
+/// each axis searched over a few pixels in eighths of a pixel, then in thirty-seconds and
+/// sixty-fourths around the best, and the best checked on all of them.
+fn fit_shifts<I: crate::scene::Intersect + Sync>(
+    integ: &Integrator<'_, I>,
+    pixels: &[&Pixel],
+    levels: &[u32],
+) -> (Member, f64) {
     let some = spread(pixels, SHIFT_PIXELS);
-    let fine = [(1.0 / 16.0, 2), (1.0 / 64.0, 3), (1.0 / 64.0, 3)];
-    let (n, s, _) = screened
-        .into_iter()
-        .take(2)
-        .map(|(n, from, _)| {
-            let (s, r) = fit_shift(integ, &some, n, from, &fine);
+    let schedule = [(0.125, 4), (0.125, 4), (1.0 / 32.0, 2), (1.0 / 64.0, 1)];
+    let (n, s, _) = levels
+        .iter()
+        .map(|&n| {
+            let (s, r) = fit_shift(integ, &some, n, [0.0; 2], &schedule);
             (n, s, r)
         })
         .min_by(|a, b| a.2.total_cmp(&b.2))
@@ -596,6 +604,8 @@ fn read_jitter<I: crate::scene::Intersect + Sync>(
     pixels: &[&Pixel],
     facts: &Facts,
 ) -> Reading {
+    let pixels = spread(pixels, JITTER_PIXELS);
+    let pixels = &pixels[..];
     let spreads: Vec<Spread> = pixels.par_iter().map(|p| spread_of(integ, p)).collect();
     let ch = channels(pixels, &spreads);
     if ch.len() < MIN_PIXELS {
@@ -626,9 +636,21 @@ fn read_jitter<I: crate::scene::Intersect + Sync>(
         return Reading::default();
     }
     let n = JITTER_LEVELS[l];
+    // The noise's size tells one sample in each cell of the declared grid; otherwise samples
+    // anywhere in the pixel and stratified ones of another level give noise too alike to name
+    // a kind or a level, or to rule a level out.
+    let cells = k == 1 && n == facts.declared;
     Reading {
-        level: Some(n),
-        fitted: Some(jitter_finding(n, k == 1, mean_z2, facts)),
+        level: cells.then_some(n),
+        fitted: Some(jitter_finding(
+            n,
+            cells,
+            mean_z2,
+            &Facts {
+                pixels: pixels.len(),
+                ..*facts
+            },
+        )),
     }
 }
 
@@ -641,27 +663,22 @@ fn figures(facts: &Facts) -> BTreeMap<&'static str, f64> {
     numbers
 }
 
-/// The finding for random samples at level `n`, within each cell when `cells`.
+/// The finding for random samples: one within each cell of the `n`×`n` grid when `cells`,
+/// else anywhere in the pixel (`n` the level whose noise is likeliest).
 fn jitter_finding(n: u32, cells: bool, mean_z2: f64, facts: &Facts) -> Fitted {
     let mut numbers = figures(facts);
     numbers.insert("level", f64::from(n));
     numbers.insert("noise_z2", mean_z2);
     let d = facts.declared;
-    let count = if n == d {
-        String::new()
-    } else {
-        format!(" ({n}×{n} a pixel, where rayscope's render takes {d}×{d})")
-    };
     let text = if cells {
         format!(
-            "your anti-aliasing samples are jittered at random within each cell of the pixel's {n}×{n} grid{count} (read from {} edge pixels) — that is allowed: each pixel still averages its area, and its edges differ from rayscope's regular grid by noise only.",
+            "your anti-aliasing samples are jittered at random within each cell of the pixel's {n}×{n} grid (read from {} edge pixels) — that is allowed: each pixel still averages its area, and its edges differ from rayscope's regular grid by noise only.",
             facts.pixels
         )
     } else {
         format!(
-            "your samples are jittered at random within the pixel, {m} of them{count} (read from {} edge pixels) — that is allowed: each pixel still averages its area, and its edges differ from rayscope's regular grid by noise only; one sample at random in each of the {n}×{n} cells would make that noise smaller.",
-            facts.pixels,
-            m = n * n
+            "your samples are jittered at random within the pixel (read from {} edge pixels) — that is allowed: each pixel still averages its area, and its edges differ from rayscope's regular grid by noise only; one sample at random in each cell of a {d}×{d} grid keeps that noise smallest.",
+            facts.pixels
         )
     };
     Fitted {
