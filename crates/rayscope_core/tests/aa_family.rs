@@ -175,6 +175,30 @@ fn three_by_three_samples_under_a_declared_four_are_read_from_the_edges() {
     );
 }
 
+/// 6×6 samples, a level the search does not try by itself, is read from the edges and offered.
+#[test]
+fn a_level_past_four_is_read_and_offered() {
+    let Some(path) = scene("sample_scene_1.txt") else {
+        return;
+    };
+    let d = run(
+        &path,
+        Options {
+            aa: 6,
+            ..Options::new(W, H)
+        },
+        4,
+        Stage::Two,
+    );
+    let text = report_text(&d, "scene.txt");
+    let e = d
+        .explanations
+        .first()
+        .unwrap_or_else(|| panic!("no explanation\n{text}"));
+    assert!(e.matches && e.settings == ["-x 6"], "{text}");
+    assert_eq!(aa_finding(&d).numbers["level"], 6.0, "{text}");
+}
+
 /// The course's grid, at -x 1 and -x 4, gives no finding, nor does a glass scene's.
 #[test]
 fn the_course_s_grid_gives_no_finding() {

@@ -10,8 +10,9 @@
 //! Each fixed member is rendered at its own sample positions for a few hundred edge pixels and
 //! fits when its residual, root mean square over their channels without the [`TRIM`] worst
 //! pixels, is within [`FIT_RMS`] levels; the course's grid at the declared `-x` is the null
-//! hypothesis: when it fits there is no finding. Random samples fit when the pixels' distances
-//! from their mean colour, over the spread the member gives them, are those of noise.
+//! hypothesis: when it fits there is no finding, unless another member fits with at most
+//! [`BETTER`] of its residual. Random samples fit when the pixels' distances from their mean
+//! colour, over the spread the member gives them, are those of noise.
 
 use std::collections::BTreeMap;
 
@@ -51,6 +52,11 @@ const TRIM: f64 = 0.02;
 
 /// A fixed member fits when its residual is at most this many levels (root mean square).
 const FIT_RMS: f64 = 0.6;
+
+/// A member other than the course's grid is the finding only where its residual is at most
+/// this share of the course's: the pixels that differ are few beside the edges that do not,
+/// so the course's residual over them all may be small too.
+const BETTER: f64 = 0.5;
 
 /// Fewest pixels that tell the members apart for a reading.
 const MIN_PIXELS: usize = 30;
@@ -342,22 +348,24 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
         asked,
         course_rms,
     };
-    if course_rms <= FIT_RMS {
-        return Reading {
-            level: Some(declared),
-            fitted: None,
-        };
-    }
+    let null = Reading {
+        level: Some(declared),
+        fitted: None,
+    };
     let best = fits
         .iter()
         .copied()
         .filter(|f| f.1 <= FIT_RMS)
         .min_by(|a, b| a.1.total_cmp(&b.1));
-    if let Some((m, r)) = best {
-        return Reading {
-            level: Some(m.level()),
-            fitted: Some(finding(m, r, &facts)),
-        };
+    match best {
+        Some((m, r)) if course_rms > FIT_RMS || r <= BETTER * course_rms => {
+            return Reading {
+                level: Some(m.level()),
+                fitted: Some(finding(m, r, &facts)),
+            };
+        }
+        _ if course_rms <= FIT_RMS => return null,
+        _ => {}
     }
     // The course's grid moved: at the declared level, and at the level whose course grid
     // comes closest.
