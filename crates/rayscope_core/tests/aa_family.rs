@@ -252,7 +252,8 @@ fn samples_jittered_within_their_cells_are_allowed() {
 }
 
 /// A stage-1 picture anti-aliased on the course's -x 4 grid (students honour -x at stage 1
-/// too) is said to be allowed; one at 2×2 under -x 4 is read as 2×2.
+/// too) is said to be allowed; one at 2×2 under -x 4, or at 4×4 under -x 1, is read as its
+/// level.
 #[test]
 fn a_stage_one_picture_anti_aliased_as_asked_is_allowed() {
     let Some(path) = scene("sample_scene_1.txt") else {
@@ -283,6 +284,20 @@ fn a_stage_one_picture_anti_aliased_as_asked_is_allowed() {
     assert_eq!(
         (f.code, f.allowed, f.numbers["level"]),
         ("aa-level", false, 2.0),
+        "{text}"
+    );
+    assert!(
+        f.text
+            .starts_with("Your stage-1 picture has 2×2 samples a pixel where -x 4 asks for 4×4"),
+        "{text}"
+    );
+    let d = run(&path, opts, 1, Stage::One);
+    let text = report_text(&d, "scene.txt");
+    let f = aa_finding(&d);
+    assert_eq!((f.code, f.allowed), ("aa-level", false), "{text}");
+    assert!(
+        f.text
+            .starts_with("Your stage-1 picture has 4×4 samples a pixel where -x 1 asks for 1×1"),
         "{text}"
     );
     // The stage-1 picture without anti-aliasing is rayscope's, whatever -x says.

@@ -346,6 +346,7 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
         pixels: pixels.len(),
         declared,
         asked,
+        stage1: integ.settings.stage == crate::settings::Stage::One,
         course_rms,
     };
     let null = Reading {
@@ -407,6 +408,8 @@ struct Facts {
     declared: u32,
     /// The command line's `-x` (`declared` but at stage 1).
     asked: u32,
+    /// The render is stage 1, which takes one sample a pixel whatever `-x` says.
+    stage1: bool,
     /// Residual of the course's grid at `declared`, in levels.
     course_rms: f64,
 }
@@ -728,7 +731,7 @@ fn finding(m: Member, rms: f64, facts: &Facts) -> Fitted {
     let from = format!("fitted from {} edge pixels", facts.pixels);
     let (code, text) = match m {
         // Stage 1 anti-aliased with the command line's -x: a student who honours -x there.
-        Member::Course(_) if n == facts.asked && n != d => {
+        Member::Course(_) if facts.stage1 && n == facts.asked && n > 1 => {
             return Fitted {
                 code: "aa-stage1",
                 text: format!(
@@ -738,7 +741,7 @@ fn finding(m: Member, rms: f64, facts: &Facts) -> Fitted {
                 allowed: true,
             };
         }
-        Member::Course(_) if facts.asked != d => (
+        Member::Course(_) if facts.stage1 => (
             "aa-level",
             format!(
                 "Your stage-1 picture has {n}×{n} samples a pixel where -x {a} asks for {a}×{a} ({from}); the course's own stage-1 images take one ray through each pixel's centre whatever -x says.",
