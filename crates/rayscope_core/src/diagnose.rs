@@ -676,10 +676,17 @@ fn worth_trying(contents: &SceneContents, m: Mistake, s: &RenderSettings) -> boo
     !matches!(m, Mistake::FovVertical | Mistake::RecursionLimit3) && contents.can_show(m, s)
 }
 
-/// The single atoms worth trying for this scene and these settings.
-fn atoms(contents: &SceneContents, base: &RenderSettings) -> Vec<Atom> {
+/// The single atoms worth trying for this scene and these settings: anti-aliasing levels 1 to
+/// 4, or only `aa_level` where the image's edges show that level (none at stage 1).
+fn atoms(contents: &SceneContents, base: &RenderSettings, aa_level: Option<u32>) -> Vec<Atom> {
     let mut out = Vec::new();
-    for n in 1..=4 {
+    // Stage 1 takes one sample a pixel whatever -x says.
+    let levels: Vec<u32> = match aa_level {
+        _ if base.stage == Stage::One => Vec::new(),
+        Some(n) => vec![n],
+        None => (1..=4).collect(),
+    };
+    for n in levels {
         if n != base.aa {
             out.push(Atom::Setting(SettingChange::Aa(n)));
         }
@@ -1128,6 +1135,12 @@ pub fn diagnose(
             explanations.push(e);
         }
     }
+    // What the edges say about the anti-aliasing, before the search: it tries no other level.
+    let aa = if matches || constant {
+        families::AaReading::default()
+    } else {
+        families::read_aa(scenes.get(base.mistakes), &base, &ours, image.rgb)
+    };
     let traced = if matches {
         Traced::default()
     } else {
@@ -1146,17 +1159,22 @@ pub fn diagnose(
             differs: &differs,
             traced: &traced,
             beyond: &verdict.beyond,
+            aa_level: aa.level,
         };
         let (found, n) = search(&mut scenes, &base, image, opts, &full, &against);
         explanations = found;
         tried += n;
     }
-    let fitted = if matches || constant || !fitted_applies(explanations.first()) {
+    let mut fitted = if matches || constant || !fitted_applies(explanations.first()) {
         Vec::new()
     } else {
         families::fit(scenes.get(base.mistakes), &base, image.rgb)
     };
-    let recognised = if matches || constant || explanations.first().is_some_and(|e| e.cause) {
+    let best = explanations.first();
+    if let Some(f) = aa.fitted.filter(|_| best.is_none_or(|e| !e.cause || aa_members(e))) {
+        fitted.insert(0, f);
+    }
+    let recognised = if matches || constant || best.is_some_and(|e| e.cause) {
         Vec::new()
     } else {
         let without = |k: usize, pixels: &[(u32, u32)]| {
@@ -1171,7 +1189,7 @@ pub fn diagnose(
     };
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(Obvious::turned_back);
-    let next = if matches || explanations.first().is_some_and(|e| e.cause) {
+    let next = if matches || best.is_some_and(|e| e.cause) || only_allowed(&fitted) {
         None
     } else {
         NextStep::new(
@@ -1221,8 +1239,19 @@ fn fresnel_members(e: &Explanation) -> bool {
             .all(|m| FRESNEL_MISTAKES.iter().any(|f| f.name() == m))
 }
 
-/// True when the families are fitted beside the best explanation `best`: there is none, it is
-/// not the cause, or it is a member of a family fitted.
+/// True when `e` changes the anti-aliasing level or puts the samples at the cells' corners
+/// ('pixel-corners') and nothing else: a member of the anti-aliasing family.
+fn aa_members(e: &Explanation) -> bool {
+    e.settings.iter().all(|s| s.starts_with("-x ")) && e.mistakes.iter().all(|m| m == Mistake::PixelCorners.name())
+}
+
+/// True when `fitted` holds findings and every one is a correct way too (random samples).
+fn only_allowed(fitted: &[Fitted]) -> bool {
+    !fitted.is_empty() && fitted.iter().all(|f| f.allowed)
+}
+
+/// True when the Fresnel family is fitted beside the best explanation `best`: there is none,
+/// it is not the cause, or it is a member of the family.
 fn fitted_applies(best: Option<&Explanation>) -> bool {
     best.is_none_or(|e| !e.cause || fresnel_members(e))
 }
@@ -1332,6 +1361,9 @@ struct Against<'a> {
     /// Pixels (row-major) where the image lies beyond the ties of rayscope's render, as far as
     /// the match rule looked.
     beyond: &'a [u32],
+    /// The anti-aliasing level the image's edges show, where they show one: no other level is
+    /// tried.
+    aa_level: Option<u32>,
 }
 
 /// Most of the pixels beyond the ties of rayscope's render the coarse pass renders each
@@ -1351,7 +1383,7 @@ fn search(
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
     let contents = SceneContents::of(scenes.get(base.mistakes));
-    let singles = atoms(&contents, base);
+    let singles = atoms(&contents, base, against.aa_level);
     let spp = u64::from(base.aa * base.aa);
     let (grid, gw, gh) = coarse_grid(w, h, spp, opts.coarse_samples);
     let theirs: Vec<u8> = grid
@@ -1740,12 +1772,15 @@ pub fn headline(d: &Diagnosis) -> String {
         ),
         Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
         _ if !d.recognised.is_empty() => recognised_lines(d),
-        e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
+        _ if only_allowed(&d.fitted) => {
             let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
             format!(
-                "No known mistake explains your picture; your glass's Fresnel weight differs: {}\n",
+                "Your image is rayscope's render but for its anti-aliasing: {}\n",
                 found.join(" ")
             )
+        }
+        e if !d.fitted.is_empty() && e.is_none_or(|e| !fresnel_members(e)) => {
+            format!("No known mistake explains your picture; {}\n", fitted_findings(&d.fitted))
         }
         Some(e) => format!(
             "No known mistake explains all of your picture; {} {}.\n{fitted}",
@@ -1777,11 +1812,31 @@ fn recognised_lines(d: &Diagnosis) -> String {
     out
 }
 
+/// The fitted families' findings as a headline: "your glass's Fresnel weight differs: …",
+/// family by family.
+fn fitted_findings(fitted: &[Fitted]) -> String {
+    let mut families: Vec<&str> = fitted.iter().map(Fitted::family).collect();
+    families.dedup();
+    let said: Vec<String> = families
+        .iter()
+        .map(|&family| {
+            let found: Vec<&str> = (fitted.iter().filter(|f| f.family() == family))
+                .map(|f| f.text.as_str())
+                .collect();
+            format!("your {family} differs: {}", found.join(" "))
+        })
+        .collect();
+    said.join("; ")
+}
+
 /// The fitted families beneath a catalogued cause, one indented line each.
 fn fitted_lines(d: &Diagnosis) -> String {
     d.fitted
         .iter()
-        .map(|f| format!("  and your glass's fitted weight: {}\n", f.text))
+        .map(|f| match f.family() {
+            "anti-aliasing" => format!("  and your anti-aliasing, fitted: {}\n", f.text),
+            _ => format!("  and your glass's fitted weight: {}\n", f.text),
+        })
         .collect()
 }
 

@@ -24,6 +24,15 @@ pub struct Options {
     pub shift: [f64; 2],
     /// A glass that reflects this share at every angle (total internal reflection aside).
     pub fresnel_constant: Option<f64>,
+    /// Where the `aa`×`aa` samples sit in their pixel: sample k of each axis at
+    /// (k + grid[0])/(aa + grid[1]); the course's cell centres are [0.5, 0].
+    pub grid: [f64; 2],
+    /// Samples at random positions from a generator with this seed instead of the grid's:
+    /// anywhere in the pixel, or with `jitter_in_cells` one anywhere in each cell of the grid.
+    pub jitter: Option<u64>,
+    pub jitter_in_cells: bool,
+    /// Stage 1: the closest hit's material colour, black where nothing is hit.
+    pub stage1: bool,
 }
 
 impl Options {
@@ -37,6 +46,10 @@ impl Options {
             cam_angle: 0.0,
             shift: [0.0; 2],
             fresnel_constant: None,
+            grid: [0.5, 0.0],
+            jitter: None,
+            jitter_in_cells: false,
+            stage1: false,
         }
     }
 }
@@ -173,13 +186,10 @@ impl Student {
                 } else {
                     DVec3::ZERO
                 };
+                let mut rng = Rng(u64::from(y * w + x));
                 for j in 0..n {
                     for i in 0..n {
-                        let (ox, oy) = if self.bug("pixel-corners") {
-                            (i as f64 / n as f64, j as f64 / n as f64)
-                        } else {
-                            ((i as f64 + 0.5) / n as f64, (j as f64 + 0.5) / n as f64)
-                        };
+                        let (ox, oy) = self.offset(i, j, &mut rng);
                         let u = (x as f64 + ox + self.opts.shift[0]) / w as f64;
                         let v = (y as f64 + oy + self.opts.shift[1]) / h as f64;
                         let d = DVec3::new((2.0 * u - 1.0) * sx, (1.0 - 2.0 * v) * sy, 1.0).normalize();
@@ -202,6 +212,24 @@ impl Student {
         out
     }
 
+    /// Where sample (`i`, `j`) sits in its pixel.
+    fn offset(&self, i: u32, j: u32, rng: &mut Rng) -> (f64, f64) {
+        let n = f64::from(self.opts.aa);
+        let [c, e] = if self.bug("pixel-corners") {
+            [0.0; 2]
+        } else {
+            self.opts.grid
+        };
+        let at = |k: u32| (f64::from(k) + c) / (n + e);
+        match self.opts.jitter {
+            None => (at(i), at(j)),
+            Some(seed) if self.opts.jitter_in_cells => {
+                ((f64::from(i) + rng.next(seed)) / n, (f64::from(j) + rng.next(seed)) / n)
+            }
+            Some(seed) => (rng.next(seed), rng.next(seed)),
+        }
+    }
+
     fn byte(&self, v: f64) -> u8 {
         let mut v = v.clamp(0.0, 1.0);
         if self.bug("gamma") {
@@ -219,6 +247,9 @@ impl Student {
             return DVec3::ZERO;
         };
         let obj = &self.objs[hit.obj];
+        if self.opts.stage1 {
+            return obj.color;
+        }
         let reversed = obj.is_triangle && self.bug("reversed-normals");
         let outside = hit.n.dot(ray.d) < 0.0;
         // Turn the normal towards the ray, unless the student trusts the winding.
@@ -600,4 +631,18 @@ fn read_obj(path: &Path, offset: DVec3, scale: f64, bugs: &HashSet<&'static str>
         }
     }
     tris
+}
+
+/// A pixel's random numbers (SplitMix64), the stream set by the pixel and the seed.
+struct Rng(u64);
+
+impl Rng {
+    /// A number in [0, 1).
+    fn next(&mut self, seed: u64) -> f64 {
+        self.0 = self.0.wrapping_add(0x9e37_79b9_7f4a_7c15);
+        let mut z = self.0 ^ seed.wrapping_mul(0xd1b5_4a32_d192_ed03);
+        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        (z ^ (z >> 31)) as f64 / 2f64.powi(64)
+    }
 }

@@ -463,6 +463,7 @@ fn finding(m: Member, f: &Fit, course: &Fit, ior: f64) -> Fitted {
         code: m.code(),
         text,
         numbers,
+        allowed: false,
     }
 }
 
