@@ -30,9 +30,9 @@ use std::collections::{BTreeMap, HashMap};
 use std::sync::atomic::AtomicBool;
 use std::time::Instant;
 
-use glam::{Vec3, Vec3A};
+use glam::{DVec3, Vec3, Vec3A};
 use rayon::prelude::*;
-use rayscope_scene::SceneFile;
+use rayscope_scene::{MaterialDef, MaterialKind, SceneFile};
 use serde::{Serialize, Serializer};
 
 use crate::camera::FovAxis;
@@ -163,6 +163,11 @@ pub struct Explanation {
     /// each tracer's rounding puts its speckles on other pixels). Otherwise the render explains
     /// only a part.
     pub cause: bool,
+    /// Where the render matches only by turning these entities black, and rayscope's render
+    /// with them painted black matches too: one way to get the picture, which any mistake
+    /// that blackens them shares (empty otherwise). Not offered as the cause.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub blackens: Vec<String>,
 }
 
 /// What [`diagnose`] found.
@@ -619,6 +624,7 @@ impl Candidate {
             matches,
             explained: None,
             cause: matches,
+            blackens: Vec::new(),
         }
     }
 }
@@ -1164,6 +1170,13 @@ pub fn diagnose(
         let (found, n) = search(&mut scenes, &base, image, opts, &full, &against);
         explanations = found;
         tried += n;
+        if let Some(e) = explanations.first_mut().filter(|e| e.matches) {
+            e.blackens = painted_black_matches(&scenes, &base, image, &traced.blackened(&ours, image.rgb));
+            if !e.blackens.is_empty() {
+                e.cause = false;
+                tried += 1;
+            }
+        }
     }
     let mut fitted = if matches || constant || !fitted_applies(explanations.first()) {
         Vec::new()
@@ -1220,6 +1233,43 @@ pub fn diagnose(
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// `entities` when rayscope's render with them painted black matches `image` (the tie rule):
+/// then every mistake that turns them black gives the picture, and none can be told from the
+/// others by it. Empty otherwise, and for no entities.
+fn painted_black_matches(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    entities: &[String],
+) -> Vec<String> {
+    if entities.is_empty() {
+        return Vec::new();
+    }
+    let mut f = scenes.file.clone();
+    Scenes::key(base.mistakes).apply_to_file(&mut f);
+    let paint = f.materials.len();
+    f.materials.push(MaterialDef {
+        name: "(painted black)".into(),
+        kind: MaterialKind::Diffuse,
+        color: DVec3::ZERO,
+        value: 0.0,
+        line: 0,
+    });
+    for e in f.entities.iter_mut().filter(|e| entities.contains(&e.name)) {
+        e.material = paint;
+    }
+    let scene = Scene::from_owned_file(f);
+    let never = AtomicBool::new(false);
+    let Ok(out) = render(&scene, base, &|_, _| {}, &never) else {
+        return Vec::new();
+    };
+    if ties::judge(&scene, base, &out.film.to_rgb8(), image.rgb, false).matches {
+        entities.to_vec()
+    } else {
+        Vec::new()
+    }
 }
 
 /// Catalogued mistakes that are members of the Fresnel family [`families`] fits.
@@ -1687,7 +1737,8 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         out.push_str("Where they are:\n");
         out.push_str(&attribution_text(&d.attribution));
     }
-    let (causes, partials): (Vec<&Explanation>, Vec<&Explanation>) = d.explanations.iter().partition(|e| e.cause);
+    let (causes, partials): (Vec<&Explanation>, Vec<&Explanation>) =
+        d.explanations.iter().partition(|e| e.cause || !e.blackens.is_empty());
     if !causes.is_empty() {
         let plain = d
             .obvious
@@ -1699,7 +1750,11 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                 "Many mistakes give a picture that is {colour} everywhere: a render below that is one too is a lead, not proof.\n"
             ));
         }
-        out.push_str("What explains it (best first):\n");
+        out.push_str(if causes.iter().all(|e| e.cause) {
+            "What explains it (best first):\n"
+        } else {
+            "What gives this picture (best first):\n"
+        });
         for (i, e) in causes.iter().enumerate() {
             if let (Some(colour), true) = (plain, e.psnr_db.is_infinite()) {
                 out.push_str(&format!(
@@ -1711,7 +1766,14 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                 ));
                 continue;
             }
-            let how = if e.matches {
+            let how = if !e.blackens.is_empty() {
+                format!(
+                    "your image matches {} {}: one way to get this picture, as is painting {} black",
+                    e.summary,
+                    match_how(d, e),
+                    acne::list(&e.blackens, 4)
+                )
+            } else if e.matches {
                 format!("your image matches {} {}", e.summary, match_how(d, e))
             } else {
                 format!("{} {}", e.summary, whole_how(e))
@@ -1765,6 +1827,7 @@ pub fn headline(d: &Diagnosis) -> String {
     }
     let fitted = fitted_lines(d);
     match d.explanations.first() {
+        Some(e) if !e.blackens.is_empty() => format!("{}\n{fitted}", one_way(d, e)),
         Some(e) if e.matches => format!(
             "Explained: your image is rayscope's render with {} ({}).\n{fitted}",
             e.summary,
@@ -1792,6 +1855,22 @@ pub fn headline(d: &Diagnosis) -> String {
             d.candidates
         ),
     }
+}
+
+/// The headline of an explanation whose render matches by turning entities black, as painting
+/// them black does too ([`Explanation::blackens`]): one way to get the picture, not its cause.
+fn one_way(d: &Diagnosis, e: &Explanation) -> String {
+    let names = acne::list(&e.blackens, 4);
+    let (is, their) = if e.blackens.len() == 1 {
+        ("is", "its")
+    } else {
+        ("are", "their")
+    };
+    format!(
+        "One way to get your picture, not necessarily yours: your {names} {is} black where rayscope's {is} not, and the rest is rayscope's render. Rendering {} gives it ({}), but so does rayscope's render with {names} painted black: any mistake that makes {their} rays bring back nothing gives this picture (a weight of 0, or one past 1 that clips; a NaN; a ray never traced), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
+        e.summary,
+        match_how(d, e)
+    )
 }
 
 /// The headline of a mistake recognised from how the picture looks, and how much of the

@@ -224,3 +224,40 @@ fn a_weight_past_one_gets_no_finding_and_no_name() {
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
     assert!(text.starts_with("No known mistake explains"), "{text}");
 }
+
+/// (1 + I·N)² with the outward normal turns the glass sphere black; with pairs, a recursion
+/// limit of 1 with 'no-fresnel' renders the same picture. So does painting the sphere black:
+/// the picture cannot tell which mistake blackened it, and the report says it is one way to
+/// get it, not the cause, and sends the student to the rays.
+#[test]
+fn a_sphere_turned_black_is_one_way_to_get_the_picture_not_its_cause() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let file = rayscope_scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let opts = Options::new(120, 120);
+    let img = Student::new(&file, &["fresnel-one-plus-i-dot-n"], opts).render();
+    let image = Image {
+        width: opts.width,
+        height: opts.height,
+        rgb: &img,
+        alpha: None,
+    };
+    let flags = RenderSettings {
+        width: opts.width,
+        height: opts.height,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let d = diagnose(&file, &flags, image, &DiagnoseOptions::default()).expect("the sizes agree");
+    let text = report_text(&d, "scene.txt");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(
+        text.starts_with(
+            "One way to get your picture, not necessarily yours: your GlassSphere is black where rayscope's is not"
+        ),
+        "{text}"
+    );
+    assert_eq!(d.explanations[0].blackens, ["GlassSphere"], "{text}");
+    assert!(d.next.is_some(), "the pixels to log are given\n{text}");
+}

@@ -335,7 +335,7 @@ fn entities(traced: &Traced, lost: &[bool]) -> (Vec<String>, bool) {
 }
 
 /// The first `n` of `items`, joined as a sentence says them, with how many more there are.
-fn list(items: &[String], n: usize) -> String {
+pub(crate) fn list(items: &[String], n: usize) -> String {
     let shown: Vec<&str> = items.iter().take(n).map(String::as_str).collect();
     match (shown.as_slice(), items.len() > n) {
         ([], _) => String::new(),

@@ -88,6 +88,10 @@ const BLOCK_LEVELS: f32 = 1.0;
 /// to explain all of the difference (acne, whose speckles fall on other pixels in each tracer).
 const FULL_PERCENT: f64 = 95.0;
 
+/// Share of the traced differing pixels that must be black in the image (and not in rayscope's
+/// render) for the picture to be one that turns entities black.
+const BLACK_SHARE: f64 = 0.9;
+
 /// Pixels listed for the student to log next.
 const NEXT_PIXELS: usize = 6;
 
@@ -166,6 +170,30 @@ impl Traced {
             parts: order.iter().map(|&k| parts[k].clone()).collect(),
             counts: order.iter().map(|&k| counts[k]).collect(),
         }
+    }
+
+    /// The entities the image turns black: where at least [`BLACK_SHARE`] of the traced pixels
+    /// are black in `image` and not in `ours`, the entities (not the background) of the parts
+    /// whose traced pixels are mostly (three in four) black; empty otherwise.
+    pub(crate) fn blackened(&self, ours: &[u8], image: &[u8]) -> Vec<String> {
+        let mut black = vec![0u64; self.parts.len()];
+        for (&i, &k) in self.pixels.iter().zip(&self.part_of) {
+            let p = i as usize * 3;
+            if image[p..p + 3] == [0, 0, 0] && ours[p..p + 3] != [0, 0, 0] {
+                black[k] += 1;
+            }
+        }
+        if (black.iter().sum::<u64>() as f64) < BLACK_SHARE * self.pixels.len() as f64 {
+            return Vec::new();
+        }
+        let mut entities: Vec<String> = Vec::new();
+        for (k, part) in self.parts.iter().enumerate() {
+            let mostly = black[k] * 4 >= self.counts[k] * 3;
+            if mostly && !part.material.is_empty() && !entities.contains(&part.entity) {
+                entities.push(part.entity.clone());
+            }
+        }
+        entities
     }
 
     /// Traced pixels of part `k`.

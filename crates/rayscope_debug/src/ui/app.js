@@ -889,14 +889,18 @@ function compareDiagnosis(d) {
     }
     box.append(ol);
   };
-  list(r.explanations.filter((e) => e.cause), "What explains it, best first:", "explanations", (e) => {
+  // A render that matches by turning entities black, as painting them black does too, is one
+  // way to get the picture: listed with the causes, said as what it is.
+  const oneWay = (e) => Boolean(e.blackens && e.blackens.length);
+  list(r.explanations.filter((e) => e.cause || oneWay(e)), "What explains it, best first:", "explanations", (e) => {
     const how = e.psnr_db == null ? "exactly" : `at ${db(e.psnr_db)}, each pixel that differs within its ties`;
     // A one-coloured picture is what many renders are: an identical one is a lead, not its match.
     if (plain && e.psnr_db == null) return `${e.summary} renders it too, pixel for pixel: one way to get this picture. `;
+    if (oneWay(e)) return `Your image matches ${e.summary}, ${how}: one way to get this picture, as is painting ${e.blackens.join(", ")} black. `;
     if (e.matches) return `Your image matches ${e.summary}, ${how}; rayscope's render is at ${db(r.psnr_db)}. `;
     return `${e.summary} accounts for the whole difference: its render reproduces ${e.explained.percent.toFixed(0)} % of the differing pixels (speckle on average over 4×4 blocks). `;
   });
-  list(r.explanations.filter((e) => !e.cause), "What explains a part of it:", "partial-explanations", (e) => `${e.summary} ${partText(e)}. `);
+  list(r.explanations.filter((e) => !e.cause && !oneWay(e)), "What explains a part of it:", "partial-explanations", (e) => `${e.summary} ${partText(e)}. `);
   if (r.next) diagnosisNext(box, r.next);
   box.append(el("p", { class: "dim" }, `${r.candidates} renders tried in ${(d.millis / 1000).toFixed(1)} s; \`rayscope mistakes\` lists the catalogue.`));
 }
