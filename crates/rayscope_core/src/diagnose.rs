@@ -50,6 +50,7 @@ use crate::settings::{Channel, DepthLimit, Edition, RenderSettings, Setting, Set
 mod acne;
 mod explained;
 mod families;
+mod fov;
 mod ties;
 
 pub use acne::Recognised;
@@ -491,6 +492,8 @@ enum SettingChange {
     /// `--depth-limit all --max-depth N`: every ray deeper than N returns black.
     DepthAll(u32),
     Fov(FovAxis),
+    /// `--fov` in degrees, as the bits of an `f32` (fitted to the picture).
+    FovDeg(u32),
 }
 
 /// One ingredient of a candidate render.
@@ -519,6 +522,7 @@ impl Candidate {
                     s.depth_limit = DepthLimit::All;
                 }
                 Atom::Setting(SettingChange::Fov(f)) => s.camera.fov_axis = f,
+                Atom::Setting(SettingChange::FovDeg(bits)) => s.camera.fov_deg = f32::from_bits(bits),
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
             }
         }
@@ -604,6 +608,11 @@ impl Candidate {
                             };
                             (format!("--fov-axis {name}"), word)
                         }
+                        SettingChange::FovDeg(bits) => {
+                            let f = f32::from_bits(bits);
+                            let c = &base.camera;
+                            (format!("--fov {f}"), fov::words(f, c.fov_deg, c.fov_axis.name()))
+                        }
                     };
                     settings.push(flag);
                     words.push(word);
@@ -637,12 +646,13 @@ fn settings_patch(base: &RenderSettings, s: &RenderSettings) -> SettingsPatch {
         max_depth: changed(Setting::MaxDepth).then_some(s.max_depth),
         depth_limit: changed(Setting::DepthLimit).then_some(s.depth_limit),
         fov_axis: changed(Setting::FovAxis).then_some(s.camera.fov_axis),
+        fov: changed(Setting::Fov).then_some(s.camera.fov_deg),
         ..SettingsPatch::default()
     }
 }
 
 /// The flags of `s` that [`diagnose`] decides: size, stage, anti-aliasing, recursion limit,
-/// edition, field-of-view axis and mistakes.
+/// edition, field of view and its axis, and mistakes.
 fn render_flags(s: &RenderSettings) -> String {
     s.flags_only(&[
         Setting::Width,
@@ -652,6 +662,7 @@ fn render_flags(s: &RenderSettings) -> String {
         Setting::DepthLimit,
         Setting::MaxDepth,
         Setting::Edition,
+        Setting::Fov,
         Setting::FovAxis,
         Setting::Mistakes,
     ])
@@ -663,7 +674,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
     let group = |x: Atom| match x {
         Atom::Setting(SettingChange::Aa(_)) => 1,
         Atom::Setting(SettingChange::MaxDepth(_) | SettingChange::DepthAll(_)) => 2,
-        Atom::Setting(SettingChange::Fov(_)) => 3,
+        Atom::Setting(SettingChange::Fov(_) | SettingChange::FovDeg(_)) => 3,
         Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
         Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick | M::FresnelSwapped) => 5,
         Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
@@ -1170,6 +1181,11 @@ pub fn diagnose(
         let (found, n) = search(&mut scenes, &base, image, opts, &full, &against);
         explanations = found;
         tried += n;
+        if explanations.first().is_none_or(|e| !e.cause) && !constant {
+            let (fitted, n) = fitted_fov(&scenes, &base, image, &full);
+            tried += n;
+            explanations.splice(0..0, fitted);
+        }
         if let Some(e) = explanations.first_mut().filter(|e| e.matches) {
             e.blackens = painted_black_matches(&scenes, &base, image, &traced.blackened(&ours, image.rgb));
             if !e.blackens.is_empty() {
@@ -1233,6 +1249,38 @@ pub fn diagnose(
         candidates: tried,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// Renders the field-of-view fit tries at most, and the explanation it is when its render
+/// matches `image` (the tie rule): the angle fitted by [`fov::fit`] on a sparse grid of pixels
+/// and confirmed at full size.
+fn fitted_fov(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+) -> (Option<Explanation>, usize) {
+    let scene = scenes.get(base.mistakes);
+    let render = |fov: f32, pixels: &[(u32, u32)]| {
+        let mut s = *base;
+        s.camera.fov_deg = fov;
+        render_pixels(scene, &s, pixels)
+    };
+    let Some(fitted) = fov::fit(base.width, base.height, image.rgb, base.camera.fov_deg, &render) else {
+        return (None, 1);
+    };
+    let mut tried = 1;
+    for f in fov::round_first(fitted) {
+        tried += 1;
+        let c = Candidate(vec![Atom::Setting(SettingChange::FovDeg(f.to_bits()))]);
+        let s = c.settings(base);
+        let bytes = full(scenes, &s);
+        if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
+            let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
+            return (Some(c.explain(base, m, true)), tried);
+        }
+    }
+    (None, tried)
 }
 
 /// `entities` when rayscope's render with them painted black matches `image` (the tie rule):

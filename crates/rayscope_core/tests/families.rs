@@ -261,3 +261,70 @@ fn a_sphere_turned_black_is_one_way_to_get_the_picture_not_its_cause() {
     assert_eq!(d.explanations[0].blackens, ["GlassSphere"], "{text}");
     assert!(d.next.is_some(), "the pixels to log are given\n{text}");
 }
+
+/// The diagnosis of a picture under flags of its size at stage 2, with the command line's search.
+fn diagnosed(path: &Path, bugs: &[&'static str], opts: Options) -> (Diagnosis, String) {
+    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let img = Student::new(&file, bugs, opts).render();
+    let image = Image {
+        width: opts.width,
+        height: opts.height,
+        rgb: &img,
+        alpha: None,
+    };
+    let flags = RenderSettings {
+        width: opts.width,
+        height: opts.height,
+        aa: opts.aa,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let d = diagnose(&file, &flags, image, &DiagnoseOptions::default()).expect("the sizes agree");
+    let text = report_text(&d, "scene.txt");
+    (d, text)
+}
+
+/// The tangent of the whole angle instead of its half, a mistake the catalogue does not hold, is
+/// a field of view of 120°: fitted, confirmed by the tie rule and named by how it comes about.
+#[test]
+fn a_field_of_view_not_halved_is_fitted_to_its_angle() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let (d, text) = diagnosed(
+        &course.scene("sample_scene_1.txt"),
+        &["fov-not-halved"],
+        Options::new(96, 72),
+    );
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause && e.matches, "{text}");
+    assert_eq!(e.settings, ["--fov 120"], "{text}");
+    assert!(
+        text.starts_with(
+            "Explained: your image is rayscope's render with a field of view of 120° (horizontal) instead of 60°"
+        ),
+        "{text}"
+    );
+    assert!(text.contains("the angle not halved before its tangent"), "{text}");
+}
+
+/// Another angle, anti-aliased, is fitted back to the value planted, with no way named for it.
+#[test]
+fn another_field_of_view_is_fitted_back() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let opts = Options {
+        fov: 47.5,
+        aa: 2,
+        ..Options::new(90, 90)
+    };
+    let (d, text) = diagnosed(&path, &[], opts);
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause, "{text}");
+    assert_eq!(e.settings, ["--fov 47.5"], "{text}");
+    assert!(
+        !text.contains(" — "),
+        "no way is named for an angle no known mistake gives\n{text}"
+    );
+}

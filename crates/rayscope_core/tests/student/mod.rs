@@ -33,6 +33,8 @@ pub struct Options {
     pub jitter_in_cells: bool,
     /// Stage 1: the closest hit's material colour, black where nothing is hit.
     pub stage1: bool,
+    /// The horizontal field of view in degrees (the course's is 60).
+    pub fov: f64,
 }
 
 impl Options {
@@ -50,6 +52,7 @@ impl Options {
             jitter: None,
             jitter_in_cells: false,
             stage1: false,
+            fov: 60.0,
         }
     }
 }
@@ -159,7 +162,12 @@ impl Student {
     pub fn render(&self) -> Vec<u8> {
         let (w, h, n) = (self.opts.width, self.opts.height, self.opts.aa);
         let mut out = Vec::with_capacity((w * h * 3) as usize);
-        let tan = (60f64.to_radians() / 2.0).tan();
+        // Uncatalogued: the angle's tangent taken whole, not of its half.
+        let tan = if self.bug("fov-not-halved") {
+            self.opts.fov.to_radians().tan()
+        } else {
+            (self.opts.fov.to_radians() / 2.0).tan()
+        };
         let aspect = w as f64 / h as f64;
         let (sx, sy) = if self.bug("fov-vertical") {
             (tan * aspect, tan)
