@@ -4,13 +4,15 @@
 //! correct grid, samples jittered within each cell, and a stage-1 picture anti-aliased as
 //! `-x` asks give no finding.
 
+mod diagnosing;
 mod student;
 
 use std::path::{Path, PathBuf};
 
-use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Diagnosis, Fitted, Image};
-use rayscope_core::{RenderSettings, Stage};
-use student::{Options, Student};
+use diagnosing::{diagnosed, Flags};
+use rayscope_core::diagnose::{report_text, Diagnosis, Fitted};
+use rayscope_core::Stage;
+use student::Options;
 
 const W: u32 = 80;
 const H: u32 = 60;
@@ -22,27 +24,12 @@ fn scene(name: &str) -> Option<PathBuf> {
 /// The diagnosis of the student's picture of `path` with `opts`, under flags of `stage` that
 /// ask for `-x declared`.
 fn run(path: &Path, opts: Options, declared: u32, stage: Stage) -> Diagnosis {
-    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let img = Student::new(&file, &[], opts).render();
-    let image = Image {
-        width: opts.width,
-        height: opts.height,
-        rgb: &img,
-        alpha: None,
-    };
-    let flags = RenderSettings {
-        width: opts.width,
-        height: opts.height,
+    let flags = Flags {
         aa: declared,
         stage,
-        ..RenderSettings::default()
+        ..Flags::of(opts)
     };
-    let search = DiagnoseOptions {
-        pairs: false,
-        coarse_samples: 2_400,
-        ..DiagnoseOptions::default()
-    };
-    diagnose(&file, &flags, image, &search).expect("the sizes agree")
+    diagnosed(path, &[], opts, flags).0
 }
 
 /// The anti-aliasing finding of `d`, or a panic that shows the report.

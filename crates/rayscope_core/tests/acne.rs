@@ -3,44 +3,23 @@
 //! named on the report's first line; pictures with other mistakes, speckled ones included, are
 //! never called acne.
 
+mod diagnosing;
 mod student;
 
 use std::path::Path;
 
-use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Diagnosis, Image};
-use rayscope_core::{RenderSettings, Stage};
-use student::{Options, Student};
+use diagnosing::{diagnosed, Flags};
+use rayscope_core::diagnose::Diagnosis;
+use student::Options;
 
 /// The diagnosis of the student's stage-2 picture of `path` with `bugs`, `w`×`h` at `-x aa`, and
 /// its report.
 fn run(path: &Path, bugs: &[&'static str], w: u32, h: u32, aa: u32) -> (Diagnosis, String) {
-    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let opts = Options {
         aa,
         ..Options::new(w, h)
     };
-    let img = Student::new(&file, bugs, opts).render();
-    let image = Image {
-        width: w,
-        height: h,
-        rgb: &img,
-        alpha: None,
-    };
-    let flags = RenderSettings {
-        width: w,
-        height: h,
-        aa,
-        stage: Stage::Two,
-        ..RenderSettings::default()
-    };
-    let search = DiagnoseOptions {
-        pairs: false,
-        coarse_samples: 2_400,
-        ..DiagnoseOptions::default()
-    };
-    let d = diagnose(&file, &flags, image, &search).expect("the sizes agree");
-    let text = report_text(&d, &path.display().to_string());
-    (d, text)
+    diagnosed(path, bugs, opts, Flags::of(opts))
 }
 
 /// A shadow ray that starts on its surface, with the hit point in double or in single precision

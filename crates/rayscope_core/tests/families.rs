@@ -3,13 +3,14 @@
 //! catalogued Fresnel mistakes keep their name with the fitted weight beneath, and a correct
 //! picture or a mistake that is not about the weight gets no Fresnel finding.
 
+mod diagnosing;
 mod student;
 
 use std::path::{Path, PathBuf};
 
-use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Diagnosis, Image};
-use rayscope_core::{RenderSettings, Stage};
-use student::{Options, Student};
+use diagnosing::{diagnosed, Flags};
+use rayscope_core::diagnose::{report_text, Diagnosis};
+use student::Options;
 
 const W: u32 = 80;
 const H: u32 = 60;
@@ -20,27 +21,7 @@ fn scene2() -> Option<PathBuf> {
 
 /// The diagnosis of the student's picture of `path` with `bugs` and `opts`, under stage-2 flags.
 fn run(path: &Path, bugs: &[&'static str], opts: Options) -> Diagnosis {
-    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let img = Student::new(&file, bugs, opts).render();
-    let image = Image {
-        width: opts.width,
-        height: opts.height,
-        rgb: &img,
-        alpha: None,
-    };
-    let flags = RenderSettings {
-        width: opts.width,
-        height: opts.height,
-        aa: opts.aa,
-        stage: Stage::Two,
-        ..RenderSettings::default()
-    };
-    let search = DiagnoseOptions {
-        pairs: false,
-        coarse_samples: 2_400,
-        ..DiagnoseOptions::default()
-    };
-    diagnose(&file, &flags, image, &search).expect("the sizes agree")
+    diagnosed(path, bugs, opts, Flags::of(opts)).0
 }
 
 /// The planted share of a glass that reflects a constant one is fitted back, and said as the
@@ -234,23 +215,7 @@ fn a_sphere_turned_black_is_one_way_to_get_the_picture_not_its_cause() {
     let Some(path) = scene2() else {
         return;
     };
-    let file = rayscope_scene::load(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let opts = Options::new(120, 120);
-    let img = Student::new(&file, &["fresnel-one-plus-i-dot-n"], opts).render();
-    let image = Image {
-        width: opts.width,
-        height: opts.height,
-        rgb: &img,
-        alpha: None,
-    };
-    let flags = RenderSettings {
-        width: opts.width,
-        height: opts.height,
-        stage: Stage::Two,
-        ..RenderSettings::default()
-    };
-    let d = diagnose(&file, &flags, image, &DiagnoseOptions::default()).expect("the sizes agree");
-    let text = report_text(&d, "scene.txt");
+    let (d, text) = searched(&path, &["fresnel-one-plus-i-dot-n"], Options::new(120, 120));
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
     assert!(
         text.starts_with(
@@ -262,26 +227,13 @@ fn a_sphere_turned_black_is_one_way_to_get_the_picture_not_its_cause() {
     assert!(d.next.is_some(), "the pixels to log are given\n{text}");
 }
 
-/// The diagnosis of a picture under flags of its size at stage 2, with the command line's search.
-fn diagnosed(path: &Path, bugs: &[&'static str], opts: Options) -> (Diagnosis, String) {
-    let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let img = Student::new(&file, bugs, opts).render();
-    let image = Image {
-        width: opts.width,
-        height: opts.height,
-        rgb: &img,
-        alpha: None,
+/// The diagnosis of the student's picture under stage-2 flags, with the command line's search.
+fn searched(path: &Path, bugs: &[&'static str], opts: Options) -> (Diagnosis, String) {
+    let flags = Flags {
+        full_search: true,
+        ..Flags::of(opts)
     };
-    let flags = RenderSettings {
-        width: opts.width,
-        height: opts.height,
-        aa: opts.aa,
-        stage: Stage::Two,
-        ..RenderSettings::default()
-    };
-    let d = diagnose(&file, &flags, image, &DiagnoseOptions::default()).expect("the sizes agree");
-    let text = report_text(&d, "scene.txt");
-    (d, text)
+    diagnosed(path, bugs, opts, flags)
 }
 
 /// The tangent of the whole angle instead of its half, a mistake the catalogue does not hold, is
@@ -291,7 +243,7 @@ fn a_field_of_view_not_halved_is_fitted_to_its_angle() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    let (d, text) = diagnosed(
+    let (d, text) = searched(
         &course.scene("sample_scene_1.txt"),
         &["fov-not-halved"],
         Options::new(96, 72),
@@ -319,7 +271,7 @@ fn another_field_of_view_is_fitted_back() {
         aa: 2,
         ..Options::new(90, 90)
     };
-    let (d, text) = diagnosed(&path, &[], opts);
+    let (d, text) = searched(&path, &[], opts);
     let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
     assert!(e.cause, "{text}");
     assert_eq!(e.settings, ["--fov 47.5"], "{text}");
