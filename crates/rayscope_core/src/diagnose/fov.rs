@@ -22,6 +22,9 @@ const GAIN: f64 = 4.0;
 /// Relative tolerance within which a fitted half-width is named as a known way to get it.
 const NAMED: f64 = 2e-3;
 
+/// The bytes of some pixels rendered at a field of view (degrees).
+pub(crate) type RenderAt<'a> = dyn Fn(f32, &[(u32, u32)]) -> Vec<u8> + Sync + 'a;
+
 /// The field of view in degrees whose render of a sparse grid of pixels is closest to `image`
 /// (RGB8, `w`×`h`), when it is at least [`GAIN`] times closer than `course` degrees and more
 /// than 0.01° from it; `render(fov, pixels)` gives the bytes of those pixels at that angle.
@@ -30,7 +33,7 @@ pub(crate) fn fit(
     h: u32,
     image: &[u8],
     course: f32,
-    render: &(dyn Fn(f32, &[(u32, u32)]) -> Vec<u8> + Sync),
+    render: &RenderAt<'_>,
 ) -> Option<f32> {
     let step = ((f64::from(w) * f64::from(h) / FIT_PIXELS).sqrt() as u32).max(1);
     let pixels: Vec<(u32, u32)> = (step / 2..h)
