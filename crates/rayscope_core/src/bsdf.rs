@@ -128,27 +128,39 @@ pub struct BsdfSample {
     pub wi: Vec3A,
     /// Whole BRDF value for `wi`.
     pub f: Vec3A,
-    /// The coat's (specular) part of `f`.
-    pub(crate) f_coat: Vec3A,
+    /// The specular part of `f` (a coat's reflection): what the full renderer traces on
+    /// without indirect light.
+    pub(crate) f_specular: Vec3A,
     /// Density of `wi` (solid angle) over every lobe the model samples.
     pub pdf: f32,
 }
 
 impl Bsdf {
-    /// The model of a Diffuse or Glossy material; `None` for the other kinds.
+    /// The model of a material whose lobe is [`Lambert`](crate::material::Lobe::Lambert) or
+    /// [`Bsdf`](crate::material::Lobe::Bsdf); `None` for the other kinds. With `specular_only` the model samples only its specular part (when
+    /// the rest's bounce would carry nothing).
     #[must_use]
-    pub fn of(m: &Material, coat_only: bool) -> Option<Bsdf> {
+    pub fn of(m: &Material, specular_only: bool) -> Option<Bsdf> {
         let albedo = transport_albedo(m);
         match m.kind {
             MaterialKind::Diffuse => Some(Bsdf::Lambert { albedo }),
             MaterialKind::Glossy => Some(Bsdf::Coated {
                 base: albedo,
                 alpha: glossy_alpha(m.value),
-                coat_only,
+                coat_only: specular_only,
             }),
             // Mirrors and glass send rays on (`crate::optics`); emitters are not shaded.
             MaterialKind::Reflective | MaterialKind::Refractive | MaterialKind::Emissive => None,
         }
+    }
+
+    /// True when the model has a specular part ([`BsdfSample::f_specular`]): every model but
+    /// Lambert's, which the full renderer lights by point lights with the whole BRDF and
+    /// samples even without indirect light.
+    #[must_use]
+    #[inline]
+    pub(crate) fn has_specular(&self) -> bool {
+        !matches!(self, Bsdf::Lambert { .. })
     }
 
     /// Probability of sampling the coat lobe for `wo`.
@@ -166,7 +178,7 @@ impl Bsdf {
         }
     }
 
-    /// (whole BRDF, coat part) for the pair of local directions.
+    /// (whole BRDF, specular part) for the pair of local directions.
     #[must_use]
     #[inline]
     pub fn eval(&self, wo: Vec3A, wi: Vec3A) -> (Vec3A, Vec3A) {
@@ -230,8 +242,8 @@ impl Bsdf {
         if pdf <= 0.0 || !pdf.is_finite() {
             return None;
         }
-        let (f, f_coat) = self.eval(wo, wi);
-        Some(BsdfSample { wi, f, f_coat, pdf })
+        let (f, f_specular) = self.eval(wo, wi);
+        Some(BsdfSample { wi, f, f_specular, pdf })
     }
 }
 
