@@ -40,7 +40,7 @@ pub struct Material {
     pub kind: MaterialKind,
     /// Albedo, emitted radiance or absorbance, by kind.
     pub color: Vec3,
-    /// Refractive index (Refractive) or roughness control (Glossy).
+    /// Refractive index (Refractive), roughness control (Glossy) or exponent (Phong).
     pub value: f32,
 }
 
@@ -68,7 +68,7 @@ impl Material {
             MaterialKind::Reflective => Lobe::Mirror,
             MaterialKind::Refractive => Lobe::Dielectric,
             MaterialKind::Diffuse => Lobe::Lambert,
-            MaterialKind::Glossy => Lobe::Bsdf,
+            MaterialKind::Glossy | MaterialKind::Phong => Lobe::Bsdf,
         }
     }
 
@@ -183,10 +183,16 @@ mod tests {
             .collect();
         assert_eq!(
             lit,
-            [MaterialKind::Diffuse, MaterialKind::Emissive, MaterialKind::Glossy]
+            [
+                MaterialKind::Diffuse,
+                MaterialKind::Emissive,
+                MaterialKind::Glossy,
+                MaterialKind::Phong
+            ]
         );
         assert!(material(MaterialKind::Diffuse, Vec3::ONE).point_lit_only(Stage::Full, true));
         assert!(!material(MaterialKind::Diffuse, Vec3::ONE).point_lit_only(Stage::Full, false));
         assert!(!material(MaterialKind::Glossy, Vec3::ONE).point_lit_only(Stage::Full, true));
+        assert!(!material(MaterialKind::Phong, Vec3::ONE).point_lit_only(Stage::Full, true));
     }
 }

@@ -39,8 +39,8 @@ pub fn workspace() -> PathBuf {
 /// bit, with and without indirect light: emitters, point lights, mirrors, glass (absorbing too),
 /// every reflection model, depth of field and OBJ meshes. A scene showing a new material joins
 /// this list.
-pub const ENGINE_SCENES: [&str; 10] = [
-    "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj", "room",
+pub const ENGINE_SCENES: [&str; 11] = [
+    "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj", "room", "phong",
 ];
 
 /// One of our own scenes: `scenes/<name>` in the workspace.
