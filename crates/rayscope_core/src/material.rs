@@ -150,6 +150,26 @@ mod tests {
     }
 
     #[test]
+    fn the_scattering_lobes_are_exactly_the_kinds_with_a_reflection_model() {
+        // The engines shade a Lambert or Bsdf hit through `Bsdf::of`, and only a Lambert one in
+        // lanes: a kind with either lobe must have a model, Lambert's for the Lambert lobe.
+        for kind in MaterialKind::VARIANTS.iter().copied() {
+            let m = material(kind, Vec3::new(0.5, 0.25, 1.0));
+            let model = crate::bsdf::Bsdf::of(&m, false);
+            let lobe = m.lobe();
+            assert_eq!(
+                model.is_some(),
+                matches!(lobe, Lobe::Lambert | Lobe::Bsdf),
+                "{kind:?}: {lobe:?}"
+            );
+            let lambert = matches!(model, Some(crate::bsdf::Bsdf::Lambert { .. }));
+            assert_eq!(lambert, lobe == Lobe::Lambert, "{kind:?}: {lobe:?}");
+            assert_eq!(model.is_some_and(|b| b.has_specular()), lobe == Lobe::Bsdf, "{kind:?}");
+            assert_eq!(m.scatters_at_random(), lobe == Lobe::Bsdf, "{kind:?}");
+        }
+    }
+
+    #[test]
     fn only_lit_emissive_materials_emit() {
         for kind in MaterialKind::VARIANTS.iter().copied() {
             let lit = material(kind, Vec3::new(0.0, 2.0, 0.0)).emission();
