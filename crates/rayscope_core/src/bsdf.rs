@@ -206,9 +206,9 @@ pub struct BsdfSample {
 }
 
 impl Bsdf {
-    /// The model of a material whose lobe is [`Lambert`](crate::material::Lobe::Lambert) or
-    /// [`Bsdf`](crate::material::Lobe::Bsdf); `None` for the other kinds. With `specular_only` the model samples only its specular part (when
-    /// the rest's bounce would carry nothing).
+    /// The model of a material whose lobe is [`Lambert`](crate::scene::Lobe::Lambert) or
+    /// [`Bsdf`](crate::scene::Lobe::Bsdf); `None` for the other kinds. With `specular_only` the
+    /// model samples only its specular part (when the rest's bounce would carry nothing).
     #[must_use]
     pub fn of(m: &Material, specular_only: bool) -> Option<Bsdf> {
         let albedo = transport_albedo(m);
