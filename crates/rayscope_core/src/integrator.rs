@@ -1,11 +1,12 @@
 //! Integrators: stage 1 (flat colour), stage 2 (Whitted: point lights, mirrors, Fresnel glass)
 //! and the full renderer (stage 2 plus every stage-3 add-on).
 //!
-//! This file holds what every engine shares (the [`Integrator`], the [`Job`] a sample is, the
-//! per-path context [`PathCx`], sample positions and whether they jitter, camera rays) and the
-//! choice of [`Engine`]. `rules.rs` holds the shading rules the engines share; the engines switch
-//! on a hit's [`Lobe`](crate::scene::Lobe) and hand the rest of a lane's path to the one-path
-//! engine through one door (`one_path.rs`, `hand_over`); each engine has its own file: `one_path.rs` (one path at a time, generic over a
+//! This file holds what every engine shares (the [`Integrator`], the `Job` a sample is, the
+//! per-path context `PathCx`, sample positions and whether they jitter, camera rays) and the
+//! choice of [`Engine`]. `rules.rs` holds the shading rules the engines share; the engines
+//! switch on a hit's [`Lobe`](crate::scene::Lobe) and hand the rest of a lane's path to the
+//! one-path engine through one door (`one_path.rs`, `hand_over`); each engine has its own file:
+//! `one_path.rs` (one path at a time, generic over a
 //! [`RayObserver`](crate::observer::RayObserver) that records rays), `packets.rs` (ray
 //! packets), `camera_packets.rs` and `wave.rs` (waves of paths).
 //!
