@@ -769,7 +769,7 @@ fn scene_soup() -> impl Strategy<Value = String> {
     let token = prop_oneof![
         4 => prop::sample::select(vec![
             "Material", "PointLight", "Plane", "Sphere", "Triangle", "Diffuse", "Reflective", "Refractive",
-            "Emissive", "Glossy", "\"M\"", "\"N\"", "\"S\"", "(", ")", ",", "\n", "\n", "\n", "#",
+            "Emissive", "Glossy", "Phong", "\"M\"", "\"N\"", "\"S\"", "(", ")", ",", "\n", "\n", "\n", "#",
         ])
         .prop_map(str::to_string),
         3 => prop::sample::select(vec![
@@ -788,7 +788,14 @@ fn scene_lines() -> impl Strategy<Value = String> {
         1 => prop::sample::select(vec![0.0, -0.0, 1e-7, 1e-30, 1e7, 1e18, 3e38, 1.0, -1.0]),
     ];
     let v = (num.clone(), num.clone(), num.clone()).prop_map(|(x, y, z)| format!("({x}, {y}, {z})"));
-    let kind = prop::sample::select(vec!["Diffuse", "Reflective", "Refractive", "Emissive", "Glossy"]);
+    let kind = prop::sample::select(vec![
+        "Diffuse",
+        "Reflective",
+        "Refractive",
+        "Emissive",
+        "Glossy",
+        "Phong",
+    ]);
     let material = (kind, v.clone(), num.clone())
         .prop_map(|(k, c, n)| format!("Material \"M{{}}\" {k} {c} {}", n.abs().max(0.01)));
     let line = prop_oneof![

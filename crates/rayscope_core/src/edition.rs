@@ -5,6 +5,7 @@
 
 use rayscope_scene::{MaterialKind, SceneFile, Shape};
 
+use crate::material::{Lobe, Material};
 use crate::settings::{Edition, RenderSettings, Stage};
 
 /// The first Refractive material an entity uses whose colour is not black, if any.
@@ -22,13 +23,13 @@ pub fn edition_matters(file: &SceneFile, settings: &RenderSettings) -> bool {
     settings.stage == Stage::Full && coloured_glass(file).is_some()
 }
 
-/// True when the scene or the flags use a stage-3 add-on other than Beer's law: emissive or
-/// glossy surfaces, OBJ models, `-l`, a moved or turned camera, or depth of field.
+/// True when the scene or the flags use a stage-3 add-on other than Beer's law: emissive
+/// surfaces or reflection models other than Lambert's, OBJ models, `-l`, a moved or turned camera, or depth of field.
 fn other_stage_3(file: &SceneFile, s: &RenderSettings) -> bool {
     let materials = file.entities.iter().any(|e| {
         matches!(
-            file.materials[e.material].kind,
-            MaterialKind::Emissive | MaterialKind::Glossy
+            Material::from_def(&file.materials[e.material]).lobe(),
+            Lobe::Emitter | Lobe::Bsdf
         )
     });
     let meshes = file.entities.iter().any(|e| matches!(e.shape, Shape::Mesh { .. }));

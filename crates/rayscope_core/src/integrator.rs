@@ -1,9 +1,12 @@
 //! Integrators: stage 1 (flat colour), stage 2 (Whitted: point lights, mirrors, Fresnel glass)
 //! and the full renderer (stage 2 plus every stage-3 add-on).
 //!
-//! This file holds what every sample needs (the [`Integrator`], its sample positions and camera
-//! rays) and the choice of [`Engine`]. `rules.rs` holds the shading rules the engines share; each
-//! engine has its own file: `one_path.rs` (one path at a time, generic over a
+//! This file holds what every engine shares (the [`Integrator`], the `Job` a sample is, the
+//! per-path context `PathCx`, sample positions and whether they jitter, camera rays) and the
+//! choice of [`Engine`]. `rules.rs` holds the shading rules the engines share; the engines
+//! switch on a hit's [`Lobe`](crate::scene::Lobe) and hand the rest of a lane's path to the
+//! one-path engine through one door (`one_path.rs`, `hand_over`); each engine has its own file:
+//! `one_path.rs` (one path at a time, generic over a
 //! [`RayObserver`](crate::observer::RayObserver) that records rays), `packets.rs` (ray
 //! packets), `camera_packets.rs` and `wave.rs` (waves of paths).
 //!
@@ -49,9 +52,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 
 use glam::Vec3A;
 
-use crate::accel::ApexCull;
 use crate::camera::{cell_centre, jittered, Camera};
-use crate::geometry::PrimRef;
 use crate::lights::Emitters;
 use crate::math::Ray;
 use crate::mistakes::Mistake;
@@ -63,12 +64,27 @@ use crate::surface::Surface;
 
 mod camera_packets;
 mod one_path;
+mod packet_state;
 mod packets;
 mod rules;
 mod wave;
 
-pub(crate) use packets::Job;
+use packet_state::PacketSetup;
 pub(crate) use wave::WaveWork;
+
+/// A sample to trace: pixel (x, y) and sample index.
+pub(crate) type Job = (u32, u32, u32);
+
+/// What one sample carries down every vertex of its path, besides the path's state: its random
+/// stream, the observer recording its rays and the ray counters.
+pub(crate) struct PathCx<'p, O> {
+    /// The sample's random stream.
+    pub(crate) rng: &'p mut Rng,
+    /// Where the path's rays are recorded ([`crate::observer::NoObserver`] when they are not).
+    pub(crate) obs: &'p mut O,
+    /// Ray counts.
+    pub(crate) c: &'p mut Counters,
+}
 
 /// How a render computes its samples. Every engine returns the same pixels, bit for bit, and
 /// the same ray counts; they differ in how much work sixteen samples share.
@@ -131,21 +147,14 @@ pub struct Integrator<'a, I: Intersect = Scene> {
     pub stochastic: bool,
     /// Whitted glass branches with a smaller path weight are not traced (0: trace all).
     pub branch_cutoff: f32,
-    /// Per material: a hit on it is shaded by point lights alone (see `point_lit_only`).
-    pub(crate) point_lit: Vec<bool>,
     /// Side of the sample grid: N for `-x N`, 1 when a pixel takes one sample.
     grid: u32,
     /// Each grid cell's offset inside its pixel, ((i + 0.5)/N, (j + 0.5)/N), row by row; empty
     /// for grids too large to tabulate. Looked up rather than recomputed because the integer
     /// divisions that find (i, j) cost as much as making the camera ray.
     cells: Vec<[f32; 2]>,
-    /// The flat list seen from the pinhole camera's centre and from each point light, for ray
-    /// packets that leave or reach those points (see [`ApexCull`]).
-    pub(crate) beams: Beams,
-    /// Per sphere: where it sits among the BVH's sphere packets, when it is glass and no other
-    /// primitive comes near it ([`Scene::sphere_alone`]), so packets of rays that refracted
-    /// into it test it alone.
-    pub(crate) lone_spheres: Vec<Option<(u32, u32)>>,
+    /// What only the engines that trace ray packets use ([`PacketSetup`]).
+    pub(crate) packet: PacketSetup,
     /// True when some material is glass that absorbs (Beer's law, [`Self::absorb`]), so a path
     /// can travel inside a medium.
     pub(crate) media: bool,
@@ -169,15 +178,6 @@ pub(crate) enum OffsetRule {
 
 /// The cancel flag of integrators that are never cancelled.
 static NEVER_CANCELLED: AtomicBool = AtomicBool::new(false);
-
-/// [`ApexCull`]s of the points many packets' rays share.
-#[derive(Debug, Clone, Default)]
-pub(crate) struct Beams {
-    /// From the camera's centre (pinhole cameras only).
-    pub(crate) camera: Option<ApexCull>,
-    /// From each point light, in the scene's order.
-    pub(crate) lights: Vec<Option<ApexCull>>,
-}
 
 /// Largest grid side whose cell offsets are tabulated (16,384 cells, 128 KiB).
 const MAX_TABULATED_GRID: u32 = 128;
@@ -242,11 +242,9 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             emitters,
             stochastic,
             branch_cutoff,
-            point_lit: Vec::new(),
             grid: 1,
             cells: Vec::new(),
-            beams: Beams::default(),
-            lone_spheres: Vec::new(),
+            packet: PacketSetup::default(),
             media: scene
                 .materials
                 .iter()
@@ -254,9 +252,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             offset_rule: OffsetRule::Scaled(1.0),
             cancel: &NEVER_CANCELLED,
         }
-        .with_point_lit()
         .with_grid()
-        .with_beams()
+        .with_packet_setup()
     }
 
     /// The same integrator, stopping its paths once `cancel` is set.
@@ -313,38 +310,6 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
-    /// Fills in [`Self::beams`], for renders that trace ray packets through a flat list, and
-    /// [`Self::lone_spheres`].
-    fn with_beams(mut self) -> Self {
-        if !I::PACKETS {
-            return self;
-        }
-        let camera = (!self.thin_lens()).then(|| self.isect.apex_cull(self.camera.origin.to_array()));
-        self.beams = Beams {
-            camera: camera.flatten(),
-            lights: self
-                .scene
-                .lights
-                .iter()
-                .map(|l| self.isect.apex_cull(l.position.to_array()))
-                .collect(),
-        };
-        // Glass spheres only: rays start inside a sphere where they refract into it, and the
-        // check costs a pass over the scene's triangles per sphere.
-        let glass = |k: usize| {
-            let (_, m) = self.scene.prim_info(PrimRef::Sphere(k as u32));
-            self.scene.materials[m as usize].is_glass()
-        };
-        self.lone_spheres = (0..self.scene.spheres.len())
-            .map(|k| {
-                (glass(k) && self.scene.sphere_alone(k))
-                    .then(|| self.isect.sphere_slot(k as u32))
-                    .flatten()
-            })
-            .collect();
-        self
-    }
-
     /// Fills in [`Self::grid`] and [`Self::cells`].
     fn with_grid(mut self) -> Self {
         let n = if self.samples_per_pixel() == 1 {
@@ -378,10 +343,29 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
+    /// True when samples sit at random points of their grid cells and `-q` multiplies them: a
+    /// colour render with a stochastic effect on. Every engine places its samples by this.
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn jitters(&self) -> bool {
+        self.stochastic && self.settings.channel == Channel::Color
+    }
+
+    /// A sample's offset inside its pixel, `cell` (its cell's centre), moved to a random point of
+    /// the cell by `u`, the first two numbers of the sample's stream, where [`Self::jitters`]:
+    /// paths spread over their cell, so a pixel converges to the integral over its area (edges
+    /// antialiased as a box filter would) rather than to N×N point samples.
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn jittered_offset(&self, cell: [f32; 2], u: [f32; 2]) -> [f32; 2] {
+        let n = self.grid as f32;
+        [jittered(cell[0], u[0], n), jittered(cell[1], u[1], n)]
+    }
+
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
     #[must_use]
     pub(crate) fn paths_per_cell(&self) -> u32 {
-        if self.stochastic && self.settings.channel == Channel::Color {
+        if self.jitters() {
             1 << self.settings.quality.min(16)
         } else {
             1
@@ -426,12 +410,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             ox = (ox * n - 0.5).round() / n;
             oy = (oy * n - 0.5).round() / n;
         }
-        if self.stochastic && self.settings.channel == Channel::Color {
-            // Paths spread over their cell, so a pixel converges to the integral over its area
-            // (edges antialiased as a box filter would) rather than to N×N point samples.
-            let n = self.grid as f32;
-            ox = jittered(ox, rng.next_f32(), n);
-            oy = jittered(oy, rng.next_f32(), n);
+        if self.jitters() {
+            [ox, oy] = self.jittered_offset([ox, oy], [rng.next_f32(), rng.next_f32()]);
         }
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;

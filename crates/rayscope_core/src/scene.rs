@@ -10,7 +10,7 @@ use crate::accel::{ApexCull, PacketHits};
 use crate::accel::{BuildPrim, Bvh, Bvh4, WideHit};
 pub use crate::geometry::PrimRef;
 use crate::geometry::{Plane, Sphere, Triangle};
-pub use crate::material::Material;
+pub use crate::material::{Lobe, Material};
 use crate::math::{Aabb, Ray, RayPacket};
 use crate::simd::{Mask, LANES};
 

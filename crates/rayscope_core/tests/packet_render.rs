@@ -66,6 +66,7 @@ fn packet_renders_equal_single_ray_renders() {
         "camera.txt",
         "obj.txt",
         "beer.txt",
+        "phong.txt",
     ]
     .map(rayscope_testkit::scene)
     .into();

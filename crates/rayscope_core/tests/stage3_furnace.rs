@@ -115,6 +115,31 @@ fn diffuse_surface_inside_uniform_emitter_reflects_albedo_times_radiance() {
     }
 }
 
+/// A Phong triangle at the centre of a large emitting sphere, seen along its normal, sees
+/// radiance L over its whole hemisphere and reflects all of it that its albedo allows: the
+/// Lambert half's a/2 and, the lobe lying whole above the surface at normal incidence, the
+/// lobe's a/2, so B = a·L whatever the exponent (emitter sampling + the model's own mixture
+/// sampling, MIS; with -l the bounces that carry the lobe too).
+#[test]
+fn phong_surface_inside_uniform_emitter_reflects_albedo_times_radiance() {
+    for n in [0, 12, 300] {
+        let text = format!(
+            "Material \"Shiny\" Phong (0.6, 0.3, 0.9) {n}\nMaterial \"Sky\" Emissive (1, 2, 0.5) 1\n\
+             Sphere \"Dome\" (0, 0, 0) 10 \"Sky\"\n\
+             Triangle \"T\" (-1, -1, 2) (0, 1, 2) (1, -1, 2) \"Shiny\"\n"
+        );
+        let sc = scene(&text);
+        let want = Vec3A::new(0.6, 0.3, 0.9) * Vec3A::new(1.0, 2.0, 0.5);
+        for ambient in [false, true] {
+            assert_converges(
+                &format!("Phong {n} in a dome, -l {ambient}"),
+                estimate(&sc, &settings(CameraSettings::default(), ambient), 8_000),
+                want,
+            );
+        }
+    }
+}
+
 /// A point on a diffuse floor under a square emitter (two triangles) of half-side w at height h,
 /// centred above it: B = a · L · F with the point-to-rectangle form factor F.
 #[test]

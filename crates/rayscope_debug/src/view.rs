@@ -15,9 +15,8 @@ use std::time::Instant;
 use glam::{Vec2, Vec3, Vec3A, Vec4};
 use rayon::prelude::*;
 use rayscope_core::integrator::Integrator;
-use rayscope_core::scene::{PrimRef, Scene};
+use rayscope_core::scene::{Lobe, PrimRef, Scene};
 use rayscope_core::{Camera, Ray, RayKind, RayTree, RenderSettings};
-use rayscope_scene::MaterialKind;
 use serde::{Deserialize, Serialize};
 
 use crate::canvas::{Canvas, ScreenPoint, ID_NONE};
@@ -402,12 +401,12 @@ fn sky(dir: Vec3A) -> Vec3 {
 
 /// A display colour for a material: reflective and refractive ones get a tint of their own,
 /// since their colour does not show in a render.
-fn material_color(kind: MaterialKind, c: Vec3) -> Vec3 {
-    match kind {
-        MaterialKind::Reflective => Vec3::new(0.80, 0.82, 0.86),
-        MaterialKind::Refractive => Vec3::new(0.62, 0.82, 0.92),
-        MaterialKind::Emissive => c / c.max_element().max(1.0),
-        MaterialKind::Diffuse | MaterialKind::Glossy => c.clamp(Vec3::ZERO, Vec3::ONE),
+fn material_color(lobe: Lobe, c: Vec3) -> Vec3 {
+    match lobe {
+        Lobe::Mirror => Vec3::new(0.80, 0.82, 0.86),
+        Lobe::Dielectric => Vec3::new(0.62, 0.82, 0.92),
+        Lobe::Emitter => c / c.max_element().max(1.0),
+        Lobe::Lambert | Lobe::Bsdf => c.clamp(Vec3::ZERO, Vec3::ONE),
     }
 }
 
@@ -471,15 +470,15 @@ impl Ctx<'_> {
                 continue;
             }
             let m = &self.scene.materials[s.material as usize];
-            let base = material_color(m.kind, m.color);
+            let base = material_color(m.lobe(), m.color);
             let ndv = s.shading_normal.dot(-ray.dir).abs();
-            let k = if m.kind == MaterialKind::Emissive {
+            let k = if m.lobe() == Lobe::Emitter {
                 1.0
             } else {
                 (0.62 + 0.3 * ndv + 0.1 * s.shading_normal.y.max(0.0)).min(1.0)
             };
             let mut c = base * k;
-            if m.kind == MaterialKind::Reflective {
+            if m.lobe() == Lobe::Mirror {
                 // A hint of the sky in the mirror.
                 let r = ray.dir - s.normal * (2.0 * ray.dir.dot(s.normal));
                 c = c * 0.6 + sky(r) * 0.4;

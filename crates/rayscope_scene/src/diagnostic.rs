@@ -31,7 +31,7 @@ impl Severity {
 /// Displays as plain text in the style of rustc:
 ///
 /// ```text
-/// error: unknown material type 'Difuse' (expected one of Diffuse, Reflective, Refractive, Emissive, Glossy)
+/// error: unknown material type 'Difuse' (expected one of Diffuse, Reflective, Refractive, Emissive, Glossy, Phong)
 ///   --> scenes/x.txt:3:17
 ///    |
 ///  3 | Material "Red" Difuse (1, .5, .5) 1

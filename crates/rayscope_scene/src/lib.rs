@@ -36,7 +36,14 @@ pub enum MaterialKind {
     Emissive,
     /// Coloured base under a rough reflective coat; the number controls the roughness.
     Glossy,
+    /// Normalised Phong reflection: half Lambertian, half a lobe about the mirror direction; the
+    /// number is the lobe's exponent (0 to [`PHONG_MAX_EXPONENT`]).
+    Phong,
 }
+
+/// Largest exponent a Phong material may have: its lobe is then about a degree wide, and a
+/// sharper one is a mirror's business (Reflective).
+pub const PHONG_MAX_EXPONENT: f64 = 10_000.0;
 
 impl MaterialKind {
     /// The name used in the scene format.
@@ -48,6 +55,7 @@ impl MaterialKind {
             MaterialKind::Refractive => "Refractive",
             MaterialKind::Emissive => "Emissive",
             MaterialKind::Glossy => "Glossy",
+            MaterialKind::Phong => "Phong",
         }
     }
 
@@ -58,6 +66,7 @@ impl MaterialKind {
         match self {
             MaterialKind::Refractive => Some("refractive index"),
             MaterialKind::Glossy => Some("roughness"),
+            MaterialKind::Phong => Some("Phong exponent"),
             MaterialKind::Diffuse | MaterialKind::Reflective | MaterialKind::Emissive => None,
         }
     }
@@ -72,7 +81,8 @@ pub struct MaterialDef {
     pub kind: MaterialKind,
     /// Colour: albedo, emitted radiance or absorbance depending on `kind`.
     pub color: DVec3,
-    /// The trailing number: refractive index for Refractive, roughness control for Glossy.
+    /// The trailing number: refractive index for Refractive, roughness control for Glossy,
+    /// exponent for Phong.
     pub value: f64,
     /// 1-based line of the definition in the scene file.
     pub line: usize,

@@ -8,7 +8,9 @@ use glam::DVec3;
 use crate::diagnostic::{decode_utf8, suggest, Diagnostic, Severity};
 use crate::lexer::{char_len, column, lex_line, lines, parse_number, Line, NumberError, Token};
 use crate::obj::{parse_obj_with_warnings, ObjOptions};
-use crate::{EntityDef, MaterialDef, MaterialKind, PointLightDef, SceneError, SceneFile, Shape, VariantArray};
+use crate::{
+    EntityDef, MaterialDef, MaterialKind, PointLightDef, SceneError, SceneFile, Shape, VariantArray, PHONG_MAX_EXPONENT,
+};
 
 /// The commands of the format, in the order they are listed in messages.
 const COMMANDS: [&str; 6] = ["Material", "PointLight", "Plane", "Sphere", "Triangle", "ObjModel"];
@@ -446,6 +448,23 @@ impl<'a> Parser<'a> {
                 )
                 .with_label("must be positive")
                 .with_note("glass is about 1.5, water 1.33, air 1"),
+            ));
+        }
+        if kind == MaterialKind::Phong && !(0.0..=PHONG_MAX_EXPONENT).contains(&value) {
+            return Err(Box::new(
+                cur.token_diag(
+                    &tok,
+                    format!(
+                        "expected a Phong exponent from 0 to {PHONG_MAX_EXPONENT} but found '{}'",
+                        tok.text
+                    ),
+                )
+                .with_label(if value < 0.0 {
+                    "must not be negative"
+                } else {
+                    "too large"
+                })
+                .with_note("1 is a dull sheen, 20 to 100 a plastic highlight, 1000 nearly a mirror"),
             ));
         }
         cur.last_what = "the material's number".to_string();

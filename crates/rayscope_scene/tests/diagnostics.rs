@@ -489,3 +489,38 @@ fn obj_ignores_other_statements() {
     .unwrap();
     assert_eq!(mesh.triangles.len(), 1);
 }
+
+/// The error a Phong material with exponent `n` gets, as (line, column, message, whole text).
+fn phong_error(n: &str) -> (usize, usize, String, String) {
+    let src = format!("{MATERIALS}Material \"Shiny\" Phong (0.8, 0.2, 0.2) {n}\n");
+    match parse_str(&src, Path::new("scene.txt")) {
+        Err(SceneError::Invalid(d)) => (d.line, d.column, d.message.clone(), d.to_string()),
+        other => panic!("Phong {n}: expected a diagnostic, got {other:?}"),
+    }
+}
+
+#[test]
+fn phong_exponent_out_of_range() {
+    for (n, label) in [
+        ("-1", "must not be negative"),
+        ("10001", "too large"),
+        ("250000.5", "too large"),
+    ] {
+        let (line, column, message, text) = phong_error(n);
+        assert_eq!((line, column), (3, 40), "Phong {n}: {text}");
+        assert_eq!(
+            message,
+            format!("expected a Phong exponent from 0 to 10000 but found '{n}'"),
+            "{text}"
+        );
+        assert!(text.contains("--> scene.txt:3:40") && text.contains(label), "{text}");
+    }
+    let (_, _, message, _) = phong_error("x");
+    assert!(message.contains("the material's Phong exponent"), "{message}");
+    for n in ["0", "32", "10000"] {
+        let src = format!("Material \"Shiny\" Phong (0.8, 0.2, 0.2) {n}\n");
+        let scene = parse_str(&src, Path::new("scene.txt")).expect("a Phong exponent in range parses");
+        assert_eq!(scene.materials[0].kind, rayscope_scene::MaterialKind::Phong);
+        assert_eq!(scene.materials[0].value, n.parse::<f64>().unwrap());
+    }
+}

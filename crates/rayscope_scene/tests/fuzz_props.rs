@@ -64,7 +64,7 @@ fn scene_soup() -> impl Strategy<Value = String> {
     let token = prop_oneof![
         4 => prop::sample::select(vec![
             "Material", "PointLight", "Plane", "Sphere", "Triangle", "Diffuse", "Reflective", "Refractive",
-            "Emissive", "Glossy", "\"M\"", "\"A B\"", "\"", "(", ")", ",", "\n", "\r\n", "\r", "\t", "#", "é",
+            "Emissive", "Glossy", "Phong", "\"M\"", "\"A B\"", "\"", "(", ")", ",", "\n", "\r\n", "\r", "\t", "#", "é",
             "\u{0}", "\u{feff}", "NaN", "inf",
         ])
         .prop_map(str::to_string),
@@ -88,6 +88,7 @@ fn scene_lines() -> impl Strategy<Value = String> {
         "Refractive",
         "Emissive",
         "Glossy",
+        "Phong",
         "Metal",
     ]);
     let line = prop_oneof![

@@ -35,6 +35,14 @@ pub fn workspace() -> PathBuf {
         .to_path_buf()
 }
 
+/// Our own scenes (`scenes/<name>.txt`) on which the full renderer's engines must agree bit for
+/// bit, with and without indirect light: emitters, point lights, mirrors, glass (absorbing too),
+/// every reflection model, depth of field and OBJ meshes. A scene showing a new material joins
+/// this list.
+pub const ENGINE_SCENES: [&str; 11] = [
+    "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj", "room", "phong",
+];
+
 /// One of our own scenes: `scenes/<name>` in the workspace.
 pub fn scene(name: &str) -> PathBuf {
     let p = workspace().join("scenes").join(name);

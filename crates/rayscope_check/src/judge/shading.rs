@@ -6,6 +6,7 @@
 //! is made, not one at every ancestor that passed it on.
 
 use glam::DVec3;
+use rayscope_core::scene::Lobe;
 use rayscope_core::Stage;
 use rayscope_scene::MaterialKind;
 use serde_json::json;
@@ -339,8 +340,8 @@ impl Judge<'_> {
         // The share of the sample this hit carries, needed only where a ray is missing.
         let weight = || self.path_weight(i, parent, evals, kinds);
         let full = self.settings.stage == Stage::Full;
-        match m.kind {
-            MaterialKind::Diffuse => {
+        match m.lobe() {
+            Lobe::Lambert => {
                 // Stage 3 lights a diffuse hit by emitters and ambient light as well.
                 let emitters = || {
                     self.scene
@@ -353,12 +354,12 @@ impl Judge<'_> {
                 }
                 self.diffuse(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
             }
-            MaterialKind::Reflective | MaterialKind::Refractive => {
+            Lobe::Mirror | Lobe::Dielectric => {
                 let depth = depth_of(i, parent);
                 if kids.reflection.is_empty() && kids.refraction.is_empty() && kids.other == 0 {
                     return self.no_children(r, &kinds[i], &lv, depth, logs, &weight, f);
                 }
-                if m.kind == MaterialKind::Reflective {
+                if m.lobe() == Lobe::Mirror {
                     self.mirror(r, &kinds[i], &lv, rays, kids, f)
                 } else if full && m.color != glam::Vec3::ZERO {
                     // Beer's law absorbs inside coloured glass in the full renderer.
@@ -367,7 +368,7 @@ impl Judge<'_> {
                     self.glass(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
                 }
             }
-            MaterialKind::Emissive | MaterialKind::Glossy => Decision::Unjudged,
+            Lobe::Emitter | Lobe::Bsdf => Decision::Unjudged,
         }
     }
 

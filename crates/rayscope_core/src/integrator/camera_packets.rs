@@ -13,17 +13,14 @@
 
 use glam::Vec3A;
 
-use super::one_path::PathCx;
-use super::packets::Job;
+use super::one_path::LaneAt;
 use super::rules::PathState;
-use super::{Counters, Integrator};
+use super::{Counters, Integrator, Job};
 use crate::accel::PacketHits;
-use crate::camera::{camera_dirs, jittered};
+use crate::camera::camera_dirs;
 use crate::math::RayPacket;
-use crate::observer::NoObserver;
 use crate::rng::RngLanes;
 use crate::scene::{Hit, Intersect};
-use crate::settings::Channel;
 use crate::simd::LANES;
 
 impl<I: Intersect> Integrator<'_, I> {
@@ -38,19 +35,9 @@ impl<I: Intersect> Integrator<'_, I> {
             // Each path goes on one ray at a time from its camera ray's hit, found with the batch.
             let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
             let mut rng = cams.rng.get(k);
+            let ray = cams.rays.ray(k);
             out[k] = self
-                .trace_found(
-                    &cams.rays.ray(k),
-                    hit,
-                    PathState::CAMERA,
-                    true,
-                    0,
-                    &mut PathCx {
-                        rng: &mut rng,
-                        obs: &mut NoObserver,
-                        c,
-                    },
-                )
+                .hand_over(&ray, LaneAt::Found(hit), PathState::CAMERA, &mut rng, c)
                 .total();
         }
     }
@@ -82,12 +69,10 @@ impl<I: Intersect> Integrator<'_, I> {
                 [px[k], py[k]] = self.cell_offset(s);
             }
             b.rng = RngLanes::for_samples(self.settings.seed, &pixel, &sample);
-            if self.stochastic && self.settings.channel == Channel::Color {
-                let n = self.grid as f32;
+            if self.jitters() {
                 let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
                 for k in 0..LANES {
-                    px[k] = jittered(px[k], jx[k], n);
-                    py[k] = jittered(py[k], jy[k], n);
+                    [px[k], py[k]] = self.jittered_offset([px[k], py[k]], [jx[k], jy[k]]);
                 }
             }
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
@@ -99,7 +84,7 @@ impl<I: Intersect> Integrator<'_, I> {
         if trace {
             // Traced in place (users of the batch read only origins and directions).
             self.isect
-                .closest_packet(&mut b.rays, 0.0, self.beams.camera.as_ref(), &mut b.hits);
+                .closest_packet(&mut b.rays, 0.0, self.packet.beams.camera.as_ref(), &mut b.hits);
         }
         b
     }

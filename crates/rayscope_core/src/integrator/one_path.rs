@@ -12,13 +12,12 @@ use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, NoObserver, RayKind, RayObserver};
 use crate::rng::Rng;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
-use crate::scene::{Hit, Intersect, Material};
+use crate::scene::{Hit, Intersect, Lobe, Material};
 use crate::settings::{Channel, DepthLimit, Stage};
 use crate::surface::Surface;
-use rayscope_scene::MaterialKind;
 
 use super::rules::{Glass, Li, PathState, ShadowRay};
-use super::{entity_color, heat, Counters, Integrator, MAX_BOUNCES, RR_START};
+use super::{entity_color, heat, Counters, Integrator, PathCx, MAX_BOUNCES, RR_START};
 
 /// A shading frame (tangent, bitangent, normal) and the local outgoing direction.
 type Frame = (Vec3A, Vec3A, Vec3A, Vec3A);
@@ -32,15 +31,15 @@ struct PointLit<'b> {
     brdf: Option<(&'b Bsdf, Frame)>,
 }
 
-/// What one sample carries down every vertex of its path, besides the path's state: its random
-/// stream, the observer recording its rays and the ray counters.
-pub(crate) struct PathCx<'p, O> {
-    /// The sample's random stream.
-    pub(crate) rng: &'p mut Rng,
-    /// Where the path's rays are recorded ([`crate::observer::NoObserver`] when they are not).
-    pub(crate) obs: &'p mut O,
-    /// Ray counts.
-    pub(crate) c: &'p mut Counters,
+/// Where a lane that a packet engine hands to this engine stands ([`Integrator::hand_over`]).
+#[derive(Clone, Copy)]
+pub(super) enum LaneAt<'h> {
+    /// Its ray is still to trace.
+    Ray,
+    /// Its ray's closest hit is known: this one, or none.
+    Found(Option<Hit>),
+    /// Its ray hit this, whose surface is the second.
+    Hit(&'h Hit, &'h Surface),
 }
 
 impl<I: Intersect> Integrator<'_, I> {
@@ -193,8 +192,8 @@ impl<I: Intersect> Integrator<'_, I> {
             return Li::default();
         }
         let full = stage == Stage::Full;
-        let out = match m.kind {
-            MaterialKind::Emissive if full => Li {
+        let out = match m.lobe() {
+            Lobe::Emitter if full => Li {
                 emitted: m.color.into(),
                 reflected: Vec3A::ZERO,
                 light_pdf: if self.emitters.is_empty() {
@@ -204,21 +203,19 @@ impl<I: Intersect> Integrator<'_, I> {
                 },
             },
             _ if !want_reflected => return Li::default(),
-            MaterialKind::Diffuse | MaterialKind::Glossy if full => self.shade(ray, s, m, path, id, cx),
-            MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
-                Li::reflected(self.direct_point_lights(
-                    s,
-                    ray,
-                    PointLit {
-                        albedo: m.color.into(),
-                        brdf: None,
-                    },
-                    id,
-                    path.depth,
-                    cx,
-                ))
-            }
-            MaterialKind::Reflective => {
+            Lobe::Lambert | Lobe::Bsdf if full => self.shade(ray, s, m, path, id, cx),
+            Lobe::Lambert | Lobe::Bsdf | Lobe::Emitter => Li::reflected(self.direct_point_lights(
+                s,
+                ray,
+                PointLit {
+                    albedo: m.color.into(),
+                    brdf: None,
+                },
+                id,
+                path.depth,
+                cx,
+            )),
+            Lobe::Mirror => {
                 if !every_material && path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
@@ -226,7 +223,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 let r = self.mistaken_mirror(r, ray, s.normal);
                 Li::reflected(self.secondary(&r, child, id, RayKind::Reflection, 1.0, cx))
             }
-            MaterialKind::Refractive => {
+            Lobe::Dielectric => {
                 if !every_material && path.depth >= self.settings.max_depth {
                     return Li::default();
                 }
@@ -236,24 +233,20 @@ impl<I: Intersect> Integrator<'_, I> {
         self.absorb(path, hit.t, out)
     }
 
-    /// [`Self::trace_hit`] for a lane that a packet engine hands to this one at its hit `hit`,
-    /// whose surface is `s`: the rest of its path one ray at a time, with `rng` its stream,
-    /// unrecorded.
+    /// The rest of the path of a lane that a packet engine hands to this engine where it stands
+    /// (`at`), with path state `path`, one ray at a time, with `rng` its stream, unrecorded.
     #[inline]
-    pub(super) fn continue_lane(
-        &self,
-        ray: &Ray,
-        hit: (&Hit, &Surface),
-        path: PathState,
-        rng: &mut Rng,
-        c: &mut Counters,
-    ) -> Li {
+    pub(super) fn hand_over(&self, ray: &Ray, at: LaneAt<'_>, path: PathState, rng: &mut Rng, c: &mut Counters) -> Li {
         let cx = &mut PathCx {
             rng,
             obs: &mut NoObserver,
             c,
         };
-        self.trace_hit(ray, hit, path, true, 0, cx)
+        match at {
+            LaneAt::Ray => self.trace(ray, path, true, 0, cx),
+            LaneAt::Found(hit) => self.trace_found(ray, hit, path, true, 0, cx),
+            LaneAt::Hit(hit, s) => self.trace_hit(ray, (hit, s), path, true, 0, cx),
+        }
     }
 
     /// The surface as a tracer with [`Mistake::ReversedNormals`] sees it: a triangle's normal
@@ -402,7 +395,7 @@ impl<I: Intersect> Integrator<'_, I> {
         }
     }
 
-    /// A Diffuse or Glossy hit in the full renderer: point lights, one emitter sample and one
+    /// A hit on a [`Lobe::Lambert`] or [`Lobe::Bsdf`] material in the full renderer: point lights, one emitter sample and one
     /// BRDF sample (MIS), and the bounce's indirect light where the rules carry it.
     fn shade<O: RayObserver>(
         &self,
@@ -414,8 +407,8 @@ impl<I: Intersect> Integrator<'_, I> {
         cx: &mut PathCx<'_, O>,
     ) -> Li {
         let ambient = self.settings.ambient;
-        let coat_only = !ambient && !self.emitters.any_emission;
-        let Some(bsdf) = Bsdf::of(m, coat_only) else {
+        let specular_only = !ambient && !self.emitters.any_emission;
+        let Some(bsdf) = Bsdf::of(m, specular_only) else {
             return Li::default();
         };
         let n = s.shading_normal;
@@ -426,11 +419,11 @@ impl<I: Intersect> Integrator<'_, I> {
             wo = Vec3A::new(wo.x, wo.y, 1e-4).normalize();
         }
         let frame = (t, b, n, wo);
-        let lambert = matches!(bsdf, Bsdf::Lambert { .. });
+        let specular = bsdf.has_specular();
         let origin = s.point + s.normal * self.offset(s, ray);
         let lit = PointLit {
             albedo: m.color.into(),
-            brdf: (!lambert).then_some((&bsdf, frame)),
+            brdf: specular.then_some((&bsdf, frame)),
         };
         let mut l = self.direct_point_lights(s, ray, lit, id, path.depth, cx);
 
@@ -483,8 +476,7 @@ impl<I: Intersect> Integrator<'_, I> {
         };
 
         // BRDF sampling: emitters it finds (MIS) and, where carried, indirect light.
-        let coated = !lambert;
-        if !(self.emitters.any_emission || ambient || coated) {
+        if !(self.emitters.any_emission || ambient || specular) {
             return Li::reflected(alone(l, pending));
         }
         let (u0, u1, u2) = (cx.rng.next_f32(), cx.rng.next_f32(), cx.rng.next_f32());
@@ -499,7 +491,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut carry = if ambient {
             w_total
         } else {
-            bs.f_coat * (bs.wi.z / bs.pdf)
+            bs.f_specular * (bs.wi.z / bs.pdf)
         };
         let mut child = PathState {
             depth: path.depth,
@@ -523,7 +515,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 }
             }
         } else {
-            // Without -l only the coat's reflection recurses, like a blurred mirror.
+            // Without -l only the specular part's reflection recurses, like a blurred mirror.
             want &= path.depth < self.settings.max_depth;
             child.depth += 1;
         }

@@ -14,30 +14,53 @@
 
 use glam::Vec3A;
 
-use super::one_path::PathCx;
+use super::one_path::LaneAt;
+use super::packet_state::Beams;
 use super::rules::{Glass, Li, PathState};
-use super::{Counters, Integrator};
+use super::{Counters, Integrator, Job};
 use crate::accel::PacketHits;
 use crate::geometry::PrimRef;
 use crate::lights::{add_point_light_lanes, point_light_rays};
 use crate::math::Ray;
 use crate::math::RayPacket;
-use crate::observer::NoObserver;
 use crate::optics::{specular_rays, SpecularRays};
 use crate::rng::Rng;
-use crate::scene::{Hit, Intersect, Material};
+use crate::scene::{Hit, Intersect, Lobe, Material};
 use crate::settings::Stage;
 use crate::simd::{lane, LANES};
 use crate::surface::{PacketSurfaces, SurfaceFrames};
-use rayscope_scene::MaterialKind;
-
-/// A sample to trace: pixel (x, y) and sample index.
-pub(crate) type Job = (u32, u32, u32);
 
 impl<I: Intersect> Integrator<'_, I> {
-    /// Fills in [`Self::point_lit`].
-    pub(super) fn with_point_lit(mut self) -> Self {
-        self.point_lit = self.scene.materials.iter().map(|m| self.point_lit_only(m)).collect();
+    /// Fills in [`Self::packet`]: the point-lit materials for every render, and for renders that
+    /// trace ray packets through a flat list, the beams and the lone glass spheres.
+    pub(super) fn with_packet_setup(mut self) -> Self {
+        self.packet.point_lit = self.scene.materials.iter().map(|m| self.point_lit_only(m)).collect();
+        if !I::PACKETS {
+            return self;
+        }
+        let camera = (!self.thin_lens()).then(|| self.isect.apex_cull(self.camera.origin.to_array()));
+        self.packet.beams = Beams {
+            camera: camera.flatten(),
+            lights: self
+                .scene
+                .lights
+                .iter()
+                .map(|l| self.isect.apex_cull(l.position.to_array()))
+                .collect(),
+        };
+        // Glass spheres only: rays start inside a sphere where they refract into it, and the
+        // check costs a pass over the scene's triangles per sphere.
+        let glass = |k: usize| {
+            let (_, m) = self.scene.prim_info(PrimRef::Sphere(k as u32));
+            self.scene.materials[m as usize].is_glass()
+        };
+        self.packet.lone_spheres = (0..self.scene.spheres.len())
+            .map(|k| {
+                (glass(k) && self.scene.sphere_alone(k))
+                    .then(|| self.isect.sphere_slot(k as u32))
+                    .flatten()
+            })
+            .collect();
         self
     }
 
@@ -91,19 +114,7 @@ impl<I: Intersect> Integrator<'_, I> {
             for i in (0..LANES).filter(|&i| lanes.on[i]) {
                 let mut rng = self.lane_rng(jobs[i]);
                 let ray = lanes.ray(i);
-                vals[i] = self
-                    .trace(
-                        &ray,
-                        lanes.paths[i],
-                        true,
-                        0,
-                        &mut PathCx {
-                            rng: &mut rng,
-                            obs: &mut NoObserver,
-                            c,
-                        },
-                    )
-                    .total();
+                vals[i] = self.hand_over(&ray, LaneAt::Ray, lanes.paths[i], &mut rng, c).total();
             }
             return;
         }
@@ -111,12 +122,12 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut hits = PacketHits::default();
         // Rays inside a sphere nothing else comes near (glass seen from within) test it alone.
         let alone = match lanes.inside {
-            Inside::Sphere(k) => self.lone_spheres.get(k as usize).copied().flatten(),
+            Inside::Sphere(k) => self.packet.lone_spheres.get(k as usize).copied().flatten(),
             _ => None,
         };
         if !alone.is_some_and(|slot| self.isect.closest_packet_inside(&mut lanes.rays, 0.0, slot, &mut hits)) {
             self.isect
-                .closest_packet(&mut lanes.rays, 0.0, self.beams.camera.as_ref(), &mut hits);
+                .closest_packet(&mut lanes.rays, 0.0, self.packet.beams.camera.as_ref(), &mut hits);
         }
         let surf = PacketSurfaces::new(self.scene, &lanes.rays, &hits);
 
@@ -127,7 +138,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let mut ior = [1.0; LANES];
         // Lanes without a hit have material 0, which a scene without objects lacks.
         let material = |mat: u32| {
-            let point_lit = self.point_lit.get(mat as usize).copied().unwrap_or(false);
+            let point_lit = self.packet.point_lit.get(mat as usize).copied().unwrap_or(false);
             let (albedo, value) = self
                 .scene
                 .materials
@@ -179,21 +190,19 @@ impl<I: Intersect> Integrator<'_, I> {
             };
             let front = surf.frames.front_face[i];
             let (reflected_in, refracted_in) = (sphere.filter(|_| !front), sphere.filter(|_| front));
-            next[i] = match m.kind {
+            next[i] = match m.lobe() {
                 _ if self.settings.stage == Stage::One => {
                     vals[i] = Vec3A::ZERO + Vec3A::from(m.color);
                     Next::Done
                 }
-                MaterialKind::Reflective | MaterialKind::Refractive if path.depth >= self.settings.max_depth => {
-                    Next::Done
-                }
-                MaterialKind::Reflective => {
+                Lobe::Mirror | Lobe::Dielectric if path.depth >= self.settings.max_depth => Next::Done,
+                Lobe::Mirror => {
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let r = Ray::new(lane(&surf.frames.outside, i), lane(&sp.reflected, i));
                     child(&mut reflected).set(i, &r, path.mirrored(), reflected_in);
                     Next::Mirror
                 }
-                MaterialKind::Refractive if path.branch || self.settings.stage != Stage::Full => {
+                Lobe::Dielectric if path.branch || self.settings.stage != Stage::Full => {
                     let sp = specular.get_or_insert_with(|| specular_rays(&lanes.rays, &surf.frames, &ior));
                     let (refl_medium, refr_medium) = self.glass_media(&surf.get(i), m, path);
                     let g = Glass {
@@ -213,14 +222,14 @@ impl<I: Intersect> Integrator<'_, I> {
                 }
                 // Glass after a sampled bounce picks one ray at random; the other kinds here are
                 // lit by more than point lights. Their lanes go on one path at a time.
-                MaterialKind::Refractive | MaterialKind::Diffuse | MaterialKind::Glossy | MaterialKind::Emissive => {
+                Lobe::Dielectric | Lobe::Lambert | Lobe::Bsdf | Lobe::Emitter => {
                     let mut rng = self.lane_rng(jobs[i]);
                     let Some((t, u, v, prim)) = hits.get(i) else {
                         unreachable!("lane {i} has a surface, so it has a hit")
                     };
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (lanes.ray(i), surf.get(i));
-                    vals[i] = self.continue_lane(&ray, (&hit, &s), path, &mut rng, c).total();
+                    vals[i] = self.hand_over(&ray, LaneAt::Hit(&hit, &s), path, &mut rng, c).total();
                     Next::Done
                 }
             };
@@ -296,7 +305,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 &frames.shading_normal,
                 &lit.on,
                 light.position.to_array(),
-                self.beams.lights.get(k).and_then(Option::as_ref),
+                self.packet.beams.lights.get(k).and_then(Option::as_ref),
             );
             c.shadow += u64::from(vis.rays);
             add_point_light_lanes(&mut sums, &lit.alb, light.color.to_array(), &vis);

@@ -17,7 +17,7 @@ use super::Integrator;
 /// State carried down a path.
 #[derive(Debug, Clone, Copy)]
 pub(super) struct PathState {
-    /// Mirror, glass and glossy-coat bounces so far (limited by `max_depth`).
+    /// Mirror, glass and specular-lobe bounces so far (limited by `max_depth`).
     pub(super) depth: u32,
     /// Non-specular (sampled) bounces so far.
     pub(super) bounces: u32,

@@ -19,8 +19,8 @@
 //!   off a Lambertian surface, glass's reflected and then its refracted ray, one after the
 //!   other, as the recursion takes them) is the lane's next ray, and the light it brings is
 //!   passed on, weighted and absorbed, when it returns;
-//! * a hit on a glossy coat goes on one ray at a time with the recursive code from that hit,
-//!   and its result enters the sum like any other vertex's.
+//! * a hit on any other reflection model ([`Lobe::Bsdf`]) goes on one ray at a time with the
+//!   recursive code from that hit, and its result enters the sum like any other vertex's.
 //!
 //! So the image is the one the one-path-at-a-time loop makes, bit for bit (the tests
 //! `waves_return_what_one_path_at_a_time_returns` below and `packet_render` check it). The wave
@@ -34,9 +34,10 @@
 use glam::{Vec3, Vec3A};
 
 use super::camera_packets::CameraBatch;
-use super::packets::{Job, LitLanes};
+use super::one_path::LaneAt;
+use super::packets::LitLanes;
 use super::rules::{Li, PathState};
-use super::{Counters, Integrator, MAX_BOUNCES, RR_START};
+use super::{Counters, Integrator, Job, MAX_BOUNCES, RR_START};
 use crate::accel::PacketHits;
 use crate::bsdf::{lambert_f, lambert_pdf, lambert_sample_lanes, transport_albedo};
 use crate::geometry::PrimRef;
@@ -44,10 +45,9 @@ use crate::math::RayPacket;
 use crate::math::{basis_lanes, not_at_most, Ray};
 use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_world_unit_lanes};
-use crate::scene::{Hit, Intersect};
+use crate::scene::{Hit, Intersect, Lobe};
 use crate::simd::{lane, max_element, put, LANES};
 use crate::surface::PacketSurfaces;
-use rayscope_scene::MaterialKind;
 
 type F = [f32; LANES];
 type M = [bool; LANES];
@@ -341,8 +341,9 @@ impl<I: Intersect> Integrator<'_, I> {
             return;
         }
         let surf = PacketSurfaces::new(self.scene, &w.rays, &hits);
-        // Each lane's hit: an emitter's light, a mirror's or glass's next ray, a glossy coat's
-        // path traced on one ray at a time; Lambertian hits are marked and shaded together below.
+        // Each lane's hit, by its lobe: an emitter's light, a mirror's or glass's next ray, another
+        // reflection model's path traced on one ray at a time; Lambertian hits are marked and
+        // shaded together below.
         let mut diffuse = [false; LANES];
         let mut dist = [0.0; LANES];
         for i in 0..LANES {
@@ -357,8 +358,8 @@ impl<I: Intersect> Integrator<'_, I> {
             let path = w.path[i];
             dist[i] = t;
             let m = &self.scene.materials[surf.material[i] as usize];
-            let li = match m.kind {
-                MaterialKind::Emissive => Li {
+            let li = match m.lobe() {
+                Lobe::Emitter => Li {
                     emitted: m.color.into(),
                     reflected: Vec3A::ZERO,
                     light_pdf: if self.emitters.is_empty() {
@@ -370,20 +371,20 @@ impl<I: Intersect> Integrator<'_, I> {
                 }
                 .absorbed(self.transmittance(path, t)),
                 _ if !w.want[i] => Li::default(),
-                MaterialKind::Diffuse => {
+                Lobe::Lambert => {
                     diffuse[i] = true;
                     continue;
                 }
-                MaterialKind::Reflective | MaterialKind::Refractive => match self.specular_hit(w, i, t, &surf, c) {
+                Lobe::Mirror | Lobe::Dielectric => match self.specular_hit(w, i, t, &surf, c) {
                     Some(li) => li,
                     None => continue,
                 },
-                MaterialKind::Glossy => {
-                    // Glossy coats: the rest of the path one ray at a time.
+                Lobe::Bsdf => {
+                    // Other reflection models: the rest of the path one ray at a time.
                     let mut rng = w.rng.get(i);
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (w.ray(i), surf.get(i));
-                    let li = self.continue_lane(&ray, (&hit, &s), path, &mut rng, c);
+                    let li = self.hand_over(&ray, LaneAt::Hit(&hit, &s), path, &mut rng, c);
                     // A glass split below may still trace its second ray, from where the stream
                     // now stands.
                     w.rng.set(i, &rng);
@@ -424,7 +425,7 @@ impl<I: Intersect> Integrator<'_, I> {
         let (ray, s) = (w.ray(i), surf.get(i));
         let m = &self.scene.materials[s.material as usize];
         let att = self.transmittance(path, t);
-        let (r, p) = if m.kind == MaterialKind::Reflective {
+        let (r, p) = if m.lobe() == Lobe::Mirror {
             self.mirror(&ray, &s, path)
         } else {
             let g = self.glass(&ray, &s, m, path);
@@ -545,7 +546,7 @@ impl<I: Intersect> Integrator<'_, I> {
             let path = &w.path[i];
             for a in 0..3 {
                 wt[a][i] = f[a][i] * ratio;
-                // Without -l only a coat's reflection is carried, and Lambert has none.
+                // Without -l only a specular part's reflection is carried, and Lambert has none.
                 carry[a][i] = if ambient { wt[a][i] } else { 0.0 * ratio };
                 beta[a][i] = path.beta[a] * carry[a][i];
             }
@@ -624,15 +625,12 @@ mod tests {
 
     #[test]
     fn waves_return_what_one_path_at_a_time_returns() {
-        // Our scenes with emitters, point lights, mirrors, glass (absorbing too), glossy coats,
-        // depth of field and OBJ meshes, and two of the course's scenes, with and without
-        // indirect light: every sample's value bit for bit, and the ray counts.
-        let mut paths: Vec<_> = [
-            "emissive", "glossy", "showcase", "dof", "ambient", "whitted", "beer", "camera", "obj", "room",
-        ]
-        .iter()
-        .map(|n| rayscope_testkit::scene(&format!("{n}.txt")))
-        .collect();
+        // Our scenes with emitters, point lights, mirrors, glass (absorbing too), every
+        // reflection model, depth of field and OBJ meshes, and two of the course's scenes, with
+        // and without indirect light: every sample's value bit for bit, and the ray counts.
+        let mut paths: Vec<_> = (rayscope_testkit::ENGINE_SCENES.iter())
+            .map(|n| rayscope_testkit::scene(&format!("{n}.txt")))
+            .collect();
         // The course's bunny scene, and its scene 2: a room small enough for a flat list, a
         // mirror, and glass seen directly (both of its rays traced, one after the other).
         if let Some(course) = rayscope_testkit::course_part() {
