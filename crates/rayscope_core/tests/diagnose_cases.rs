@@ -11,7 +11,7 @@ mod student;
 use std::path::Path;
 use std::time::Instant;
 
-use rayscope_core::diagnose::{diagnose, headline, report_text, DiagnoseOptions, Image};
+use rayscope_core::diagnose::{diagnose, report_text, DiagnoseOptions, Image};
 use rayscope_core::{RenderSettings, Stage};
 use student::{Options, Student};
 
@@ -103,7 +103,7 @@ fn every_case() {
         let first = if d.matches {
             "matches".to_string()
         } else {
-            headline(&d)
+            report_text(&d, scene)
                 .lines()
                 .next()
                 .unwrap_or_default()
