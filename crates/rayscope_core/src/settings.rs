@@ -373,7 +373,7 @@ pub const BYTES_PER_PIXEL: u64 = 32;
 /// in f32, which cannot resolve one more sample past 2^24 of them.
 pub(crate) const MAX_SAMPLES_PER_PIXEL: u64 = 1 << 24;
 
-/// Most `-q` a render takes: 2^16 paths a grid position, the most [`MAX_SAMPLES_PER_PIXEL`]
+/// Most `-q` a render takes: 2^16 paths a grid position, the most `MAX_SAMPLES_PER_PIXEL`
 /// leaves room for beside `-x`.
 pub const MAX_QUALITY: u32 = 16;
 

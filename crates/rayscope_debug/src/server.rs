@@ -28,9 +28,9 @@
 //! - `/api/compare` (`POST`, the student's PNG, `Content-Type: image/png`; `GET` again after a
 //!   settings change): PSNR against the current render, a heat map with its scale, the
 //!   differing pixels attributed to entities and the diagnosis; `/api/compare/pixel?x=&y=`,
-//!   `/api/compare/heatmap.png?id=`: see [`compare_api`].
+//!   `/api/compare/heatmap.png?id=`: see `compare_api`.
 //! - `/api/rays` (`POST`, a student's ray log), `/api/rays/summary`, `/api/rays/map.png`,
-//!   `/api/rays/pixel`, `/api/rays/image` (`POST`) and `/api/rays/image.png`: see [`rays_api`].
+//!   `/api/rays/pixel`, `/api/rays/image` (`POST`) and `/api/rays/image.png`: see `rays_api`.
 //!
 //! [`HostPolicy`]: crate::guard::HostPolicy
 //! [`cross_site_refusal`]: crate::guard::cross_site_refusal
