@@ -28,13 +28,7 @@ pub(crate) type RenderAt<'a> = dyn Fn(f32, &[(u32, u32)]) -> Vec<u8> + Sync + 'a
 /// The field of view in degrees whose render of a sparse grid of pixels is closest to `image`
 /// (RGB8, `w`×`h`), when it is at least [`GAIN`] times closer than `course` degrees and more
 /// than 0.01° from it; `render(fov, pixels)` gives the bytes of those pixels at that angle.
-pub(crate) fn fit(
-    w: u32,
-    h: u32,
-    image: &[u8],
-    course: f32,
-    render: &RenderAt<'_>,
-) -> Option<f32> {
+pub(crate) fn fit(w: u32, h: u32, image: &[u8], course: f32, render: &RenderAt<'_>) -> Option<f32> {
     let step = ((f64::from(w) * f64::from(h) / FIT_PIXELS).sqrt() as u32).max(1);
     let pixels: Vec<(u32, u32)> = (step / 2..h)
         .step_by(step as usize)
