@@ -871,6 +871,80 @@ async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     Ok(())
 }
 
+/// A field of view the student took whole instead of halved, a mistake the catalogue does not
+/// hold: the panel says the fitted angle in the core's words and offers to render with it; the
+/// button applies `--fov 120` to the debugger's settings, and the picture then matches.
+#[test]
+fn compare_fits_the_field_of_view_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let (w, h) = (64u32, 48u32);
+    let (scene_path, dir, png) = student_png("fov", &["fov-not-halved"], w, h, "wide.png");
+
+    let (_server, url) = serve_stage_two(scene_path, w, h);
+    let png2 = png.clone();
+    in_chromium(&chromium, &driver, &url, "fov-failure.png", |c, url| async move {
+        let r = drive_fov(&c, &url, &png2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn drive_fov(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    open_page(c, url, "64x48", 60).await?;
+    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the diagnosis", 120, || async {
+        attr(c, "#diagnosis", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let diagnosis = text(c, "#diagnosis").await?;
+    assert_eq!(state, "done", "{diagnosis}");
+    assert!(
+        diagnosis.starts_with(
+            "Explained: your image is rayscope's render with a field of view of 120° (horizontal) instead of 60°"
+        ),
+        "{diagnosis}"
+    );
+    assert_eq!(
+        attr(c, "#explanations li:first-child", "data-settings")
+            .await
+            .as_deref(),
+        Some("--fov 120"),
+        "{diagnosis}"
+    );
+    shot(c, "08c-compare-fov.png").await;
+    c.find(Locator::Css("#explanations li:first-child button"))
+        .await
+        .map_err(e)?
+        .click()
+        .await
+        .map_err(e)?;
+    let matched = wait_for("the comparison with the fitted angle", 120, || async {
+        let status: serde_json::Value = c
+            .execute_async(
+                r#"const [done] = arguments; fetch("/api/render/status").then((r) => r.json()).then(done);"#,
+                vec![],
+            )
+            .await
+            .ok()?;
+        if status["settings"]["fov"] != 120.0 {
+            return None;
+        }
+        let state = attr(c, "#diagnosis", "data-state").await?;
+        (state == "done").then_some(())?;
+        text(c, "#diagnosis").await.ok()
+    })
+    .await;
+    assert!(matched.starts_with("Your image matches rayscope's render"), "{matched}");
+    shot(c, "08d-compare-fov-applied.png").await;
+    Ok(())
+}
+
 async fn text(c: &Client, css: &str) -> Result<String, String> {
     c.find(Locator::Css(css))
         .await
