@@ -51,6 +51,7 @@ mod acne;
 mod explained;
 mod families;
 mod fov;
+mod offset;
 mod ties;
 
 pub use acne::Recognised;
@@ -501,6 +502,8 @@ enum SettingChange {
 enum Atom {
     Setting(SettingChange),
     Mistake(Mistake),
+    /// Shadow rays started this far off the surface (an `f32`'s bits), fitted to the picture.
+    ShadowOffset(u32),
 }
 
 /// A candidate render: the flags' settings with some atoms applied.
@@ -524,6 +527,7 @@ impl Candidate {
                 Atom::Setting(SettingChange::Fov(f)) => s.camera.fov_axis = f,
                 Atom::Setting(SettingChange::FovDeg(bits)) => s.camera.fov_deg = f32::from_bits(bits),
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
+                Atom::ShadowOffset(bits) => s.mistakes = s.mistakes.with_shadow_offset(f32::from_bits(bits)),
             }
         }
         s
@@ -535,7 +539,7 @@ impl Candidate {
             .iter()
             .map(|a| match a {
                 Atom::Setting(_) => 0.25,
-                Atom::Mistake(_) => 0.5,
+                Atom::Mistake(_) | Atom::ShadowOffset(_) => 0.5,
             })
             .sum()
     }
@@ -551,6 +555,11 @@ impl Candidate {
                 Atom::Mistake(m) => {
                     mistakes.push(m.name().to_string());
                     words.push(format!("'{}' ({})", m.name(), m.info().wrong));
+                }
+                Atom::ShadowOffset(bits) => {
+                    let e = f32::from_bits(bits);
+                    mistakes.push(format!("shadow-offset={e}"));
+                    words.push(offset::words(e));
                 }
                 Atom::Setting(c) => {
                     let (flag, word) = match c {
@@ -675,7 +684,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
         Atom::Setting(SettingChange::Aa(_)) => 1,
         Atom::Setting(SettingChange::MaxDepth(_) | SettingChange::DepthAll(_)) => 2,
         Atom::Setting(SettingChange::Fov(_) | SettingChange::FovDeg(_)) => 3,
-        Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) => 4,
+        Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) | Atom::ShadowOffset(_) => 4,
         Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick | M::FresnelSwapped) => 5,
         Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
         Atom::Mistake(M::NearestByOriginDistance | M::FirstHitInSceneOrder) => 7,
@@ -1186,6 +1195,11 @@ pub fn diagnose(
             tried += n;
             explanations.splice(0..0, fitted);
         }
+        if explanations.first().is_none_or(|e| !e.cause) && !constant && base.stage == Stage::Two {
+            let (fitted, n) = fitted_offset(&scenes, &base, image, &ours, &differing, &full);
+            tried += n;
+            explanations.splice(0..0, fitted);
+        }
         if let Some(e) = explanations.first_mut().filter(|e| e.matches) {
             e.blackens = painted_black_matches(&scenes, &base, image, &traced.blackened(&ours, image.rgb));
             if !e.blackens.is_empty() {
@@ -1273,6 +1287,46 @@ fn fitted_fov(
     for f in fov::round_first(fitted) {
         tried += 1;
         let c = Candidate(vec![Atom::Setting(SettingChange::FovDeg(f.to_bits()))]);
+        let s = c.settings(base);
+        let bytes = full(scenes, &s);
+        if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
+            let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
+            return (Some(c.explain(base, m, true)), tried);
+        }
+    }
+    (None, tried)
+}
+
+/// Renders the shadow-offset fit tries at most, and the explanation it is when its render
+/// matches `image` (the tie rule): the offset fitted by [`offset::fit`] on the `differing`
+/// pixels and a sparse grid, confirmed at full size, round values first.
+fn fitted_offset(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    ours: &[u8],
+    differing: &[u32],
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+) -> (Option<Explanation>, usize) {
+    let scene = scenes.get(base.mistakes);
+    if scene.lights.is_empty() || base.mistakes.has(Mistake::NoShadowOffset) {
+        return (None, 0);
+    }
+    let render = |e: f32, pixels: &[(u32, u32)]| {
+        let s = RenderSettings {
+            mistakes: base.mistakes.with_shadow_offset(e),
+            ..*base
+        };
+        render_pixels(scene, &s, pixels)
+    };
+    let size = (base.width, base.height);
+    let Some(fitted) = offset::fit(size, image.rgb, ours, differing, &render) else {
+        return (None, 1);
+    };
+    let mut tried = 1;
+    for e in offset::round_first(fitted) {
+        tried += 1;
+        let c = Candidate(vec![Atom::ShadowOffset(e.to_bits())]);
         let s = c.settings(base);
         let bytes = full(scenes, &s);
         if ties::judge(scene, &s, &bytes, image.rgb, false).matches {

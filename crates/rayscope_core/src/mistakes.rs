@@ -500,19 +500,37 @@ impl Mistake {
     }
 }
 
-/// A set of [`Mistake`]s; empty for a correct render. Serialised as a list of names.
+/// A set of [`Mistake`]s, and a shadow-ray offset of the student's own where one is given
+/// (`shadow-offset=E`); empty for a correct render. Serialised as a list of names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct Mistakes(u64);
+pub struct Mistakes(u64, u32);
+
+/// The name a shadow-ray offset of the student's own goes by: `shadow-offset=0.02`.
+const SHADOW_OFFSET: &str = "shadow-offset";
 
 impl Mistakes {
     /// No mistakes: the correct render.
-    pub const NONE: Mistakes = Mistakes(0);
+    pub const NONE: Mistakes = Mistakes(0, 0);
 
     /// True for the correct render.
     #[must_use]
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.0 == 0
+        self.0 == 0 && self.1 == 0
+    }
+
+    /// The set with shadow rays started `offset` scene units off the surface along its normal
+    /// (the light's direction still taken from the hit point), a student's own epsilon.
+    #[must_use]
+    pub fn with_shadow_offset(self, offset: f32) -> Mistakes {
+        Mistakes(self.0, offset.to_bits())
+    }
+
+    /// The shadow-ray offset of the student's own, where one is given.
+    #[must_use]
+    #[inline]
+    pub fn shadow_offset(self) -> Option<f32> {
+        (self.1 != 0).then(|| f32::from_bits(self.1))
     }
 
     /// True when `m` is in the set.
@@ -525,7 +543,7 @@ impl Mistakes {
     /// The set with `m` added.
     #[must_use]
     pub fn with(self, m: Mistake) -> Mistakes {
-        Mistakes(self.0 | m.bit())
+        Mistakes(self.0 | m.bit(), self.1)
     }
 
     /// The mistakes in catalogue order.
@@ -533,23 +551,44 @@ impl Mistakes {
         Mistake::ALL.into_iter().filter(move |&m| self.has(m))
     }
 
-    /// Number of mistakes in the set.
+    /// Number of mistakes in the set, a shadow-ray offset of the student's own included.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.0.count_ones() as usize
+        self.0.count_ones() as usize + usize::from(self.1 != 0)
     }
 
-    /// Parses comma-separated names (`no-tir,gamma`); the error names the unknown one and
-    /// lists the valid names.
+    /// The set's names in catalogue order, then the shadow-ray offset (`shadow-offset=0.02`).
+    fn names(self) -> Vec<String> {
+        let mut out: Vec<String> = self.iter().map(|m| m.name().to_string()).collect();
+        if let Some(e) = self.shadow_offset() {
+            out.push(format!("{SHADOW_OFFSET}={e}"));
+        }
+        out
+    }
+
+    /// Parses comma-separated names (`no-tir,gamma`, `shadow-offset=0.02` for shadow rays
+    /// started that far off the surface, a positive number below 1); the error names the
+    /// unknown one and lists the valid names.
     pub fn parse(s: &str) -> Result<Mistakes, String> {
         let mut set = Mistakes::NONE;
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
+            if let Some(v) = name.strip_prefix(SHADOW_OFFSET).and_then(|r| r.strip_prefix('=')) {
+                match v.parse::<f32>() {
+                    Ok(e) if e > 0.0 && e < 1.0 => set = set.with_shadow_offset(e),
+                    _ => {
+                        return Err(format!(
+                            "'{name}': expected {SHADOW_OFFSET}=E with E a number greater than 0 and less than 1"
+                        ))
+                    }
+                }
+                continue;
+            }
             match Mistake::from_name(name) {
                 Some(m) => set = set.with(m),
                 None => {
                     let names: Vec<&str> = Mistake::ALL.iter().map(|m| m.name()).collect();
                     return Err(format!(
-                        "unknown mistake '{name}'; expected one of: {} (`rayscope mistakes` describes them)",
+                        "unknown mistake '{name}'; expected one of: {}, or {SHADOW_OFFSET}=E (`rayscope mistakes` describes them)",
                         names.join(", ")
                     ));
                 }
@@ -653,14 +692,13 @@ fn rounded(v: f32) -> f32 {
 
 impl fmt::Display for Mistakes {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        let names: Vec<&str> = self.iter().map(Mistake::name).collect();
-        f.write_str(&names.join(","))
+        f.write_str(&self.names().join(","))
     }
 }
 
 impl Serialize for Mistakes {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-        s.collect_seq(self.iter().map(Mistake::name))
+        s.collect_seq(self.names())
     }
 }
 
@@ -701,6 +739,8 @@ pub fn catalogue_text() -> String {
 pub(crate) fn shadow_origin(mistakes: Mistakes, point: Vec3A, normal: Vec3A, eps: f32) -> Vec3A {
     if mistakes.has(Mistake::NoShadowOffset) {
         point
+    } else if let Some(e) = mistakes.shadow_offset() {
+        point + normal * e
     } else if mistakes.has(Mistake::HugeShadowOffset) {
         point + normal * HUGE_OFFSET
     } else {

@@ -280,3 +280,28 @@ fn another_field_of_view_is_fitted_back() {
         "no way is named for an angle no known mistake gives\n{text}"
     );
 }
+
+/// An epsilon of the student's own, 0.02 (neither the course's 1e-5 nor the catalogue's 0.1),
+/// is fitted back to the value planted and confirmed as the picture.
+#[test]
+fn a_shadow_offset_of_the_student_s_own_is_fitted_back() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let opts = Options {
+        shadow_offset: Some(0.02),
+        ..Options::new(160, 120)
+    };
+    let (d, text) = searched(&path, &[], opts);
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause, "{text}");
+    assert_eq!(e.mistakes, ["shadow-offset=0.02"], "{text}");
+    assert!(
+        text.starts_with("Explained: your image is rayscope's render with shadow rays started 0.02 off the surface"),
+        "{text}"
+    );
+    assert!(
+        text.contains("--mistake shadow-offset=0.02"),
+        "the command renders it\n{text}"
+    );
+}

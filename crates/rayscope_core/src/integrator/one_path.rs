@@ -599,7 +599,7 @@ impl<I: Intersect> Integrator<'_, I> {
             }
             // A student's huge offset moves the shadow ray only: the light's direction is
             // still taken from the hit point.
-            let from = if self.mistake(Mistake::HugeShadowOffset) {
+            let from = if self.mistake(Mistake::HugeShadowOffset) || self.isect.mistakes().shadow_offset().is_some() {
                 s.point
             } else {
                 origin

@@ -35,6 +35,8 @@ pub struct Options {
     pub stage1: bool,
     /// The horizontal field of view in degrees (the course's is 60).
     pub fov: f64,
+    /// Shadow rays started this far off the surface instead of the course's 1e-5.
+    pub shadow_offset: Option<f64>,
 }
 
 impl Options {
@@ -53,6 +55,7 @@ impl Options {
             jitter_in_cells: false,
             stage1: false,
             fov: 60.0,
+            shadow_offset: None,
         }
     }
 }
@@ -322,6 +325,8 @@ impl Student {
             hit.p + hit.dir * (single - hit.t)
         } else if self.bug("huge-shadow-offset") {
             hit.p + n * 0.1
+        } else if let Some(e) = self.opts.shadow_offset {
+            hit.p + n * e
         } else {
             hit.p + n * EPS
         };
