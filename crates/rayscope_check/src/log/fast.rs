@@ -154,6 +154,20 @@ impl<'a> Cursor<'a> {
         std::str::from_utf8(self.string_bytes()?.0).ok()
     }
 
+    /// A string without escapes; the words tracers write for a ray's kind are recognised by
+    /// their bytes and handed out as the same words of the program's own text.
+    #[inline]
+    fn word(&mut self) -> Option<Cow<'a, str>> {
+        let (w, _) = self.string_bytes()?;
+        Some(Cow::Borrowed(match w {
+            b"camera" => "camera",
+            b"shadow" => "shadow",
+            b"reflection" => "reflection",
+            b"refraction" => "refraction",
+            _ => std::str::from_utf8(w).ok()?,
+        }))
+    }
+
     /// A key, as [`key`] packs it (longer keys, and keys outside ASCII, as 0: no field's).
     #[inline]
     fn key(&mut self) -> Option<u128> {
@@ -274,25 +288,30 @@ impl<'a> Cursor<'a> {
         let negative = b.get(self.i) == Some(&b'-');
         let start = self.i + usize::from(negative);
         let w: [u8; 16] = b.get(start..start + 16)?.try_into().ok()?;
-        let x = (u8x16::new(w) - u8x16::splat(b'0')).to_array();
-        let digit = u8x16::new(x).min(u8x16::splat(9)).simd_eq(u8x16::new(x)).to_bitmask();
+        let v = u8x16::new(w) - u8x16::splat(b'0');
+        let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask();
+        // The digit values as one integer held in registers: the runs below are shifted out of
+        // it rather than loaded back from memory at an unaligned offset.
+        let x = u128::from_le_bytes(v.to_array());
+        let byte = |k: usize| (x >> (8 * k)) as u8;
         let int = (!digit).trailing_zeros() as usize;
-        if int == 0 || int > 7 || (int > 1 && w[0] == b'0') {
+        // A '0' is the digit value 0.
+        if int == 0 || int > 7 || (int > 1 && byte(0) == 0) {
             return None;
         }
-        let (frac, end) = if w[int] == b'.' {
+        let (frac, end) = if byte(int) == b'.'.wrapping_sub(b'0') {
             let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
             (f, int + 1 + f)
         } else {
             (0, int)
         };
-        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(w[end], b'e' | b'E') {
+        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(byte(end).wrapping_add(b'0'), b'e' | b'E') {
             return None;
         }
         // Each run of digits, first one in the lowest byte, moved to the top so that the bytes
         // below them read as leading zeros.
         let run = |from: usize, n: usize| {
-            let v = u64::from_le_bytes(x[from..from + 8].try_into().expect("eight bytes"));
+            let v = (x >> (8 * from)) as u64;
             if n == 0 {
                 0
             } else {
@@ -626,7 +645,7 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
         SAMPLE => once(&mut sample, c.nullable(Cursor::u32)),
         ID => once(&mut id, c.nullable(Cursor::i64)),
         PARENT => once(&mut parent, c.nullable(Cursor::i64)),
-        KIND => once(&mut kind, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        KIND => once(&mut kind, c.nullable(Cursor::word)),
         ORIGIN => once(&mut origin, c.nullable(Cursor::vec3)),
         DIRECTION => once(&mut direction, c.nullable(Cursor::vec3)),
         FROM => once(&mut from, c.nullable(Cursor::vec3)),
