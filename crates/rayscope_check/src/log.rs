@@ -645,10 +645,13 @@ impl<R: Read> RaySource for JsonlReader<R> {
         let before = out.len();
         let odd = AtomicBool::new(false);
         out.par_extend(lines.par_iter().with_min_len(256).map(|&(n, a, b)| {
-            parse_line(&buf[a..b], n, path, ctx).ok().flatten().unwrap_or_else(|| {
-                odd.store(true, Ordering::Relaxed);
-                LoggedRay::blank(n)
-            })
+            match parse_line(&buf[a..b], n, path, ctx) {
+                Ok(Some(r)) => r,
+                _ => {
+                    odd.store(true, Ordering::Relaxed);
+                    LoggedRay::blank(n)
+                }
+            }
         }));
         if !odd.load(Ordering::Relaxed) {
             self.lines = lines;
