@@ -22,6 +22,7 @@ pub mod selflog;
 pub mod tie;
 pub mod verdict;
 
+use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
@@ -80,18 +81,28 @@ impl Overfull {
 /// kept out of the map: a record of the same sample costs a comparison, not a hash lookup.
 #[derive(Default)]
 struct Grouper {
-    /// Open samples other than the current one, with the record count at their last ray.
-    open: FxHashMap<Key, (Vec<LoggedRay>, u64)>,
+    /// Open samples other than the current one, in the order they were parked, which is the
+    /// order of their last rays: each with the record count at its last ray, and its rays until
+    /// the sample is taken back as the current one (`None` from then on).
+    parked: VecDeque<(Key, Option<Vec<LoggedRay>>, u64)>,
+    /// Where each open sample other than the current one lies in `parked`, counted from the
+    /// first sample ever parked.
+    open: FxHashMap<Key, u64>,
+    /// Samples taken off the front of `parked`.
+    gone: u64,
     /// The sample of the last record, with the record count at its last ray.
     current: Option<(Key, (Vec<LoggedRay>, u64))>,
     seen: u64,
     /// Rays in `open` and `current`.
     pending: usize,
-    /// A buffer that keeps its room from sample to sample, for the rays of a new current sample:
-    /// they are copied out at their exact count when it is parked, so that a sample costs one
-    /// allocation however many rays it has, and held samples (what a check's memory is mostly
-    /// made of) take no more room than their rays.
+    /// A buffer that keeps its room from sample to sample, for the rays of a current sample that
+    /// outgrows its first vector: they are copied out at their exact count when it is parked, so
+    /// that a sample costs at most two allocations however many rays it has, and held samples
+    /// (what a check's memory is mostly made of) take no more room than their rays.
     spare: Vec<LoggedRay>,
+    /// The ray count of the last sample parked: a new sample's first vector has this room, which
+    /// is its exact count where the tracer's samples are alike (no copy when it is parked).
+    typical: usize,
 }
 
 impl Grouper {
@@ -100,15 +111,24 @@ impl Grouper {
         let key = (r.pixel, r.sample);
         if !matches!(&self.current, Some((k, _)) if *k == key) {
             self.park();
-            let e = self
-                .open
-                .remove(&key)
-                .unwrap_or_else(|| (std::mem::take(&mut self.spare), 0));
+            let e = match self.open.remove(&key) {
+                Some(at) => {
+                    let (_, rays, last) = &mut self.parked[(at - self.gone) as usize];
+                    (rays.take().expect("an open sample has its rays"), *last)
+                }
+                None => (Vec::with_capacity(self.typical.max(1)), 0),
+            };
             self.current = Some((key, e));
         }
         let Some((_, entry)) = self.current.as_mut() else {
             unreachable!("the current sample was set above")
         };
+        if entry.0.len() == entry.0.capacity() && self.spare.capacity() > entry.0.len() {
+            // Full: the rays move to the spare buffer, which has more room, rather than grow.
+            let mut more = std::mem::take(&mut self.spare);
+            more.append(&mut entry.0);
+            entry.0 = more;
+        }
         entry.0.push(r);
         entry.1 = self.seen;
         self.pending += 1;
@@ -134,11 +154,13 @@ impl Grouper {
         rays
     }
 
-    /// Moves the current sample into the map.
+    /// Moves the current sample to the parked ones.
     fn park(&mut self) {
         if let Some((k, (g, last))) = self.current.take() {
+            self.typical = g.len();
             let g = self.exact(g);
-            self.open.insert(k, (g, last));
+            self.open.insert(k, self.gone + self.parked.len() as u64);
+            self.parked.push_back((k, Some(g), last));
         }
     }
 
@@ -150,15 +172,13 @@ impl Grouper {
             self.park();
         }
         let limit = self.seen.saturating_sub(WINDOW);
-        let mut done: Vec<(u64, Key)> = self
-            .open
-            .iter()
-            .filter(|(_, (_, last))| all || *last <= limit)
-            .map(|(k, (_, last))| (*last, *k))
-            .collect();
-        done.sort_unstable_by_key(|x| x.0);
-        for (_, k) in done {
-            if let Some((g, _)) = self.open.remove(&k) {
+        while self.parked.front().is_some_and(|&(_, _, last)| all || last <= limit) {
+            let Some((k, rays, _)) = self.parked.pop_front() else {
+                unreachable!("the front was just looked at")
+            };
+            self.gone += 1;
+            if let Some(g) = rays {
+                self.open.remove(&k);
                 self.pending -= g.len();
                 ready.push(g);
             }

@@ -154,6 +154,20 @@ impl<'a> Cursor<'a> {
         std::str::from_utf8(self.string_bytes()?.0).ok()
     }
 
+    /// A string without escapes; the words tracers write for a ray's kind are recognised by
+    /// their bytes and handed out as the same words of the program's own text.
+    #[inline]
+    fn word(&mut self) -> Option<Cow<'a, str>> {
+        let (w, _) = self.string_bytes()?;
+        Some(Cow::Borrowed(match w {
+            b"camera" => "camera",
+            b"shadow" => "shadow",
+            b"reflection" => "reflection",
+            b"refraction" => "refraction",
+            _ => std::str::from_utf8(w).ok()?,
+        }))
+    }
+
     /// A key, as [`key`] packs it (longer keys, and keys outside ASCII, as 0: no field's).
     #[inline]
     fn key(&mut self) -> Option<u128> {
@@ -267,32 +281,37 @@ impl<'a> Cursor<'a> {
     /// are below 2^53, so one division gives the correctly rounded value (see
     /// [`Self::short_decimal`]). The digits are found sixteen bytes at a time and converted
     /// eight at a time. Tracers print most coordinates this way. `None` for anything else.
-    #[inline]
+    #[inline(always)]
     fn decimal16(&mut self) -> Option<f64> {
         const POW10: [f64; 9] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8];
         let b = self.b;
         let negative = b.get(self.i) == Some(&b'-');
         let start = self.i + usize::from(negative);
         let w: [u8; 16] = b.get(start..start + 16)?.try_into().ok()?;
-        let x = (u8x16::new(w) - u8x16::splat(b'0')).to_array();
-        let digit = u8x16::new(x).min(u8x16::splat(9)).simd_eq(u8x16::new(x)).to_bitmask();
+        let v = u8x16::new(w) - u8x16::splat(b'0');
+        let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask();
+        // The digit values as one integer held in registers: the runs below are shifted out of
+        // it rather than loaded back from memory at an unaligned offset.
+        let x = u128::from_le_bytes(v.to_array());
+        let byte = |k: usize| (x >> (8 * k)) as u8;
         let int = (!digit).trailing_zeros() as usize;
-        if int == 0 || int > 7 || (int > 1 && w[0] == b'0') {
+        // A '0' is the digit value 0.
+        if int == 0 || int > 7 || (int > 1 && byte(0) == 0) {
             return None;
         }
-        let (frac, end) = if w[int] == b'.' {
+        let (frac, end) = if byte(int) == b'.'.wrapping_sub(b'0') {
             let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
             (f, int + 1 + f)
         } else {
             (0, int)
         };
-        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(w[end], b'e' | b'E') {
+        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(byte(end).wrapping_add(b'0'), b'e' | b'E') {
             return None;
         }
         // Each run of digits, first one in the lowest byte, moved to the top so that the bytes
         // below them read as leading zeros.
         let run = |from: usize, n: usize| {
-            let v = u64::from_le_bytes(x[from..from + 8].try_into().expect("eight bytes"));
+            let v = (x >> (8 * from)) as u64;
             if n == 0 {
                 0
             } else {
@@ -335,7 +354,23 @@ impl<'a> Cursor<'a> {
         if !b.get(i).is_some_and(u8::is_ascii_digit) {
             return None;
         }
-        let (m, n) = digit_run(b, &mut i, 0);
+        // Pixels, samples and ids are a few digits long: read one byte at a time up to four.
+        let mut m = 0u64;
+        while i - self.i < 4 {
+            match b.get(i) {
+                Some(&c) if c.is_ascii_digit() => {
+                    m = m * 10 + u64::from(c - b'0');
+                    i += 1;
+                }
+                _ => break,
+            }
+        }
+        let (m, n) = if i - self.i < 4 {
+            (m, i - self.i)
+        } else {
+            let (m, more) = digit_run(b, &mut i, m);
+            (m, 4 + more)
+        };
         if n > most || (n > 1 && b[self.i] == b'0') || matches!(b.get(i), Some(b'.' | b'e' | b'E')) {
             return None;
         }
@@ -457,12 +492,13 @@ impl<'a> Cursor<'a> {
         found
     }
 
-    /// The members of an object, each key handed to `field` with the cursor on its value.
-    /// Records written by one tracer list their keys in one order, most often `order` with
-    /// some left out: the keys of `order` after the last one found are tried by their text,
-    /// and any other key is read as a string.
+    /// The members of an object, each handed to `field` with the cursor on its value, by the
+    /// position of its key in `order` (`None` for a key not there). Records written by one
+    /// tracer list their keys in one order, most often `order` with some left out: the keys of
+    /// `order` after the last one found are tried by their text, and any other key is read as a
+    /// string.
     #[inline]
-    fn object(&mut self, order: &[Known], mut field: impl FnMut(&mut Self, u128) -> Option<()>) -> Option<()> {
+    fn object(&mut self, order: &[Known], mut field: impl FnMut(&mut Self, Option<usize>) -> Option<()>) -> Option<()> {
         if !self.eat(b'{') {
             return None;
         }
@@ -474,23 +510,20 @@ impl<'a> Cursor<'a> {
             let known = order
                 .get(next..)
                 .and_then(|rest| rest.iter().position(|k| self.known_key(k)));
-            let key = match known {
-                Some(p) => {
-                    next += p + 1;
-                    order[next - 1].key
-                }
+            let at = match known {
+                Some(p) => Some(next + p),
                 None => {
                     let key = self.key()?;
                     if !self.eat(b':') {
                         return None;
                     }
-                    if let Some(p) = order.iter().position(|k| k.key == key) {
-                        next = p + 1;
-                    }
-                    key
+                    order.iter().position(|k| k.key == key)
                 }
             };
-            field(self, key)?;
+            if let Some(p) = at {
+                next = p + 1;
+            }
+            field(self, at)?;
             if self.eat(b'}') {
                 return Some(());
             }
@@ -561,21 +594,18 @@ fn once<T>(slot: &mut Option<T>, value: Option<T>) -> Option<()> {
 
 fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
     let (mut t, mut point, mut normal, mut entity) = (None, None, None, None);
-    const T: u128 = key(b"t");
-    const POINT: u128 = key(b"point");
-    const NORMAL: u128 = key(b"normal");
-    const ENTITY: u128 = key(b"entity");
     const ORDER: [Known; 4] = [
         Known::new(b"t"),
         Known::new(b"point"),
         Known::new(b"normal"),
         Known::new(b"entity"),
     ];
+    // Each field by its place in `ORDER`.
     c.object(&ORDER, |c, k| match k {
-        T => once(&mut t, c.nullable(Cursor::f64)),
-        POINT => once(&mut point, c.nullable(Cursor::vec3)),
-        NORMAL => once(&mut normal, c.nullable(Cursor::vec3)),
-        ENTITY => once(&mut entity, c.nullable(|c| c.string().map(Cow::Borrowed))),
+        Some(0) => once(&mut t, c.nullable(Cursor::f64)),
+        Some(1) => once(&mut point, c.nullable(Cursor::vec3)),
+        Some(2) => once(&mut normal, c.nullable(Cursor::vec3)),
+        Some(3) => once(&mut entity, c.nullable(|c| c.string().map(Cow::Borrowed))),
         _ => c.skip_value(0),
     })?;
     Some(RawHit {
@@ -588,19 +618,6 @@ fn hit<'a>(c: &mut Cursor<'a>) -> Option<RawHit<'a>> {
 
 /// Reads one record of the common shape, or `None` to leave it to serde_json.
 pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
-    const PIXEL: u128 = key(b"pixel");
-    const SAMPLE: u128 = key(b"sample");
-    const ID: u128 = key(b"id");
-    const PARENT: u128 = key(b"parent");
-    const KIND: u128 = key(b"kind");
-    const ORIGIN: u128 = key(b"origin");
-    const DIRECTION: u128 = key(b"direction");
-    const FROM: u128 = key(b"from");
-    const TO: u128 = key(b"to");
-    const HIT: u128 = key(b"hit");
-    const LIGHT: u128 = key(b"light");
-    const BLOCKED_BY: u128 = key(b"blocked_by");
-    const COLOR: u128 = key(b"color");
     let mut c = Cursor { b: bytes, i: 0 };
     let (mut pixel, mut sample, mut id, mut parent, mut kind) = (None, None, None, None, None);
     let (mut origin, mut direction, mut from, mut to) = (None, None, None, None);
@@ -621,26 +638,27 @@ pub(super) fn parse(bytes: &[u8]) -> Option<RawRay<'_>> {
         Known::new(b"blocked_by"),
         Known::new(b"color"),
     ];
+    // Each field by its place in `ORDER`.
     c.object(&ORDER, |c, k| match k {
-        PIXEL => once(&mut pixel, c.nullable(Cursor::pixel)),
-        SAMPLE => once(&mut sample, c.nullable(Cursor::u32)),
-        ID => once(&mut id, c.nullable(Cursor::i64)),
-        PARENT => once(&mut parent, c.nullable(Cursor::i64)),
-        KIND => once(&mut kind, c.nullable(|c| c.string().map(Cow::Borrowed))),
-        ORIGIN => once(&mut origin, c.nullable(Cursor::vec3)),
-        DIRECTION => once(&mut direction, c.nullable(Cursor::vec3)),
-        FROM => once(&mut from, c.nullable(Cursor::vec3)),
-        TO => once(&mut to, c.nullable(Cursor::vec3)),
-        HIT => once(&mut hit_, c.nullable(hit)),
-        LIGHT => once(
+        Some(0) => once(&mut pixel, c.nullable(Cursor::pixel)),
+        Some(1) => once(&mut sample, c.nullable(Cursor::u32)),
+        Some(2) => once(&mut id, c.nullable(Cursor::i64)),
+        Some(3) => once(&mut parent, c.nullable(Cursor::i64)),
+        Some(4) => once(&mut kind, c.nullable(Cursor::word)),
+        Some(5) => once(&mut origin, c.nullable(Cursor::vec3)),
+        Some(6) => once(&mut direction, c.nullable(Cursor::vec3)),
+        Some(7) => once(&mut from, c.nullable(Cursor::vec3)),
+        Some(8) => once(&mut to, c.nullable(Cursor::vec3)),
+        Some(9) => once(&mut hit_, c.nullable(hit)),
+        Some(10) => once(
             &mut light,
             c.nullable(|c| c.string().map(|s| LightRef::Name(Cow::Borrowed(s)))),
         ),
-        BLOCKED_BY => once(
+        Some(11) => once(
             &mut blocked_by,
             c.nullable(|c| c.string().map(|s| BlockerRef::Name(Cow::Borrowed(s)))),
         ),
-        COLOR => once(&mut color, c.nullable(Cursor::vec3)),
+        Some(12) => once(&mut color, c.nullable(Cursor::vec3)),
         _ => c.skip_value(0),
     })?;
     c.skip_ws();
