@@ -502,8 +502,9 @@ enum SettingChange {
 enum Atom {
     Setting(SettingChange),
     Mistake(Mistake),
-    /// Shadow rays started this far off the surface (an `f32`'s bits), fitted to the picture.
-    ShadowOffset(u32),
+    /// Shadow rays (`false`) or every ray leaving a surface (`true`) started this far off it
+    /// (an `f32`'s bits), fitted to the picture.
+    Offset(u32, bool),
 }
 
 /// A candidate render: the flags' settings with some atoms applied.
@@ -527,7 +528,7 @@ impl Candidate {
                 Atom::Setting(SettingChange::Fov(f)) => s.camera.fov_axis = f,
                 Atom::Setting(SettingChange::FovDeg(bits)) => s.camera.fov_deg = f32::from_bits(bits),
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
-                Atom::ShadowOffset(bits) => s.mistakes = s.mistakes.with_shadow_offset(f32::from_bits(bits)),
+                Atom::Offset(bits, every) => s.mistakes = offset::with(s.mistakes, f32::from_bits(bits), every),
             }
         }
         s
@@ -539,7 +540,7 @@ impl Candidate {
             .iter()
             .map(|a| match a {
                 Atom::Setting(_) => 0.25,
-                Atom::Mistake(_) | Atom::ShadowOffset(_) => 0.5,
+                Atom::Mistake(_) | Atom::Offset(..) => 0.5,
             })
             .sum()
     }
@@ -556,10 +557,10 @@ impl Candidate {
                     mistakes.push(m.name().to_string());
                     words.push(format!("'{}' ({})", m.name(), m.info().wrong));
                 }
-                Atom::ShadowOffset(bits) => {
+                Atom::Offset(bits, every) => {
                     let e = f32::from_bits(bits);
-                    mistakes.push(format!("shadow-offset={e}"));
-                    words.push(offset::words(e));
+                    mistakes.push(offset::with(Mistakes::NONE, e, every).to_string());
+                    words.push(offset::words(e, every));
                 }
                 Atom::Setting(c) => {
                     let (flag, word) = match c {
@@ -684,7 +685,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
         Atom::Setting(SettingChange::Aa(_)) => 1,
         Atom::Setting(SettingChange::MaxDepth(_) | SettingChange::DepthAll(_)) => 2,
         Atom::Setting(SettingChange::Fov(_) | SettingChange::FovDeg(_)) => 3,
-        Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) | Atom::ShadowOffset(_) => 4,
+        Atom::Mistake(M::NoShadowOffset | M::HugeShadowOffset) | Atom::Offset(..) => 4,
         Atom::Mistake(M::NoFresnel | M::FresnelHalf | M::Schlick | M::FresnelSwapped) => 5,
         Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
         Atom::Mistake(M::NearestByOriginDistance | M::FirstHitInSceneOrder) => 7,
@@ -1297,9 +1298,11 @@ fn fitted_fov(
     (None, tried)
 }
 
-/// Renders the shadow-offset fit tries at most, and the explanation it is when its render
-/// matches `image` (the tie rule): the offset fitted by [`offset::fit`] on the `differing`
-/// pixels and a sparse grid, confirmed at full size, round values first.
+/// Renders the offset fit tries at most, and the explanation it is when its render matches
+/// `image` (the tie rule): the offset of shadow rays, and where the scene has mirrors or glass
+/// that of every ray leaving a surface, each fitted by [`offset::fit`] on the `differing`
+/// pixels and a sparse grid; the closer fit is confirmed first at full size, round values
+/// first.
 fn fitted_offset(
     scenes: &Scenes<'_>,
     base: &RenderSettings,
@@ -1312,26 +1315,37 @@ fn fitted_offset(
     if scene.lights.is_empty() || base.mistakes.has(Mistake::NoShadowOffset) {
         return (None, 0);
     }
-    let render = |e: f32, pixels: &[(u32, u32)]| {
-        let s = RenderSettings {
-            mistakes: base.mistakes.with_shadow_offset(e),
-            ..*base
-        };
-        render_pixels(scene, &s, pixels)
+    let scopes: &[bool] = if SceneContents::of(scene).specular {
+        &[false, true]
+    } else {
+        &[false]
     };
     let size = (base.width, base.height);
-    let Some(fitted) = offset::fit(size, image.rgb, ours, differing, &render) else {
-        return (None, 1);
-    };
-    let mut tried = 1;
-    for e in offset::round_first(fitted) {
-        tried += 1;
-        let c = Candidate(vec![Atom::ShadowOffset(e.to_bits())]);
-        let s = c.settings(base);
-        let bytes = full(scenes, &s);
-        if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
-            let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
-            return (Some(c.explain(base, m, true)), tried);
+    let mut fits: Vec<(f32, f64, bool)> = Vec::new();
+    for &every in scopes {
+        let render = |e: f32, pixels: &[(u32, u32)]| {
+            let s = RenderSettings {
+                mistakes: offset::with(base.mistakes, e, every),
+                ..*base
+            };
+            render_pixels(scene, &s, pixels)
+        };
+        if let Some((e, error)) = offset::fit(size, image.rgb, ours, differing, &render) {
+            fits.push((e, error, every));
+        }
+    }
+    fits.sort_by(|a, b| a.1.total_cmp(&b.1));
+    let mut tried = scopes.len();
+    for (fitted, _, every) in fits {
+        for e in offset::round_first(fitted) {
+            tried += 1;
+            let c = Candidate(vec![Atom::Offset(e.to_bits(), every)]);
+            let s = c.settings(base);
+            let bytes = full(scenes, &s);
+            if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
+                let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
+                return (Some(c.explain(base, m, true)), tried);
+            }
         }
     }
     (None, tried)

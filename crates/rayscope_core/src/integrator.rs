@@ -272,11 +272,17 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
     }
 
-    /// How far rays leaving `s`, hit by `ray`, start off it by [`Self::offset_rule`]: exactly
-    /// [`Surface::offset`] in every render.
+    /// How far rays leaving `s`, hit by `ray`, start off it by [`Self::offset_rule`] (exactly
+    /// [`Surface::offset`] in every render), or by a student's own epsilon for every ray
+    /// (`ray-offset=E`).
     #[must_use]
     #[inline(always)]
     pub(crate) fn offset(&self, s: &Surface, ray: &Ray) -> f32 {
+        if I::MISTAKEN {
+            if let Some(e) = self.isect.mistakes().ray_offset() {
+                return e;
+            }
+        }
         match self.offset_rule {
             OffsetRule::Scaled(k) => s.offset(ray) * k,
             OffsetRule::Absolute(eps) => eps,

@@ -500,17 +500,22 @@ impl Mistake {
     }
 }
 
-/// A set of [`Mistake`]s, and a shadow-ray offset of the student's own where one is given
-/// (`shadow-offset=E`); empty for a correct render. Serialised as a list of names.
+/// A set of [`Mistake`]s, and an offset of the student's own where one is given — for shadow
+/// rays (`shadow-offset=E`) or for every ray leaving a surface (`ray-offset=E`); empty for a
+/// correct render. Serialised as a list of names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct Mistakes(u64, u32);
+pub struct Mistakes(u64, u32, bool);
 
 /// The name a shadow-ray offset of the student's own goes by: `shadow-offset=0.02`.
 const SHADOW_OFFSET: &str = "shadow-offset";
 
+/// The name an offset of the student's own for every ray leaving a surface goes by:
+/// `ray-offset=0.02`.
+const RAY_OFFSET: &str = "ray-offset";
+
 impl Mistakes {
     /// No mistakes: the correct render.
-    pub const NONE: Mistakes = Mistakes(0, 0);
+    pub const NONE: Mistakes = Mistakes(0, 0, false);
 
     /// True for the correct render.
     #[must_use]
@@ -523,14 +528,31 @@ impl Mistakes {
     /// (the light's direction still taken from the hit point), a student's own epsilon.
     #[must_use]
     pub fn with_shadow_offset(self, offset: f32) -> Mistakes {
-        Mistakes(self.0, offset.to_bits())
+        Mistakes(self.0, offset.to_bits(), false)
     }
 
-    /// The shadow-ray offset of the student's own, where one is given.
+    /// The set with every ray leaving a surface — shadow, mirror, glass's reflected and
+    /// refracted — started `offset` scene units off it along its normal, to the side it
+    /// travels: a student's own epsilon used everywhere.
+    #[must_use]
+    pub fn with_ray_offset(self, offset: f32) -> Mistakes {
+        Mistakes(self.0, offset.to_bits(), true)
+    }
+
+    /// The offset of the student's own that shadow rays start at, where one is given (by
+    /// `shadow-offset=E` or `ray-offset=E`).
     #[must_use]
     #[inline]
     pub fn shadow_offset(self) -> Option<f32> {
         (self.1 != 0).then(|| f32::from_bits(self.1))
+    }
+
+    /// The offset of the student's own that every ray leaving a surface starts at, where one
+    /// is given (`ray-offset=E`).
+    #[must_use]
+    #[inline]
+    pub fn ray_offset(self) -> Option<f32> {
+        (self.1 != 0 && self.2).then(|| f32::from_bits(self.1))
     }
 
     /// True when `m` is in the set.
@@ -543,7 +565,7 @@ impl Mistakes {
     /// The set with `m` added.
     #[must_use]
     pub fn with(self, m: Mistake) -> Mistakes {
-        Mistakes(self.0 | m.bit(), self.1)
+        Mistakes(self.0 | m.bit(), self.1, self.2)
     }
 
     /// The mistakes in catalogue order.
@@ -551,36 +573,43 @@ impl Mistakes {
         Mistake::ALL.into_iter().filter(move |&m| self.has(m))
     }
 
-    /// Number of mistakes in the set, a shadow-ray offset of the student's own included.
+    /// Number of mistakes in the set, an offset of the student's own included.
     #[must_use]
     pub fn len(&self) -> usize {
         self.0.count_ones() as usize + usize::from(self.1 != 0)
     }
 
-    /// The set's names in catalogue order, then the shadow-ray offset (`shadow-offset=0.02`).
+    /// The set's names in catalogue order, then the offset of the student's own
+    /// (`shadow-offset=0.02`, `ray-offset=0.02`).
     fn names(self) -> Vec<String> {
         let mut out: Vec<String> = self.iter().map(|m| m.name().to_string()).collect();
         if let Some(e) = self.shadow_offset() {
-            out.push(format!("{SHADOW_OFFSET}={e}"));
+            out.push(format!("{}={e}", if self.2 { RAY_OFFSET } else { SHADOW_OFFSET }));
         }
         out
     }
 
-    /// Parses comma-separated names (`no-tir,gamma`, `shadow-offset=0.02` for shadow rays
-    /// started that far off the surface, a positive number below 1); the error names the
-    /// unknown one and lists the valid names.
+    /// Parses comma-separated names (`no-tir,gamma`; `shadow-offset=E` for shadow rays and
+    /// `ray-offset=E` for every ray leaving a surface started that far off it, a positive number
+    /// below 1); the error names the unknown one and lists the valid names.
     pub fn parse(s: &str) -> Result<Mistakes, String> {
         let mut set = Mistakes::NONE;
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
-            if let Some(v) = name.strip_prefix(SHADOW_OFFSET).and_then(|r| r.strip_prefix('=')) {
+            for (key, every) in [(SHADOW_OFFSET, false), (RAY_OFFSET, true)] {
+                let Some(v) = name.strip_prefix(key).and_then(|r| r.strip_prefix('=')) else {
+                    continue;
+                };
                 match v.parse::<f32>() {
+                    Ok(e) if e > 0.0 && e < 1.0 && every => set = set.with_ray_offset(e),
                     Ok(e) if e > 0.0 && e < 1.0 => set = set.with_shadow_offset(e),
                     _ => {
                         return Err(format!(
-                            "'{name}': expected {SHADOW_OFFSET}=E with E a number greater than 0 and less than 1"
+                            "'{name}': expected {key}=E with E a number greater than 0 and less than 1"
                         ))
                     }
                 }
+            }
+            if name.starts_with(&format!("{SHADOW_OFFSET}=")) || name.starts_with(&format!("{RAY_OFFSET}=")) {
                 continue;
             }
             match Mistake::from_name(name) {
@@ -588,7 +617,7 @@ impl Mistakes {
                 None => {
                     let names: Vec<&str> = Mistake::ALL.iter().map(|m| m.name()).collect();
                     return Err(format!(
-                        "unknown mistake '{name}'; expected one of: {}, or {SHADOW_OFFSET}=E (`rayscope mistakes` describes them)",
+                        "unknown mistake '{name}'; expected one of: {}, {SHADOW_OFFSET}=E or {RAY_OFFSET}=E (`rayscope mistakes` describes them)",
                         names.join(", ")
                     ));
                 }

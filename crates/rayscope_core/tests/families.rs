@@ -305,3 +305,29 @@ fn a_shadow_offset_of_the_student_s_own_is_fitted_back() {
         "the command renders it\n{text}"
     );
 }
+
+/// One epsilon of the student's own, 0.03, used for every ray leaving a surface (shadows,
+/// the mirror, the glass's reflections and refractions) is fitted back as that, not as a
+/// shadow offset alone.
+#[test]
+fn an_offset_of_the_student_s_own_for_every_ray_is_fitted_back() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let opts = Options {
+        ray_offset: Some(0.03),
+        ..Options::new(160, 120)
+    };
+    let (d, text) = searched(&path, &[], opts);
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause, "{text}");
+    assert_eq!(e.mistakes, ["ray-offset=0.03"], "{text}");
+    assert!(
+        text.starts_with("Explained: your image is rayscope's render with every ray leaving a surface (shadow, mirror, glass) started 0.03 off it"),
+        "{text}"
+    );
+    assert!(
+        text.contains("--mistake ray-offset=0.03"),
+        "the command renders it\n{text}"
+    );
+}

@@ -1,4 +1,5 @@
-//! The shadow-ray offset a picture was rendered with, fitted to its pixels.
+//! The offset of shadow rays, or of every ray leaving a surface, a picture was rendered with,
+//! fitted to its pixels.
 //!
 //! A student's epsilon is a number of their own: 0.001, 0.01, 0.05. Too large, it moves
 //! shadows where objects touch or come close; the course's is 1e-5 or less. The fit scans the
@@ -9,7 +10,9 @@
 
 use rayon::prelude::*;
 
-/// The bytes of some pixels rendered with shadow rays started this far off the surface.
+use crate::mistakes::Mistakes;
+
+/// The bytes of some pixels rendered with rays started this far off the surface.
 pub(crate) type RenderWith<'a> = dyn Fn(f32, &[(u32, u32)]) -> Vec<u8> + Sync + 'a;
 
 /// Most differing pixels the fit compares (evenly spread over them).
@@ -27,17 +30,17 @@ const REFINE_STEPS: usize = 14;
 /// How many times closer than rayscope's own offset the fitted one must be.
 const GAIN: f64 = 4.0;
 
-/// The shadow-ray offset whose render of the `differing` pixels (row-major indices) and a
-/// sparse grid of the `w`×`h` picture is closest to `image`, when it is at least [`GAIN`] times
-/// closer than `ours` (rayscope's render, RGB8) there; `render(e, pixels)` gives those pixels'
-/// bytes with shadow rays started `e` off the surface.
+/// The offset whose render of the `differing` pixels (row-major indices) and a sparse grid of
+/// the `w`×`h` picture is closest to `image`, and its squared distance there, when it is at
+/// least [`GAIN`] times closer than `ours` (rayscope's render, RGB8); `render(e, pixels)` gives
+/// those pixels' bytes with rays started `e` off the surface.
 pub(crate) fn fit(
     (w, h): (u32, u32),
     image: &[u8],
     ours: &[u8],
     differing: &[u32],
     render: &RenderWith<'_>,
-) -> Option<f32> {
+) -> Option<(f32, f64)> {
     if differing.is_empty() {
         return None;
     }
@@ -88,7 +91,7 @@ pub(crate) fn fit(
     let (best, e_best) = if ec <= ed { (c, ec) } else { (d, ed) };
     let e_best = e_best.min(errors[k]);
     let best = if e_best == errors[k] { logs[k] } else { best };
-    (e_best * GAIN < distance(&bytes_at(ours))).then(|| 10f32.powf(best))
+    (e_best * GAIN < distance(&bytes_at(ours))).then(|| (10f32.powf(best), e_best))
 }
 
 /// The offsets to confirm for a fitted `e`, roundest first: one significant digit (0.02), two
@@ -109,11 +112,26 @@ pub(crate) fn round_first(e: f32) -> Vec<f32> {
     out
 }
 
-/// Words for shadow rays started `e` off the surface.
-pub(crate) fn words(e: f32) -> String {
-    format!(
-        "shadow rays started {e} off the surface along its normal, where the course's start 1e-5 or less off it: shadows shrink or come loose where objects touch or come close"
-    )
+/// `mistakes` with shadow rays (`every` false) or every ray leaving a surface started `e` off it.
+pub(crate) fn with(mistakes: Mistakes, e: f32, every: bool) -> Mistakes {
+    if every {
+        mistakes.with_ray_offset(e)
+    } else {
+        mistakes.with_shadow_offset(e)
+    }
+}
+
+/// Words for shadow rays (`every` false) or every ray leaving a surface started `e` off it.
+pub(crate) fn words(e: f32, every: bool) -> String {
+    if every {
+        format!(
+            "every ray leaving a surface (shadow, mirror, glass) started {e} off it along its normal, where the course's start 1e-5 or less off it: shadows shrink or come loose where objects touch or come close, and what mirrors and glass show shifts"
+        )
+    } else {
+        format!(
+            "shadow rays started {e} off the surface along its normal, where the course's start 1e-5 or less off it: shadows shrink or come loose where objects touch or come close"
+        )
+    }
 }
 
 #[cfg(test)]
@@ -136,7 +154,7 @@ mod tests {
         let image = vec![128u8, 128, 128];
         let ours = vec![px(1e-5); 3];
         let render = |e: f32, pixels: &[(u32, u32)]| pixels.iter().flat_map(|_| [px(e); 3]).collect::<Vec<u8>>();
-        let e = fit((1, 1), &image, &ours, &[0], &render).expect("fitted");
+        let (e, _) = fit((1, 1), &image, &ours, &[0], &render).expect("fitted");
         assert!((e.log10() - planted.log10()).abs() < 0.02, "{e}");
     }
 }

@@ -37,6 +37,9 @@ pub struct Options {
     pub fov: f64,
     /// Shadow rays started this far off the surface instead of the course's 1e-5.
     pub shadow_offset: Option<f64>,
+    /// Every ray leaving a surface (shadow, mirror, glass) started this far off it instead of
+    /// the course's 1e-5: one epsilon of the student's own used everywhere.
+    pub ray_offset: Option<f64>,
 }
 
 impl Options {
@@ -56,6 +59,7 @@ impl Options {
             stage1: false,
             fov: 60.0,
             shadow_offset: None,
+            ray_offset: None,
         }
     }
 }
@@ -282,7 +286,7 @@ impl Student {
                 let o = if self.bug("no-mirror-offset") {
                     hit.p
                 } else {
-                    hit.p + n * EPS
+                    hit.p + n * self.eps()
                 };
                 self.trace(Ray { o, d: r }, depth + 1)
             }
@@ -294,6 +298,11 @@ impl Student {
             }
             _ => self.diffuse(&hit, n, ns, obj.color),
         }
+    }
+
+    /// How far rays leaving a surface start off it.
+    fn eps(&self) -> f64 {
+        self.opts.ray_offset.unwrap_or(EPS)
     }
 
     /// The student's one reflection function, for mirrors and glass.
@@ -328,7 +337,7 @@ impl Student {
         } else if let Some(e) = self.opts.shadow_offset {
             hit.p + n * e
         } else {
-            hit.p + n * EPS
+            hit.p + n * self.eps()
         };
         let mut c = DVec3::ZERO;
         for (k, (pos, col)) in self.lights.iter().enumerate() {
@@ -386,11 +395,11 @@ impl Student {
         let cos_i = -ray.d.dot(n);
         let k = 1.0 - eta * eta * (1.0 - cos_i * cos_i);
         let o = if self.bug("glass-reflection-along-ray") {
-            hit.p + ray.d * EPS
+            hit.p + ray.d * self.eps()
         } else if self.bug("glass-reflection-outward") {
-            hit.p + hit.n * EPS
+            hit.p + hit.n * self.eps()
         } else {
-            hit.p + n * EPS
+            hit.p + n * self.eps()
         };
         let reflected = Ray {
             o,
@@ -434,7 +443,7 @@ impl Student {
         };
         let t = (ray.d * eta + n * (eta * cos_i - cos_t)).normalize();
         let refracted = Ray {
-            o: hit.p - n * EPS,
+            o: hit.p - n * self.eps(),
             d: t,
         };
         let mut c = self.trace(refracted, depth + 1) * (1.0 - kr);
