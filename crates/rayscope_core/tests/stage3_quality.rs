@@ -259,7 +259,8 @@ fn low_sample_renders_average_to_the_converged_image() {
     let var = means.iter().map(|m| (*m - avg) * (*m - avg)).sum::<Vec3A>() / (seeds - 1) as f32;
     // The mean of `seeds` renders' means: its standard error. The reference has 512 times the
     // samples of one render, so its error is the seed spread / √512.
-    let se = (var / seeds as f32).sqrt() + (var / 512.0).sqrt();
+    let sqrt = |v: Vec3A| Vec3A::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt());
+    let se = sqrt(var / seeds as f32) + sqrt(var / 512.0);
     eprintln!("4-spp mean over {seeds} seeds {avg}, reference {reference}, standard error {se}");
     assert!(
         se.max_element() < 0.01 * reference.max_element(),
