@@ -18,10 +18,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 COURSE = os.environ.get("RAYSCOPE_COURSE_DIR", os.path.join(ROOT, "..", "shared", "reference"))
 
 SCENES = [
-    ("emitter box", os.path.join(ROOT, "scenes", "emissive.txt"), []),
+    ("emitter box -l", os.path.join(ROOT, "scenes", "emissive.txt"), ["-l"]),
     ("ambient.txt -l", os.path.join(ROOT, "scenes", "ambient.txt"), ["-l"]),
     ("course OBJ scene -l", os.path.join(COURSE, "tests", "sample_scene_obj.txt"), ["-l"]),
-    ("dof.txt", os.path.join(ROOT, "scenes", "dof.txt"), []),
+    ("dof.txt -r 0.1 -t 3.6", os.path.join(ROOT, "scenes", "dof.txt"), ["-r", "0.1", "-t", "3.6"]),
 ]
 
 
