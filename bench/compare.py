@@ -498,6 +498,91 @@ def bench_path(args, rs: Rayscope, table: Table, notes: list[str]):
         del scene
 
 
+# Scenes of the sampling section: (name, scene file, rayscope flags, Mitsuba integrator, lens).
+def _sampling_scenes() -> list[tuple[str, str, list[str], dict, tuple | None]]:
+    path = _box_integrator()
+    direct = {"type": "direct", "emitter_samples": 1, "bsdf_samples": 1}
+    return [
+        ("emitter box -l", SCENE_BOX, ["-l"], path, None),
+        ("ambient.txt -l", os.path.join(ROOT, "scenes", "ambient.txt"), ["-l"], path, None),
+        ("course OBJ scene -l", SCENE_OBJ, ["-l"], path, None),
+        ("dof.txt -r 0.1 -t 3.6", os.path.join(ROOT, "scenes", "dof.txt"), ["-r", "0.1", "-t", "3.6"], direct, (0.1, 3.6)),
+    ]
+
+
+def relative_rmse(img: np.ndarray, ref: np.ndarray) -> float:
+    """RMSE over the reference's root mean square: comparable between renderers whose converged
+    images differ in brightness (Mitsuba's point lights are not the course's)."""
+    return rmse(img, ref) / float(np.sqrt((ref**2).mean()))
+
+
+def bench_sampling(args, rs: Rayscope, table: Table, notes: list[str]):
+    """Noise at equal samples and at equal time: rayscope's sampler against Mitsuba's
+    `independent` and its low-discrepancy samplers, each renderer against its own converged
+    reference (so only noise is measured, not the renderers' differences)."""
+    import drjit as dr
+    import mitsuba as mi
+
+    size, spp, ref_spp = args.sampling_size, 64, args.sampling_ref_spp
+    q, ref_q = 4, int(round(math.log2(ref_spp / 4)))
+    samplers = ["independent", "ldsampler", "multijitter"]
+    table.section(
+        f"Sampling: noise at equal samples and equal time, {size}x{size}, {spp} spp (rayscope: whole "
+        f"process `-x 2 -q {q}`; Mitsuba {args.variants[0]}, mi.render only). Relative RMSE (RMSE / "
+        f"RMS of the reference) against each renderer's own {ref_spp}-spp reference, mean over "
+        f"{args.reps} seeds; at equal time = relative RMSE x sqrt(time / rayscope's time)",
+        ["scene", "renderer / sampler", "median time", "rel. RMSE, equal spp", "rel. RMSE, equal time",
+         "rayscope / this, equal time"],
+    )
+    mi.set_variant(args.variants[0])
+    for name, path, flags, integrator, lens in _sampling_scenes():
+        tag = "sampling_" + name.split()[0].replace(".txt", "")
+        wh = ["-w", str(size), "-h", str(size), "-x", "2"]
+        rs_ref_path = os.path.join(args.out, f"ref_{tag}_rayscope_{size}_{ref_spp}.exr")
+        if not os.path.exists(rs_ref_path):
+            log(f"{name}: rendering the rayscope reference ({ref_spp} spp)")
+            _, out = rs.render(path, "ref.exr", [*wh, "-q", str(ref_q), "--seed", "1000", *flags])
+            os.replace(out, rs_ref_path)
+        rs_ref = read_exr(rs_ref_path)
+        times, errs = [], []
+        for seed in range(args.reps):
+            settle()
+            t, out = rs.render(path, "s.exr", [*wh, "-q", str(q), "--seed", str(seed), *flags])
+            times.append(t)
+            errs.append(relative_rmse(read_exr(out), rs_ref))
+        t_rs, e_rs = median(times), float(np.mean(errs))
+        rows = [("rayscope (Sobol)", t_rs, e_rs)]
+        mi_ref_path = os.path.join(args.out, f"ref_{tag}_mitsuba_{size}_{ref_spp}.exr")
+        kw = {"two_sided_emitters": True, "lens": lens}
+        if not os.path.exists(mi_ref_path):
+            log(f"{name}: rendering the Mitsuba reference ({ref_spp} spp)")
+            scene = mitsuba_scene(mi, path, args.out, tag, integrator, size, 64, **kw)
+            acc = np.zeros((size, size, 3))
+            for k in range(ref_spp // 64):
+                acc += np.array(mitsuba_render(mi, dr, scene, 64, seed=1000 + k)[1], dtype=np.float64)
+            write_exr(mi_ref_path, acc / (ref_spp // 64))
+        mi_ref = read_exr(mi_ref_path)
+        for sampler in samplers:
+            scene = mitsuba_scene(mi, path, args.out, tag, integrator, size, spp, sampler=sampler, **kw)
+            mitsuba_render(mi, dr, scene, spp)  # warm-up: JIT compilation
+            times, errs = [], []
+            for seed in range(args.reps):
+                settle()
+                t, img = mitsuba_render(mi, dr, scene, spp, seed=seed)
+                times.append(t)
+                errs.append(relative_rmse(np.array(img, dtype=np.float64), mi_ref))
+            rows.append((f"Mitsuba {sampler}", median(times), float(np.mean(errs))))
+            del scene
+        for who, t, e in rows:
+            at_time = e * math.sqrt(t / t_rs)
+            table.row([name, who, fmt_s(t), f"{e:.4f}", f"{at_time:.4f}", f"{e_rs / at_time:.2f}"])
+    notes.append(
+        "Sampling section: equal time scales each renderer's relative RMSE by sqrt(its time / "
+        "rayscope's time), the Monte Carlo rate; low-discrepancy samplers converge faster than "
+        "that, so it slightly flatters whichever renderer is slower."
+    )
+
+
 def ray_sets(args) -> list[tuple[str, str, np.ndarray]]:
     """The closest-hit ray files (primary side x side, incoherent side^2), written to args.out."""
     side = args.primary_side
@@ -768,7 +853,7 @@ def torus_triangles(tris: int) -> np.ndarray:
     return scene[faces - 1].astype(np.float32)
 
 
-SECTIONS = ["direct", "path", "rays", "scale"]
+SECTIONS = ["direct", "path", "sampling", "rays", "scale"]
 
 
 def main():
@@ -791,6 +876,8 @@ def main():
         help="scale section: also the enlarged bunny split 4^L times for each L (default 4 5: 1.27M, 5.09M)",
     )
     ap.add_argument("--scale-threads", type=int, default=2, help="scale section: threads (default 2)")
+    ap.add_argument("--sampling-size", type=int, default=64, help="sampling section: image side (default 64)")
+    ap.add_argument("--sampling-ref-spp", type=int, default=1024, help="sampling section: reference spp (4 * 2^q)")
     ap.add_argument("--no-scene2-path", dest="scene2_path", action="store_false")
     ap.add_argument("--out", default=os.path.join(HERE, "out"))
     args = ap.parse_args()
@@ -809,6 +896,8 @@ def main():
             bench_direct(args, rs, table, notes)
         if "path" in args.only:
             bench_path(args, rs, table, notes)
+        if "sampling" in args.only:
+            bench_sampling(args, rs, table, notes)
         if "rays" in args.only:
             bench_rays(args, rs, table, notes)
         if "scale" in args.only:

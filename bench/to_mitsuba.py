@@ -5,7 +5,8 @@ Decisions (also listed in bench/README.md):
   Mitsuba's camera space has +x to the LEFT, so the sensor's to_world is look_at(0 -> +z, up +y)
   followed by scale(-1, 1, 1). Checked by rendering scenes/emissive.txt: red wall on the left.
 - perspective sensor, fov 60 across x, hdrfilm W x H with a box filter (each sample lands in its
-  own pixel, like rayscope's -x grid), independent sampler.
+  own pixel, like rayscope's -x grid), independent sampler unless another is named; a thin lens
+  (`thinlens`) where rayscope's `-r`/`-t` are given.
 - Every non-dielectric BSDF is wrapped in `twosided`: rayscope shades both sides of every surface.
 - Diffuse -> diffuse(reflectance = colour).
 - Reflective -> conductor(material 'none'): a perfect mirror; the colour plays no part.
@@ -104,14 +105,16 @@ def _plane_matrix(point, normal, size: float) -> list[list[float]]:
     return m.tolist()
 
 
-def camera_dict(mi, width: int, height: int, spp: int) -> dict:
+def camera_dict(mi, width: int, height: int, spp: int, sampler: str = "independent", lens=None) -> dict:
+    """The sensor; `lens` = (aperture radius, focus distance) makes it a thin lens, as rayscope's
+    `-r` and `-t` (its plane of focus lies `-t` along the view axis)."""
     to_world = (
         mi.ScalarTransform4f()
         .look_at(origin=[0, 0, 0], target=[0, 0, 1], up=[0, 1, 0])
         .scale([-1, 1, 1])
     )
-    return {
-        "type": "perspective",
+    d = {
+        "type": "perspective" if lens is None else "thinlens",
         "fov": 60.0,
         "fov_axis": "x",
         "near_clip": 1e-4,
@@ -124,8 +127,11 @@ def camera_dict(mi, width: int, height: int, spp: int) -> dict:
             "rfilter": {"type": "box"},
             "pixel_format": "rgb",
         },
-        "sampler": {"type": "independent", "sample_count": spp},
+        "sampler": {"type": sampler, "sample_count": spp},
     }
+    if lens is not None:
+        d["aperture_radius"], d["focus_distance"] = float(lens[0]), float(lens[1])
+    return d
 
 
 def to_mitsuba(
@@ -139,9 +145,12 @@ def to_mitsuba(
     spp: int = 16,
     plane_size: float = 1000.0,
     two_sided_emitters: bool = False,
+    sampler: str = "independent",
+    lens=None,
 ) -> dict:
     os.makedirs(out_dir, exist_ok=True)
-    d: dict = {"type": "scene", "integrator": integrator, "sensor": camera_dict(mi, width, height, spp)}
+    sensor = camera_dict(mi, width, height, spp, sampler, lens)
+    d: dict = {"type": "scene", "integrator": integrator, "sensor": sensor}
     T = mi.ScalarTransform4f
     for i, light in enumerate(scene.lights):
         d[f"light_{i}"] = {

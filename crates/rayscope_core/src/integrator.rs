@@ -45,8 +45,10 @@
 //! * **Quality (`-q`).** Each of the `-x N` grid cells gets 2^q paths when a stochastic
 //!   effect is on (emissive or glossy surfaces, `-l`, or an aperture), else one; sample `s`
 //!   of a pixel is grid cell `s mod N²` and path `s div N²`, with its own random stream. With a
-//!   stochastic effect each path starts at a random point of its cell (stratified jitter), so
-//!   pixels converge to their area's mean; otherwise samples sit at the cell centres.
+//!   stochastic effect each cell's paths start at the points of a scrambled Sobol sequence of
+//!   the cell's own, so pixels converge to their area's mean; otherwise samples sit at the cell
+//!   centres. Every stochastic decision draws from the sample's [`Sampler`] (`crate::sobol`)
+//!   at a dimension fixed by the decision and the path vertex.
 
 use std::sync::atomic::{AtomicBool, Ordering};
 
@@ -56,10 +58,10 @@ use crate::camera::{cell_centre, jittered, Camera};
 use crate::lights::Emitters;
 use crate::math::Ray;
 use crate::mistakes::Mistake;
-use crate::rng::Rng;
 pub(crate) use crate::sampling::concentric_disk;
 use crate::scene::{Intersect, Scene};
 use crate::settings::{Channel, DepthLimit, RenderSettings, Stage};
+use crate::sobol::{Draw, Sampler};
 use crate::surface::Surface;
 
 mod camera_packets;
@@ -78,8 +80,8 @@ pub(crate) type Job = (u32, u32, u32);
 /// What one sample carries down every vertex of its path, besides the path's state: its random
 /// stream, the observer recording its rays and the ray counters.
 pub(crate) struct PathCx<'p, O> {
-    /// The sample's random stream.
-    pub(crate) rng: &'p mut Rng,
+    /// The sample's random numbers.
+    pub(crate) rng: &'p mut Sampler,
     /// Where the path's rays are recorded ([`crate::observer::NoObserver`] when they are not).
     pub(crate) obs: &'p mut O,
     /// Ray counts.
@@ -357,15 +359,27 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         self.stochastic && self.settings.channel == Channel::Color
     }
 
-    /// A sample's offset inside its pixel, `cell` (its cell's centre), moved to a random point of
-    /// the cell by `u`, the first two numbers of the sample's stream, where [`Self::jitters`]:
-    /// paths spread over their cell, so a pixel converges to the integral over its area (edges
-    /// antialiased as a box filter would) rather than to N×N point samples.
+    /// A sample's offset inside its pixel, `cell` (its cell's centre), moved to the point `u` of
+    /// the cell ([`Self::cell_point`]) where [`Self::jitters`]: paths spread over their cell, so
+    /// a pixel converges to the integral over its area (edges antialiased as a box filter
+    /// would) rather than to N×N point samples.
     #[must_use]
     #[inline(always)]
     pub(crate) fn jittered_offset(&self, cell: [f32; 2], u: [f32; 2]) -> [f32; 2] {
         let n = self.grid as f32;
         [jittered(cell[0], u[0], n), jittered(cell[1], u[1], n)]
+    }
+
+    /// Where in its `-x` grid cell sample `s` lies, in [0, 1)², from `rng`, its numbers: the
+    /// cell's paths (sample `s` is path `s div N²` of cell `s mod N²`) take the points of a
+    /// scrambled Sobol sequence of the cell's own, so the first 2^k paths of every cell are a
+    /// (0, k, 2)-net in it.
+    #[must_use]
+    #[inline(always)]
+    pub(crate) fn cell_point(&self, s: u32, rng: &Sampler) -> [f32; 2] {
+        let nn = self.grid * self.grid;
+        let (cell, path) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
+        rng.get2d_in_stratum(Draw::Pixel.dim(0), cell, path)
     }
 
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
@@ -390,25 +404,24 @@ impl<'a, I: Intersect> Integrator<'a, I> {
 
     /// Normalised image position of sample `s` of pixel (`x`, `y`): in cell `s mod N²` of the
     /// N×N regular grid for `-x N`, at its centre ((x + (i + 0.5)/N)/W, (y + (j + 0.5)/N)/H)
-    /// when nothing is stochastic, else at a random point of the cell (stratified jitter, the
-    /// first two numbers of the sample's stream); the pixel centre for stage 1 and debug channels.
+    /// when nothing is stochastic, else at the point [`Self::cell_point`] gives; the pixel centre for stage 1 and debug channels.
     #[must_use]
     #[inline]
     pub fn sample_position(&self, x: u32, y: u32, s: u32) -> (f32, f32) {
-        self.position_in_cell(x, y, s, &mut self.sample_rng(x, y, s))
+        self.position_in_cell(x, y, s, &self.sample_rng(x, y, s))
     }
 
-    /// The random stream of sample `s` of pixel (`x`, `y`).
+    /// The random numbers of sample `s` of pixel (`x`, `y`).
     #[must_use]
     #[inline]
-    pub fn sample_rng(&self, x: u32, y: u32, s: u32) -> Rng {
+    pub fn sample_rng(&self, x: u32, y: u32, s: u32) -> Sampler {
         let pixel = y as u64 * self.settings.width as u64 + x as u64;
-        Rng::for_sample(self.settings.seed, pixel, s as u64)
+        Sampler::new(self.settings.seed, pixel, s)
     }
 
-    /// [`Self::sample_position`], drawing the jitter from `rng`, the sample's fresh stream.
+    /// [`Self::sample_position`], with `rng` the sample's numbers.
     #[inline]
-    fn position_in_cell(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> (f32, f32) {
+    fn position_in_cell(&self, x: u32, y: u32, s: u32, rng: &Sampler) -> (f32, f32) {
         let [mut ox, mut oy] = self.cell_offset(s);
         if self.mistake(Mistake::PixelCorners) {
             // The cell's top-left corner, (i/N, j/N), rather than its centre.
@@ -417,7 +430,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             oy = (oy * n - 0.5).round() / n;
         }
         if self.jitters() {
-            [ox, oy] = self.jittered_offset([ox, oy], [rng.next_f32(), rng.next_f32()]);
+            [ox, oy] = self.jittered_offset([ox, oy], self.cell_point(s, rng));
         }
         let w = self.settings.width as f32;
         let h = self.settings.height as f32;
@@ -430,14 +443,14 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         self.settings.stage == Stage::Full && self.settings.camera.aperture_radius > 0.0
     }
 
-    /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's fresh stream
+    /// The camera ray of sample `s` of pixel (`x`, `y`); `rng` is the sample's numbers
     /// ([`Self::sample_rng`]).
     // Always inlined: with the jitter it is past the inliner's limit, and as a call it costs the
     // path-traced box 3 % (`rayscope bench render -f scenes/emissive.txt -w 200 -h 200 -x 2 -q 2
     // -l --threads 1`).
     #[must_use]
     #[inline(always)]
-    pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Rng) -> Ray {
+    pub fn camera_ray(&self, x: u32, y: u32, s: u32, rng: &mut Sampler) -> Ray {
         self.camera_ray_nudged(x, y, s, rng, [0.0; 2])
     }
 
@@ -445,12 +458,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// image coordinates; adding zero leaves the position exactly as it was).
     #[must_use]
     #[inline(always)]
-    pub(crate) fn camera_ray_nudged(&self, x: u32, y: u32, s: u32, rng: &mut Rng, nudge: [f32; 2]) -> Ray {
+    pub(crate) fn camera_ray_nudged(&self, x: u32, y: u32, s: u32, rng: &mut Sampler, nudge: [f32; 2]) -> Ray {
         let (u, v) = self.position_in_cell(x, y, s, rng);
         let (u, v) = (u + nudge[0], v + nudge[1]);
         if self.thin_lens() {
-            self.camera
-                .lens_ray(u, v, concentric_disk(rng.next_f32(), rng.next_f32()))
+            let [l0, l1] = rng.get2d(Draw::Lens.dim(0));
+            self.camera.lens_ray(u, v, concentric_disk(l0, l1))
         } else {
             self.camera.ray(u, v)
         }

@@ -29,6 +29,7 @@ pub mod sampling;
 pub mod scene;
 pub mod settings;
 pub mod simd;
+pub mod sobol;
 pub mod surface;
 
 pub use camera::{Camera, CameraSettings, FovAxis};

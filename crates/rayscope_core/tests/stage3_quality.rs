@@ -237,3 +237,39 @@ fn a_pixel_an_edge_crosses_converges_to_the_covered_share() {
         );
     }
 }
+
+/// The sampler is unbiased: the image mean of a 4-sample path-traced render, averaged over
+/// independent seeds, converges to the mean of a 2048-sample render (within four standard
+/// errors of the seeds' spread plus the reference's own noise). A sampler whose dimensions were
+/// correlated (the light's numbers reused for the bounce, a 1-sample render not uniform over
+/// the pixel) would miss it by far more.
+#[test]
+fn low_sample_renders_average_to_the_converged_image() {
+    let sc = scene(LIT_BOX);
+    let s = |q, seed| RenderSettings {
+        ambient: true,
+        seed,
+        ..small(q)
+    };
+    let mean = |f: &Film| f.pixels.iter().map(|&p| Vec3A::from(p)).sum::<Vec3A>() / f.pixels.len() as f32;
+    let reference = mean(&film(&sc, &s(9, 1000)));
+    let seeds = 48;
+    let means: Vec<Vec3A> = (0..seeds).map(|seed| mean(&film(&sc, &s(0, seed)))).collect();
+    let avg = means.iter().sum::<Vec3A>() / seeds as f32;
+    let var = means.iter().map(|m| (*m - avg) * (*m - avg)).sum::<Vec3A>() / (seeds - 1) as f32;
+    // The mean of `seeds` renders' means: its standard error. The reference has 512 times the
+    // samples of one render, so its error is the seed spread / √512.
+    let sqrt = |v: Vec3A| Vec3A::new(v.x.sqrt(), v.y.sqrt(), v.z.sqrt());
+    let se = sqrt(var / seeds as f32) + sqrt(var / 512.0);
+    eprintln!("4-spp mean over {seeds} seeds {avg}, reference {reference}, standard error {se}");
+    assert!(
+        se.max_element() < 0.01 * reference.max_element(),
+        "the test can see a 1 % bias: {se}"
+    );
+    for a in 0..3 {
+        assert!(
+            (avg[a] - reference[a]).abs() < 4.0 * se[a],
+            "channel {a}: 4-spp renders average {avg}, the converged image {reference} (standard error {se})"
+        );
+    }
+}

@@ -3,7 +3,7 @@
 //! Stochastic renders (path tracing, glossy coats, depth of field) hand over samples sixteen at a
 //! time, but only their camera rays go as a packet: a pixel's camera rays stay together while
 //! its paths scatter after the first hit, so each path goes on one ray at a time from its
-//! camera ray's hit, with its own random stream, exactly as [`Integrator::sample`] would
+//! camera ray's hit, with its own random numbers, exactly as [`Integrator::sample`] would
 //! ([`crate::integrator::Engine::CameraPackets`]). Waves of paths take their camera rays from
 //! the same batches.
 
@@ -19,9 +19,9 @@ use super::{Counters, Integrator, Job};
 use crate::accel::PacketHits;
 use crate::camera::camera_dirs;
 use crate::math::RayPacket;
-use crate::rng::RngLanes;
 use crate::scene::{Hit, Intersect};
 use crate::simd::LANES;
+use crate::sobol::SamplerLanes;
 
 impl<I: Intersect> Integrator<'_, I> {
     /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with
@@ -34,7 +34,7 @@ impl<I: Intersect> Integrator<'_, I> {
         for k in 0..jobs.len() {
             // Each path goes on one ray at a time from its camera ray's hit, found with the batch.
             let hit = cams.hits.get(k).map(|(t, u, v, prim)| Hit { t, u, v, prim });
-            let mut rng = cams.rng.get(k);
+            let mut rng = cams.rng.0[k];
             let ray = cams.rays.ray(k);
             out[k] = self
                 .hand_over(&ray, LaneAt::Found(hit), PathState::CAMERA, &mut rng, c)
@@ -52,27 +52,21 @@ impl<I: Intersect> Integrator<'_, I> {
         };
         if self.thin_lens() {
             for (k, &(x, y, s)) in jobs.iter().enumerate() {
-                // Each sample's own stream, and its lens ray drawn from it.
-                let mut rng = self.sample_rng(x, y, s);
-                let ray = self.camera_ray(x, y, s, &mut rng);
+                // Each sample's own numbers, and its lens ray drawn from them.
+                b.rng.0[k] = self.sample_rng(x, y, s);
+                let ray = self.camera_ray(x, y, s, &mut b.rng.0[k]);
                 b.rays.set(k, &ray, f32::INFINITY);
-                b.rng.set(k, &rng);
             }
         } else {
-            // The same for a pinhole camera, all lanes at once: the samples' streams, each lane's
-            // cell centre jittered by the stream's first two numbers, then the directions.
-            let (mut pixel, mut sample, mut on) = ([0; LANES], [0; LANES], [false; LANES]);
+            // The same for a pinhole camera, the directions all lanes at once: the samples'
+            // numbers, each lane's cell centre moved to its point in the cell where it jitters.
             let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
-            let width = u64::from(self.settings.width);
+            let jitters = self.jitters();
             for (k, &(x, y, s)) in jobs.iter().enumerate() {
-                (pixel[k], sample[k], on[k]) = (u64::from(y) * width + u64::from(x), u64::from(s), true);
+                b.rng.0[k] = self.sample_rng(x, y, s);
                 [px[k], py[k]] = self.cell_offset(s);
-            }
-            b.rng = RngLanes::for_samples(self.settings.seed, &pixel, &sample);
-            if self.jitters() {
-                let (jx, jy) = (b.rng.next_f32(&on), b.rng.next_f32(&on));
-                for k in 0..LANES {
-                    [px[k], py[k]] = self.jittered_offset([px[k], py[k]], [jx[k], jy[k]]);
+                if jitters {
+                    [px[k], py[k]] = self.jittered_offset([px[k], py[k]], self.cell_point(s, &b.rng.0[k]));
                 }
             }
             for (k, &(x, y, _)) in jobs.iter().enumerate() {
@@ -106,7 +100,7 @@ impl<I: Intersect> Integrator<'_, I> {
 }
 
 /// Camera rays traced ahead, one packet of consecutive samples, with their hits and the
-/// samples' random streams after them.
+/// samples' random numbers.
 #[derive(Default)]
 pub(super) struct CameraBatch {
     /// Index of the first sample in the jobs.
@@ -119,6 +113,6 @@ pub(super) struct CameraBatch {
     pub(super) rays: RayPacket,
     /// Their closest hits, when traced.
     pub(super) hits: PacketHits,
-    /// Each sample's random stream after its camera ray.
-    pub(super) rng: RngLanes,
+    /// Each sample's random numbers.
+    pub(super) rng: SamplerLanes,
 }

@@ -10,10 +10,10 @@ use crate::lights::{point_light_contribution, point_light_contribution_brdf, tow
 use crate::math::{basis, Ray};
 use crate::mistakes::{self, Mistake};
 use crate::observer::{BranchFate, GlassBranch, GlassDecision, NoObserver, RayKind, RayObserver};
-use crate::rng::Rng;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_local, to_world};
 use crate::scene::{Hit, Intersect, Lobe, Material};
 use crate::settings::{Channel, DepthLimit, Stage};
+use crate::sobol::{Draw, Sampler};
 use crate::surface::Surface;
 
 use super::rules::{Glass, Li, PathState, ShadowRay};
@@ -84,7 +84,7 @@ impl<I: Intersect> Integrator<'_, I> {
         &self,
         ray: &Ray,
         id: u32,
-        rng: &mut Rng,
+        rng: &mut Sampler,
         obs: &mut O,
         c: &mut Counters,
     ) -> Vec3A {
@@ -234,9 +234,16 @@ impl<I: Intersect> Integrator<'_, I> {
     }
 
     /// The rest of the path of a lane that a packet engine hands to this engine where it stands
-    /// (`at`), with path state `path`, one ray at a time, with `rng` its stream, unrecorded.
+    /// (`at`), with path state `path`, one ray at a time, with `rng` its numbers, unrecorded.
     #[inline]
-    pub(super) fn hand_over(&self, ray: &Ray, at: LaneAt<'_>, path: PathState, rng: &mut Rng, c: &mut Counters) -> Li {
+    pub(super) fn hand_over(
+        &self,
+        ray: &Ray,
+        at: LaneAt<'_>,
+        path: PathState,
+        rng: &mut Sampler,
+        c: &mut Counters,
+    ) -> Li {
         let cx = &mut PathCx {
             rng,
             obs: &mut NoObserver,
@@ -324,7 +331,7 @@ impl<I: Intersect> Integrator<'_, I> {
         } else {
             let child = |medium| path.specular(medium, path.beta);
             match g.refracted {
-                Some(r) if cx.rng.next_f32() >= g.kr => {
+                Some(r) if cx.rng.get1d(Draw::GlassChoice.dim(path.vertex())) >= g.kr => {
                     if O::ENABLED {
                         let fates = (BranchFate::NotChosen, BranchFate::Traced);
                         cx.obs.glass(id, &self.glass_decision(ray, s, m, &g, path, fates));
@@ -433,7 +440,8 @@ impl<I: Intersect> Integrator<'_, I> {
         // added before the bounce's, so the sum is the same.
         let mut pending: Option<ShadowRay> = None;
         if !self.emitters.is_empty() {
-            let (u0, u1, u2) = (cx.rng.next_f32(), cx.rng.next_f32(), cx.rng.next_f32());
+            let u0 = cx.rng.get1d(Draw::LightChoice.dim(path.vertex()));
+            let [u1, u2] = cx.rng.get2d(Draw::LightPoint.dim(path.vertex()));
             if let Some(ls) = self.emitters.sample(self.scene, origin, u0, u1, u2) {
                 let wi = to_local(ls.dir, t, b, n);
                 let (f, _) = bsdf.eval(wo, wi);
@@ -479,7 +487,8 @@ impl<I: Intersect> Integrator<'_, I> {
         if !(self.emitters.any_emission || ambient || specular) {
             return Li::reflected(alone(l, pending));
         }
-        let (u0, u1, u2) = (cx.rng.next_f32(), cx.rng.next_f32(), cx.rng.next_f32());
+        let u0 = cx.rng.get1d(Draw::Lobe.dim(path.vertex()));
+        let [u1, u2] = cx.rng.get2d(Draw::BsdfDirection.dim(path.vertex()));
         let Some(bs) = bsdf.sample(wo, u0, u1, u2) else {
             return Li::reflected(alone(l, pending));
         };
@@ -507,7 +516,7 @@ impl<I: Intersect> Integrator<'_, I> {
             want &= path.bounces < MAX_BOUNCES;
             if want && path.bounces >= RR_START {
                 let p = russian_roulette_survival(child.beta);
-                if cx.rng.next_f32() < p {
+                if cx.rng.get1d(Draw::Roulette.dim(path.vertex())) < p {
                     carry /= p;
                     child.beta /= p;
                 } else {

@@ -24,10 +24,10 @@ use crate::lights::{add_point_light_lanes, point_light_rays};
 use crate::math::Ray;
 use crate::math::RayPacket;
 use crate::optics::{specular_rays, SpecularRays};
-use crate::rng::Rng;
 use crate::scene::{Hit, Intersect, Lobe, Material};
 use crate::settings::Stage;
 use crate::simd::{lane, LANES};
+use crate::sobol::Sampler;
 use crate::surface::{PacketSurfaces, SurfaceFrames};
 
 impl<I: Intersect> Integrator<'_, I> {
@@ -313,10 +313,9 @@ impl<I: Intersect> Integrator<'_, I> {
         sums
     }
 
-    /// The random stream of a sample, for lanes that continue one ray at a time. Each such lane
-    /// starts the stream afresh, as the sample's own stream would be at that point: renders
-    /// traced as packets have no stochastic effect, so nothing before draws from it.
-    fn lane_rng(&self, (x, y, s): Job) -> Rng {
+    /// The random numbers of a sample, for lanes that continue one ray at a time: stateless,
+    /// so the same wherever the path stands.
+    fn lane_rng(&self, (x, y, s): Job) -> Sampler {
         self.sample_rng(x, y, s)
     }
 }

@@ -66,6 +66,14 @@ impl PathState {
         }
     }
 
+    /// The path vertex this ray's hit is, for the dimensions its draws take
+    /// ([`crate::sobol::Draw::dim`]): every ray a path sends on adds one level or one bounce (or
+    /// both), so the number grows along a path and no two of its vertices share one.
+    #[inline(always)]
+    pub(super) fn vertex(&self) -> u32 {
+        self.depth + self.bounces
+    }
+
     /// The state of a camera ray.
     pub(super) const CAMERA: PathState = PathState {
         depth: 0,

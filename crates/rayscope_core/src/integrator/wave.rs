@@ -43,10 +43,10 @@ use crate::bsdf::{lambert_f, lambert_pdf, lambert_sample_lanes, transport_albedo
 use crate::geometry::PrimRef;
 use crate::math::RayPacket;
 use crate::math::{basis_lanes, not_at_most, Ray};
-use crate::rng::RngLanes;
 use crate::sampling::{power_heuristic, russian_roulette_survival, to_world_unit_lanes};
 use crate::scene::{Hit, Intersect, Lobe};
 use crate::simd::{lane, max_element, put, LANES};
+use crate::sobol::{Draw, SamplerLanes};
 use crate::surface::PacketSurfaces;
 
 type F = [f32; LANES];
@@ -162,8 +162,8 @@ struct Wave {
     shadow_on: M,
     /// Light the shadow ray adds when nothing blocks it, per axis.
     unblocked: [F; 3],
-    /// Random streams.
-    rng: RngLanes,
+    /// Each lane's sample's random numbers.
+    rng: SamplerLanes,
     /// Each path's vertices whose light is not summed yet, the last one on top.
     stack: [Vec<Frame>; LANES],
     /// Each path's glass splits in progress, the last one on top.
@@ -185,7 +185,7 @@ impl Wave {
             shadow: RayPacket::default(),
             shadow_on: [false; LANES],
             unblocked: [[0.0; LANES]; 3],
-            rng: RngLanes::default(),
+            rng: SamplerLanes::default(),
             stack: std::array::from_fn(|_| Vec::new()),
             splits: std::array::from_fn(|_| Vec::new()),
             work: WaveWork::default(),
@@ -252,6 +252,12 @@ impl Wave {
     }
 }
 
+/// The dimension of `draw` at each lane's path vertex.
+#[inline]
+fn dims(w: &Wave, draw: Draw) -> [u32; LANES] {
+    std::array::from_fn(|i| draw.dim(w.path[i].vertex()))
+}
+
 impl<I: Intersect> Integrator<'_, I> {
     /// What [`Self::sample`] returns for each of `jobs`, into `out`, with the rays counted in
     /// `c`: the samples' paths traced as waves of [`LANES`]. Only for renders whose
@@ -282,7 +288,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 // The lane's first step starts from its camera ray, or from its hit.
                 let k = cams.taken;
                 cams.taken += 1;
-                w.rng.set(i, &cams.rng.get(k));
+                w.rng.0[i] = cams.rng.0[k];
                 let t_max = if ahead { f32::NEG_INFINITY } else { f32::INFINITY };
                 w.rays.set(i, &cams.rays.ray(k), t_max);
                 (w.on[i], w.job[i], w.ray_on[i], w.want[i]) = (true, cams.job0 + k, true, true);
@@ -381,14 +387,10 @@ impl<I: Intersect> Integrator<'_, I> {
                 },
                 Lobe::Bsdf => {
                     // Other reflection models: the rest of the path one ray at a time.
-                    let mut rng = w.rng.get(i);
+                    let mut rng = w.rng.0[i];
                     let hit = Hit { t, u, v, prim };
                     let (ray, s) = (w.ray(i), surf.get(i));
-                    let li = self.hand_over(&ray, LaneAt::Hit(&hit, &s), path, &mut rng, c);
-                    // A glass split below may still trace its second ray, from where the stream
-                    // now stands.
-                    w.rng.set(i, &rng);
-                    li
+                    self.hand_over(&ray, LaneAt::Hit(&hit, &s), path, &mut rng, c)
                 }
             };
             w.ray_on[i] = false;
@@ -451,14 +453,11 @@ impl<I: Intersect> Integrator<'_, I> {
                 return None;
             }
             // One ray, chosen by its Fresnel weight.
-            let mut rng = w.rng.get(i);
             let child = |medium| path.specular(medium, path.beta);
-            let chosen = match g.refracted {
-                Some(r) if rng.next_f32() >= g.kr => (r, child(g.refr_medium)),
+            match g.refracted {
+                Some(r) if w.rng.0[i].get1d(Draw::GlassChoice.dim(path.vertex())) >= g.kr => (r, child(g.refr_medium)),
                 _ => (g.reflected, child(g.refl_medium)),
-            };
-            w.rng.set(i, &rng);
-            chosen
+            }
         };
         w.push_absorb(i, att);
         w.stack[i].push(Frame::other(Kind::Specular, Vec3A::ZERO));
@@ -497,7 +496,8 @@ impl<I: Intersect> Integrator<'_, I> {
         // Emitter sampling, weighted against BRDF sampling; the shadow ray waits in the wave.
         let mut shadow = [false; LANES];
         if !self.emitters.is_empty() {
-            let (u0, u1, u2) = (w.rng.next_f32(d), w.rng.next_f32(d), w.rng.next_f32(d));
+            let u0 = w.rng.get1d(d, &dims(w, Draw::LightChoice));
+            let [u1, u2] = w.rng.get2d(d, &dims(w, Draw::LightPoint));
             let ls = self.emitters.sample_lanes(self.scene, org, d, [&u0, &u1, &u2]);
             for i in 0..LANES {
                 let wiz = dot(&ls.dir, n, i);
@@ -527,11 +527,11 @@ impl<I: Intersect> Integrator<'_, I> {
 
         // BRDF sampling: emitters it finds (MIS) and, where carried, indirect light.
         let bounce = self.emitters.any_emission || ambient;
-        let (u1, u2) = if bounce {
-            let _u0 = w.rng.next_f32(d);
-            (w.rng.next_f32(d), w.rng.next_f32(d))
+        // A Lambert BRDF has one lobe, so no lobe is drawn.
+        let [u1, u2] = if bounce {
+            w.rng.get2d(d, &dims(w, Draw::BsdfDirection))
         } else {
-            ([0.0; LANES], [0.0; LANES])
+            [[0.0; LANES]; 2]
         };
         let bs = lambert_sample_lanes(&u1, &u2);
         let wi = to_world_unit_lanes(&bs.wi, &tb, &bb, n);
@@ -560,7 +560,7 @@ impl<I: Intersect> Integrator<'_, I> {
             };
         }
         if rr.contains(&true) {
-            let u = w.rng.next_f32(&rr);
+            let u = w.rng.get1d(&rr, &dims(w, Draw::Roulette));
             for i in 0..LANES {
                 let p = russian_roulette_survival(Vec3::new(beta[0][i], beta[1][i], beta[2][i]));
                 let keep = u[i] < p;
