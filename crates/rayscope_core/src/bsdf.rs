@@ -308,6 +308,14 @@ impl Bsdf {
         }
     }
 
+    /// Whether [`Self::sample`] chooses between lobes with its `u0` (a Lambert BRDF has one
+    /// lobe and ignores it).
+    #[must_use]
+    #[inline]
+    pub fn has_lobes(&self) -> bool {
+        !matches!(self, Bsdf::Lambert { .. })
+    }
+
     /// Draws a direction from three uniform numbers; `None` when it falls below the surface.
     #[must_use]
     #[inline]

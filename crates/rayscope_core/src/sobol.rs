@@ -82,16 +82,11 @@ fn upward_hash(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Nested uniform (Owen) scramble of `v` read as a binary fraction (bit 31 first): each bit is
-/// flipped or not by a function of `seed` and the bits before it. Nets stay nets.
-#[inline(always)]
-fn owen_scramble(v: u32, seed: u32) -> u32 {
-    upward_hash(v.reverse_bits(), seed).reverse_bits()
-}
-
-/// Sobol's second dimension's generator matrix, applied four index bits at a time: entry
-/// `[k][b]` is the xor of the direction numbers of the set bits of `b` at bits 4k..4k+3.
-const SOBOL1: [[u32; 16]; 8] = {
+/// Sobol's second dimension's generator matrix with its output bits reversed, applied eight
+/// index bits at a time: entry `[k][b]` is the bit-reversed xor of the direction numbers of the
+/// set bits of `b` at bits 8k..8k+7. Reversed because every coordinate is read back reversed
+/// by the scramble that follows ([`Sampler::point_2d`]), so no reversal is spent on it.
+const SOBOL1_REVERSED: [[u32; 256]; 4] = {
     let mut v = [0u32; 32];
     v[0] = 1 << 31;
     let mut i = 1;
@@ -99,20 +94,20 @@ const SOBOL1: [[u32; 16]; 8] = {
         v[i] = v[i - 1] ^ (v[i - 1] >> 1);
         i += 1;
     }
-    let mut t = [[0u32; 16]; 8];
+    let mut t = [[0u32; 256]; 4];
     let mut k = 0;
-    while k < 8 {
+    while k < 4 {
         let mut b = 0;
-        while b < 16 {
-            let mut x = 0;
+        while b < 256 {
+            let mut x = 0u32;
             let mut j = 0;
-            while j < 4 {
+            while j < 8 {
                 if b & (1 << j) != 0 {
-                    x ^= v[4 * k + j];
+                    x ^= v[8 * k + j];
                 }
                 j += 1;
             }
-            t[k][b] = x;
+            t[k][b] = x.reverse_bits();
             b += 1;
         }
         k += 1;
@@ -120,20 +115,22 @@ const SOBOL1: [[u32; 16]; 8] = {
     t
 };
 
-/// The first Sobol coordinate of point `i` (a 32-bit fraction): the van der Corput sequence.
+/// The second Sobol coordinate of point `i`, bit-reversed.
 #[inline(always)]
-fn sobol0(i: u32) -> u32 {
-    i.reverse_bits()
+fn sobol1_reversed(i: u32) -> u32 {
+    let t = &SOBOL1_REVERSED;
+    t[0][(i & 255) as usize]
+        ^ t[1][((i >> 8) & 255) as usize]
+        ^ t[2][((i >> 16) & 255) as usize]
+        ^ t[3][(i >> 24) as usize]
 }
 
-/// The second Sobol coordinate of point `i` (a 32-bit fraction).
+/// Two 32-bit values bit-reversed with one 64-bit reversal: `(a.reverse_bits(),
+/// b.reverse_bits())`.
 #[inline(always)]
-fn sobol1(i: u32) -> u32 {
-    let mut x = 0;
-    for (k, t) in SOBOL1.iter().enumerate() {
-        x ^= t[((i >> (4 * k)) & 15) as usize];
-    }
-    x
+fn reverse_pair(a: u32, b: u32) -> (u32, u32) {
+    let r = ((u64::from(b) << 32) | u64::from(a)).reverse_bits();
+    ((r >> 32) as u32, r as u32)
 }
 
 /// A 32-bit fraction as a float in [0, 1).
@@ -173,8 +170,10 @@ impl Sampler {
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {
         let h = self.seeds(dim);
-        let i = owen_scramble(self.index, h as u32);
-        unit(owen_scramble(sobol0(i), (h >> 32) as u32))
+        // The index's Owen scramble i = rev(U(rev(index))), then the first coordinate rev(i)
+        // scrambled: rev(U(rev(rev(i)))) = rev(U(i)), U being `upward_hash`.
+        let i = upward_hash(self.index.reverse_bits(), h as u32).reverse_bits();
+        unit(upward_hash(i, (h >> 32) as u32).reverse_bits())
     }
 
     /// The pair at dimensions `dim` and `dim + 1`, uniform in [0, 1)².
@@ -199,11 +198,16 @@ impl Sampler {
     fn point_2d(&self, index: u32, dim: u32, salt: u64) -> [f32; 2] {
         let h = mix(self.key ^ salt ^ u64::from(dim + 1).wrapping_mul(0xd1b5_4a32_d192_ed03));
         let g = mix(h);
-        let i = owen_scramble(index, h as u32);
-        [
-            unit(owen_scramble(sobol0(i), (h >> 32) as u32)),
-            unit(owen_scramble(sobol1(i), g as u32)),
-        ]
+        // The index's Owen scramble i = rev(U(rev(index))), U being `upward_hash`. Each
+        // coordinate c is then scrambled as rev(U(rev(c))): for the first, c = rev(i), so
+        // rev(c) = i; for the second, rev(c) is `sobol1_reversed(i)`. The two final reversals
+        // share one 64-bit reversal.
+        let i = upward_hash(index.reverse_bits(), h as u32).reverse_bits();
+        let (x, y) = reverse_pair(
+            upward_hash(i, (h >> 32) as u32),
+            upward_hash(sobol1_reversed(i), g as u32),
+        );
+        [unit(x), unit(y)]
     }
 }
 
@@ -234,6 +238,65 @@ impl SamplerLanes {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Nested uniform (Owen) scramble of `v` read as a binary fraction (bit 31 first): each bit
+    /// is flipped or not by a function of `seed` and the bits before it.
+    fn owen_scramble(v: u32, seed: u32) -> u32 {
+        upward_hash(v.reverse_bits(), seed).reverse_bits()
+    }
+
+    /// The first Sobol coordinate of point `i` (a 32-bit fraction): the van der Corput sequence.
+    fn sobol0(i: u32) -> u32 {
+        i.reverse_bits()
+    }
+
+    /// The second Sobol coordinate of point `i` (a 32-bit fraction), from its direction numbers
+    /// one bit at a time.
+    fn sobol1(i: u32) -> u32 {
+        let (mut v, mut x) = (1u32 << 31, 0);
+        for bit in 0..32 {
+            if i & (1 << bit) != 0 {
+                x ^= v;
+            }
+            v ^= v >> 1;
+        }
+        x
+    }
+
+    /// [`Sampler::point_2d`] as the module documentation defines it: the index Owen-scrambled,
+    /// its two Sobol coordinates each Owen-scrambled.
+    fn point_2d_by_definition(s: &Sampler, index: u32, dim: u32, salt: u64) -> [f32; 2] {
+        let h = mix(s.key ^ salt ^ u64::from(dim + 1).wrapping_mul(0xd1b5_4a32_d192_ed03));
+        let g = mix(h);
+        let i = owen_scramble(index, h as u32);
+        [
+            unit(owen_scramble(sobol0(i), (h >> 32) as u32)),
+            unit(owen_scramble(sobol1(i), g as u32)),
+        ]
+    }
+
+    #[test]
+    fn draws_are_the_scrambled_sobol_points_of_the_definition() {
+        let mut z = 0x1234_5678_9abc_def0u64;
+        for n in 0..200_000u32 {
+            z = mix(z.wrapping_add(0x9e37_79b9_7f4a_7c15));
+            let s = Sampler::new(z, z >> 17, (z >> 40) as u32);
+            // Small indices (the common case) and arbitrary ones.
+            let index = if n % 2 == 0 { n % 4096 } else { (z >> 7) as u32 };
+            let (dim, stratum) = ((z % 101) as u32, (z >> 50) as u32);
+            let salt = u64::from(stratum) << 32;
+            assert_eq!(
+                s.point_2d(index, dim, salt),
+                point_2d_by_definition(&s, index, dim, salt)
+            );
+            let h = s.seeds(dim);
+            let one = unit(owen_scramble(
+                sobol0(owen_scramble(s.index, h as u32)),
+                (h >> 32) as u32,
+            ));
+            assert_eq!(s.get1d(dim), one);
+        }
+    }
 
     /// True when `pts` (2^m of them) put one point in every elementary interval of area 2^-m.
     fn is_net(pts: &[[f32; 2]], m: u32) -> bool {

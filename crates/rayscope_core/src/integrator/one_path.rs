@@ -487,7 +487,12 @@ impl<I: Intersect> Integrator<'_, I> {
         if !(self.emitters.any_emission || ambient || specular) {
             return Li::reflected(alone(l, pending));
         }
-        let u0 = cx.rng.get1d(Draw::Lobe.dim(path.vertex()));
+        // A Lambert BRDF has one lobe, so no lobe is drawn (its sample ignores `u0`).
+        let u0 = if bsdf.has_lobes() {
+            cx.rng.get1d(Draw::Lobe.dim(path.vertex()))
+        } else {
+            0.0
+        };
         let [u1, u2] = cx.rng.get2d(Draw::BsdfDirection.dim(path.vertex()));
         let Some(bs) = bsdf.sample(wo, u0, u1, u2) else {
             return Li::reflected(alone(l, pending));
