@@ -820,6 +820,20 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Ok(None);
     }
+    // Records of rayscope's own shape are read straight into their ray.
+    if let Some(r) = fast::ray(bytes, line_no, ctx) {
+        return Ok(Some(r));
+    }
+    parse_general(bytes, line_no, path, ctx)
+}
+
+/// Parses one line that is not blank, whatever its shape.
+fn parse_general(
+    bytes: &[u8],
+    line_no: u64,
+    path: &Path,
+    ctx: &LogContext,
+) -> Result<Option<LoggedRay>, Box<Diagnostic>> {
     // The line as text is needed only for a message, so it is decoded only then.
     let shown = || String::from_utf8_lossy(bytes);
     let err = |col: usize, span: usize, msg: String| {
