@@ -49,10 +49,10 @@ impl Cursor<'_> {
         self.plain_integer(most).map(Some)
     }
 
-    /// A string naming one of `names`, by its index.
+    /// A string naming one of `names` (the names' bytes), by its index.
     #[inline(always)]
-    fn name_in(&mut self, names: &rustc_hash::FxHashMap<String, u32>) -> Option<u32> {
-        names.get(self.string()?).copied()
+    fn name_in(&mut self, names: &rustc_hash::FxHashMap<Box<[u8]>, u32>) -> Option<u32> {
+        names.get(self.string_bytes()?.0).copied()
     }
 
     /// A hit object of the shape: `t`, `point`, `normal` and `entity`, each optional.
@@ -72,7 +72,7 @@ impl Cursor<'_> {
             h.normal = Some(DVec3::from_array(self.vec3()?));
         }
         if self.member(b"\"entity\":", &mut first) {
-            h.entity = Some(self.name_in(&ctx.entities)?);
+            h.entity = Some(self.name_in(&ctx.entity_bytes)?);
         }
         self.lit(b"}").then_some(h)
     }
@@ -93,7 +93,7 @@ impl Cursor<'_> {
         if self.lit(b"true") {
             return Some(Answer::Found(None));
         }
-        Some(Answer::Found(Some(self.name_in(&ctx.entities)?)))
+        Some(Answer::Found(Some(self.name_in(&ctx.entity_bytes)?)))
     }
 
     /// The kind words rayscope writes; `None` for any other string.
@@ -165,7 +165,7 @@ pub(in crate::log) fn ray(bytes: &[u8], line: u64, ctx: &LogContext) -> Option<L
         hit = true;
     }
     if c.member(b"\"light\":", &mut first) {
-        r.light = Some(c.name_in(&ctx.lights)?);
+        r.light = Some(c.name_in(&ctx.light_bytes)?);
     }
     if c.member(b"\"blocked_by\":", &mut first) {
         r.blocked_by = c.shaped_blocker(ctx)?;
