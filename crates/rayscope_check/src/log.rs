@@ -217,6 +217,10 @@ pub struct LogContext {
     lights: FxHashMap<String, u32>,
     light_list: Vec<String>,
     light_positions: Vec<DVec3>,
+    // The same names as bytes: the reader of rayscope's own shape looks a name up before it is
+    // decoded (a name found is the scene's, so it is UTF-8).
+    entity_bytes: FxHashMap<Box<[u8]>, u32>,
+    light_bytes: FxHashMap<Box<[u8]>, u32>,
     /// Image width.
     pub width: u32,
     /// Image height.
@@ -233,7 +237,16 @@ impl LogContext {
     pub fn new(scene: &rayscope_core::Scene, width: u32, height: u32, spp: u32, aa: u32) -> Self {
         let index = |names: &[String]| names.iter().enumerate().map(|(i, n)| (n.clone(), i as u32)).collect();
         let entity_list: Vec<String> = scene.entities.iter().map(|e| e.name.clone()).collect();
+        let bytes = |names: &[String]| {
+            names
+                .iter()
+                .enumerate()
+                .map(|(i, n)| (n.as_bytes().into(), i as u32))
+                .collect()
+        };
         Self {
+            entity_bytes: bytes(&entity_list),
+            light_bytes: bytes(&scene.light_names),
             entities: index(&entity_list),
             entity_list,
             lights: index(&scene.light_names),
@@ -820,6 +833,20 @@ fn parse_line(bytes: &[u8], line_no: u64, path: &Path, ctx: &LogContext) -> Resu
     if bytes.iter().all(u8::is_ascii_whitespace) {
         return Ok(None);
     }
+    // Records of rayscope's own shape are read straight into their ray.
+    if let Some(r) = fast::ray(bytes, line_no, ctx) {
+        return Ok(Some(r));
+    }
+    parse_general(bytes, line_no, path, ctx)
+}
+
+/// Parses one line that is not blank, whatever its shape.
+fn parse_general(
+    bytes: &[u8],
+    line_no: u64,
+    path: &Path,
+    ctx: &LogContext,
+) -> Result<Option<LoggedRay>, Box<Diagnostic>> {
     // The line as text is needed only for a message, so it is decoded only then.
     let shown = || String::from_utf8_lossy(bytes);
     let err = |col: usize, span: usize, msg: String| {

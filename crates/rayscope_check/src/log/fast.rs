@@ -13,6 +13,10 @@ use wide::u8x16;
 
 use super::raw::{BlockerRef, LightRef, RawHit, RawRay};
 
+mod shape;
+
+pub(super) use shape::ray;
+
 /// A position in one record. Only strings can hold bytes outside ASCII (everything else must
 /// be JSON's punctuation, literals and numbers), so each string is checked to be UTF-8 on its
 /// own, and only when it has such a byte.
