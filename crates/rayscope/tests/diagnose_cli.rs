@@ -411,6 +411,9 @@ fn a_turned_picture_is_said_first() {
     let flipped = image::imageops::flip_vertical(&right);
     let mirrored = image::imageops::flip_horizontal(&right);
     let transposed = image::RgbImage::from_fn(48, 64, |x, y| *right.get_pixel(y, x));
+    let half_turn = image::imageops::rotate180(&right);
+    let clockwise = image::imageops::rotate90(&right);
+    let anticlockwise = image::imageops::rotate270(&right);
     for (name, img, flags, code, words) in [
         (
             "flipped.png",
@@ -441,6 +444,27 @@ fn a_turned_picture_is_said_first() {
             "transposed",
             "Your image is 48×64 but the flags ask for 64×48",
         ),
+        (
+            "half-turn.png",
+            &half_turn,
+            &[],
+            "rotated-180",
+            "Your image is turned 180° (upside down and mirrored left to right)",
+        ),
+        (
+            "clockwise.png",
+            &clockwise,
+            &["-w", "64", "-h", "48"],
+            "rotated-clockwise",
+            "Your image is 48×64 but the flags ask for 64×48. Your image is turned 90° clockwise",
+        ),
+        (
+            "anticlockwise.png",
+            &anticlockwise,
+            &[],
+            "rotated-anticlockwise",
+            "Your image is turned 90° anticlockwise",
+        ),
     ] {
         let path = dir.path().join(name);
         img.save(&path).unwrap();
@@ -461,7 +485,13 @@ fn a_turned_picture_is_said_first() {
     assert!(text.contains("your image matches 'image-flipped'"), "{text}");
     // Mirrored and transposed images are judged turned back: nothing else differs, yet as
     // they stand they are wrong (exit 1).
-    for name in ["mirrored.png", "transposed.png"] {
+    for name in [
+        "mirrored.png",
+        "transposed.png",
+        "half-turn.png",
+        "clockwise.png",
+        "anticlockwise.png",
+    ] {
         let (text, d) = diagnosed(&scene, &dir.path().join(name), &["--stage", "2"], 1);
         assert_eq!(
             (d["matches"].as_bool(), d["differing_pixels"].as_u64()),
@@ -475,6 +505,45 @@ fn a_turned_picture_is_said_first() {
                 .starts_with("Turned back, your image matches rayscope's render"),
             "{name}: {text}"
         );
+    }
+}
+
+/// Channels written in another order (a bitmap's BGR memory, a slip in a colour constructor)
+/// are said first, with the order; the rest is judged with the channels put back.
+#[test]
+fn channels_in_another_order_are_said_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    for (name, order, words) in [
+        (
+            "bgr.png",
+            [2usize, 1, 0],
+            "Your image's colour channels are in the order blue, green, red: red and blue exchanged",
+        ),
+        (
+            "gbr.png",
+            [1, 2, 0],
+            "Your image's colour channels are in the order green, blue, red: your red byte holds green, your green byte holds blue, your blue byte holds red",
+        ),
+    ] {
+        let swapped = image::RgbImage::from_fn(64, 48, |x, y| {
+            let p = right.get_pixel(x, y).0;
+            image::Rgb([p[order[0]], p[order[1]], p[order[2]]])
+        });
+        let path = dir.path().join(name);
+        swapped.save(&path).unwrap();
+        let (text, d) = diagnosed(&scene, &path, &["--stage", "2"], 1);
+        let mut lines = text.lines();
+        assert!(lines.next().unwrap().starts_with(words), "{name}: {text}");
+        assert!(
+            lines
+                .next()
+                .unwrap()
+                .starts_with("With its channels in order, your image matches rayscope's render: identical"),
+            "{name}: {text}"
+        );
+        assert_eq!(obvious_codes(&d), ["channels"], "{name}: {d:#}");
+        assert_eq!(d["obvious"][0]["turned_back"], true, "{d:#}");
     }
 }
 

@@ -52,6 +52,7 @@ mod explained;
 mod families;
 mod fov;
 mod offset;
+mod scale;
 mod ties;
 
 pub use acne::Recognised;
@@ -265,13 +266,17 @@ impl TieSummary {
 /// Something plain about the image that [`diagnose`] says before any search.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Obvious {
-    /// What it is: `black`, `white`, `constant`, `transposed`, `upside-down`, `mirrored`,
-    /// `gamma` or `alpha`.
+    /// What it is: `black`, `white`, `constant`, `transposed`, `rotated-clockwise`,
+    /// `rotated-anticlockwise`, `anti-transposed`, `rotated-180`, `upside-down`, `mirrored`,
+    /// `channels`, `gamma` or `alpha`.
     pub code: &'static str,
     /// One line for the student, with the figures that show it.
     pub text: String,
     /// Those figures by name (PSNRs in dB, counts of pixels, colours in levels).
     pub numbers: BTreeMap<&'static str, f64>,
+    /// True when the rest of the diagnosis judges the image turned back (mirrored, rotated,
+    /// transposed) or with its channels put back in order.
+    pub turned_back: bool,
 }
 
 impl Obvious {
@@ -279,6 +284,7 @@ impl Obvious {
         Obvious {
             code,
             text,
+            turned_back: code == "channels" || TURNS.iter().any(|t| t.code == code && t.code != "upside-down"),
             // Two decimals, as the other PSNRs; an identical image's infinite PSNR is `null`.
             numbers: numbers
                 .iter()
@@ -287,9 +293,12 @@ impl Obvious {
         }
     }
 
-    /// True when the rest of the diagnosis judges the image turned back (mirrored, transposed).
-    fn turned_back(&self) -> bool {
-        matches!(self.code, "mirrored" | "transposed")
+    /// The finding with the report's note that what follows judges the image turned back.
+    fn judged_turned_back(mut self) -> Obvious {
+        if self.turned_back {
+            self.text.push_str(" The rest of this report judges it turned back.");
+        }
+        self
     }
 
     /// Rank in the report: what makes the rest meaningless first.
@@ -299,8 +308,13 @@ impl Obvious {
             "white",
             "constant",
             "transposed",
+            "rotated-clockwise",
+            "rotated-anticlockwise",
+            "anti-transposed",
+            "rotated-180",
             "upside-down",
             "mirrored",
+            "channels",
             "gamma",
             "alpha",
         ]
@@ -401,38 +415,161 @@ fn alpha_finding(alpha: &[u8], w: u32, h: u32) -> Option<Obvious> {
     ))
 }
 
-/// An RGB8 image of `w`×`h` upside down.
-fn flip_rows(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
-    let row = (w * 3) as usize;
-    (0..h as usize)
-        .rev()
-        .flat_map(|y| rgb[y * row..(y + 1) * row].iter().copied())
-        .collect()
+/// One of the seven ways a picture can be turned or mirrored (the symmetries of a rectangle
+/// other than leaving it alone), as the way to turn a stored image back: exchange its rows and
+/// columns first (`swap`), then reverse its columns (`flip_x`) and its rows (`flip_y`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Turn {
+    /// The finding's code.
+    code: &'static str,
+    swap: bool,
+    flip_x: bool,
+    flip_y: bool,
 }
 
-/// An RGB8 image of `w`×`h` mirrored left to right.
-fn mirror_columns(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
-    let mut out = Vec::with_capacity(rgb.len());
-    for y in 0..h {
-        for x in (0..w).rev() {
-            let p = ((y * w + x) * 3) as usize;
-            out.extend_from_slice(&rgb[p..p + 3]);
+/// Every turn [`diagnose`] tries, those that keep the image's size first.
+const TURNS: [Turn; 7] = [
+    Turn {
+        code: "upside-down",
+        swap: false,
+        flip_x: false,
+        flip_y: true,
+    },
+    Turn {
+        code: "mirrored",
+        swap: false,
+        flip_x: true,
+        flip_y: false,
+    },
+    Turn {
+        code: "rotated-180",
+        swap: false,
+        flip_x: true,
+        flip_y: true,
+    },
+    Turn {
+        code: "transposed",
+        swap: true,
+        flip_x: false,
+        flip_y: false,
+    },
+    Turn {
+        code: "rotated-clockwise",
+        swap: true,
+        flip_x: true,
+        flip_y: false,
+    },
+    Turn {
+        code: "rotated-anticlockwise",
+        swap: true,
+        flip_x: false,
+        flip_y: true,
+    },
+    Turn {
+        code: "anti-transposed",
+        swap: true,
+        flip_x: true,
+        flip_y: true,
+    },
+];
+
+impl Turn {
+    /// The first sentence of the finding, with `figures` (how close the turned image is).
+    fn sentence(self, figures: &str) -> String {
+        match self.code {
+            "upside-down" => format!(
+                "Your image is upside down: flipped vertically it is {figures}; a PNG's first row is the top of the picture."
+            ),
+            "mirrored" => format!(
+                "Your image is mirrored left to right: mirrored back it is {figures}; check the sign of the camera's x axis."
+            ),
+            "rotated-180" => format!(
+                "Your image is turned 180° (upside down and mirrored left to right): turned back it is {figures}; both image axes run the wrong way, so check the signs of the camera's x and y axes (a PNG's first row is the top of the picture)."
+            ),
+            "transposed" => format!(
+                "Your image has rows and columns exchanged: transposed it is {figures}; swap x and y where you write pixels."
+            ),
+            "rotated-clockwise" => format!(
+                "Your image is turned 90° clockwise: turned back it is {figures}; x and y are exchanged where you write pixels, and one of them runs from the other end."
+            ),
+            "rotated-anticlockwise" => format!(
+                "Your image is turned 90° anticlockwise: turned back it is {figures}; x and y are exchanged where you write pixels, and one of them runs from the other end."
+            ),
+            _ => format!(
+                "Your image is mirrored across its other diagonal (rows and columns exchanged, both reversed): turned back it is {figures}; x and y are exchanged where you write pixels and both run the wrong way."
+            ),
         }
     }
-    out
+
+    /// The stored `w`×`h` RGB8 image turned back, with its size.
+    fn back(self, rgb: &[u8], w: u32, h: u32) -> (Vec<u8>, u32, u32) {
+        let (ow, oh) = if self.swap { (h, w) } else { (w, h) };
+        let mut out = Vec::with_capacity(rgb.len());
+        for y in 0..oh {
+            for x in 0..ow {
+                let (mut sx, mut sy) = if self.swap { (y, x) } else { (x, y) };
+                if self.flip_x {
+                    sx = w - 1 - sx;
+                }
+                if self.flip_y {
+                    sy = h - 1 - sy;
+                }
+                let p = ((sy * w + sx) * 3) as usize;
+                out.extend_from_slice(&rgb[p..p + 3]);
+            }
+        }
+        (out, ow, oh)
+    }
 }
 
-/// An RGB8 image of `w`×`h` with rows and columns exchanged: `h`×`w`, pixel (x, y) the
-/// image's (y, x).
-fn transpose(rgb: &[u8], w: u32, h: u32) -> Vec<u8> {
-    let mut out = Vec::with_capacity(rgb.len());
-    for x in 0..w {
-        for y in 0..h {
-            let p = ((y * w + x) * 3) as usize;
-            out.extend_from_slice(&rgb[p..p + 3]);
-        }
-    }
-    out
+/// The orders other than red, green, blue a writer may put the channels in: stored channel `i`
+/// holds rayscope's channel `order[i]`.
+const ORDERS: [[usize; 3]; 5] = [[2, 1, 0], [1, 0, 2], [0, 2, 1], [1, 2, 0], [2, 0, 1]];
+
+/// A channel's name for a report line.
+const CHANNEL: [&str; 3] = ["red", "green", "blue"];
+
+/// Colour channels stored in another order than red, green, blue, said when putting them back
+/// in order brings the `w`×`h` image `judged` at least [`PLAIN_DB`] and [`PLAIN_GAIN_DB`]
+/// closer to rayscope's render `ours`; `judged` is then put back in order.
+fn channels_finding(ours: &[u8], judged: &mut Vec<u8>, w: u32, h: u32) -> Option<Obvious> {
+    let as_is = Metrics::of(ours, judged, w, h, BLOCK, true);
+    let (order, back, m) = ORDERS
+        .iter()
+        .map(|&order| {
+            let mut back = vec![0u8; judged.len()];
+            for (b, p) in back.chunks_exact_mut(3).zip(judged.chunks_exact(3)) {
+                for c in 0..3 {
+                    b[order[c]] = p[c];
+                }
+            }
+            let m = Metrics::of(ours, &back, w, h, BLOCK, true);
+            (order, back, m)
+        })
+        .max_by(|a, b| a.2.score().total_cmp(&b.2.score()))
+        .filter(|(.., m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB)?;
+    let stored: Vec<&str> = order.iter().map(|&c| CHANNEL[c]).collect();
+    let which = if order == [2, 1, 0] {
+        "red and blue exchanged (BGR: a bitmap's memory or a library that stores BGR, like OpenCV's imwrite, takes blue first)".to_string()
+    } else {
+        let moved: Vec<String> = (0..3)
+            .filter(|&c| order[c] != c)
+            .map(|c| format!("your {} byte holds {}", CHANNEL[c], CHANNEL[order[c]]))
+            .collect();
+        moved.join(", ")
+    };
+    let text = format!(
+        "Your image's colour channels are in the order {}: {which}; put back in order it is {} rayscope's render (PSNR {} as stored). Write red, green, blue. The rest of this report judges it with its channels in order.",
+        stored.join(", "),
+        closeness(m.psnr),
+        db_text(as_is.psnr)
+    );
+    *judged = back;
+    Some(Obvious::new(
+        "channels",
+        text,
+        &[("psnr_db_turned", m.psnr), ("psnr_db_as_stored", as_is.psnr)],
+    ))
 }
 
 /// A student's image: 8-bit RGB, row-major from the top-left.
@@ -505,6 +642,9 @@ enum Atom {
     /// Shadow rays (`false`) or every ray leaving a surface (`true`) started this far off it
     /// (an `f32`'s bits), fitted to the picture.
     Offset(u32, bool),
+    /// Every colour multiplied by this factor (an `f32`'s bits), fitted to the picture, in a
+    /// scene with this many point lights.
+    Scale(u32, u32),
 }
 
 /// A candidate render: the flags' settings with some atoms applied.
@@ -529,6 +669,7 @@ impl Candidate {
                 Atom::Setting(SettingChange::FovDeg(bits)) => s.camera.fov_deg = f32::from_bits(bits),
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
                 Atom::Offset(bits, every) => s.mistakes = offset::with(s.mistakes, f32::from_bits(bits), every),
+                Atom::Scale(bits, _) => s.mistakes = s.mistakes.with_colour_scale(f32::from_bits(bits)),
             }
         }
         s
@@ -540,7 +681,7 @@ impl Candidate {
             .iter()
             .map(|a| match a {
                 Atom::Setting(_) => 0.25,
-                Atom::Mistake(_) | Atom::Offset(..) => 0.5,
+                Atom::Mistake(_) | Atom::Offset(..) | Atom::Scale(..) => 0.5,
             })
             .sum()
     }
@@ -561,6 +702,11 @@ impl Candidate {
                     let e = f32::from_bits(bits);
                     mistakes.push(offset::with(Mistakes::NONE, e, every).to_string());
                     words.push(offset::words(e, every));
+                }
+                Atom::Scale(bits, lights) => {
+                    let k = f32::from_bits(bits);
+                    mistakes.push(Mistakes::NONE.with_colour_scale(k).to_string());
+                    words.push(scale::words(k, lights as usize, base.aa));
                 }
                 Atom::Setting(c) => {
                     let (flag, word) = match c {
@@ -690,6 +836,7 @@ fn exclusive(a: Atom, b: Atom) -> bool {
         Atom::Mistake(M::GlassReflectionAlongRay | M::GlassReflectionOutward) => 6,
         Atom::Mistake(M::NearestByOriginDistance | M::FirstHitInSceneOrder) => 7,
         Atom::Mistake(_) => 0,
+        Atom::Scale(..) => 8,
     };
     // A never-reset sum turns the picture white whatever else is wrong: no pair can tell.
     let whitens = |x: Atom| x == Atom::Mistake(M::AccumulatorNotReset);
@@ -1003,45 +1150,51 @@ pub fn diagnose(
     };
     let constant = plain.is_some();
     if swapped {
-        let t = transpose(image.rgb, iw, ih);
-        let m = Metrics::of(&ours, &t, w, h, BLOCK, true);
-        if m.score() < PLAIN_DB {
+        // Width and height exchanged: one of the four turns that exchange them, at the flags' size.
+        let best = TURNS
+            .iter()
+            .filter(|t| t.swap)
+            .map(|&t| {
+                let (back, ..) = t.back(image.rgb, iw, ih);
+                let m = Metrics::of(&ours, &back, w, h, BLOCK, true);
+                (t, back, m)
+            })
+            .max_by(|a, b| a.2.score().total_cmp(&b.2.score()))
+            .filter(|(.., m)| m.score() >= PLAIN_DB);
+        let Some((turn, back, m)) = best else {
             return Err(size_error);
-        }
+        };
         obvious.push(Obvious::new(
-            "transposed",
+            turn.code,
             format!(
-                "Your image is {iw}×{ih} but the flags ask for {w}×{h}: transposed back it is {} rayscope's render, so rows and columns are exchanged; swap x and y where you write pixels. The rest of this report judges it transposed back.",
-                closeness(m.psnr)
+                "Your image is {iw}×{ih} but the flags ask for {w}×{h}. {} The rest of this report judges it turned back.",
+                turn.sentence(&format!("{} rayscope's render", closeness(m.psnr)))
             ),
             &[("psnr_db_turned", m.psnr), ("width", f64::from(iw)), ("height", f64::from(ih))],
         ));
-        judged = t;
+        judged = back;
     } else if let Some(p) = plain {
         obvious.push(p);
     } else {
         let as_is = Metrics::of(&ours, &judged, w, h, BLOCK, true);
         if !ties::judge(scenes.get(base.mistakes), &base, &ours, &judged, false).matches {
-            let flipped = flip_rows(&judged, w, h);
-            let mirrored = mirror_columns(&judged, w, h);
             let other = RenderSettings {
                 width: h,
                 height: w,
                 ..base
             };
             let theirs_t = if w == h { ours.clone() } else { full(&scenes, &other) };
-            let t = transpose(&judged, w, h);
-            let turns = [
-                ("upside-down", Metrics::of(&ours, &flipped, w, h, BLOCK, true)),
-                ("mirrored", Metrics::of(&ours, &mirrored, w, h, BLOCK, true)),
-                ("transposed", Metrics::of(&theirs_t, &t, h, w, BLOCK, true)),
-            ];
-            let best = turns
+            let best = TURNS
                 .iter()
-                .max_by(|a, b| a.1.score().total_cmp(&b.1.score()))
-                .filter(|(_, m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB);
-            if let Some(&(code, m)) = best {
-                let render = if w == h || code != "transposed" {
+                .map(|&t| {
+                    let (back, bw, bh) = t.back(&judged, w, h);
+                    let m = Metrics::of(if t.swap { &theirs_t } else { &ours }, &back, bw, bh, BLOCK, true);
+                    (t, back, m)
+                })
+                .max_by(|a, b| a.2.score().total_cmp(&b.2.score()))
+                .filter(|(.., m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB);
+            if let Some((turn, back, m)) = best {
+                let render = if w == h || !turn.swap {
                     "rayscope's render".to_string()
                 } else {
                     format!("rayscope's render at {h}×{w}")
@@ -1051,33 +1204,25 @@ pub fn diagnose(
                     closeness(m.psnr),
                     db_text(as_is.psnr)
                 );
-                let text = match code {
-                    "upside-down" => format!(
-                        "Your image is upside down: flipped vertically it is {figures}; a PNG's first row is the top of the picture."
-                    ),
-                    "mirrored" => format!(
-                        "Your image is mirrored left to right: mirrored back it is {figures}; check the sign of the camera's x axis. The rest of this report judges it mirrored back."
-                    ),
-                    _ => format!(
-                        "Your image has rows and columns exchanged: transposed it is {figures}; swap x and y where you write pixels. The rest of this report judges it transposed."
-                    ),
-                };
-                obvious.push(Obvious::new(
-                    code,
-                    text,
+                let finding = Obvious::new(
+                    turn.code,
+                    turn.sentence(&figures),
                     &[("psnr_db_turned", m.psnr), ("psnr_db_as_stored", as_is.psnr)],
-                ));
-                match code {
-                    "mirrored" => judged = mirrored,
-                    "transposed" => {
-                        judged = t;
+                );
+                // Upside down is judged as stored: the catalogue's 'image-flipped' is that mistake.
+                if finding.turned_back {
+                    judged = back;
+                    if turn.swap {
                         base = other;
                         ours = theirs_t;
                         (w, h) = (base.width, base.height);
                     }
-                    _ => {}
                 }
+                obvious.push(finding.judged_turned_back());
             }
+        }
+        if let Some(finding) = channels_finding(&ours, &mut judged, w, h) {
+            obvious.push(finding);
         }
         let now = Metrics::of(&ours, &judged, w, h, BLOCK, true);
         if !base.mistakes.has(Mistake::Gamma)
@@ -1192,6 +1337,11 @@ pub fn diagnose(
         explanations = found;
         tried += n;
         if explanations.first().is_none_or(|e| !e.cause) && !constant {
+            let (fitted, n) = fitted_scale(&scenes, &base, image, &ours, &full);
+            tried += n;
+            explanations.splice(0..0, fitted);
+        }
+        if explanations.first().is_none_or(|e| !e.cause) && !constant {
             let (fitted, n) = fitted_fov(&scenes, &base, image, &full);
             tried += n;
             explanations.splice(0..0, fitted);
@@ -1232,7 +1382,7 @@ pub fn diagnose(
             .collect()
     };
     // An image that matches only turned back is still wrong as it stands.
-    let turned = obvious.iter().any(Obvious::turned_back);
+    let turned = obvious.iter().any(|o| o.turned_back);
     let next = if matches || best.is_some_and(|e| e.cause) || only_allowed(&fitted) {
         None
     } else {
@@ -1288,6 +1438,38 @@ fn fitted_fov(
     for f in fov::round_first(fitted) {
         tried += 1;
         let c = Candidate(vec![Atom::Setting(SettingChange::FovDeg(f.to_bits()))]);
+        let s = c.settings(base);
+        let bytes = full(scenes, &s);
+        if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
+            let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
+            return (Some(c.explain(base, m, true)), tried);
+        }
+    }
+    (None, tried)
+}
+
+/// Renders the colour-scale fit tries, and the explanation it is when its render matches
+/// `image` (the tie rule): every colour of rayscope's render `ours` multiplied by the factor
+/// [`scale::estimate`] reads from the bytes, round values first.
+fn fitted_scale(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    ours: &[u8],
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+) -> (Option<Explanation>, usize) {
+    if base.mistakes.colour_scale().is_some() {
+        return (None, 0);
+    }
+    let Some(k) = scale::estimate(ours, image.rgb) else {
+        return (None, 0);
+    };
+    let scene = scenes.get(base.mistakes);
+    let lights = scene.lights.len();
+    let mut tried = 0;
+    for f in scale::candidates(k, lights, base.aa) {
+        tried += 1;
+        let c = Candidate(vec![Atom::Scale(f.to_bits(), lights as u32)]);
         let s = c.settings(base);
         let bytes = full(scenes, &s);
         if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
@@ -1804,9 +1986,11 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         }
         None => String::new(),
     };
-    let turned = d.obvious.iter().any(Obvious::turned_back);
-    let yours = if turned {
+    let turned = d.obvious.iter().any(|o| o.turned_back);
+    let yours = if d.obvious.iter().any(|o| o.turned_back && o.code != "channels") {
         "Turned back, your image"
+    } else if turned {
+        "With its channels in order, your image"
     } else {
         "Your image"
     };
@@ -2111,14 +2295,41 @@ mod tests {
 
     #[test]
     fn plain_findings_name_their_figures() {
-        // A 3×2 image: turned three ways, each undone by itself.
-        let img: Vec<u8> = (0..18).collect();
-        assert_eq!(flip_rows(&flip_rows(&img, 3, 2), 3, 2), img);
-        assert_eq!(&flip_rows(&img, 3, 2)[..9], &img[9..]);
-        assert_eq!(&mirror_columns(&img, 3, 2)[..3], &img[6..9]);
-        let t = transpose(&img, 3, 2);
-        assert_eq!(&t[3..6], &img[9..12], "pixel (1, 0) of the 2×3 is (0, 1) of the 3×2");
-        assert_eq!(transpose(&t, 2, 3), img);
+        // A 3×2 render turned each of the seven ways (written out pixel by pixel as a tracer
+        // would store it), then turned back by its turn.
+        let (w, h) = (3u32, 2u32);
+        let render: Vec<u8> = (0..18).collect();
+        let at = |x: u32, y: u32| render[((y * w + x) * 3) as usize..][..3].to_vec();
+        let stored = |code: &str| -> (Vec<u8>, u32, u32) {
+            let (sw, sh) = if matches!(code, "upside-down" | "mirrored" | "rotated-180") {
+                (w, h)
+            } else {
+                (h, w)
+            };
+            let mut out = Vec::new();
+            for y in 0..sh {
+                for x in 0..sw {
+                    out.extend(match code {
+                        "upside-down" => at(x, h - 1 - y),
+                        "mirrored" => at(w - 1 - x, y),
+                        "rotated-180" => at(w - 1 - x, h - 1 - y),
+                        "transposed" => at(y, x),
+                        "rotated-clockwise" => at(y, h - 1 - x),
+                        "rotated-anticlockwise" => at(w - 1 - y, x),
+                        _ => at(w - 1 - y, h - 1 - x),
+                    });
+                }
+            }
+            (out, sw, sh)
+        };
+        for turn in TURNS {
+            let (img, sw, sh) = stored(turn.code);
+            assert_ne!(img, render, "{}", turn.code);
+            assert_eq!(turn.back(&img, sw, sh), (render.clone(), w, h), "{}", turn.code);
+        }
+        // Rotated clockwise, the render's top row is the stored image's right column.
+        let (cw, ..) = stored("rotated-clockwise");
+        assert_eq!(&cw[3..6], &render[..3], "stored (1, 0) is the render's (0, 0)");
 
         let ours = [0u8, 0, 0, 200, 100, 50, 0, 0, 0, 0, 0, 0];
         let black = plain_colour(&[0; 12], &ours, 2, 2).expect("black");

@@ -500,11 +500,12 @@ impl Mistake {
     }
 }
 
-/// A set of [`Mistake`]s, and an offset of the student's own where one is given — for shadow
-/// rays (`shadow-offset=E`) or for every ray leaving a surface (`ray-offset=E`); empty for a
-/// correct render. Serialised as a list of names.
+/// A set of [`Mistake`]s, an offset of the student's own where one is given — for shadow
+/// rays (`shadow-offset=E`) or for every ray leaving a surface (`ray-offset=E`) — and a factor
+/// every colour is multiplied by where one is given (`colour-scale=K`); empty for a correct
+/// render. Serialised as a list of names.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Default)]
-pub struct Mistakes(u64, u32, bool);
+pub struct Mistakes(u64, u32, bool, u32);
 
 /// The name a shadow-ray offset of the student's own goes by: `shadow-offset=0.02`.
 const SHADOW_OFFSET: &str = "shadow-offset";
@@ -513,22 +514,28 @@ const SHADOW_OFFSET: &str = "shadow-offset";
 /// `ray-offset=0.02`.
 const RAY_OFFSET: &str = "ray-offset";
 
+/// The name a factor every colour is multiplied by goes by: `colour-scale=0.5`.
+const COLOUR_SCALE: &str = "colour-scale";
+
+/// The largest colour scale `colour-scale=K` takes: at 256 every lit byte is already 255.
+const MAX_COLOUR_SCALE: f32 = 256.0;
+
 impl Mistakes {
     /// No mistakes: the correct render.
-    pub const NONE: Mistakes = Mistakes(0, 0, false);
+    pub const NONE: Mistakes = Mistakes(0, 0, false, 0);
 
     /// True for the correct render.
     #[must_use]
     #[inline]
     pub fn is_empty(&self) -> bool {
-        self.0 == 0 && self.1 == 0
+        self.0 == 0 && self.1 == 0 && self.3 == 0
     }
 
     /// The set with shadow rays started `offset` scene units off the surface along its normal
     /// (the light's direction still taken from the hit point), a student's own epsilon.
     #[must_use]
     pub fn with_shadow_offset(self, offset: f32) -> Mistakes {
-        Mistakes(self.0, offset.to_bits(), false)
+        Mistakes(self.0, offset.to_bits(), false, self.3)
     }
 
     /// The set with every ray leaving a surface — shadow, mirror, glass's reflected and
@@ -536,7 +543,7 @@ impl Mistakes {
     /// travels: a student's own epsilon used everywhere.
     #[must_use]
     pub fn with_ray_offset(self, offset: f32) -> Mistakes {
-        Mistakes(self.0, offset.to_bits(), true)
+        Mistakes(self.0, offset.to_bits(), true, self.3)
     }
 
     /// The offset of the student's own that shadow rays start at, where one is given (by
@@ -555,6 +562,20 @@ impl Mistakes {
         (self.1 != 0 && self.2).then(|| f32::from_bits(self.1))
     }
 
+    /// The set with every colour multiplied by `k` before it is written as bytes: a student's
+    /// lights divided by their count, samples divided by the wrong count, any one factor.
+    #[must_use]
+    pub fn with_colour_scale(self, k: f32) -> Mistakes {
+        Mistakes(self.0, self.1, self.2, k.to_bits())
+    }
+
+    /// The factor every colour is multiplied by, where one is given (`colour-scale=K`).
+    #[must_use]
+    #[inline]
+    pub fn colour_scale(self) -> Option<f32> {
+        (self.3 != 0).then(|| f32::from_bits(self.3))
+    }
+
     /// True when `m` is in the set.
     #[must_use]
     #[inline(always)]
@@ -565,7 +586,7 @@ impl Mistakes {
     /// The set with `m` added.
     #[must_use]
     pub fn with(self, m: Mistake) -> Mistakes {
-        Mistakes(self.0 | m.bit(), self.1, self.2)
+        Mistakes(self.0 | m.bit(), self.1, self.2, self.3)
     }
 
     /// The mistakes in catalogue order.
@@ -576,7 +597,7 @@ impl Mistakes {
     /// Number of mistakes in the set, an offset of the student's own included.
     #[must_use]
     pub fn len(&self) -> usize {
-        self.0.count_ones() as usize + usize::from(self.1 != 0)
+        self.0.count_ones() as usize + usize::from(self.1 != 0) + usize::from(self.3 != 0)
     }
 
     /// The set's names in catalogue order, then the offset of the student's own
@@ -586,12 +607,16 @@ impl Mistakes {
         if let Some(e) = self.shadow_offset() {
             out.push(format!("{}={e}", if self.2 { RAY_OFFSET } else { SHADOW_OFFSET }));
         }
+        if let Some(k) = self.colour_scale() {
+            out.push(format!("{COLOUR_SCALE}={k}"));
+        }
         out
     }
 
     /// Parses comma-separated names (`no-tir,gamma`; `shadow-offset=E` for shadow rays and
     /// `ray-offset=E` for every ray leaving a surface started that far off it, a positive number
-    /// below 1); the error names the unknown one and lists the valid names.
+    /// below 1; `colour-scale=K` for every colour multiplied by K); the error names the unknown
+    /// one and lists the valid names.
     pub fn parse(s: &str) -> Result<Mistakes, String> {
         let mut set = Mistakes::NONE;
         for name in s.split(',').map(str::trim).filter(|n| !n.is_empty()) {
@@ -609,6 +634,17 @@ impl Mistakes {
                     }
                 }
             }
+            if let Some(v) = name.strip_prefix(COLOUR_SCALE).and_then(|r| r.strip_prefix('=')) {
+                match v.parse::<f32>() {
+                    Ok(k) if k > 0.0 && k <= MAX_COLOUR_SCALE && k != 1.0 => set = set.with_colour_scale(k),
+                    _ => {
+                        return Err(format!(
+                            "'{name}': expected {COLOUR_SCALE}=K with K a number greater than 0, at most {MAX_COLOUR_SCALE} and not 1"
+                        ))
+                    }
+                }
+                continue;
+            }
             if name.starts_with(&format!("{SHADOW_OFFSET}=")) || name.starts_with(&format!("{RAY_OFFSET}=")) {
                 continue;
             }
@@ -617,7 +653,7 @@ impl Mistakes {
                 None => {
                     let names: Vec<&str> = Mistake::ALL.iter().map(|m| m.name()).collect();
                     return Err(format!(
-                        "unknown mistake '{name}'; expected one of: {}, {SHADOW_OFFSET}=E or {RAY_OFFSET}=E (`rayscope mistakes` describes them)",
+                        "unknown mistake '{name}'; expected one of: {}, {SHADOW_OFFSET}=E, {RAY_OFFSET}=E or {COLOUR_SCALE}=K (`rayscope mistakes` describes them)",
                         names.join(", ")
                     ));
                 }
@@ -671,6 +707,9 @@ impl Mistakes {
     #[inline]
     pub fn output(self, v: Vec3) -> Vec3 {
         let mut v = v;
+        if let Some(k) = self.colour_scale() {
+            v *= k;
+        }
         if self.has(Mistake::Gamma) {
             v = Vec3::new(gamma(v.x), gamma(v.y), gamma(v.z));
         }
@@ -683,7 +722,7 @@ impl Mistakes {
     /// True when [`Self::output`] changes colours.
     #[must_use]
     pub(crate) fn changes_output(self) -> bool {
-        self.has(Mistake::Gamma) || self.has(Mistake::RoundedColours)
+        self.has(Mistake::Gamma) || self.has(Mistake::RoundedColours) || self.3 != 0
     }
 
     /// Applies the film-wide mistakes to `film`: the never-reset sum, which makes each pixel the

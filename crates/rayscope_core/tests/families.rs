@@ -331,3 +331,46 @@ fn an_offset_of_the_student_s_own_for_every_ray_is_fitted_back() {
         "the command renders it\n{text}"
     );
 }
+
+/// Lights averaged instead of added (uncatalogued) darken the whole of course scene 2, with its
+/// two lights, by one factor: fitted as 0.5, confirmed, and named by how it comes about.
+#[test]
+fn lights_averaged_are_fitted_as_one_factor() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let opts = Options::new(160, 120);
+    let (d, text) = searched(&path, &["lights-averaged"], opts);
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause && e.matches, "{text}");
+    assert_eq!(e.mistakes, ["colour-scale=0.5"], "{text}");
+    assert!(
+        text.starts_with("Explained: your image is rayscope's render with every colour multiplied by 0.5 before it is written as bytes (the whole picture darker by that one factor) — the sum over the 2 lights divided by their number"),
+        "{text}"
+    );
+    assert!(
+        text.contains("--mistake colour-scale=0.5"),
+        "the command renders it\n{text}"
+    );
+}
+
+/// The -x 2 grid's four samples divided by 2 (uncatalogued): twice as bright, clipped where
+/// rayscope's colour is over one half, fitted as 2 and named.
+#[test]
+fn samples_divided_by_n_are_fitted_as_one_factor() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let opts = Options {
+        aa: 2,
+        ..Options::new(96, 72)
+    };
+    let (d, text) = searched(&course.scene("sample_scene_1.txt"), &["samples-divided-by-n"], opts);
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause && e.matches, "{text}");
+    assert_eq!(e.mistakes, ["colour-scale=2"], "{text}");
+    assert!(
+        text.contains("the -x 2 grid's 4 samples divided by 2 instead of 4 gives exactly this"),
+        "{text}"
+    );
+}

@@ -218,7 +218,9 @@ impl Student {
                     }
                 }
                 total = sum;
-                let c = sum / (n * n) as f64;
+                // Uncatalogued: the samples' sum divided by n, not by the n² samples.
+                let count = if self.bug("samples-divided-by-n") { n } else { n * n };
+                let c = sum / count as f64;
                 for v in [c.x, c.y, c.z] {
                     out.push(self.byte(v));
                 }
@@ -372,6 +374,10 @@ impl Student {
         }
         if self.bug("ambient-term") {
             c += color * 0.1;
+        }
+        // Uncatalogued: the lights' sum averaged instead of added.
+        if self.bug("lights-averaged") {
+            c /= self.lights.len().max(1) as f64;
         }
         c
     }

@@ -841,9 +841,10 @@ function compareDiagnosis(d) {
   // What is plain about the image (black, upside down, alpha, gamma…) comes first, before the search's verdict.
   const obvious = r.obvious || [];
   for (const o of obvious) box.append(el("p", { class: "obvious", "data-code": o.code }, el("b", {}, o.text)));
-  const turned = obvious.some((o) => o.code === "mirrored" || o.code === "transposed");
+  const turned = obvious.some((o) => o.turned_back);
   const plain = obvious.find((o) => ["black", "white", "constant"].includes(o.code));
-  const yours = turned ? "Turned back, your image" : "Your image";
+  const yours = obvious.some((o) => o.turned_back && o.code !== "channels") ? "Turned back, your image"
+    : turned ? "With its channels in order, your image" : "Your image";
   // The match rule is the ties' (docs/mistakes.md): turned back, no pixel beyond them is a match too.
   if (r.matches || (turned && !r.explanations.length && r.ties.beyond_ties === 0)) {
     box.className = r.matches ? "diagnosis ok" : "diagnosis bad";
