@@ -385,7 +385,7 @@ impl LogNext {
     }
 
     /// For a log of `camera_rays` camera rays of a `width`×`height` picture of `spp` samples a
-    /// pixel, when it lacks some: a grid of about [`GRID_PIXELS`] pixels to log instead, or the
+    /// pixel, when it lacks some: a grid of about `GRID_PIXELS` pixels to log instead, or the
     /// picture to give; `None` for a log of every sample.
     #[must_use]
     pub fn sparse(

@@ -51,7 +51,7 @@ const MAX_GROUP: usize = 1 << 14;
 
 /// Most rays of unfinished pixel samples held at once (280 bytes a ray: 70 MiB, and up to twice
 /// that with their vectors' spare room), after each batch is grouped: a log written
-/// sample after sample holds about [`WINDOW`] rays, and one from a tracer whose threads interleave
+/// sample after sample holds about `WINDOW` rays, and one from a tracer whose threads interleave
 /// their samples' rays (64 threads, each with a sample of up to 3,000 rays in flight) fits
 /// comfortably. A log that interleaves more is refused with a note on how to write it.
 pub const MAX_PENDING_RAYS: usize = 4 * WINDOW as usize;

@@ -79,7 +79,7 @@ impl StderrTail {
 /// What the program wrote to stderr, as shown in an error.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Stderr {
-    /// Its last lines (at most [`STDERR_LINES`], each cut to [`STDERR_LINE_CHARS`] characters,
+    /// Its last lines (at most `STDERR_LINES`, each cut to `STDERR_LINE_CHARS` characters,
     /// control characters replaced).
     pub lines: Vec<String>,
     /// Bytes it wrote in all.
