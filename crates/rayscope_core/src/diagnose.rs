@@ -1434,10 +1434,27 @@ fn fitted_fov(
     let Some(fitted) = fov::fit(base.width, base.height, image.rgb, base.camera.fov_deg, &render) else {
         return (None, 1);
     };
-    let mut tried = 1;
-    for f in fov::round_first(fitted) {
+    let atoms = fov::round_first(fitted)
+        .into_iter()
+        .map(|f| Atom::Setting(SettingChange::FovDeg(f.to_bits())));
+    let (found, n) = first_confirmed(scenes, base, image, full, atoms);
+    (found, 1 + n)
+}
+
+/// The first of `atoms` whose full render matches `image` by the tie rule, as the explanation
+/// it is, and how many were rendered.
+fn first_confirmed(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: Image<'_>,
+    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    atoms: impl IntoIterator<Item = Atom>,
+) -> (Option<Explanation>, usize) {
+    let scene = scenes.get(base.mistakes);
+    let mut tried = 0;
+    for atom in atoms {
         tried += 1;
-        let c = Candidate(vec![Atom::Setting(SettingChange::FovDeg(f.to_bits()))]);
+        let c = Candidate(vec![atom]);
         let s = c.settings(base);
         let bytes = full(scenes, &s);
         if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
@@ -1464,20 +1481,11 @@ fn fitted_scale(
     let Some(k) = scale::estimate(ours, image.rgb) else {
         return (None, 0);
     };
-    let scene = scenes.get(base.mistakes);
-    let lights = scene.lights.len();
-    let mut tried = 0;
-    for f in scale::candidates(k, lights, base.aa) {
-        tried += 1;
-        let c = Candidate(vec![Atom::Scale(f.to_bits(), lights as u32)]);
-        let s = c.settings(base);
-        let bytes = full(scenes, &s);
-        if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
-            let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
-            return (Some(c.explain(base, m, true)), tried);
-        }
-    }
-    (None, tried)
+    let lights = scenes.get(base.mistakes).lights.len();
+    let atoms = scale::candidates(k, lights, base.aa)
+        .into_iter()
+        .map(|f| Atom::Scale(f.to_bits(), lights as u32));
+    first_confirmed(scenes, base, image, full, atoms)
 }
 
 /// Renders the offset fit tries at most, and the explanation it is when its render matches
@@ -1517,20 +1525,13 @@ fn fitted_offset(
         }
     }
     fits.sort_by(|a, b| a.1.total_cmp(&b.1));
-    let mut tried = scopes.len();
-    for (fitted, _, every) in fits {
-        for e in offset::round_first(fitted) {
-            tried += 1;
-            let c = Candidate(vec![Atom::Offset(e.to_bits(), every)]);
-            let s = c.settings(base);
-            let bytes = full(scenes, &s);
-            if ties::judge(scene, &s, &bytes, image.rgb, false).matches {
-                let m = Metrics::of(&bytes, image.rgb, base.width, base.height, BLOCK, true);
-                return (Some(c.explain(base, m, true)), tried);
-            }
-        }
-    }
-    (None, tried)
+    let atoms = fits.into_iter().flat_map(|(fitted, _, every)| {
+        offset::round_first(fitted)
+            .into_iter()
+            .map(move |e| Atom::Offset(e.to_bits(), every))
+    });
+    let (found, n) = first_confirmed(scenes, base, image, full, atoms);
+    (found, scopes.len() + n)
 }
 
 /// `entities` when rayscope's render with them painted black matches `image` (the tie rule):
