@@ -943,6 +943,9 @@ impl Scenes<'_> {
     }
 }
 
+/// A whole render under some settings, of the scene their mistakes make, as RGB8 bytes.
+type FullRender<'a> = dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync + 'a;
+
 /// The colours `settings` give the pixels `pixels`, as bytes: what a full render writes there.
 fn render_pixels(scene: &Scene, settings: &RenderSettings, pixels: &[(u32, u32)]) -> Vec<u8> {
     let m = settings.mistakes;
@@ -1423,7 +1426,7 @@ fn fitted_fov(
     scenes: &Scenes<'_>,
     base: &RenderSettings,
     image: Image<'_>,
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
 ) -> (Option<Explanation>, usize) {
     let scene = scenes.get(base.mistakes);
     let render = |fov: f32, pixels: &[(u32, u32)]| {
@@ -1447,7 +1450,7 @@ fn first_confirmed(
     scenes: &Scenes<'_>,
     base: &RenderSettings,
     image: Image<'_>,
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
     atoms: impl IntoIterator<Item = Atom>,
 ) -> (Option<Explanation>, usize) {
     let scene = scenes.get(base.mistakes);
@@ -1473,7 +1476,7 @@ fn fitted_scale(
     base: &RenderSettings,
     image: Image<'_>,
     ours: &[u8],
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
 ) -> (Option<Explanation>, usize) {
     if base.mistakes.colour_scale().is_some() {
         return (None, 0);
@@ -1499,7 +1502,7 @@ fn fitted_offset(
     image: Image<'_>,
     ours: &[u8],
     differing: &[u32],
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
 ) -> (Option<Explanation>, usize) {
     let scene = scenes.get(base.mistakes);
     if scene.lights.is_empty() || base.mistakes.has(Mistake::NoShadowOffset) {
@@ -1613,7 +1616,7 @@ fn closer_depth(
     base: &RenderSettings,
     image: Image<'_>,
     depths: &[Atom],
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
     psnr: f64,
 ) -> Option<Explanation> {
     let (w, h) = (base.width, base.height);
@@ -1727,7 +1730,7 @@ fn search(
     base: &RenderSettings,
     image: Image<'_>,
     opts: &DiagnoseOptions,
-    full: &(dyn Fn(&Scenes<'_>, &RenderSettings) -> Vec<u8> + Sync),
+    full: &FullRender<'_>,
     against: &Against<'_>,
 ) -> (Vec<Explanation>, usize) {
     let (w, h) = (base.width, base.height);
