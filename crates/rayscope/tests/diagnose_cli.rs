@@ -547,6 +547,37 @@ fn channels_in_another_order_are_said_first() {
     }
 }
 
+/// Channels left 0 in every pixel (a writer that fills only red) are said first, naming which.
+#[test]
+fn channels_left_empty_are_said_first() {
+    let dir = tempfile::tempdir().unwrap();
+    let (scene, right) = correct_64x48(dir.path());
+    for (name, keep, words) in [
+        (
+            "red.png",
+            [true, false, false],
+            "Your image's green and blue bytes are 0 in every pixel, while rayscope's are not in ",
+        ),
+        (
+            "no-blue.png",
+            [true, true, false],
+            "Your image's blue byte is 0 in every pixel, while rayscope's is not in ",
+        ),
+    ] {
+        let only = image::RgbImage::from_fn(64, 48, |x, y| {
+            let p = right.get_pixel(x, y).0;
+            image::Rgb([0, 1, 2].map(|c| if keep[c] { p[c] } else { 0 }))
+        });
+        let path = dir.path().join(name);
+        only.save(&path).unwrap();
+        let (text, d) = diagnosed(&scene, &path, &["--stage", "2"], 1);
+        let first = text.lines().next().unwrap();
+        assert!(first.starts_with(words), "{name}: {text}");
+        assert!(first.contains("Write all three channels."), "{name}: {text}");
+        assert_eq!(obvious_codes(&d), ["channels-missing"], "{name}: {d:#}");
+    }
+}
+
 #[test]
 fn a_picture_of_another_size_names_both_sizes_and_the_flags() {
     let dir = tempfile::tempdir().unwrap();

@@ -268,7 +268,7 @@ impl TieSummary {
 pub struct Obvious {
     /// What it is: `black`, `white`, `constant`, `transposed`, `rotated-clockwise`,
     /// `rotated-anticlockwise`, `anti-transposed`, `rotated-180`, `upside-down`, `mirrored`,
-    /// `channels`, `gamma` or `alpha`.
+    /// `channels`, `grey`, `channels-missing`, `gamma` or `alpha`.
     pub code: &'static str,
     /// One line for the student, with the figures that show it.
     pub text: String,
@@ -315,6 +315,8 @@ impl Obvious {
             "upside-down",
             "mirrored",
             "channels",
+            "grey",
+            "channels-missing",
             "gamma",
             "alpha",
         ]
@@ -569,6 +571,102 @@ fn channels_finding(ours: &[u8], judged: &mut Vec<u8>, w: u32, h: u32) -> Option
         "channels",
         text,
         &[("psnr_db_turned", m.psnr), ("psnr_db_as_stored", as_is.psnr)],
+    ))
+}
+
+/// Ways a writer may turn a colour into one grey value: the words for it and its weights of
+/// red, green and blue.
+const GREYS: [(&str, [f64; 3]); 6] = [
+    ("copying its red into all three channels", [1.0, 0.0, 0.0]),
+    ("copying its green into all three channels", [0.0, 1.0, 0.0]),
+    ("copying its blue into all three channels", [0.0, 0.0, 1.0]),
+    ("the mean of its three channels", [1.0 / 3.0, 1.0 / 3.0, 1.0 / 3.0]),
+    (
+        "its luminance, 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709)",
+        [0.2126, 0.7152, 0.0722],
+    ),
+    (
+        "its luma, 0.299 R + 0.587 G + 0.114 B (Rec. 601)",
+        [0.299, 0.587, 0.114],
+    ),
+];
+
+/// Pixels of rayscope's render that must have colour (in thousandths of the image) before an
+/// image without it is said to have lost it: a render that is nearly grey anyway says nothing.
+const COLOURED_PERMILLE: u64 = 10;
+
+/// An image that has lost colour rayscope's render `ours` has: grey (red, green and blue equal
+/// in every pixel, with the mix of rayscope's channels it matches where one does), or with one
+/// or two channels 0 in every pixel.
+fn colour_lost_finding(ours: &[u8], judged: &[u8], w: u32, h: u32) -> Option<Obvious> {
+    let total = u64::from(w) * u64::from(h);
+    let enough = |n: u64| n * 1000 >= total * COLOURED_PERMILLE && n > 0;
+    let pct = |n: u64| 100.0 * n as f64 / total.max(1) as f64;
+    if judged.chunks_exact(3).all(|p| p[0] == p[1] && p[1] == p[2]) {
+        let coloured = ours.chunks_exact(3).filter(|p| p[0] != p[1] || p[1] != p[2]).count() as u64;
+        if !enough(coloured) {
+            return None;
+        }
+        let (words, m) = GREYS
+            .iter()
+            .map(|&(words, k)| {
+                let grey: Vec<u8> = ours
+                    .chunks_exact(3)
+                    .flat_map(|p| {
+                        let v = (0..3).map(|c| k[c] * f64::from(p[c])).sum::<f64>();
+                        [v.round().min(255.0) as u8; 3]
+                    })
+                    .collect();
+                (words, Metrics::of(&grey, judged, w, h, BLOCK, true))
+            })
+            .max_by(|a, b| a.1.score().total_cmp(&b.1.score()))?;
+        let first = format!(
+            "Your image has no colour: red, green and blue are equal in every pixel, while {coloured} of rayscope's {total} pixels ({:.1} %) are coloured.",
+            pct(coloured)
+        );
+        let text = if m.score() >= PLAIN_DB {
+            format!(
+                "{first} Each pixel is rayscope's colour made grey by {words} ({} yours): write each channel from its own value.",
+                closeness(m.psnr)
+            )
+        } else {
+            format!(
+                "{first} Write each channel from its own value; the grey is no plain mix of rayscope's channels (closest: {words}, PSNR {}).",
+                db_text(m.psnr)
+            )
+        };
+        return Some(Obvious::new(
+            "grey",
+            text,
+            &[
+                ("rayscope_coloured_pixels", coloured as f64),
+                ("pixels", total as f64),
+                ("psnr_db_grey", m.psnr),
+            ],
+        ));
+    }
+    let zero: Vec<usize> = (0..3)
+        .filter(|&c| judged.chunks_exact(3).all(|p| p[c] == 0))
+        .filter(|&c| enough(ours.chunks_exact(3).filter(|p| p[c] != 0).count() as u64))
+        .collect();
+    if zero.is_empty() || zero.len() == 3 {
+        return None;
+    }
+    let names: Vec<&str> = zero.iter().map(|&c| CHANNEL[c]).collect();
+    let kept: Vec<&str> = (0..3).filter(|c| !zero.contains(c)).map(|c| CHANNEL[c]).collect();
+    let lit = ours.chunks_exact(3).filter(|p| zero.iter().any(|&c| p[c] != 0)).count() as u64;
+    let text = format!(
+        "Your image's {} {} 0 in every pixel, while rayscope's {} not in {lit} of its {total} pixels ({:.1} %): only {} is written. Write all three channels.",
+        names.join(" and "),
+        if zero.len() == 1 { "byte is" } else { "bytes are" },
+        if zero.len() == 1 { "is" } else { "are" },
+        pct(lit),
+        kept.join(" and "),
+    );
+    Some(Obvious::new(
+        "channels-missing",
+        text,
+        &[("rayscope_lit_pixels", lit as f64), ("pixels", total as f64)],
     ))
 }
 
@@ -1227,6 +1325,7 @@ pub fn diagnose(
         if let Some(finding) = channels_finding(&ours, &mut judged, w, h) {
             obvious.push(finding);
         }
+        obvious.extend(colour_lost_finding(&ours, &judged, w, h));
         let now = Metrics::of(&ours, &judged, w, h, BLOCK, true);
         if !base.mistakes.has(Mistake::Gamma)
             && !ties::judge(scenes.get(base.mistakes), &base, &ours, &judged, false).matches

@@ -374,3 +374,39 @@ fn samples_divided_by_n_are_fitted_as_one_factor() {
         "{text}"
     );
 }
+
+/// A picture made grey before it is written (uncatalogued) is said first, with the mix of the
+/// colour it holds where it is a plain one, and said as no plain mix where it is not.
+#[test]
+fn a_grey_picture_is_said_first_with_its_mix() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let opts = Options::new(W, H);
+    for (bugs, words) in [
+        (
+            &["luminance-written"][..],
+            "Each pixel is rayscope's colour made grey by its luminance, 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709) (within PSNR ",
+        ),
+        (
+            &["red-in-every-channel"][..],
+            "Each pixel is rayscope's colour made grey by copying its red into all three channels (within PSNR ",
+        ),
+        (
+            &["luminance-written", "lights-averaged"][..],
+            "Write each channel from its own value; the grey is no plain mix of rayscope's channels",
+        ),
+    ] {
+        let (d, text) = diagnosed(&scene, bugs, opts, Flags::of(opts));
+        let first = text.lines().next().unwrap_or_default();
+        assert!(
+            first.starts_with("Your image has no colour: red, green and blue are equal in every pixel, while ")
+                && first.contains(words),
+            "{bugs:?}:\n{text}"
+        );
+        assert_eq!(d.obvious.first().map(|o| o.code), Some("grey"), "{bugs:?}:\n{text}");
+        assert!(d.explanations.iter().all(|e| !e.cause), "{bugs:?}:\n{text}");
+    }
+    let (d, text) = diagnosed(&scene, &[], opts, Flags::of(opts));
+    assert!(d.obvious.is_empty(), "a correct picture:\n{text}");
+}

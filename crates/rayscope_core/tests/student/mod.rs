@@ -220,7 +220,15 @@ impl Student {
                 total = sum;
                 // Uncatalogued: the samples' sum divided by n, not by the n² samples.
                 let count = if self.bug("samples-divided-by-n") { n } else { n * n };
-                let c = sum / count as f64;
+                let mut c = sum / count as f64;
+                // Uncatalogued: the colour made grey before it is written, as its luminance
+                // (Rec. 709 weights) or as its red value in every channel (`new Color(c.r, c.r, c.r)`).
+                if self.bug("luminance-written") {
+                    c = DVec3::splat(c.dot(DVec3::new(0.2126, 0.7152, 0.0722)));
+                }
+                if self.bug("red-in-every-channel") {
+                    c = DVec3::splat(c.x);
+                }
                 for v in [c.x, c.y, c.z] {
                     out.push(self.byte(v));
                 }
