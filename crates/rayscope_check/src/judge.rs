@@ -132,7 +132,7 @@ pub struct Tally {
     pub tied: u64,
     /// Camera rays judged.
     pub camera: u64,
-    /// Camera rays with a verdict.
+    /// Camera rays with a `camera.*` verdict: placed or aimed otherwise than rayscope's.
     pub camera_disagree: u64,
     /// Rays naming a parent that is not among the rays of the same pixel sample.
     pub orphans: u64,
@@ -344,7 +344,9 @@ impl Tally {
         let bad = findings.iter().any(|f| !f.code.is_tie());
         if bad {
             self.disagree += 1;
-            self.camera_disagree += u64::from(camera);
+            // Only where the ray goes can come from flags the check was not given.
+            let placed = findings.iter().any(|f| f.code.as_str().starts_with("camera."));
+            self.camera_disagree += u64::from(camera && placed);
         } else if !findings.is_empty() {
             self.tied += 1;
         }

@@ -212,7 +212,7 @@ pub struct Report {
     pub ties: u64,
     /// Camera rays judged.
     pub camera_rays: u64,
-    /// Camera rays with a verdict.
+    /// Camera rays with a `camera.*` verdict: placed or aimed otherwise than rayscope's.
     pub camera_disagree: u64,
     /// Rays naming a parent that was not among the rays of their pixel sample.
     pub orphans: u64,

@@ -216,7 +216,19 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
     for (bug, scene, words) in [
         ("no-clamp", scene1, "without the clamp at 0"),
         ("falloff", scene2.clone(), "squared distance"),
-        ("ambient", scene2, "ambient term of 0.1000 × the albedo"),
+        ("ambient", scene2.clone(), "ambient term of 0.1000 × the albedo"),
+        // Not in the catalogue: under scene 2's grey lights both fit the albedo alone or one
+        // factor on the course's sum, never an ambient term or the camera flags.
+        (
+            "light-colour-ignored",
+            scene2.clone(),
+            "the albedo without the lights' colour",
+        ),
+        (
+            "lights-averaged",
+            scene2,
+            "the course's sum × 0.5000 in every channel (the sum over the 2 lights divided by their number",
+        ),
     ] {
         let Some(r) = assert_named(
             Run {
@@ -231,6 +243,11 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
         for d in details(&r, Code::ShadingDiffuse) {
             assert!(d.contains(words), "{bug}: {d}");
         }
+        let t = text(&r);
+        assert!(
+            !t.contains("most camera rays disagree"),
+            "{bug}: wrong colours are no flag mismatch\n{t}"
+        );
     }
 }
 

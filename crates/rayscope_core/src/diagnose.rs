@@ -596,8 +596,9 @@ const GREYS: [(&str, [f64; 3]); 6] = [
 const COLOURED_PERMILLE: u64 = 10;
 
 /// An image that has lost colour rayscope's render `ours` has: grey (red, green and blue equal
-/// in every pixel, with the mix of rayscope's channels it matches where one does), or with one
-/// or two channels 0 in every pixel.
+/// in every pixel) where a plain mix of rayscope's channels, times at most one factor, is that
+/// grey — a picture grey for another reason (every ray meeting the same grey wall) is left to
+/// the search — or with one or two channels 0 in every pixel.
 fn colour_lost_finding(ours: &[u8], judged: &[u8], w: u32, h: u32) -> Option<Obvious> {
     let total = u64::from(w) * u64::from(h);
     let enough = |n: u64| n * 1000 >= total * COLOURED_PERMILLE && n > 0;
@@ -607,40 +608,47 @@ fn colour_lost_finding(ours: &[u8], judged: &[u8], w: u32, h: u32) -> Option<Obv
         if !enough(coloured) {
             return None;
         }
-        let (words, m) = GREYS
+        let (words, factor, m) = GREYS
             .iter()
-            .map(|&(words, k)| {
-                let grey: Vec<u8> = ours
+            .flat_map(|&(words, k)| {
+                let grey: Vec<f64> = ours
                     .chunks_exact(3)
-                    .flat_map(|p| {
-                        let v = (0..3).map(|c| k[c] * f64::from(p[c])).sum::<f64>();
-                        [v.round().min(255.0) as u8; 3]
-                    })
+                    .map(|p| (0..3).map(|c| k[c] * f64::from(p[c])).sum::<f64>())
                     .collect();
-                (words, Metrics::of(&grey, judged, w, h, BLOCK, true))
+                let bytes = |f: f64| -> Vec<u8> {
+                    grey.iter()
+                        .flat_map(|&v| [(v * f).round().min(255.0) as u8; 3])
+                        .collect()
+                };
+                let plain = bytes(1.0);
+                // A grey also darker or brighter by one factor (the lights averaged, say).
+                let factors = scale::estimate(&plain, judged)
+                    .map(|k| scale::candidates(k, 0, 1))
+                    .unwrap_or_default();
+                std::iter::once(1.0)
+                    .chain(factors.into_iter().map(f64::from))
+                    .map(move |f| (words, f, Metrics::of(&bytes(f), judged, w, h, BLOCK, true)))
+                    .collect::<Vec<_>>()
             })
-            .max_by(|a, b| a.1.score().total_cmp(&b.1.score()))?;
-        let first = format!(
-            "Your image has no colour: red, green and blue are equal in every pixel, while {coloured} of rayscope's {total} pixels ({:.1} %) are coloured.",
-            pct(coloured)
-        );
-        let text = if m.score() >= PLAIN_DB {
-            format!(
-                "{first} Each pixel is rayscope's colour made grey by {words} ({} yours): write each channel from its own value.",
-                closeness(m.psnr)
-            )
+            .max_by(|a, b| a.2.score().total_cmp(&b.2.score()))
+            .filter(|(.., m)| m.score() >= PLAIN_DB)?;
+        let times = if factor == 1.0 {
+            String::new()
         } else {
-            format!(
-                "{first} Write each channel from its own value; the grey is no plain mix of rayscope's channels (closest: {words}, PSNR {}).",
-                db_text(m.psnr)
-            )
+            format!(" and multiplied by {}", factor as f32)
         };
+        let text = format!(
+            "Your image has no colour: red, green and blue are equal in every pixel, while {coloured} of rayscope's {total} pixels ({:.1} %) are coloured. Each pixel is rayscope's colour made grey by {words}{times} ({} yours): write each channel from its own value.",
+            pct(coloured),
+            closeness(m.psnr)
+        );
         return Some(Obvious::new(
             "grey",
             text,
             &[
                 ("rayscope_coloured_pixels", coloured as f64),
                 ("pixels", total as f64),
+                ("factor", factor),
                 ("psnr_db_grey", m.psnr),
             ],
         ));

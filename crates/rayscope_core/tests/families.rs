@@ -376,7 +376,7 @@ fn samples_divided_by_n_are_fitted_as_one_factor() {
 }
 
 /// A picture made grey before it is written (uncatalogued) is said first, with the mix of the
-/// colour it holds where it is a plain one, and said as no plain mix where it is not.
+/// colour it holds, and the one factor beside it where there is one.
 #[test]
 fn a_grey_picture_is_said_first_with_its_mix() {
     let Some(scene) = scene2() else {
@@ -394,7 +394,7 @@ fn a_grey_picture_is_said_first_with_its_mix() {
         ),
         (
             &["luminance-written", "lights-averaged"][..],
-            "Write each channel from its own value; the grey is no plain mix of rayscope's channels",
+            "Each pixel is rayscope's colour made grey by its luminance, 0.2126 R + 0.7152 G + 0.0722 B (Rec. 709) and multiplied by 0.5 (within PSNR ",
         ),
     ] {
         let (d, text) = diagnosed(&scene, bugs, opts, Flags::of(opts));

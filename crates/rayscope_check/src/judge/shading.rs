@@ -560,7 +560,14 @@ impl Judge<'_> {
             .filter(|(_, &x)| x)
             .map(|(li, _)| self.light_name(li as u32))
             .collect();
-        let guess = diffuse_guess(c, &t, albedo, (lv.shade - lv.facing).length() > 1e-9, lit.is_empty());
+        let guess = diffuse_guess(
+            c,
+            &t,
+            albedo,
+            (lv.shade - lv.facing).length() > 1e-9,
+            lit.is_empty(),
+            lights.len(),
+        );
         let from = if lit.is_empty() {
             "no light (every shadow ray is blocked), so it is black".to_string()
         } else {
@@ -862,10 +869,25 @@ struct DiffuseTerms {
 }
 
 /// Which usual mistake a diffuse colour `c` fits, in words (`smooth`: the hit has an
-/// interpolated normal; `unlit`: every shadow ray is blocked).
-fn diffuse_guess(c: DVec3, t: &DiffuseTerms, albedo: DVec3, smooth: bool, unlit: bool) -> Option<String> {
+/// interpolated normal; `unlit`: every shadow ray is blocked; `lights`: the scene's lights).
+fn diffuse_guess(
+    c: DVec3,
+    t: &DiffuseTerms,
+    albedo: DVec3,
+    smooth: bool,
+    unlit: bool,
+    lights: usize,
+) -> Option<String> {
     let diff = c - t.exact;
-    let ambient_k = (albedo.length_squared() > 0.0).then(|| diff.dot(albedo) / albedo.length_squared());
+    let ambient_k = (albedo.length_squared() > 0.0)
+        .then(|| diff.dot(albedo) / albedo.length_squared())
+        .filter(|&k| k > 1e-4 && fits(c, t.exact + albedo * k, t.slack));
+    let scale = (t.exact.length_squared() > 0.0)
+        .then(|| c.dot(t.exact) / t.exact.length_squared())
+        .filter(|&s| (s - 1.0).abs() > 1e-4 && fits(c, t.exact * s, t.slack * s.abs().max(1.0)))
+        // On a hit one light reaches, any mistake in N·L is some factor: only a plain fraction
+        // is worth a name.
+        .filter(|&s| plain_fraction(s));
     let constant = (diff.x + diff.y + diff.z) / 3.0;
     if smooth && fits(c, t.flat, t.slack) {
         Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
@@ -873,12 +895,31 @@ fn diffuse_guess(c: DVec3, t: &DiffuseTerms, albedo: DVec3, smooth: bool, unlit:
         Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
     } else if fits(c, t.falloff, t.slack) {
         Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
-    } else if let Some(k) = ambient_k.filter(|&k| k > 1e-4 && fits(c, t.exact + albedo * k, t.slack)) {
+    } else if fits(c, t.no_light, t.slack) {
+        Some(if fits(c, t.no_albedo, t.slack) {
+            "it fits the albedo without the lights' colour or, the same on this hit (the albedo is the lights' colour), the lights' colour without the albedo".into()
+        } else {
+            "it fits the albedo without the lights' colour".into()
+        })
+    } else if fits(c, t.no_albedo, t.slack) {
+        Some("it fits the lights' colour without the surface's albedo".into())
+    } else if let Some(s) = scale {
+        let factor = scale_words(s, lights);
+        Some(match ambient_k {
+            // Under white lights the course's sum is a multiple of the albedo, so one hit
+            // cannot tell a factor from an added term: the number that stays the same over
+            // every hit can.
+            Some(k) => format!(
+                "it fits the course's sum × {s:.4}{factor} or, the same on this hit, an ambient term of {k:.4} × the albedo added: whichever number is the same on every hit is yours (the course has neither at stage 2)"
+            ),
+            None => format!(
+                "it fits the course's sum × {s:.4} in every channel{factor}: a factor the course does not have"
+            ),
+        })
+    } else if let Some(k) = ambient_k {
         Some(if unlit {
             format!("it fits an ambient term of {k:.4} × the albedo added: the course has no ambient term at stage 2")
         } else {
-            // Lit by white lights, any error in N·L also scales the albedo: only a term that
-            // is the same on every hit is an ambient term.
             format!(
                 "it fits an ambient term of {k:.4} × the albedo added, if that is the same on every hit (the course has none at stage 2); one that varies from hit to hit is a wrong N·L instead"
             )
@@ -887,12 +928,26 @@ fn diffuse_guess(c: DVec3, t: &DiffuseTerms, albedo: DVec3, smooth: bool, unlit:
         Some(format!(
             "it fits a constant {constant:.4} added to every channel: the course has no ambient term at stage 2"
         ))
-    } else if fits(c, t.no_albedo, t.slack) {
-        Some("it fits the lights' colour without the surface's albedo".into())
-    } else if fits(c, t.no_light, t.slack) {
-        Some("it fits the albedo without the lights' colour".into())
     } else {
         None
+    }
+}
+
+/// True when `s` is p/q with q at most 8, to the precision a logged colour carries.
+fn plain_fraction(s: f64) -> bool {
+    (1..=8).any(|q| {
+        let p = (s * f64::from(q)).round();
+        p >= 1.0 && (s * f64::from(q) - p).abs() <= 1e-4 * f64::from(q)
+    })
+}
+
+/// What a factor `s` on the course's diffuse sum may come from, as words to follow it (empty
+/// when no usual cause gives exactly that factor); `lights`: the scene's lights.
+fn scale_words(s: f64, lights: usize) -> String {
+    if lights > 1 && (s * lights as f64 - 1.0).abs() < 1e-4 {
+        format!(" (the sum over the {lights} lights divided by their number: the course adds them)")
+    } else {
+        String::new()
     }
 }
 

@@ -54,6 +54,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
   background         a ray that hits nothing brings back a grey background
+  light-colour-ignored  each light taken as white: albedo x N.L (no catalogue has it)
+  lights-averaged    the diffuse sum over the lights divided by their number (no catalogue has it)
 
 Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
@@ -73,7 +75,7 @@ AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
-        "no-clamp", "falloff", "ambient", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
+        "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "background", "reflect-along-ray")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
@@ -331,7 +333,10 @@ class Tracer:
                     cos *= cos
                 if self.bug == "falloff":
                     cos /= dist * dist
-                col = add(col, mul(hadamard(m["color"], light["color"]), cos))
+                lc = (1.0, 1.0, 1.0) if self.bug == "light-colour-ignored" else light["color"]
+                col = add(col, mul(hadamard(m["color"], lc), cos))
+        if self.bug == "lights-averaged":
+            col = mul(col, 1 / len(self.lights))
         if self.bug == "ambient":
             col = add(col, mul(m["color"], AMBIENT))
         return col
