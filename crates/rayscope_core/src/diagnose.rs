@@ -171,6 +171,19 @@ pub struct Explanation {
     /// that blackens them shares (empty otherwise). Not offered as the cause.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub blackens: Vec<String>,
+    /// Where rayscope's render with every glass's refracted light lost (its reflection kept)
+    /// gives the picture as well as this render does: the glass entities that differ, one way
+    /// to get the picture that many mistakes share (empty otherwise). Not offered as the cause.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub loses_refraction: Vec<String>,
+}
+
+impl Explanation {
+    /// True when this render is one way to get the picture that other mistakes share
+    /// ([`Self::blackens`], [`Self::loses_refraction`]), not its cause.
+    fn one_way(&self) -> bool {
+        !self.blackens.is_empty() || !self.loses_refraction.is_empty()
+    }
 }
 
 /// What [`diagnose`] found.
@@ -896,6 +909,7 @@ impl Candidate {
             explained: None,
             cause: matches,
             blackens: Vec::new(),
+            loses_refraction: Vec::new(),
         }
     }
 }
@@ -1466,6 +1480,29 @@ pub fn diagnose(
             if !e.blackens.is_empty() {
                 e.cause = false;
                 tried += 1;
+            }
+        }
+        if let Some(e) = explanations.first_mut().filter(|e| e.cause) {
+            let glass = traced.glass_entities();
+            if !glass.is_empty() {
+                tried += 1;
+                let lost = RenderSettings {
+                    mistakes: base.mistakes.with_refraction_lost(),
+                    ..base
+                };
+                let render = full(&scenes, &lost);
+                let gives = if e.matches {
+                    ties::judge(scenes.get(lost.mistakes), &lost, &render, image.rgb, false).matches
+                } else {
+                    Explained::of(&render, &ours, image.rgb, (w, h), threshold, &differs, &traced).full()
+                };
+                if gives {
+                    // Every cause found is then one way among many: none is named.
+                    for e in explanations.iter_mut().filter(|e| e.cause) {
+                        e.loses_refraction.clone_from(&glass);
+                        e.cause = false;
+                    }
+                }
             }
         }
     }
@@ -2149,7 +2186,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
         out.push_str(&attribution_text(&d.attribution));
     }
     let (causes, partials): (Vec<&Explanation>, Vec<&Explanation>) =
-        d.explanations.iter().partition(|e| e.cause || !e.blackens.is_empty());
+        d.explanations.iter().partition(|e| e.cause || e.one_way());
     if !causes.is_empty() {
         let plain = d
             .obvious
@@ -2177,7 +2214,14 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                 ));
                 continue;
             }
-            let how = if !e.blackens.is_empty() {
+            let how = if !e.loses_refraction.is_empty() {
+                format!(
+                    "{} {}: one way to get this picture, as is losing the refracted light of {}",
+                    e.summary,
+                    if e.matches { match_how(d, e) } else { whole_how(e) },
+                    acne::list(&e.loses_refraction, 4)
+                )
+            } else if !e.blackens.is_empty() {
                 format!(
                     "your image matches {} {}: one way to get this picture, as is painting {} black",
                     e.summary,
@@ -2238,7 +2282,7 @@ pub fn headline(d: &Diagnosis) -> String {
     }
     let fitted = fitted_lines(d);
     match d.explanations.first() {
-        Some(e) if !e.blackens.is_empty() => format!("{}\n{fitted}", one_way(d, e)),
+        Some(e) if e.one_way() => format!("{}\n{fitted}", one_way(d, e)),
         Some(e) if e.matches => format!(
             "Explained: your image is rayscope's render with {} ({}).\n{fitted}",
             e.summary,
@@ -2271,6 +2315,20 @@ pub fn headline(d: &Diagnosis) -> String {
 /// The headline of an explanation whose render matches by turning entities black, as painting
 /// them black does too ([`Explanation::blackens`]): one way to get the picture, not its cause.
 fn one_way(d: &Diagnosis, e: &Explanation) -> String {
+    if !e.loses_refraction.is_empty() {
+        let names = acne::list(&e.loses_refraction, 4);
+        let (is, their) = if e.loses_refraction.len() == 1 {
+            ("shows", "its")
+        } else {
+            ("show", "their")
+        };
+        return format!(
+            "One way to get your picture, not necessarily yours: your {names} {is} only {their} reflection, with nothing of the light through {} where rayscope's {is} both. Rendering {} gives it ({}), but so does rayscope's render with every glass's refracted ray bringing back black: any mistake that loses the refracted light gives this picture (a refracted ray that starts on the wrong side, goes the wrong way or leaves the glass at once; a weight of 0; a ray never traced), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
+            if e.loses_refraction.len() == 1 { "it" } else { "them" },
+            e.summary,
+            if e.matches { match_how(d, e) } else { whole_how(e) }
+        );
+    }
     let names = acne::list(&e.blackens, 4);
     let (is, their) = if e.blackens.len() == 1 {
         ("is", "its")

@@ -517,6 +517,10 @@ const RAY_OFFSET: &str = "ray-offset";
 /// The name a factor every colour is multiplied by goes by: `colour-scale=0.5`.
 const COLOUR_SCALE: &str = "colour-scale";
 
+/// The bit of a set's mistakes that loses every glass's refracted light (see
+/// [`Mistakes::with_refraction_lost`]); no catalogued mistake has it.
+const REFRACTION_LOST: u64 = 1 << 63;
+
 /// The largest colour scale `colour-scale=K` takes: at 256 every lit byte is already 255.
 const MAX_COLOUR_SCALE: f32 = 256.0;
 
@@ -574,6 +578,22 @@ impl Mistakes {
     #[inline]
     pub fn colour_scale(self) -> Option<f32> {
         (self.3 != 0).then(|| f32::from_bits(self.3))
+    }
+
+    /// The set with every glass's refracted ray bringing back nothing, its reflection kept:
+    /// what many different mistakes reduce to (a refracted ray that starts outside, leaves at
+    /// once or is never traced), which `diagnose` renders to tell whether a picture can name
+    /// one of them. It has no name and is never offered as a mistake.
+    #[must_use]
+    pub fn with_refraction_lost(self) -> Mistakes {
+        Mistakes(self.0 | REFRACTION_LOST, self.1, self.2, self.3)
+    }
+
+    /// True when every glass's refracted light is lost ([`Self::with_refraction_lost`]).
+    #[must_use]
+    #[inline]
+    pub fn refraction_lost(self) -> bool {
+        self.0 & REFRACTION_LOST != 0
     }
 
     /// True when `m` is in the set.

@@ -410,3 +410,25 @@ fn a_grey_picture_is_said_first_with_its_mix() {
     let (d, text) = diagnosed(&scene, &[], opts, Flags::of(opts));
     assert!(d.obvious.is_empty(), "a correct picture:\n{text}");
 }
+
+/// The refraction formula without its square root (uncatalogued) sends the refracted ray along
+/// the surface: the glass shows only its reflection. Catalogued mistakes give that picture too
+/// (a depth limit with the normal not flipped), so none is named as the cause: the first line
+/// says it is one way to get the picture, and what the glass lost.
+#[test]
+fn glass_that_shows_only_its_reflection_is_one_way_not_a_cause() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let opts = Options::new(60, 45);
+    let (d, text) = searched(&scene, &["refraction-no-root"], opts);
+    assert!(
+        text.starts_with(
+            "One way to get your picture, not necessarily yours: your GlassSphere shows only its reflection, with nothing of the light through it where rayscope's shows both."
+        ),
+        "{text}"
+    );
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert_eq!(d.explanations[0].loses_refraction, ["GlassSphere"], "{text}");
+    assert!(d.next.is_some(), "the pixels to log are given\n{text}");
+}

@@ -172,6 +172,18 @@ impl Traced {
         }
     }
 
+    /// The glass entities the differing pixels end on (directly or seen in mirrors), largest
+    /// part first.
+    pub(crate) fn glass_entities(&self) -> Vec<String> {
+        let mut out: Vec<String> = Vec::new();
+        for p in self.parts.iter().filter(|p| p.material == "Refractive") {
+            if !out.contains(&p.entity) {
+                out.push(p.entity.clone());
+            }
+        }
+        out
+    }
+
     /// The entities the image turns black: where at least [`BLACK_SHARE`] of the traced pixels
     /// are black in `image` and not in `ours`, the entities (not the background) of the parts
     /// whose traced pixels are mostly (three in four) black; empty otherwise.

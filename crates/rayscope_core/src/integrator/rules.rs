@@ -236,7 +236,9 @@ impl<I: Intersect> Integrator<'_, I> {
             // Without total internal reflection the ray that should reflect brings nothing.
             kr: if no_tir { 0.0 } else { kr },
             reflected: self.mistaken_reflection(ray, s, n, eps),
-            refracted: refracted.map(|t| Ray::new(s.point - n * eps, t)),
+            refracted: refracted
+                .filter(|_| !self.isect.mistakes().refraction_lost())
+                .map(|t| Ray::new(s.point - n * eps, t)),
             refl_medium,
             refr_medium,
         }

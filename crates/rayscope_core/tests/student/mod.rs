@@ -455,7 +455,10 @@ impl Student {
             };
             (rs * rs + rp * rp) / 2.0
         };
-        let t = (ray.d * eta + n * (eta * cos_i - cos_t)).normalize();
+        // Uncatalogued: the refraction formula without its square root, which sends the ray
+        // along the surface (its tangential part) instead of into the glass.
+        let root = if self.bug("refraction-no-root") { 0.0 } else { cos_t };
+        let t = (ray.d * eta + n * (eta * cos_i - root)).normalize();
         let refracted = Ray {
             o: hit.p - n * self.eps(),
             d: t,
