@@ -169,6 +169,12 @@ impl Sampler {
     #[must_use]
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {
+        self.point_1d(dim)
+    }
+
+    /// [`Self::get1d`], always inlined, so that a loop over lanes calling it vectorises.
+    #[inline(always)]
+    fn point_1d(&self, dim: u32) -> f32 {
         let h = self.seeds(dim);
         // The index's Owen scramble i = rev(U(rev(index))), then the first coordinate rev(i)
         // scrambled: rev(U(rev(rev(i)))) = rev(U(i)), U being `upward_hash`.
@@ -216,10 +222,16 @@ impl Sampler {
 pub(crate) struct SamplerLanes(pub(crate) [Sampler; LANES]);
 
 impl SamplerLanes {
-    /// [`Sampler::get1d`] at dimension `dim[i]` in every lane `i` of `on`.
+    /// [`Sampler::get1d`] at dimension `dim[i]` in every lane `i` of `on`: every lane drawn in
+    /// a loop without branches, which the compiler vectorises, and the lanes not on set to 0.
     #[inline]
     pub(crate) fn get1d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [f32; LANES] {
-        std::array::from_fn(|i| if on[i] { self.0[i].get1d(dim[i]) } else { 0.0 })
+        let mut out = [0.0; LANES];
+        for i in 0..LANES {
+            let u = self.0[i].point_1d(dim[i]);
+            out[i] = if on[i] { u } else { 0.0 };
+        }
+        out
     }
 
     /// [`Sampler::get2d`] at dimension `dim[i]` in every lane `i` of `on`, by axis.
