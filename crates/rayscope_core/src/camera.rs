@@ -152,6 +152,49 @@ impl Camera {
         Ray::new(self.origin + self.rotation * o, (self.rotation * (p - o)).normalize())
     }
 
+    /// The rays of [`Self::lens_ray`] through `N` image positions (`u`, `v`) from the points
+    /// `lens` of the unit disk, per axis: origins and directions, the same arithmetic in the
+    /// same order, laid out so the compiler can vectorise it. For a camera with an aperture
+    /// (where `lens_ray` gives the pinhole's ray, this does not).
+    #[must_use]
+    #[inline]
+    pub(crate) fn lens_rays<const N: usize>(
+        &self,
+        u: &[f32; N],
+        v: &[f32; N],
+        lens: &[[f32; N]; 2],
+    ) -> ([[f32; N]; 3], [[f32; N]; 3]) {
+        let (r, f) = (self.settings.aperture_radius, self.settings.focal_length);
+        let m = [
+            self.rotation.x_axis.to_array(),
+            self.rotation.y_axis.to_array(),
+            self.rotation.z_axis.to_array(),
+        ];
+        let origin = self.origin.to_array();
+        let (mut o, mut d) = ([[0.0; N]; 3], [[0.0; N]; 3]);
+        for i in 0..N {
+            let p = [
+                (2.0 * u[i] - 1.0) * self.half.x * f,
+                (1.0 - 2.0 * v[i]) * self.half.y * f,
+                1.0 * f,
+            ];
+            let l = [lens[0][i] * r, lens[1][i] * r, 0.0];
+            let q = [p[0] - l[0], p[1] - l[1], p[2] - l[2]];
+            // glam's matrix × vector: the columns scaled by x, y and z, summed in that order.
+            let mut w = [0.0; 3];
+            for a in 0..3 {
+                o[a][i] = origin[a] + (m[0][a] * l[0] + m[1][a] * l[1] + m[2][a] * l[2]);
+                w[a] = m[0][a] * q[0] + m[1][a] * q[1] + m[2][a] * q[2];
+            }
+            // glam's normalize: divided by the length, x² + y² + z² summed in that order.
+            let len = (w[0] * w[0] + w[1] * w[1] + w[2] * w[2]).sqrt();
+            for a in 0..3 {
+                d[a][i] = w[a] / len;
+            }
+        }
+        (o, d)
+    }
+
     /// Normalised image coordinates of the centre of pixel (`x`, `y`).
     #[must_use]
     #[inline]
@@ -281,6 +324,44 @@ mod tests {
                 let r = cam.ray(u[i], v[i]).dir;
                 for a in 0..3 {
                     assert_eq!(d[a][i].to_bits(), r[a].to_bits(), "lane {i} axis {a}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn lens_rays_are_lens_ray_bit_for_bit() {
+        let s = CameraSettings {
+            axis: Vec3::new(0.3, -1.0, 0.2),
+            angle_deg: 37.0,
+            position: Vec3::new(0.5, 1.0, -2.0),
+            aperture_radius: 0.1,
+            focal_length: 3.6,
+            ..CameraSettings::default()
+        };
+        for cam in [
+            Camera::new(s, 640, 360),
+            Camera::new(
+                CameraSettings {
+                    aperture_radius: 0.7,
+                    focal_length: 12.5,
+                    ..CameraSettings::default()
+                },
+                97,
+                211,
+            ),
+        ] {
+            let u: [f32; 8] = std::array::from_fn(|i| (i as f32 + 0.37) / 8.0);
+            let v: [f32; 8] = std::array::from_fn(|i| 1.0 - (i as f32 * 0.61) / 5.0);
+            // The lens's centre, its rim and points inside.
+            let lx = [0.0, 1.0, -0.3, 0.6, -0.707, 0.05, 0.0, -1.0];
+            let ly = [0.0, 0.0, 0.4, -0.6, -0.707, 0.9, -1.0, 0.0];
+            let (o, d) = cam.lens_rays(&u, &v, &[lx, ly]);
+            for i in 0..8 {
+                let r = cam.lens_ray(u[i], v[i], Vec2::new(lx[i], ly[i]));
+                for a in 0..3 {
+                    assert_eq!(o[a][i].to_bits(), r.origin[a].to_bits(), "lane {i} axis {a}");
+                    assert_eq!(d[a][i].to_bits(), r.dir[a].to_bits(), "lane {i} axis {a}");
                 }
             }
         }

@@ -169,6 +169,12 @@ impl Sampler {
     #[must_use]
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {
+        self.point_1d(dim)
+    }
+
+    /// [`Self::get1d`], always inlined, so that a loop over lanes calling it vectorises.
+    #[inline(always)]
+    fn point_1d(&self, dim: u32) -> f32 {
         let h = self.seeds(dim);
         // The index's Owen scramble i = rev(U(rev(index))), then the first coordinate rev(i)
         // scrambled: rev(U(rev(rev(i)))) = rev(U(i)), U being `upward_hash`.
@@ -216,20 +222,63 @@ impl Sampler {
 pub(crate) struct SamplerLanes(pub(crate) [Sampler; LANES]);
 
 impl SamplerLanes {
-    /// [`Sampler::get1d`] at dimension `dim[i]` in every lane `i` of `on`.
+    /// [`Sampler::get1d`] at dimension `dim[i]` in every lane `i` of `on`: every lane drawn in
+    /// a loop without branches, which the compiler vectorises, and the lanes not on set to 0.
     #[inline]
     pub(crate) fn get1d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [f32; LANES] {
-        std::array::from_fn(|i| if on[i] { self.0[i].get1d(dim[i]) } else { 0.0 })
+        let mut out = [0.0; LANES];
+        for i in 0..LANES {
+            let u = self.0[i].point_1d(dim[i]);
+            out[i] = if on[i] { u } else { 0.0 };
+        }
+        out
     }
 
     /// [`Sampler::get2d`] at dimension `dim[i]` in every lane `i` of `on`, by axis.
     #[inline]
     pub(crate) fn get2d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [[f32; LANES]; 2] {
-        let mut out = [[0.0; LANES]; 2];
+        let index = std::array::from_fn(|i| self.0[i].index);
+        let mut out = self.points_2d(&index, dim, &[0; LANES]);
         for i in 0..LANES {
-            if on[i] {
-                [out[0][i], out[1][i]] = self.0[i].get2d(dim[i]);
+            for axis in &mut out {
+                axis[i] = if on[i] { axis[i] } else { 0.0 };
             }
+        }
+        out
+    }
+
+    /// [`Sampler::get2d`] at dimension `dim` in every lane, by axis.
+    #[inline]
+    pub(crate) fn get2d_all(&self, dim: u32) -> [[f32; LANES]; 2] {
+        let index = std::array::from_fn(|i| self.0[i].index);
+        self.points_2d(&index, &[dim; LANES], &[0; LANES])
+    }
+
+    /// [`Sampler::get2d_in_stratum`] at dimension `dim` in every lane `i`, in stratum
+    /// `stratum[i]` as its `index[i]`-th sample, by axis.
+    #[inline]
+    pub(crate) fn get2d_in_stratum(&self, dim: u32, stratum: &[u32; LANES], index: &[u32; LANES]) -> [[f32; LANES]; 2] {
+        let salt = std::array::from_fn(|i| u64::from(stratum[i]) << 32);
+        self.points_2d(index, &[dim; LANES], &salt)
+    }
+
+    /// [`Sampler::point_2d`] in every lane, by axis: the same integer arithmetic in loops over
+    /// the lanes without branches, which the compiler vectorises (the bit reversals become
+    /// byte shuffles); only the table lookups of the second coordinate go lane by lane.
+    #[inline(always)]
+    fn points_2d(&self, index: &[u32; LANES], dim: &[u32; LANES], salt: &[u64; LANES]) -> [[f32; LANES]; 2] {
+        let (mut i, mut hx, mut gy) = ([0u32; LANES], [0u32; LANES], [0u32; LANES]);
+        for k in 0..LANES {
+            let h = mix(self.0[k].key ^ salt[k] ^ u64::from(dim[k] + 1).wrapping_mul(0xd1b5_4a32_d192_ed03));
+            let g = mix(h);
+            i[k] = upward_hash(index[k].reverse_bits(), h as u32).reverse_bits();
+            (hx[k], gy[k]) = ((h >> 32) as u32, g as u32);
+        }
+        let second: [u32; LANES] = std::array::from_fn(|k| sobol1_reversed(i[k]));
+        let mut out = [[0.0; LANES]; 2];
+        for k in 0..LANES {
+            out[0][k] = unit(upward_hash(i[k], hx[k]).reverse_bits());
+            out[1][k] = unit(upward_hash(second[k], gy[k]).reverse_bits());
         }
         out
     }
@@ -428,6 +477,23 @@ mod tests {
             };
             assert_eq!(one[i], w1, "lane {i}");
             assert_eq!([two[0][i], two[1][i]], w2, "lane {i}");
+        }
+        // Every lane at one dimension, and in strata; indices with bits in every byte.
+        let lanes = SamplerLanes(std::array::from_fn(|i| {
+            Sampler::new(3, i as u64, (i as u32).wrapping_mul(0x9e37_79b9))
+        }));
+        let all = lanes.get2d_all(2);
+        let stratum: [u32; LANES] = std::array::from_fn(|i| i as u32 % 4);
+        let index: [u32; LANES] = std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0107));
+        let strata = lanes.get2d_in_stratum(6, &stratum, &index);
+        for i in 0..LANES {
+            let s = &lanes.0[i];
+            assert_eq!([all[0][i], all[1][i]], s.get2d(2), "lane {i}");
+            assert_eq!(
+                [strata[0][i], strata[1][i]],
+                s.get2d_in_stratum(6, stratum[i], index[i]),
+                "lane {i}"
+            );
         }
     }
 }

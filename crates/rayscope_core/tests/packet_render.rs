@@ -122,8 +122,13 @@ fn path_traced_renders_are_the_same_with_camera_packets_and_paired_queries() {
         "whitted.txt",
     ] {
         let scene = load(&root.join(name));
-        for ambient in [true, false] {
-            let s = RenderSettings {
+        // The depth-of-field scene through its lens too, whose camera rays start across it.
+        let apertures: &[f32] = if name == "dof.txt" { &[0.0, 0.1] } else { &[0.0] };
+        for (ambient, &aperture) in [true, false]
+            .into_iter()
+            .flat_map(|a| apertures.iter().map(move |r| (a, r)))
+        {
+            let mut s = RenderSettings {
                 width: 48,
                 height: 36,
                 aa: 2,
@@ -132,14 +137,19 @@ fn path_traced_renders_are_the_same_with_camera_packets_and_paired_queries() {
                 stage: Stage::Full,
                 ..RenderSettings::default()
             };
+            if aperture > 0.0 {
+                s.camera.aperture_radius = aperture;
+                s.camera.focal_length = 3.6;
+            }
+            let label = format!("{name} -r {aperture} -l {ambient}");
             let (paired, one) = both(&scene, &s);
-            assert_eq!(paired.counters, one.counters, "{name} -l {ambient}: ray counts");
+            assert_eq!(paired.counters, one.counters, "{label}: ray counts");
             // The point-lit room has nothing that sends rays on without -l.
             if ambient || name != "ambient.txt" {
-                assert!(paired.counters.secondary > 1000, "{name} -l {ambient}: paths go on");
+                assert!(paired.counters.secondary > 1000, "{label}: paths go on");
             }
             let diff = differing(&paired, &one);
-            assert_eq!(diff, 0, "{name} -l {ambient}: {diff} pixels differ");
+            assert_eq!(diff, 0, "{label}: {diff} pixels differ");
         }
     }
 }

@@ -19,9 +19,10 @@ use super::{Counters, Integrator, Job};
 use crate::accel::PacketHits;
 use crate::camera::camera_dirs;
 use crate::math::RayPacket;
+use crate::sampling::concentric_disk_lane;
 use crate::scene::{Hit, Intersect};
 use crate::simd::LANES;
-use crate::sobol::SamplerLanes;
+use crate::sobol::{Draw, SamplerLanes};
 
 impl<I: Intersect> Integrator<'_, I> {
     /// What [`Self::sample`] returns for each of `jobs` (at most [`LANES`]), into `out`, with
@@ -50,13 +51,15 @@ impl<I: Intersect> Integrator<'_, I> {
             len: jobs.len(),
             ..CameraBatch::default()
         };
-        if self.thin_lens() {
+        if self.thin_lens() && I::MISTAKEN {
             for (k, &(x, y, s)) in jobs.iter().enumerate() {
                 // Each sample's own numbers, and its lens ray drawn from them.
                 b.rng.0[k] = self.sample_rng(x, y, s);
                 let ray = self.camera_ray(x, y, s, &mut b.rng.0[k]);
                 b.rays.set(k, &ray, f32::INFINITY);
             }
+        } else if self.thin_lens() {
+            self.lens_batch(&mut b, jobs);
         } else {
             // The same for a pinhole camera, the directions all lanes at once: the samples'
             // numbers, each lane's cell centre moved to its point in the cell where it jitters.
@@ -81,6 +84,44 @@ impl<I: Intersect> Integrator<'_, I> {
                 .closest_packet(&mut b.rays, 0.0, self.packet.beams.camera.as_ref(), &mut b.hits);
         }
         b
+    }
+
+    /// The samples' numbers and lens rays, into `b`: what [`Self::camera_ray`] makes for each
+    /// of `jobs` (at most [`LANES`]), all lanes at once, for a render without mistakes.
+    fn lens_batch(&self, b: &mut CameraBatch, jobs: &[Job]) {
+        let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
+        // Each lane's cell (and its place among the cell's paths), for the point in it.
+        let (mut cell, mut path) = ([0; LANES], [0; LANES]);
+        let nn = self.grid * self.grid;
+        for (k, &(x, y, s)) in jobs.iter().enumerate() {
+            b.rng.0[k] = self.sample_rng(x, y, s);
+            [px[k], py[k]] = self.cell_offset(s);
+            (cell[k], path[k]) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
+        }
+        let jitters = self.jitters();
+        let at = b.rng.get2d_in_stratum(Draw::Pixel.dim(0), &cell, &path);
+        let lens = b.rng.get2d_all(Draw::Lens.dim(0));
+        let (w, h) = (self.settings.width as f32, self.settings.height as f32);
+        let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
+        for (k, &(x, y, _)) in jobs.iter().enumerate() {
+            if jitters {
+                [px[k], py[k]] = self.jittered_offset([px[k], py[k]], [at[0][k], at[1][k]]);
+            }
+            // `camera_ray`'s position, moved by a nudge of zero.
+            (u[k], v[k]) = ((x as f32 + px[k]) / w + 0.0, (y as f32 + py[k]) / h + 0.0);
+        }
+        let mut disk = [[0.0; LANES]; 2];
+        for k in 0..LANES {
+            [disk[0][k], disk[1][k]] = concentric_disk_lane(lens[0][k], lens[1][k]);
+        }
+        let (o, d) = self.camera.lens_rays(&u, &v, &disk);
+        // Lanes past the jobs keep the packet's unused rays.
+        let n = jobs.len();
+        for a in 0..3 {
+            b.rays.o[a][..n].copy_from_slice(&o[a][..n]);
+            b.rays.d[a][..n].copy_from_slice(&d[a][..n]);
+        }
+        b.rays.t_max[..n].fill(f32::INFINITY);
     }
 
     /// Sets `rays` (unused in every lane) to the pinhole camera's rays through pixel positions

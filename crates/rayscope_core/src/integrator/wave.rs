@@ -9,7 +9,10 @@
 //! `bsdf::lambert_sample_lanes`; the frame change, `sampling::to_world_unit_lanes`), loops over
 //! the lanes without branches that the compiler vectorises, with the same multiple importance
 //! weights, Russian roulette and random numbers. A lane whose path ends takes the next sample
-//! at once.
+//! at once. Without indirect light a Lambertian vertex's bounce only looks for emitters: it
+//! waits as a probe beside the vertex's emitter shadow ray, and both are traced at the start of
+//! the next step, before the lanes they end take new samples, so those lanes' camera rays go in
+//! that same step and the steps of a direct-lighting render shade nearly every lane.
 //!
 //! Each lane computes exactly what [`Integrator::sample`] computes, in the same order and
 //! with the same random numbers:
@@ -160,6 +163,13 @@ struct Wave {
     shadow: RayPacket,
     /// Lanes with a shadow ray in `shadow`.
     shadow_on: M,
+    /// Each lane's waiting bounce ray whose hit matters only for the emission it finds (a
+    /// Lambertian vertex's bounce that carries no reflected light); `t_max = −∞` where none.
+    /// It is traced with the shadow rays, before the lanes take new samples, so the lane's
+    /// next camera ray goes in the same step.
+    probe: RayPacket,
+    /// Lanes with a bounce ray in `probe`.
+    probe_on: M,
     /// Light the shadow ray adds when nothing blocks it, per axis.
     unblocked: [F; 3],
     /// Each lane's sample's random numbers.
@@ -184,6 +194,8 @@ impl Wave {
             path: [PathState::CAMERA; LANES],
             shadow: RayPacket::default(),
             shadow_on: [false; LANES],
+            probe: RayPacket::default(),
+            probe_on: [false; LANES],
             unblocked: [[0.0; LANES]; 3],
             rng: SamplerLanes::default(),
             stack: std::array::from_fn(|_| Vec::new()),
@@ -273,6 +285,9 @@ impl<I: Intersect> Integrator<'_, I> {
         // samples together, whose walks share their nodes.
         let ahead = !self.isect.packets_test_everything();
         loop {
+            // The waiting shadow rays and bounce probes first: the lanes whose paths they end
+            // take new samples in this same step.
+            self.settle(&mut w, out);
             for i in 0..LANES {
                 if w.on[i] {
                     continue;
@@ -304,13 +319,81 @@ impl<I: Intersect> Integrator<'_, I> {
         w.work
     }
 
-    /// Traces the wave's rays and shadow rays and takes every path one vertex on.
-    fn wave_step(&self, w: &mut Wave, out: &mut [Vec3A], c: &mut Counters) {
-        let blocked = if w.shadow_on.contains(&true) {
+    /// Traces the wave's waiting shadow rays and bounce probes and adds what they bring to their
+    /// vertices, ending the paths that have no ray left to trace.
+    fn settle(&self, w: &mut Wave, out: &mut [Vec3A]) {
+        let shadows = w.shadow_on.contains(&true);
+        let probes = w.probe_on.contains(&true);
+        if !(shadows || probes) {
+            return;
+        }
+        let blocked = if shadows {
             self.isect.scattered_occluded_packet(&mut w.shadow, 0.0)
         } else {
             [false; LANES]
         };
+        let found = if probes {
+            self.isect.scattered_closest_packet(&mut w.probe, 0.0)
+        } else {
+            PacketHits::default()
+        };
+        w.shadow.t_max = [f32::NEG_INFINITY; LANES];
+        w.probe.t_max = [f32::NEG_INFINITY; LANES];
+        for i in 0..LANES {
+            if !w.shadow_on[i] {
+                continue;
+            }
+            w.shadow_on[i] = false;
+            let top = w.stack[i].last_mut().expect("a shadow ray belongs to a vertex");
+            debug_assert_eq!(top.kind, Kind::Lambert);
+            if !blocked[i] {
+                top.l += lane(&w.unblocked, i);
+            }
+            if !(w.ray_on[i] | w.probe_on[i]) {
+                // The vertex sent no bounce: its light is what it returns.
+                let l = top.l;
+                w.stack[i].pop();
+                w.finish(i, Li::reflected(l), out);
+            }
+        }
+        for i in 0..LANES {
+            if !w.probe_on[i] {
+                continue;
+            }
+            w.probe_on[i] = false;
+            let li = self.probe_light(w, i, found.get(i));
+            w.finish(i, li, out);
+        }
+    }
+
+    /// What lane `i`'s bounce probe brings from its closest hit `hit`: an emitter's light, with
+    /// the density emitter sampling gives the point, and nothing from any other surface, as the
+    /// wave's hits on rays not wanted for their reflected light do.
+    #[inline]
+    fn probe_light(&self, w: &Wave, i: usize, hit: LaneHit) -> Li {
+        let Some((t, u, v, prim)) = hit else {
+            return Li::default();
+        };
+        let m = &self.scene.materials[self.scene.prim_info(prim).1 as usize];
+        if m.lobe() != Lobe::Emitter {
+            return Li::default();
+        }
+        let ray = w.probe.ray(i);
+        Li {
+            emitted: m.color.into(),
+            reflected: Vec3A::ZERO,
+            light_pdf: if self.emitters.is_empty() {
+                0.0
+            } else {
+                let point = self.scene.surface(&ray, &Hit { t, u, v, prim }).point;
+                self.emitters.pdf(self.scene, ray.origin, prim, point)
+            },
+        }
+        .absorbed(self.transmittance(w.path[i], t))
+    }
+
+    /// Traces the wave's rays and takes every path one vertex on.
+    fn wave_step(&self, w: &mut Wave, out: &mut [Vec3A], c: &mut Counters) {
         let mut hits = if (0..LANES).any(|i| w.ray_on[i] & w.found[i].is_none()) {
             self.isect.scattered_closest_packet(&mut w.rays, 0.0)
         } else {
@@ -324,25 +407,7 @@ impl<I: Intersect> Integrator<'_, I> {
         // Only the lanes given new rays below trace them next; a lane given one here (glass's
         // second ray, once the vertex below it is summed) has no hit in `hits` yet.
         let traced = w.ray_on;
-        w.shadow.t_max = [f32::NEG_INFINITY; LANES];
         w.rays.t_max = [f32::NEG_INFINITY; LANES];
-        for i in 0..LANES {
-            if !w.shadow_on[i] {
-                continue;
-            }
-            w.shadow_on[i] = false;
-            let top = w.stack[i].last_mut().expect("a shadow ray belongs to a vertex");
-            debug_assert_eq!(top.kind, Kind::Lambert);
-            if !blocked[i] {
-                top.l += lane(&w.unblocked, i);
-            }
-            if !traced[i] {
-                // The vertex sent no bounce: its light is what it returns.
-                let l = top.l;
-                w.stack[i].pop();
-                w.finish(i, Li::reflected(l), out);
-            }
-        }
         if !traced.contains(&true) {
             return;
         }
@@ -591,12 +656,20 @@ impl<I: Intersect> Integrator<'_, I> {
                     medium: path.medium,
                     branch: false,
                 };
+                // Without indirect light no bounce carries reflected light: each only looks for
+                // emission, and waits with the shadow ray as a probe. With it, a bounce is the
+                // lane's next ray even where Russian roulette ended the path (a probe packet of
+                // those few lanes costs more than it frees).
+                let probe = !ambient & !want[i];
+                let next = if probe { &mut w.probe } else { &mut w.rays };
                 for a in 0..3 {
-                    w.rays.o[a][i] = org[a][i];
-                    w.rays.d[a][i] = wi[a][i];
+                    next.o[a][i] = org[a][i];
+                    next.d[a][i] = wi[a][i];
                 }
-                w.rays.t_max[i] = f32::INFINITY;
+                next.t_max[i] = f32::INFINITY;
                 w.want[i] = want[i];
+                w.ray_on[i] = !probe;
+                w.probe_on[i] = probe;
                 c.secondary += 1;
             } else {
                 w.ray_on[i] = false;
@@ -642,8 +715,14 @@ mod tests {
         for path in &paths {
             let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e:?}", path.display()));
             let scene = Scene::from_file(&file);
-            for ambient in [true, false] {
-                let settings = RenderSettings {
+            // The depth-of-field scene through its lens too.
+            let lens = path.ends_with("dof.txt");
+            let apertures: &[f32] = if lens { &[0.0, 0.1] } else { &[0.0] };
+            for (ambient, &aperture) in [true, false]
+                .into_iter()
+                .flat_map(|a| apertures.iter().map(move |r| (a, r)))
+            {
+                let mut settings = RenderSettings {
                     width: 40,
                     height: 30,
                     aa: 2,
@@ -652,6 +731,10 @@ mod tests {
                     stage: Stage::Full,
                     ..RenderSettings::default()
                 };
+                if aperture > 0.0 {
+                    settings.camera.aperture_radius = aperture;
+                    settings.camera.focal_length = 3.6;
+                }
                 let integ = Integrator::new(&scene, &settings);
                 if integ.engine() != Engine::Waves {
                     assert!(!integ.stochastic, "{}: stochastic renders go in waves", path.display());
@@ -670,12 +753,17 @@ mod tests {
                     assert_eq!(
                         got[k].to_array().map(f32::to_bits),
                         v.to_array().map(f32::to_bits),
-                        "{} -l {ambient}: pixel ({x}, {y}) sample {s}: {} against {v}",
+                        "{} -r {aperture} -l {ambient}: pixel ({x}, {y}) sample {s}: {} against {v}",
                         path.display(),
                         got[k]
                     );
                 }
-                assert_eq!(counted, want, "{} -l {ambient}: ray counts", path.display());
+                assert_eq!(
+                    counted,
+                    want,
+                    "{} -r {aperture} -l {ambient}: ray counts",
+                    path.display()
+                );
                 assert!(shaded > 0 || !ambient, "{}: the wave shaded nothing", path.display());
                 waves += 1;
                 // Camera rays go in the wave's packets in a room with a list, else ahead.
