@@ -432,3 +432,24 @@ fn glass_that_shows_only_its_reflection_is_one_way_not_a_cause() {
     assert_eq!(d.explanations[0].loses_refraction, ["GlassSphere"], "{text}");
     assert!(d.next.is_some(), "the pixels to log are given\n{text}");
 }
+
+/// The reflected and refracted weights exchanged where the colours are mixed (uncatalogued) are
+/// fitted as 1 minus the exact weight and said as exchanged, not as a curve of numbers alone.
+#[test]
+fn exchanged_fresnel_weights_are_fitted_and_said() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let d = run(&scene, &["fresnel-weights-exchanged"], Options::new(W, H));
+    let text = report_text(&d, "scene.txt");
+    let f = d.fitted.first().unwrap_or_else(|| panic!("nothing fitted\n{text}"));
+    assert_eq!(f.code, "fresnel-exchanged", "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(
+        text.lines()
+            .next()
+            .unwrap_or_default()
+            .contains("Your glass's reflected and refracted weights are exchanged (fitted from "),
+        "{text}"
+    );
+}

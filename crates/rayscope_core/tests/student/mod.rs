@@ -463,6 +463,12 @@ impl Student {
             o: hit.p - n * self.eps(),
             d: t,
         };
+        // Uncatalogued: the two weights exchanged where the colours are mixed.
+        let kr = if self.bug("fresnel-weights-exchanged") {
+            1.0 - kr
+        } else {
+            kr
+        };
         let mut c = self.trace(refracted, depth + 1) * (1.0 - kr);
         if kr > 0.0 {
             c += self.trace(reflected, depth + 1) * kr;

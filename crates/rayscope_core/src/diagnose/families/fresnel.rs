@@ -1,5 +1,6 @@
 //! The Fresnel weight of glass, fitted to the student's pixels: the course's exact unpolarised
-//! weight, none (0), a half, Schlick's approximation, a constant (fitted), and a general curve
+//! weight, none (0), a half, Schlick's approximation, the reflected and refracted weights
+//! exchanged (1 minus the exact weight), a constant (fitted), and a general curve
 //! (fitted at knots: piecewise linear in cos θi entering the glass, in the angle's share of the
 //! critical angle leaving it). Each member
 //! is fitted by least squares over the channels of the glass's pixels that the weight changes by
@@ -53,6 +54,9 @@ enum Member {
     Half,
     /// Schlick's approximation.
     Schlick,
+    /// The reflected and refracted weights exchanged: 1 − the course's weight (1 under total
+    /// internal reflection, where there is nothing to exchange it with).
+    Exchanged,
     /// One share at every angle (fitted).
     Constant,
     /// Piecewise linear, entering and leaving apart (fitted at [`ENTER_KNOTS`] and
@@ -77,6 +81,7 @@ impl Member {
             Member::None => "fresnel-none",
             Member::Half => "fresnel-half",
             Member::Schlick => "fresnel-schlick",
+            Member::Exchanged => "fresnel-exchanged",
             Member::Constant => "fresnel-constant",
             Member::Curve => "fresnel-curve",
         }
@@ -90,6 +95,13 @@ impl Member {
             Member::None => 0.0,
             Member::Half => 0.5,
             Member::Schlick => f64::from(schlick(c, n1, n2)),
+            Member::Exchanged => {
+                if h.course >= 1.0 {
+                    1.0
+                } else {
+                    1.0 - h.course
+                }
+            }
             Member::Constant => {
                 if let Some(d) = g.first_mut() {
                     *d = 1.0;
@@ -383,6 +395,7 @@ pub(super) fn fit(all: &[PixelTrees]) -> Option<Fitted> {
         Member::None,
         Member::Half,
         Member::Schlick,
+        Member::Exchanged,
         Member::Constant,
         Member::Curve,
     ]
@@ -452,6 +465,13 @@ fn finding(m: Member, f: &Fit, course: &Fit, ior: f64) -> Fitted {
         }
         Member::Schlick => format!(
             "Your glass's Fresnel weight is Schlick's approximation (fitted from {n} pixels): {}, {} and {} at normal incidence, 60° and 80°; the exact Fresnel weight: {}.",
+            pct(yours[0]),
+            pct(yours[1]),
+            pct(yours[2]),
+            pcts(exact)
+        ),
+        Member::Exchanged => format!(
+            "Your glass's reflected and refracted weights are exchanged (fitted from {n} pixels): it reflects {}, {} and {} at normal incidence, 60° and 80°, which is 1 minus the exact Fresnel weight ({}). Where you mix the two colours, the reflected colour takes kr and the refracted one 1 − kr.",
             pct(yours[0]),
             pct(yours[1]),
             pct(yours[2]),
