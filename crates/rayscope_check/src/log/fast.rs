@@ -307,89 +307,22 @@ impl<'a> Cursor<'a> {
         Some(if negative { -v } else { v })
     }
 
-    /// The sixteen bytes from `at`, with zero bytes (no digit, quote or letter) for those past
-    /// the end of the record: one load where the record has them.
+    /// The sixteen bytes from `at` ([`window`]).
     #[inline(always)]
     fn window(&self, at: usize) -> [u8; 16] {
-        match self.b.get(at..at + 16) {
-            Some(w) => w.try_into().expect("sixteen bytes"),
-            None => self.window_tail(at),
-        }
+        window(self.b, at)
     }
 
-    /// [`Self::window`] near the end of the record: its last sixteen bytes shifted down.
-    #[inline(never)]
-    fn window_tail(&self, at: usize) -> [u8; 16] {
-        let len = self.b.len();
-        match self.b.get(len.wrapping_sub(16)..) {
-            Some(last) if at <= len => {
-                let v = u128::from_le_bytes(last.try_into().expect("sixteen bytes"));
-                // The bytes before `at` shifted out, zeros shifted in at the top.
-                v.checked_shr(8 * (at + 16 - len) as u32).unwrap_or(0).to_le_bytes()
-            }
-            _ => {
-                let mut w = [0u8; 16];
-                let rest = self.b.get(at..).unwrap_or_default();
-                let n = rest.len().min(16);
-                w[..n].copy_from_slice(&rest[..n]);
-                w
-            }
-        }
-    }
-
-    /// A decimal without an exponent, at most 7 digits before its point and at most 14 after,
-    /// ending within the fifteen bytes after its sign: its digits, read as an integer, are below
-    /// 10^14 < 2^53, so one division gives the correctly rounded value (see
-    /// [`Self::short_decimal`]). The digits are found sixteen bytes at a time and converted
-    /// eight at a time. Tracers print most coordinates this way. `None` for anything else.
+    /// A decimal as [`decimal`] reads it, with the cursor moved past it. Tracers print most
+    /// coordinates this way. `None` for anything else.
     #[inline(always)]
     fn decimal16(&mut self) -> Option<f64> {
-        const POW10: [f64; 15] = [
-            1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14,
-        ];
-        let negative = self.b.get(self.i) == Some(&b'-');
-        let start = self.i + usize::from(negative);
-        let w = self.window(start);
-        let v = u8x16::new(w) - u8x16::splat(b'0');
-        // The digit values, and which bytes are digits.
-        let x = v.to_array();
-        let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask() as u32;
-        let int = (!digit).trailing_zeros() as usize;
-        // 1 to 7 digits before the point, without a leading zero ('0' is the digit value 0).
-        if int.wrapping_sub(1) >= 7 || (int > 1 && x[0] == 0) {
+        let (v, end, after) = decimal(self.b, self.i)?;
+        if matches!(after, b'e' | b'E') {
             return None;
         }
-        // Eight digit values from byte `at`, the first in the lowest byte.
-        let eight = |at: usize| u64::from_le_bytes(x[at..at + 8].try_into().expect("eight bytes"));
-        // The `n` (1 to 8) digits from byte `at` moved to the top, so that the bytes below them
-        // read as leading zeros.
-        let run = |at: usize, n: usize| eight_digits(eight(at) << (8 * (8 - n)));
-        // Most coordinates have one digit before the point.
-        let mut m = if int == 1 { u64::from(x[0]) } else { run(0, int) };
-        let (frac, end) = if w[int] == b'.' {
-            let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
-            let end = int + 1 + f;
-            if f == 0 || end > 15 {
-                return None;
-            }
-            let digits = if f <= 8 {
-                run(int + 1, f)
-            } else {
-                // The first f − 8, then the last eight, which end where the number does.
-                run(int + 1, f - 8) * POW10_U64[8] + eight_digits(eight(end - 8))
-            };
-            m = m * POW10_U64[f] + digits;
-            (f, end)
-        } else {
-            (0, int)
-        };
-        if matches!(w[end], b'e' | b'E') {
-            return None;
-        }
-        // Below 2^53, so also as a signed integer, which converts in one instruction.
-        let v = m as i64 as f64 / POW10[frac];
-        self.i = start + end;
-        Some(if negative { -v } else { v })
+        self.i = end;
+        Some(v)
     }
 
     #[inline]
@@ -615,6 +548,108 @@ impl<'a> Cursor<'a> {
             }
         }
     }
+}
+
+/// The sixteen bytes of `b` from `at`, with zero bytes (no digit, quote or letter) for those
+/// past its end: one load where `b` has them.
+#[inline(always)]
+fn window(b: &[u8], at: usize) -> [u8; 16] {
+    match b.get(at..at + 16) {
+        Some(w) => w.try_into().expect("sixteen bytes"),
+        None => window_tail(b, at),
+    }
+}
+
+/// [`window`] near the end of `b`: its last sixteen bytes shifted down.
+#[inline(never)]
+fn window_tail(b: &[u8], at: usize) -> [u8; 16] {
+    let len = b.len();
+    match b.get(len.wrapping_sub(16)..) {
+        Some(last) if at <= len => {
+            let v = u128::from_le_bytes(last.try_into().expect("sixteen bytes"));
+            // The bytes before `at` shifted out, zeros shifted in at the top.
+            v.checked_shr(8 * (at + 16 - len) as u32).unwrap_or(0).to_le_bytes()
+        }
+        _ => {
+            let mut w = [0u8; 16];
+            let rest = b.get(at..).unwrap_or_default();
+            let n = rest.len().min(16);
+            w[..n].copy_from_slice(&rest[..n]);
+            w
+        }
+    }
+}
+
+/// A decimal at `b[at..]` without an exponent, its sign included, at most 7 digits before its
+/// point and at most 14 after, ending within the fifteen bytes after its sign: its value, where
+/// it ends, and the byte after it (0 past the end of `b`), which the caller checks (a decimal
+/// followed by `e` is not this one). Its digits, read as an integer, are below 10^14 < 2^53,
+/// so one division gives the correctly rounded value (see [`Cursor::short_decimal`]). The
+/// digits are found sixteen bytes at a time and converted eight at a time. `None` for
+/// anything else.
+#[inline(always)]
+fn decimal(b: &[u8], at: usize) -> Option<(f64, usize, u8)> {
+    const POW10: [f64; 15] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14,
+    ];
+    let negative = b.get(at) == Some(&b'-');
+    let start = at + usize::from(negative);
+    let w = window(b, start);
+    let v = u8x16::new(w) - u8x16::splat(b'0');
+    // The digit values, and which bytes are digits.
+    let x = v.to_array();
+    let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask();
+    let int = (!digit).trailing_zeros() as usize;
+    // 1 to 7 digits before the point, without a leading zero ('0' is the digit value 0).
+    if int.wrapping_sub(1) >= 7 || (int > 1 && x[0] == 0) {
+        return None;
+    }
+    // Eight digit values from byte `at`, the first in the lowest byte.
+    let eight = |at: usize| u64::from_le_bytes(x[at..at + 8].try_into().expect("eight bytes"));
+    // The `n` (1 to 8) digits from byte `at` moved to the top, so that the bytes below them
+    // read as leading zeros.
+    let run = |at: usize, n: usize| eight_digits(eight(at) << (8 * (8 - n)));
+    // Most coordinates have one digit before the point.
+    let mut m = if int == 1 { u64::from(x[0]) } else { run(0, int) };
+    let (frac, end) = if w[int] == b'.' {
+        let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
+        let end = int + 1 + f;
+        if f == 0 || end > 15 {
+            return None;
+        }
+        let digits = if f <= 8 {
+            run(int + 1, f)
+        } else {
+            // The first f − 8, then the last eight, which end where the number does.
+            run(int + 1, f - 8) * POW10_U64[8] + eight_digits(eight(end - 8))
+        };
+        m = m * POW10_U64[f] + digits;
+        (f, end)
+    } else {
+        (0, int)
+    };
+    // Below 2^53, so also as a signed integer, which converts in one instruction.
+    let v = m as i64 as f64 / POW10[frac];
+    Some((if negative { -v } else { v }, start + end, w[end]))
+}
+
+/// Three decimals as [`decimal`] reads them, in brackets, with commas and no spaces between,
+/// at `b[at..]`: the numbers and where they end.
+#[inline(never)]
+fn tight_vec3(b: &[u8], at: usize) -> Option<([f64; 3], usize)> {
+    if b.get(at) != Some(&b'[') {
+        return None;
+    }
+    let (x, i, after) = decimal(b, at + 1)?;
+    if after != b',' {
+        return None;
+    }
+    let (y, i, after) = decimal(b, i + 1)?;
+    if after != b',' {
+        return None;
+    }
+    let (z, i, after) = decimal(b, i + 1)?;
+    (after == b']').then_some(([x, y, z], i + 1))
 }
 
 /// Reads the run of ASCII digits at `*i` onto `m` (`m · 10^k + digits`, wrapping), moving `*i`

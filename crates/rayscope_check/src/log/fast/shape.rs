@@ -10,7 +10,7 @@
 use glam::DVec3;
 use rustc_hash::FxHashMap;
 
-use super::{key, Cursor, Lit};
+use super::{key, tight_vec3, Cursor, Lit};
 use crate::log::{Answer, HitClaim, Kind, LogContext, LoggedRay};
 
 /// The names of a scene's entities or of its lights by their bytes: the reader looks a name up
@@ -110,7 +110,11 @@ impl Cursor<'_> {
     /// member of its object; `first` is cleared when it is found.
     #[inline(always)]
     fn member(&mut self, m: &Member, first: &mut bool) -> bool {
-        let found = self.lit16(if *first { &m.first } else { &m.next });
+        // Each text compared as a constant: most members are not the first.
+        if !*first {
+            return self.lit16(&m.next);
+        }
+        let found = self.lit16(&m.first);
         if found {
             *first = false;
         }
@@ -143,30 +147,11 @@ impl Cursor<'_> {
     /// Three numbers in brackets: without spaces at once, else as [`Cursor::vec3`] reads them.
     #[inline(always)]
     fn shaped_vec3(&mut self) -> Option<[f64; 3]> {
-        let at = self.i;
-        if let Some(v) = self.tight_vec3() {
+        if let Some((v, end)) = tight_vec3(self.b, self.i) {
+            self.i = end;
             return Some(v);
         }
-        self.i = at;
         self.vec3()
-    }
-
-    /// Three numbers in brackets, without spaces.
-    #[inline(never)]
-    fn tight_vec3(&mut self) -> Option<[f64; 3]> {
-        if !self.lit(b"[") {
-            return None;
-        }
-        let x = self.f64()?;
-        if !self.lit(b",") {
-            return None;
-        }
-        let y = self.f64()?;
-        if !self.lit(b",") {
-            return None;
-        }
-        let z = self.f64()?;
-        self.lit(b"]").then_some([x, y, z])
     }
 
     /// A hit object of the shape: `t`, `point`, `normal` and `entity`, each optional.
