@@ -184,7 +184,11 @@ impl Grouper {
             };
             self.current = Some((key, rays, self.seen));
             self.pending += 1;
-            if self.current.as_ref().is_some_and(|(_, rays, _)| rays.len() >= MAX_GROUP) {
+            if self
+                .current
+                .as_ref()
+                .is_some_and(|(_, rays, _)| rays.len() >= MAX_GROUP)
+            {
                 if let Some((_, rays, _)) = self.current.take() {
                     self.pending -= rays.len();
                     ready.push(rays);
@@ -454,10 +458,7 @@ pub(crate) fn run(
         reading += dt;
         // The batch read goes to the grouper, which hands back batches it no longer needs, so
         // that none is allocated again.
-        let spare = grouper
-            .spare
-            .pop()
-            .unwrap_or_else(|| Vec::with_capacity(log::BATCH));
+        let spare = grouper.spare.pop().unwrap_or_else(|| Vec::with_capacity(log::BATCH));
         if more {
             read = Some((std::mem::replace(&mut next, spare), !again));
         } else {

@@ -943,7 +943,10 @@ mod tests {
                 1 => (1e-4, pick(8) + 0.5),
                 _ => (pick(3), f64::INFINITY),
             };
-            let (a, b) = (o.closest(origin, d, t_min, t_max), o.closest_by_visit(origin, d, t_min, t_max));
+            let (a, b) = (
+                o.closest(origin, d, t_min, t_max),
+                o.closest_by_visit(origin, d, t_min, t_max),
+            );
             assert_eq!(
                 a.map(|h| (h.prim, h.t.to_bits(), h.point.to_array().map(f64::to_bits))),
                 b.map(|h| (h.prim, h.t.to_bits(), h.point.to_array().map(f64::to_bits))),

@@ -77,7 +77,10 @@ pub(super) struct Lit {
 
 impl Lit {
     const fn new(t: &[u8]) -> Lit {
-        assert!(!t.is_empty() && t.len() <= 16, "a text compared at once fits in sixteen bytes");
+        assert!(
+            !t.is_empty() && t.len() <= 16,
+            "a text compared at once fits in sixteen bytes"
+        );
         let mut text = 0u128;
         let mut j = 0;
         while j < t.len() {
@@ -85,7 +88,11 @@ impl Lit {
             text |= (t[j] as u128) << (8 * j);
             j += 1;
         }
-        let mask = if t.len() == 16 { u128::MAX } else { (1u128 << (8 * t.len())) - 1 };
+        let mask = if t.len() == 16 {
+            u128::MAX
+        } else {
+            (1u128 << (8 * t.len())) - 1
+        };
         Lit {
             text,
             mask,
