@@ -1010,6 +1010,34 @@ mod tests {
         }
     }
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(6000))]
+        /// The shortest decimals of f32 and f64 values (as tracers print them), as bracketed
+        /// triples without spaces, at the end of a record or before more of it, are read bit
+        /// for bit as the standard library reads them.
+        #[test]
+        fn printed_floats_in_triples_read_as_the_standard_library_reads_them(
+            v in proptest::array::uniform3(prop_oneof![
+                any::<f32>().prop_filter("finite", |v| v.is_finite()).prop_map(|v| format!("{v}")),
+                any::<f64>().prop_filter("finite", |v| v.is_finite()).prop_map(|v| format!("{v}")),
+                (-1e3f32..1e3).prop_map(|v| format!("{v}")),
+                (-1f32..1.0).prop_map(|v| format!("{v}")),
+            ]),
+            tail in prop_oneof![Just(String::new()), Just("}".to_string()), Just(",\"color\":[0,0,0]}".to_string())],
+        ) {
+            let text = format!("[{},{},{}]{tail}", v[0], v[1], v[2]);
+            let want: Vec<u64> = v.iter().map(|x| x.parse::<f64>().expect("a number").to_bits()).collect();
+            let mut c = Cursor { b: text.as_bytes(), i: 0 };
+            let general = c.vec3().map(|a| a.map(f64::to_bits).to_vec());
+            prop_assert_eq!(general.as_ref(), Some(&want), "{}", text);
+            let end = text.len() - tail.len();
+            prop_assert_eq!(c.i, end, "{}", text);
+            if let Some((got, at)) = tight_vec3(text.as_bytes(), 0) {
+                prop_assert_eq!(got.map(f64::to_bits).to_vec(), want, "{}", text);
+                prop_assert_eq!(at, end, "{}", text);
+            }
+        }
+    }
+    proptest! {
         #![proptest_config(ProptestConfig::with_cases(4000))]
         /// Decimals, read sixteen bytes at a time where they fit, are read bit for bit as the
         /// standard library reads them, and the cursor stops where JSON's grammar ends them.
@@ -1017,7 +1045,7 @@ mod tests {
         fn decimals_read_as_the_standard_library_reads_them(
             negative in any::<bool>(),
             int in "0|[1-9][0-9]{0,8}",
-            frac in proptest::option::of("[0-9]{1,10}"),
+            frac in proptest::option::of(prop_oneof!["[0-9]{1,16}", "0{1,12}[1-9][0-9]{0,8}"]),
             after in prop_oneof![Just(",".to_string()), Just("]".to_string()), Just("e5".to_string()),
                 Just(".".to_string()), "[ -~]{0,20}"],
         ) {
