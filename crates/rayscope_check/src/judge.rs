@@ -341,6 +341,9 @@ impl Tally {
     fn add_ray(&mut self, camera: bool, findings: Vec<Finding>) {
         self.rays += 1;
         self.camera += u64::from(camera);
+        if findings.is_empty() {
+            return;
+        }
         let bad = findings.iter().any(|f| !f.code.is_tie());
         if bad {
             self.disagree += 1;
@@ -902,7 +905,10 @@ impl<'a> Judge<'a> {
         }));
         order.clear();
         order.extend(0..n);
-        order.sort_by_key(|&i| (depth[i], i));
+        // Tracers log a parent before its children: then the log's order is already that one.
+        if depth.windows(2).any(|w| w[0] > w[1]) {
+            order.sort_by_key(|&i| (depth[i], i));
+        }
         evals.clear();
         evals.resize(n, None);
         findings.clear();
@@ -910,7 +916,7 @@ impl<'a> Judge<'a> {
         kinds.clear();
         kinds.resize(n, Kind::Camera);
         for &i in order.iter() {
-            let leave = parent[i].and_then(|p| evals[p]).and_then(|e| e.leave());
+            let leave = parent[i].and_then(|p| evals[p].as_ref()).and_then(Eval::leave);
             let (eval, kind) = self.judge_ray(&rays[i], leave.as_ref(), &mut findings[i], tally);
             evals[i] = Some(eval);
             kinds[i] = kind;
@@ -921,8 +927,8 @@ impl<'a> Judge<'a> {
                 kinds[i] == Kind::Refraction
                     && findings[i].is_empty()
                     && parent[i]
-                        .and_then(|p| evals[p])
-                        .and_then(|e| e.leave())
+                        .and_then(|p| evals[p].as_ref())
+                        .and_then(Eval::leave)
                         .is_some_and(|lv| lv.front)
             })
             .count() as u64;

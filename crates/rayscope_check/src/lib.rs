@@ -75,99 +75,190 @@ impl Overfull {
     }
 }
 
+/// The rays of an open pixel sample: most samples' rays are one run of consecutive rays of one
+/// batch, held there by their numbers in the log (counted from 0), so that grouping a ray
+/// copies nothing; the rays of a sample that are not one such run (interleaved with another
+/// sample's, or across two batches) are copied out.
+#[derive(Debug)]
+enum Rays {
+    /// Rays `start..end`, all in one batch.
+    Run(u64, u64),
+    /// Copies of the sample's rays, in the log's order.
+    Copied(Vec<LoggedRay>),
+}
+
+impl Rays {
+    fn len(&self) -> usize {
+        match self {
+            Rays::Run(a, b) => (b - a) as usize,
+            Rays::Copied(v) => v.len(),
+        }
+    }
+}
+
 /// Collects rays into pixel samples, closing those that are complete.
 ///
 /// Tracers write most of a sample's rays one after another, so the sample of the last record is
-/// kept out of the map: a record of the same sample costs a comparison, not a hash lookup.
+/// kept out of the map: a record of the same sample costs a comparison, not a hash lookup. The
+/// batches read are kept until no open sample can have rays in them, so that a sample's rays
+/// are judged where the reader put them.
 #[derive(Default)]
 struct Grouper {
+    /// Batches of rays that open samples, or samples closed but not yet judged, may have rays
+    /// in, oldest first, each with the number of its first ray.
+    batches: VecDeque<(u64, Vec<LoggedRay>)>,
     /// Open samples other than the current one, in the order they were parked, which is the
     /// order of their last rays: each with the record count at its last ray, and its rays until
     /// the sample is taken back as the current one (`None` from then on).
-    parked: VecDeque<(Key, Option<Vec<LoggedRay>>, u64)>,
+    parked: VecDeque<(Key, Option<Rays>, u64)>,
     /// Where each open sample other than the current one lies in `parked`, counted from the
-    /// first sample ever parked.
+    /// first sample ever parked; kept only once a sample comes back (see `returns`).
     open: FxHashMap<Key, u64>,
+    /// Whether a record has come after one of a later sample, in the order of rows, columns and
+    /// samples: until then every new sample is a new one (tracers that write their samples in
+    /// that order never look one up), and `open` is not kept.
+    returns: bool,
+    /// The last sample in that order met so far.
+    latest: Option<Key>,
+    /// Open samples in `parked`.
+    parked_open: usize,
     /// Samples taken off the front of `parked`.
     gone: u64,
-    /// The sample of the last record, with the record count at its last ray.
-    current: Option<(Key, (Vec<LoggedRay>, u64))>,
+    /// The sample of the last record, with its rays and the record count at its last ray.
+    current: Option<(Key, Rays, u64)>,
+    /// Rays grouped so far.
     seen: u64,
     /// Rays in `open` and `current`.
     pending: usize,
-    /// A buffer that keeps its room from sample to sample, for the rays of a current sample that
-    /// outgrows its first vector: they are copied out at their exact count when it is parked, so
-    /// that a sample costs at most two allocations however many rays it has, and held samples
-    /// (what a check's memory is mostly made of) take no more room than their rays.
-    spare: Vec<LoggedRay>,
-    /// The ray count of the last sample parked: a new sample's first vector has this room, which
-    /// is its exact count where the tracer's samples are alike (no copy when it is parked).
-    typical: usize,
+    /// Batches no sample refers to any more, for the reader to fill again.
+    spare: Vec<Vec<LoggedRay>>,
+}
+
+/// The rays numbered `a..b`, all in one batch: in `batch` (whose first ray is numbered `base`)
+/// or in one of `batches`.
+fn rays_of<'b>(
+    batches: &'b VecDeque<(u64, Vec<LoggedRay>)>,
+    (base, batch): (u64, &'b [LoggedRay]),
+    a: u64,
+    b: u64,
+) -> &'b [LoggedRay] {
+    let (base, batch) = if a >= base {
+        (base, batch)
+    } else {
+        // The last batch that starts at or before `a`.
+        let k = batches.partition_point(|&(first, _)| first <= a) - 1;
+        (batches[k].0, batches[k].1.as_slice())
+    };
+    &batch[(a - base) as usize..(b - base) as usize]
 }
 
 impl Grouper {
-    fn push(&mut self, r: LoggedRay, ready: &mut Vec<Vec<LoggedRay>>) {
-        self.seen += 1;
-        let key = (r.pixel, r.sample);
-        if !matches!(&self.current, Some((k, _)) if *k == key) {
-            self.park();
-            let e = match self.open.remove(&key) {
-                Some(at) => {
-                    let (_, rays, last) = &mut self.parked[(at - self.gone) as usize];
-                    (rays.take().expect("an open sample has its rays"), *last)
+    /// Groups the rays of `batch`, the next batch of the log; samples that reach [`MAX_GROUP`]
+    /// rays go to `ready` as they stand.
+    fn push_batch(&mut self, batch: Vec<LoggedRay>, ready: &mut Vec<Rays>) {
+        let base = self.seen;
+        for (j, r) in batch.iter().enumerate() {
+            let n = base + j as u64;
+            self.seen += 1;
+            let key = (r.pixel, r.sample);
+            let rays = if matches!(&self.current, Some((k, _, _)) if *k == key) {
+                let Some((_, rays, _)) = self.current.take() else {
+                    unreachable!("the current sample was just looked at")
+                };
+                rays
+            } else {
+                self.park();
+                match self.reopen(key) {
+                    Some(rays) => rays,
+                    None => Rays::Run(n, n),
                 }
-                None => (Vec::with_capacity(self.typical.max(1)), 0),
             };
-            self.current = Some((key, e));
-        }
-        let Some((_, entry)) = self.current.as_mut() else {
-            unreachable!("the current sample was set above")
-        };
-        if entry.0.len() == entry.0.capacity() && self.spare.capacity() > entry.0.len() {
-            // Full: the rays move to the spare buffer, which has more room, rather than grow.
-            let mut more = std::mem::take(&mut self.spare);
-            more.append(&mut entry.0);
-            entry.0 = more;
-        }
-        entry.0.push(r);
-        entry.1 = self.seen;
-        self.pending += 1;
-        if entry.0.len() >= MAX_GROUP {
-            if let Some((_, (g, _))) = self.current.take() {
-                self.pending -= g.len();
-                ready.push(self.exact(g));
+            let rays = match rays {
+                // The next ray of a run in this batch (or a new sample's first).
+                Rays::Run(a, b) if b == n && a >= base => Rays::Run(a, n + 1),
+                other => {
+                    let mut copied = self.copy_out(other, (base, &batch));
+                    copied.push(r.clone());
+                    Rays::Copied(copied)
+                }
+            };
+            self.current = Some((key, rays, self.seen));
+            self.pending += 1;
+            if self
+                .current
+                .as_ref()
+                .is_some_and(|(_, rays, _)| rays.len() >= MAX_GROUP)
+            {
+                if let Some((_, rays, _)) = self.current.take() {
+                    self.pending -= rays.len();
+                    ready.push(rays);
+                }
             }
+        }
+        self.batches.push_back((base, batch));
+    }
+
+    /// The rays of a sample as copies, to add more to.
+    fn copy_out(&self, rays: Rays, current: (u64, &[LoggedRay])) -> Vec<LoggedRay> {
+        match rays {
+            Rays::Run(a, b) => {
+                let mut v = Vec::with_capacity((b - a) as usize * 2);
+                v.extend_from_slice(rays_of(&self.batches, current, a, b));
+                v
+            }
+            Rays::Copied(v) => v,
         }
     }
 
-    /// The rays of `g` in a vector of their exact count; `g`'s room is kept as the spare buffer
-    /// when it is larger than the spare's.
-    fn exact(&mut self, mut g: Vec<LoggedRay>) -> Vec<LoggedRay> {
-        if g.capacity() == g.len() {
-            return g;
+    /// The rays of a sample pushed and not yet released.
+    fn rays<'s>(&'s self, rays: &'s Rays) -> &'s [LoggedRay] {
+        match rays {
+            Rays::Run(a, b) => {
+                let (base, batch) = self.batches.back().expect("a run lies in a batch");
+                rays_of(&self.batches, (*base, batch), *a, *b)
+            }
+            Rays::Copied(v) => v,
         }
-        let mut rays = Vec::with_capacity(g.len());
-        rays.append(&mut g);
-        if g.capacity() > self.spare.capacity() {
-            self.spare = g;
-        }
-        rays
     }
 
     /// Moves the current sample to the parked ones.
     fn park(&mut self) {
-        if let Some((k, (g, last))) = self.current.take() {
-            self.typical = g.len();
-            let g = self.exact(g);
-            self.open.insert(k, self.gone + self.parked.len() as u64);
-            self.parked.push_back((k, Some(g), last));
+        if let Some((k, rays, last)) = self.current.take() {
+            if self.returns {
+                self.open.insert(k, self.gone + self.parked.len() as u64);
+            }
+            self.parked.push_back((k, Some(rays), last));
+            self.parked_open += 1;
         }
+    }
+
+    /// The rays of the open sample `key`, taken out of `parked`, if it is open.
+    fn reopen(&mut self, key: Key) -> Option<Rays> {
+        if !self.returns {
+            // Rows, then columns, then samples.
+            let order = |(p, s): Key| (p.map(|[x, y]| [y, x]), s);
+            if self.latest.is_none_or(|l| order(key) > order(l)) {
+                self.latest = Some(key);
+                return None;
+            }
+            // A sample comes after a later one: from now on the open samples are indexed.
+            self.returns = true;
+            for (i, (k, rays, _)) in self.parked.iter().enumerate() {
+                if rays.is_some() {
+                    self.open.insert(*k, self.gone + i as u64);
+                }
+            }
+        }
+        let at = self.open.remove(&key)?;
+        self.parked_open -= 1;
+        let rays = self.parked[(at - self.gone) as usize].1.take();
+        Some(rays.expect("an open sample has its rays"))
     }
 
     /// Moves the samples that got no ray in the last [`WINDOW`] records (all, at the end) to
     /// `ready`, in the order of their last ray; refuses the log when the samples left open hold
     /// more than [`MAX_PENDING_RAYS`] rays.
-    fn close(&mut self, all: bool, ready: &mut Vec<Vec<LoggedRay>>) -> Result<(), Overfull> {
+    fn close(&mut self, all: bool, ready: &mut Vec<Rays>) -> Result<(), Overfull> {
         if all {
             self.park();
         }
@@ -178,24 +269,46 @@ impl Grouper {
             };
             self.gone += 1;
             if let Some(g) = rays {
-                self.open.remove(&k);
+                if self.returns {
+                    self.open.remove(&k);
+                }
+                self.parked_open -= 1;
                 self.pending -= g.len();
                 ready.push(g);
             }
         }
         if self.pending > MAX_PENDING_RAYS {
+            // The current sample has the last ray grouped.
             let last = self
                 .current
                 .as_ref()
-                .and_then(|(_, (g, _))| g.last())
+                .and_then(|_| self.batches.back())
+                .and_then(|(_, b)| b.last())
                 .map_or(0, |r| r.line);
             return Err(Overfull {
                 line: last,
                 rays: self.pending as u64,
-                samples: (self.open.len() + usize::from(self.current.is_some())) as u64,
+                samples: (self.parked_open + usize::from(self.current.is_some())) as u64,
             });
         }
         Ok(())
+    }
+
+    /// Hands back the batches no open sample has rays in (all of them, at the end), once the
+    /// samples closed have been judged: a sample whose rays are a run in a batch has its last
+    /// ray there, so it is closed once [`WINDOW`] records have passed the batch's end.
+    fn release(&mut self, all: bool) {
+        let limit = self.seen.saturating_sub(WINDOW);
+        while self
+            .batches
+            .front()
+            .is_some_and(|(base, b)| all || base + b.len() as u64 <= limit)
+        {
+            if let Some((_, mut b)) = self.batches.pop_front() {
+                b.clear();
+                self.spare.push(b);
+            }
+        }
     }
 }
 
@@ -231,7 +344,7 @@ pub(crate) type Sink<'s> = &'s mut (dyn FnMut(Vec<LoggedRay>, Vec<Vec<Finding>>)
 type Judged = (Tally, Option<Vec<Vec<Vec<Finding>>>>);
 
 /// Judges `groups` in parallel.
-fn judge_groups(judge: &Judge<'_>, groups: &[Vec<LoggedRay>], keep: usize, findings: bool) -> Judged {
+fn judge_groups(judge: &Judge<'_>, groups: &[&[LoggedRay]], keep: usize, findings: bool) -> Judged {
     if findings {
         let judged: Vec<(Tally, Vec<Vec<Finding>>)> = groups
             .par_iter()
@@ -300,14 +413,17 @@ pub(crate) fn run(
         let judger = || -> Result<(Tally, Duration), Overfull> {
             let t1 = Instant::now();
             let mut ready = Vec::new();
-            if let Some((batch, last)) = read.as_mut() {
-                for r in batch.drain(..) {
-                    grouper.push(r, &mut ready);
-                }
-                grouper.close(*last, &mut ready)?;
+            let mut last = false;
+            if let Some((batch, end)) = read.take() {
+                grouper.push_batch(batch, &mut ready);
+                grouper.close(end, &mut ready)?;
+                last = end;
             }
             let Some(sink) = sink.as_mut() else {
-                return Ok((judge_groups(judge, &ready, keep, false).0, t1.elapsed()));
+                let groups: Vec<&[LoggedRay]> = ready.iter().map(|g| grouper.rays(g)).collect();
+                let t = judge_groups(judge, &groups, keep, false).0;
+                grouper.release(last);
+                return Ok((t, t1.elapsed()));
             };
             // A sixteenth of a batch's rays at a time, so that the verdicts waiting for the sink
             // (up to a few KiB a ray) stay bounded however many samples complete at once.
@@ -320,12 +436,18 @@ pub(crate) fn run(
                     rays += g.len();
                     part.push(g);
                 }
-                let (t, f) = judge_groups(judge, &part, keep, true);
+                let groups: Vec<&[LoggedRay]> = part.iter().map(|g| grouper.rays(g)).collect();
+                let (t, f) = judge_groups(judge, &groups, keep, true);
                 tally = tally.merge(t);
                 for (g, f) in part.into_iter().zip(f.unwrap_or_default()) {
+                    let g = match g {
+                        Rays::Copied(v) => v,
+                        run => grouper.rays(&run).to_vec(),
+                    };
                     sink(g, f);
                 }
             }
+            grouper.release(last);
             Ok((tally, t1.elapsed()))
         };
         let (got, judged) = rayon::join(reader, judger);
@@ -334,8 +456,9 @@ pub(crate) fn run(
         tally = tally.merge(t);
         let (again, dt) = got?;
         reading += dt;
-        // The buffers trade places, so neither is allocated again.
-        let spare = read.take().map(|(b, _)| b).unwrap_or_default();
+        // The batch read goes to the grouper, which hands back batches it no longer needs, so
+        // that none is allocated again.
+        let spare = grouper.spare.pop().unwrap_or_else(|| Vec::with_capacity(log::BATCH));
         if more {
             read = Some((std::mem::replace(&mut next, spare), !again));
         } else {
@@ -368,8 +491,11 @@ mod tests {
     use super::*;
 
     /// The log lines of each group, in the order the groups are handed on.
-    fn lines(groups: &[Vec<LoggedRay>]) -> Vec<Vec<u64>> {
-        groups.iter().map(|g| g.iter().map(|r| r.line).collect()).collect()
+    fn lines(g: &Grouper, groups: &[Rays]) -> Vec<Vec<u64>> {
+        groups
+            .iter()
+            .map(|rays| g.rays(rays).iter().map(|r| r.line).collect())
+            .collect()
     }
 
     #[test]
@@ -377,7 +503,7 @@ mod tests {
         let mut g = Grouper::default();
         let mut ready = Vec::new();
         // Sample (0,0)#0 written whole, then (1,0)#0 and (1,0)#1 interleaved as two threads
-        // write them, then (0,0)#0 again after a gap.
+        // write them, then (0,0)#0 again after a gap, in the next batch.
         let log = [
             ([0, 0], 0),
             ([0, 0], 0),
@@ -387,49 +513,93 @@ mod tests {
             ([1, 0], 1),
             ([2, 0], 3),
         ];
-        for (line, (p, s)) in log.into_iter().enumerate() {
-            g.push(LoggedRay::for_tests(p, s, line as u64 + 1), &mut ready);
-        }
-        g.push(LoggedRay::for_tests([0, 0], 0, 8), &mut ready);
+        let batch = log
+            .into_iter()
+            .enumerate()
+            .map(|(line, (p, s))| LoggedRay::for_tests(p, s, line as u64 + 1))
+            .collect();
+        g.push_batch(batch, &mut ready);
+        g.push_batch(vec![LoggedRay::for_tests([0, 0], 0, 8)], &mut ready);
         g.close(false, &mut ready).unwrap();
         assert!(ready.is_empty(), "no sample is older than the window");
         g.close(true, &mut ready).unwrap();
         // In the order of each sample's last ray.
-        assert_eq!(lines(&ready), vec![vec![3, 5], vec![4, 6], vec![7], vec![1, 2, 8]]);
+        assert_eq!(lines(&g, &ready), vec![vec![3, 5], vec![4, 6], vec![7], vec![1, 2, 8]]);
+        // A sample written whole within a batch is judged where the batch holds it.
+        assert!(matches!(ready[2], Rays::Run(6, 7)), "{:?}", ready[2]);
+    }
+
+    #[test]
+    fn a_sample_across_two_batches_gathers_its_rays() {
+        let mut g = Grouper::default();
+        let mut ready = Vec::new();
+        let ray = |p: u32, line: u64| LoggedRay::for_tests([p, 0], 0, line);
+        g.push_batch(vec![ray(0, 1), ray(1, 2), ray(1, 3)], &mut ready);
+        g.push_batch(vec![ray(1, 4), ray(2, 5)], &mut ready);
+        g.close(true, &mut ready).unwrap();
+        assert_eq!(lines(&g, &ready), vec![vec![1], vec![2, 3, 4], vec![5]]);
+        assert!(matches!(ready[1], Rays::Copied(_)));
+        g.release(true);
+        assert!(g.batches.is_empty() && g.spare.len() == 2);
+    }
+
+    /// Pushes `rays` in batches of `batch` rays, closing after each.
+    fn push_rays(g: &mut Grouper, rays: impl Iterator<Item = LoggedRay>, batch: usize, ready: &mut Vec<Rays>) {
+        let mut b = Vec::new();
+        for r in rays {
+            b.push(r);
+            if b.len() == batch {
+                g.push_batch(std::mem::take(&mut b), ready);
+                g.close(false, ready).unwrap();
+            }
+        }
+        if !b.is_empty() {
+            g.push_batch(b, ready);
+        }
     }
 
     #[test]
     fn a_sample_closes_once_the_window_has_passed_it() {
         let mut g = Grouper::default();
         let mut ready = Vec::new();
-        g.push(LoggedRay::for_tests([0, 0], 0, 1), &mut ready);
-        for i in 0..WINDOW {
-            // Eight samples, each of fewer rays than a group holds.
-            g.push(LoggedRay::for_tests([1, 0], (i % 8) as u32, i + 2), &mut ready);
-        }
+        // Eight samples, each of fewer rays than a group holds.
+        let rays = std::iter::once(LoggedRay::for_tests([0, 0], 0, 1))
+            .chain((0..WINDOW).map(|i| LoggedRay::for_tests([1, 0], (i % 8) as u32, i + 2)));
+        push_rays(&mut g, rays, log::BATCH, &mut ready);
         g.close(false, &mut ready).unwrap();
-        assert_eq!(lines(&ready), vec![vec![1]]);
+        assert_eq!(lines(&g, &ready), vec![vec![1]]);
         g.close(true, &mut ready).unwrap();
         assert_eq!(ready.len(), 9);
-        assert_eq!(ready.iter().map(Vec::len).sum::<usize>() as u64, WINDOW + 1);
+        assert_eq!(ready.iter().map(Rays::len).sum::<usize>() as u64, WINDOW + 1);
     }
 
-    /// Pushes `rays` as the check's loop does: a batch at a time, closing after each.
+    /// Pushes `rays` as the check's loop does: a batch at a time, closing after each and
+    /// handing back the batches no longer needed; the rays judged, checked to be each
+    /// sample's rays in the log's order.
     fn group_all(rays: impl Iterator<Item = LoggedRay>) -> Result<usize, Overfull> {
         let mut g = Grouper::default();
-        let mut ready = Vec::new();
         let mut judged = 0;
-        let mut n = 0;
-        for r in rays {
-            g.push(r, &mut ready);
-            n += 1;
-            if n % log::BATCH == 0 {
-                g.close(false, &mut ready)?;
-                judged += ready.drain(..).map(|s| s.len()).sum::<usize>();
+        let mut batch = Vec::new();
+        let mut rays = rays.peekable();
+        while rays.peek().is_some() {
+            batch.extend(rays.by_ref().take(log::BATCH));
+            let last = rays.peek().is_none();
+            let mut ready = Vec::new();
+            g.push_batch(std::mem::take(&mut batch), &mut ready);
+            g.close(last, &mut ready)?;
+            for group in &ready {
+                let group = g.rays(group);
+                let key = (group[0].pixel, group[0].sample);
+                assert!(group.iter().all(|r| (r.pixel, r.sample) == key));
+                assert!(group.windows(2).all(|w| w[0].line < w[1].line));
+                judged += group.len();
             }
+            g.release(last);
+            // The batches held cover the window and the batch being grouped.
+            assert!(g.batches.len() <= (WINDOW as usize).div_ceil(log::BATCH) + 2);
+            batch = g.spare.pop().unwrap_or_default();
         }
-        g.close(true, &mut ready)?;
-        Ok(judged + ready.iter().map(Vec::len).sum::<usize>())
+        Ok(judged)
     }
 
     #[test]

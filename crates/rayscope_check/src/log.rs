@@ -217,10 +217,9 @@ pub struct LogContext {
     lights: FxHashMap<String, u32>,
     light_list: Vec<String>,
     light_positions: Vec<DVec3>,
-    // The same names as bytes: the reader of rayscope's own shape looks a name up before it is
-    // decoded (a name found is the scene's, so it is UTF-8).
-    entity_bytes: FxHashMap<Box<[u8]>, u32>,
-    light_bytes: FxHashMap<Box<[u8]>, u32>,
+    // The same names as the reader of rayscope's own shape finds them.
+    entity_names: fast::Names,
+    light_names: fast::Names,
     /// Image width.
     pub width: u32,
     /// Image height.
@@ -237,16 +236,9 @@ impl LogContext {
     pub fn new(scene: &rayscope_core::Scene, width: u32, height: u32, spp: u32, aa: u32) -> Self {
         let index = |names: &[String]| names.iter().enumerate().map(|(i, n)| (n.clone(), i as u32)).collect();
         let entity_list: Vec<String> = scene.entities.iter().map(|e| e.name.clone()).collect();
-        let bytes = |names: &[String]| {
-            names
-                .iter()
-                .enumerate()
-                .map(|(i, n)| (n.as_bytes().into(), i as u32))
-                .collect()
-        };
         Self {
-            entity_bytes: bytes(&entity_list),
-            light_bytes: bytes(&scene.light_names),
+            entity_names: fast::Names::new(&entity_list),
+            light_names: fast::Names::new(&scene.light_names),
             entities: index(&entity_list),
             entity_list,
             lights: index(&scene.light_names),

@@ -26,7 +26,7 @@ use glam::{DMat3, DVec3};
 use rayscope_core::geometry::Triangle;
 use rayscope_core::scene::PrimRef;
 use rayscope_core::{Channel, FovAxis, RenderSettings, Scene, Stage};
-use wide::f64x4;
+use wide::{f64x2, f64x4};
 
 /// The corners of a triangle as the scene file gave them. The scene keeps a corner and two
 /// edges in f32; the other corners are put back on the f32 grid the file's coordinates were
@@ -93,8 +93,8 @@ pub struct OracleRay {
     pub d: DVec3,
     /// The direction as an array, indexed by axis without a match per access.
     da: [f64; 3],
-    /// Origin and reciprocal direction in the lanes of the box test; the fourth lane (origin 0,
-    /// reciprocal 1) meets the fourth lane of every box, which spans everything.
+    /// Origin and reciprocal direction in the lanes of the box test; the fourth lane (the
+    /// origin's z again, reciprocal 1) meets the fourth lane of every box, which spans everything.
     o4: f64x4,
     inv4: f64x4,
     /// The direction's largest axis, and the two others (in the order that keeps winding).
@@ -123,7 +123,7 @@ impl OracleRay {
             o,
             d,
             da: d.to_array(),
-            o4: f64x4::new([o.x, o.y, o.z, 0.0]),
+            o4: f64x4::new([o.x, o.y, o.z, o.z]),
             inv4: f64x4::new([1.0 / d.x, 1.0 / d.y, 1.0 / d.z, 1.0]),
             k: [kx, ky, kz],
             s: DVec3::new(d[kx] / d[kz], d[ky] / d[kz], 1.0 / d[kz]),
@@ -199,6 +199,24 @@ impl OracleRay {
         let near = t_min.max(n0.max(n1)).max(n2.max(n3));
         let far = t_max.min(f0.min(f1)).min(f2.min(f3));
         near <= far
+    }
+
+    /// [`Self::meets_box`] without padding, for `t_min` and `t_max` that are not NaN: the same
+    /// answer. No lane's bound is NaN (a slab's two bounds are NaN together only where its
+    /// faces coincide, and every box is padded), so the lanes are reduced by plain comparisons.
+    #[inline(always)]
+    fn meets_box_exact(&self, lo: f64x4, hi: f64x4, t_min: f64, t_max: f64) -> bool {
+        // `lo - 0` and `hi + 0` as in `meets_box`: the same numbers, signed zeros included.
+        let zero = f64x4::ZERO;
+        let t0 = (lo - zero - self.o4) * self.inv4;
+        let t1 = (hi + zero - self.o4) * self.inv4;
+        let [n0, n1, n2, n3] = t0.min(t1).to_array();
+        let [f0, f1, f2, f3] = t0.max(t1).to_array();
+        let [n0, n1] = f64x2::new([n0, n1]).fast_max(f64x2::new([n2, n3])).to_array();
+        let [f0, f1] = f64x2::new([f0, f1]).fast_min(f64x2::new([f2, f3])).to_array();
+        let max = |a: f64, b: f64| if a > b { a } else { b };
+        let min = |a: f64, b: f64| if a < b { a } else { b };
+        max(max(n0, n1), t_min) <= min(min(f0, f1), t_max)
     }
 }
 
@@ -455,9 +473,40 @@ impl Oracle {
     }
 
     /// The closest hit of `o + t d` (unit `d`) with `t_min < t < t_max`, either side of every
-    /// surface counting.
+    /// surface counting. Of surfaces met at the same distance, the first one tested wins: the
+    /// planes in the scene's order, then the hierarchy's leaves, nearer child first.
     #[must_use]
     pub fn closest(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<OracleHit> {
+        if t_min.is_nan() || t_max.is_nan() {
+            return self.closest_by_visit(o, d, t_min, t_max);
+        }
+        let ray = OracleRay::new(o, d);
+        let mut best: Option<PrimRef> = None;
+        let mut t_far = t_max;
+        for (i, &(p, n)) in self.planes.iter().enumerate() {
+            if let Some(t) = hit_plane(p, n, o, d, t_min, t_far) {
+                t_far = t;
+                best = Some(PrimRef::Plane(i as u32));
+            }
+        }
+        self.walk(&ray, t_min, &mut t_far, |r, t_far| {
+            let t = if r & SPHERE != 0 {
+                let (c, rad) = self.spheres[(r & !SPHERE) as usize];
+                hit_sphere(c, rad, o, d, t_min, *t_far)
+            } else {
+                ray.triangle(&self.triangles[r as usize], t_min, *t_far)
+            };
+            if let Some(t) = t {
+                *t_far = t;
+                best = Some(Self::prim(r));
+            }
+        });
+        self.hit_at(best?, o, d, t_far)
+    }
+
+    /// [`Self::closest`] by [`Self::visit`], which also takes NaN for `t_min` or `t_max`.
+    #[cold]
+    fn closest_by_visit(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<OracleHit> {
         let ray = OracleRay::new(o, d);
         let mut best: Option<PrimRef> = None;
         let mut t_far = t_max;
@@ -479,19 +528,67 @@ impl Oracle {
                 best = Some(Self::prim(r));
             }
         });
-        let prim = best?;
+        self.hit_at(best?, o, d, t_far)
+    }
+
+    /// The hit of `o + t d` on `prim` at `t`.
+    #[inline]
+    fn hit_at(&self, prim: PrimRef, o: DVec3, d: DVec3, t: f64) -> Option<OracleHit> {
         let (entity, material) = self.info(prim);
-        let point = o + d * t_far;
+        let point = o + d * t;
         let normal = self.own_normal(prim, point);
         Some(OracleHit {
             prim,
             entity,
             material,
-            t: t_far,
+            t,
             point,
             normal,
             front: normal.dot(d) < 0.0,
         })
+    }
+
+    /// [`Self::visit`] without padding, for `t_min` and `*t_max` that are not NaN: the same
+    /// leaves in the same order, each box tested by [`OracleRay::meets_box_exact`], the nearer
+    /// child gone to at once and only the farther one stacked.
+    #[inline(always)]
+    fn walk(&self, ray: &OracleRay, t_min: f64, t_max: &mut f64, mut f: impl FnMut(u32, &mut f64)) {
+        if self.nodes.is_empty() {
+            return;
+        }
+        let mut stack = [0u32; 64];
+        let mut top = 0;
+        let mut at = 0;
+        loop {
+            let node = &self.nodes[at];
+            if ray.meets_box_exact(node.lo, node.hi, t_min, *t_max) {
+                if node.count > 0 {
+                    let (a, b) = (node.first as usize, (node.first + node.count) as usize);
+                    for &r in &self.refs[a..b] {
+                        f(r, t_max);
+                    }
+                } else {
+                    let (near, far) = if ray.da[usize::from(node.axis)] >= 0.0 {
+                        (node.first, node.first + 1)
+                    } else {
+                        (node.first + 1, node.first)
+                    };
+                    let Some(slot) = stack.get_mut(top) else {
+                        // Deeper than a median split of 2^62 primitives ever goes.
+                        unreachable!("oracle hierarchy deeper than its stack");
+                    };
+                    *slot = far;
+                    top += 1;
+                    at = near as usize;
+                    continue;
+                }
+            }
+            if top == 0 {
+                return;
+            }
+            top -= 1;
+            at = stack[top] as usize;
+        }
     }
 
     /// How close the answer of [`Self::closest`] for `o + t d` (unit `d`, `t_min < t < t_max`)
@@ -790,6 +887,74 @@ mod tests {
                 assert!(near.margin < 1e-9, "{target}: {near:?}");
             }
         }
+    }
+
+    #[test]
+    fn the_walk_answers_as_the_general_visit_bit_for_bit() {
+        // A grid of triangles sharing edges and corners (ties wherever a ray meets an edge), a
+        // box of walls meeting at its edges, spheres and planes, from integer origins (on the
+        // boxes' faces) along directions with zero components as well as random ones.
+        let mut src = String::from("Material \"M\" Diffuse (1, 1, 1) 1\n");
+        for i in 0..6 {
+            for j in 0..6 {
+                let (x, y) = (f64::from(i) - 3.0, f64::from(j) - 3.0);
+                let z = f64::from((i * 7 + j * 3) % 5) * 0.25 + 4.0;
+                src.push_str(&format!(
+                    "Triangle \"T{i}{j}a\" ({x}, {y}, {z}) ({}, {y}, {z}) ({x}, {}, {z}) \"M\"\n",
+                    x + 1.0,
+                    y + 1.0
+                ));
+                src.push_str(&format!(
+                    "Triangle \"T{i}{j}b\" ({}, {y}, {z}) ({}, {}, {z}) ({x}, {}, {z}) \"M\"\n",
+                    x + 1.0,
+                    x + 1.0,
+                    y + 1.0,
+                    y + 1.0
+                ));
+            }
+        }
+        src.push_str("Sphere \"S1\" (0, 0, 2) 0.5 \"M\"\nSphere \"S2\" (1, 1, 1) 0.25 \"M\"\n");
+        src.push_str("Plane \"P1\" (0, -2, 0) (0, 1, 0) \"M\"\nPlane \"P2\" (0, 0, 6) (0, 0, -1) \"M\"\n");
+        let s = scene(&src);
+        let o = Oracle::new(&s);
+        let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
+        let mut next = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            seed
+        };
+        let mut met = 0;
+        for k in 0..200_000 {
+            let mut pick = |n: u64| (next() % n) as f64;
+            let origin = DVec3::new(pick(7) - 3.0, pick(7) - 3.0, pick(4) - 1.0);
+            let d = match k % 4 {
+                // Along the axes and the diagonals, zero components included.
+                0 => DVec3::new(pick(3) - 1.0, pick(3) - 1.0, pick(3) - 1.0),
+                // Through a grid corner or edge midpoint.
+                1 => DVec3::new(pick(13) * 0.5 - 3.0, pick(13) * 0.5 - 3.0, 4.0) - origin,
+                _ => DVec3::new(pick(2001) - 1000.0, pick(2001) - 1000.0, pick(2001) - 1000.0),
+            };
+            let Some(d) = d.try_normalize() else {
+                continue;
+            };
+            let (t_min, t_max) = match k % 3 {
+                0 => (0.0, f64::INFINITY),
+                1 => (1e-4, pick(8) + 0.5),
+                _ => (pick(3), f64::INFINITY),
+            };
+            let (a, b) = (
+                o.closest(origin, d, t_min, t_max),
+                o.closest_by_visit(origin, d, t_min, t_max),
+            );
+            assert_eq!(
+                a.map(|h| (h.prim, h.t.to_bits(), h.point.to_array().map(f64::to_bits))),
+                b.map(|h| (h.prim, h.t.to_bits(), h.point.to_array().map(f64::to_bits))),
+                "{origin} {d} {t_min} {t_max}"
+            );
+            met += usize::from(a.is_some());
+        }
+        assert!(met > 100_000, "{met}");
     }
 
     #[test]

@@ -558,11 +558,23 @@ impl Judge<'_> {
         }
         let nh = n / len;
         let own = self.geo.shading_normal(h.prim, h.point).unwrap_or(h.own);
-        let (a_plus, a_minus) = (
-            angle(nh, own).min(angle(nh, h.own)),
-            angle(nh, -own).min(angle(nh, -h.own)),
-        );
+        // The angle to the nearer of a surface's normals, and to the nearer of their opposites;
+        // the second is needed only where the first is out of tolerance.
+        let nearer = |a: DVec3, b: DVec3| {
+            let x = angle(nh, a);
+            if a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits) {
+                x
+            } else {
+                x.min(angle(nh, b))
+            }
+        };
+        let a_plus = nearer(own, h.own);
         let tol = self.tol.normal;
+        let a_minus = if a_plus <= tol {
+            f64::INFINITY
+        } else {
+            nearer(-own, -h.own)
+        };
         if a_plus.min(a_minus) > tol {
             f.push(self.finding(
                 r,

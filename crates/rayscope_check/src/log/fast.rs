@@ -15,7 +15,7 @@ use super::raw::{BlockerRef, LightRef, RawHit, RawRay};
 
 mod shape;
 
-pub(super) use shape::ray;
+pub(super) use shape::{ray, Names};
 
 /// A position in one record. Only strings can hold bytes outside ASCII (everything else must
 /// be JSON's punctuation, literals and numbers), so each string is checked to be UTF-8 on its
@@ -63,6 +63,40 @@ impl Known {
             text,
             mask,
             len,
+        }
+    }
+}
+
+/// A text of one to sixteen bytes (none of them 0) expected at a place in a record, as sixteen
+/// bytes masked to its length, so that it is recognised by one comparison ([`Cursor::lit16`]).
+pub(super) struct Lit {
+    text: u128,
+    mask: u128,
+    len: usize,
+}
+
+impl Lit {
+    const fn new(t: &[u8]) -> Lit {
+        assert!(
+            !t.is_empty() && t.len() <= 16,
+            "a text compared at once fits in sixteen bytes"
+        );
+        let mut text = 0u128;
+        let mut j = 0;
+        while j < t.len() {
+            assert!(t[j] != 0, "past its end a record reads as zero bytes");
+            text |= (t[j] as u128) << (8 * j);
+            j += 1;
+        }
+        let mask = if t.len() == 16 {
+            u128::MAX
+        } else {
+            (1u128 << (8 * t.len())) - 1
+        };
+        Lit {
+            text,
+            mask,
+            len: t.len(),
         }
     }
 }
@@ -280,52 +314,22 @@ impl<'a> Cursor<'a> {
         Some(if negative { -v } else { v })
     }
 
-    /// A decimal without an exponent, at most 7 digits before its point and 8 after, the byte
-    /// after it included in the sixteen bytes after its sign: its digits, read as an integer,
-    /// are below 2^53, so one division gives the correctly rounded value (see
-    /// [`Self::short_decimal`]). The digits are found sixteen bytes at a time and converted
-    /// eight at a time. Tracers print most coordinates this way. `None` for anything else.
+    /// The sixteen bytes from `at` ([`window`]).
+    #[inline(always)]
+    fn window(&self, at: usize) -> [u8; 16] {
+        window(self.b, at)
+    }
+
+    /// A decimal as [`decimal`] reads it, with the cursor moved past it. Tracers print most
+    /// coordinates this way. `None` for anything else.
     #[inline(always)]
     fn decimal16(&mut self) -> Option<f64> {
-        const POW10: [f64; 9] = [1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8];
-        let b = self.b;
-        let negative = b.get(self.i) == Some(&b'-');
-        let start = self.i + usize::from(negative);
-        let w: [u8; 16] = b.get(start..start + 16)?.try_into().ok()?;
-        let v = u8x16::new(w) - u8x16::splat(b'0');
-        let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask();
-        // The digit values as one integer held in registers: the runs below are shifted out of
-        // it rather than loaded back from memory at an unaligned offset.
-        let x = u128::from_le_bytes(v.to_array());
-        let byte = |k: usize| (x >> (8 * k)) as u8;
-        let int = (!digit).trailing_zeros() as usize;
-        // A '0' is the digit value 0.
-        if int == 0 || int > 7 || (int > 1 && byte(0) == 0) {
+        let (v, end, after) = decimal(self.b, self.i)?;
+        if matches!(after, b'e' | b'E') {
             return None;
         }
-        let (frac, end) = if byte(int) == b'.'.wrapping_sub(b'0') {
-            let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
-            (f, int + 1 + f)
-        } else {
-            (0, int)
-        };
-        if end >= 16 || frac > 8 || (frac == 0 && end != int) || matches!(byte(end).wrapping_add(b'0'), b'e' | b'E') {
-            return None;
-        }
-        // Each run of digits, first one in the lowest byte, moved to the top so that the bytes
-        // below them read as leading zeros.
-        let run = |from: usize, n: usize| {
-            let v = (x >> (8 * from)) as u64;
-            if n == 0 {
-                0
-            } else {
-                eight_digits(v << (8 * (8 - n)))
-            }
-        };
-        let m = run(0, int) * POW10_U64[frac] + run(int + 1, frac);
-        let v = m as f64 / POW10[frac];
-        self.i = start + end;
-        Some(if negative { -v } else { v })
+        self.i = end;
+        Some(v)
     }
 
     #[inline]
@@ -349,37 +353,52 @@ impl<'a> Cursor<'a> {
         v.is_finite().then_some(v)
     }
 
-    /// Digits at the cursor with no fraction or exponent after them, read at once, with the
-    /// cursor moved past them: `None` (and the cursor left) for anything else.
+    /// Digits at the cursor, at most `most` of them, with no fraction or exponent after them,
+    /// read at once, with the cursor moved past them: `None` (and the cursor left) for anything
+    /// else.
     #[inline]
     fn plain_integer(&mut self, most: usize) -> Option<u64> {
-        let b = self.b;
-        let mut i = self.i;
-        if !b.get(i).is_some_and(u8::is_ascii_digit) {
+        // Pixels, samples and ids are a few digits long: up to seven are read at once.
+        let w = self.window(self.i);
+        let x = u64::from_le_bytes(w[..8].try_into().expect("eight bytes")).wrapping_sub(0x3030_3030_3030_3030);
+        // As in `digit_run`: the lowest byte flagged is the first that is not a digit.
+        let not_digit = (x | x.wrapping_add(0x7676_7676_7676_7676)) & 0x8080_8080_8080_8080;
+        let n = (not_digit.trailing_zeros() / 8) as usize;
+        if n == 8 {
+            return self.long_integer(most);
+        }
+        if n == 0 || n > most || (n > 1 && w[0] == b'0') || matches!(w[n], b'.' | b'e' | b'E') {
             return None;
         }
-        // Pixels, samples and ids are a few digits long: read one byte at a time up to four.
-        let mut m = 0u64;
-        while i - self.i < 4 {
-            match b.get(i) {
-                Some(&c) if c.is_ascii_digit() => {
-                    m = m * 10 + u64::from(c - b'0');
-                    i += 1;
-                }
-                _ => break,
-            }
-        }
-        let (m, n) = if i - self.i < 4 {
-            (m, i - self.i)
-        } else {
-            let (m, more) = digit_run(b, &mut i, m);
-            (m, 4 + more)
-        };
-        if n > most || (n > 1 && b[self.i] == b'0') || matches!(b.get(i), Some(b'.' | b'e' | b'E')) {
+        self.i += n;
+        // The n digits moved to the top, so that the bytes below them read as leading zeros.
+        Some(eight_digits(x << (8 * (8 - n))))
+    }
+
+    /// [`Self::plain_integer`] for eight digits or more.
+    #[cold]
+    #[inline(never)]
+    fn long_integer(&mut self, most: usize) -> Option<u64> {
+        let b = self.b;
+        let mut i = self.i;
+        let (m, n) = digit_run(b, &mut i, 0);
+        if n > most || b[self.i] == b'0' || matches!(b.get(i), Some(b'.' | b'e' | b'E')) {
             return None;
         }
         self.i = i;
         Some(m)
+    }
+
+    /// True, with the cursor moved past it, when the record has exactly `l`'s text at the
+    /// cursor: one comparison of sixteen bytes.
+    #[inline(always)]
+    fn lit16(&mut self, l: &Lit) -> bool {
+        let v = u128::from_le_bytes(self.window(self.i));
+        let found = v & l.mask == l.text;
+        if found {
+            self.i += l.len;
+        }
+        found
     }
 
     fn u32(&mut self) -> Option<u32> {
@@ -538,6 +557,108 @@ impl<'a> Cursor<'a> {
     }
 }
 
+/// The sixteen bytes of `b` from `at`, with zero bytes (no digit, quote or letter) for those
+/// past its end: one load where `b` has them.
+#[inline(always)]
+fn window(b: &[u8], at: usize) -> [u8; 16] {
+    match b.get(at..at + 16) {
+        Some(w) => w.try_into().expect("sixteen bytes"),
+        None => window_tail(b, at),
+    }
+}
+
+/// [`window`] near the end of `b`: its last sixteen bytes shifted down.
+#[inline(never)]
+fn window_tail(b: &[u8], at: usize) -> [u8; 16] {
+    let len = b.len();
+    match b.get(len.wrapping_sub(16)..) {
+        Some(last) if at <= len => {
+            let v = u128::from_le_bytes(last.try_into().expect("sixteen bytes"));
+            // The bytes before `at` shifted out, zeros shifted in at the top.
+            v.checked_shr(8 * (at + 16 - len) as u32).unwrap_or(0).to_le_bytes()
+        }
+        _ => {
+            let mut w = [0u8; 16];
+            let rest = b.get(at..).unwrap_or_default();
+            let n = rest.len().min(16);
+            w[..n].copy_from_slice(&rest[..n]);
+            w
+        }
+    }
+}
+
+/// A decimal at `b[at..]` without an exponent, its sign included, at most 7 digits before its
+/// point and at most 14 after, ending within the fifteen bytes after its sign: its value, where
+/// it ends, and the byte after it (0 past the end of `b`), which the caller checks (a decimal
+/// followed by `e` is not this one). Its digits, read as an integer, are below 10^14 < 2^53,
+/// so one division gives the correctly rounded value (see [`Cursor::short_decimal`]). The
+/// digits are found sixteen bytes at a time and converted eight at a time. `None` for
+/// anything else.
+#[inline(always)]
+fn decimal(b: &[u8], at: usize) -> Option<(f64, usize, u8)> {
+    const POW10: [f64; 15] = [
+        1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14,
+    ];
+    let negative = b.get(at) == Some(&b'-');
+    let start = at + usize::from(negative);
+    let w = window(b, start);
+    let v = u8x16::new(w) - u8x16::splat(b'0');
+    // The digit values, and which bytes are digits.
+    let x = v.to_array();
+    let digit = v.min(u8x16::splat(9)).simd_eq(v).to_bitmask();
+    let int = (!digit).trailing_zeros() as usize;
+    // 1 to 7 digits before the point, without a leading zero ('0' is the digit value 0).
+    if int.wrapping_sub(1) >= 7 || (int > 1 && x[0] == 0) {
+        return None;
+    }
+    // Eight digit values from byte `at`, the first in the lowest byte.
+    let eight = |at: usize| u64::from_le_bytes(x[at..at + 8].try_into().expect("eight bytes"));
+    // The `n` (1 to 8) digits from byte `at` moved to the top, so that the bytes below them
+    // read as leading zeros.
+    let run = |at: usize, n: usize| eight_digits(eight(at) << (8 * (8 - n)));
+    // Most coordinates have one digit before the point.
+    let mut m = if int == 1 { u64::from(x[0]) } else { run(0, int) };
+    let (frac, end) = if w[int] == b'.' {
+        let f = (!(digit >> (int + 1))).trailing_zeros() as usize;
+        let end = int + 1 + f;
+        if f == 0 || end > 15 {
+            return None;
+        }
+        let digits = if f <= 8 {
+            run(int + 1, f)
+        } else {
+            // The first f − 8, then the last eight, which end where the number does.
+            run(int + 1, f - 8) * POW10_U64[8] + eight_digits(eight(end - 8))
+        };
+        m = m * POW10_U64[f] + digits;
+        (f, end)
+    } else {
+        (0, int)
+    };
+    // Below 2^53, so also as a signed integer, which converts in one instruction.
+    let v = m as i64 as f64 / POW10[frac];
+    Some((if negative { -v } else { v }, start + end, w[end]))
+}
+
+/// Three decimals as [`decimal`] reads them, in brackets, with commas and no spaces between,
+/// at `b[at..]`: the numbers and where they end.
+#[inline(never)]
+fn tight_vec3(b: &[u8], at: usize) -> Option<([f64; 3], usize)> {
+    if b.get(at) != Some(&b'[') {
+        return None;
+    }
+    let (x, i, after) = decimal(b, at + 1)?;
+    if after != b',' {
+        return None;
+    }
+    let (y, i, after) = decimal(b, i + 1)?;
+    if after != b',' {
+        return None;
+    }
+    let (z, i, after) = decimal(b, i + 1)?;
+    (after == b']').then_some(([x, y, z], i + 1))
+}
+
 /// Reads the run of ASCII digits at `*i` onto `m` (`m · 10^k + digits`, wrapping), moving `*i`
 /// past them; returns the new `m` and the number of digits. Eight bytes are looked at together
 /// where the record has them: coordinates are mostly 6 to 9 digits.
@@ -583,8 +704,24 @@ fn eight_digits(mut v: u64) -> u64 {
     (v.wrapping_mul(10_000) + (v >> 32)) & 0xFFFF_FFFF
 }
 
-/// 10^k for the digit counts [`digit_run`] reads at once.
-const POW10_U64: [u64; 9] = [1, 10, 100, 1_000, 10_000, 100_000, 1_000_000, 10_000_000, 100_000_000];
+/// 10^k for the digit counts read at once.
+const POW10_U64: [u64; 15] = [
+    1,
+    10,
+    100,
+    1_000,
+    10_000,
+    100_000,
+    1_000_000,
+    10_000_000,
+    100_000_000,
+    1_000_000_000,
+    10_000_000_000,
+    100_000_000_000,
+    1_000_000_000_000,
+    10_000_000_000_000,
+    100_000_000_000_000,
+];
 
 /// Sets `slot` once; a second value for the same field is left to serde_json, which refuses it.
 #[inline]
@@ -873,6 +1010,34 @@ mod tests {
         }
     }
     proptest! {
+        #![proptest_config(ProptestConfig::with_cases(6000))]
+        /// The shortest decimals of f32 and f64 values (as tracers print them), as bracketed
+        /// triples without spaces, at the end of a record or before more of it, are read bit
+        /// for bit as the standard library reads them.
+        #[test]
+        fn printed_floats_in_triples_read_as_the_standard_library_reads_them(
+            v in proptest::array::uniform3(prop_oneof![
+                any::<f32>().prop_filter("finite", |v| v.is_finite()).prop_map(|v| format!("{v}")),
+                any::<f64>().prop_filter("finite", |v| v.is_finite()).prop_map(|v| format!("{v}")),
+                (-1e3f32..1e3).prop_map(|v| format!("{v}")),
+                (-1f32..1.0).prop_map(|v| format!("{v}")),
+            ]),
+            tail in prop_oneof![Just(String::new()), Just("}".to_string()), Just(",\"color\":[0,0,0]}".to_string())],
+        ) {
+            let text = format!("[{},{},{}]{tail}", v[0], v[1], v[2]);
+            let want: Vec<u64> = v.iter().map(|x| x.parse::<f64>().expect("a number").to_bits()).collect();
+            let mut c = Cursor { b: text.as_bytes(), i: 0 };
+            let general = c.vec3().map(|a| a.map(f64::to_bits).to_vec());
+            prop_assert_eq!(general.as_ref(), Some(&want), "{}", text);
+            let end = text.len() - tail.len();
+            prop_assert_eq!(c.i, end, "{}", text);
+            if let Some((got, at)) = tight_vec3(text.as_bytes(), 0) {
+                prop_assert_eq!(got.map(f64::to_bits).to_vec(), want, "{}", text);
+                prop_assert_eq!(at, end, "{}", text);
+            }
+        }
+    }
+    proptest! {
         #![proptest_config(ProptestConfig::with_cases(4000))]
         /// Decimals, read sixteen bytes at a time where they fit, are read bit for bit as the
         /// standard library reads them, and the cursor stops where JSON's grammar ends them.
@@ -880,7 +1045,7 @@ mod tests {
         fn decimals_read_as_the_standard_library_reads_them(
             negative in any::<bool>(),
             int in "0|[1-9][0-9]{0,8}",
-            frac in proptest::option::of("[0-9]{1,10}"),
+            frac in proptest::option::of(prop_oneof!["[0-9]{1,16}", "0{1,12}[1-9][0-9]{0,8}"]),
             after in prop_oneof![Just(",".to_string()), Just("]".to_string()), Just("e5".to_string()),
                 Just(".".to_string()), "[ -~]{0,20}"],
         ) {

@@ -8,9 +8,89 @@
 //! which gives the same ray for every record this reader accepts.
 
 use glam::DVec3;
+use rustc_hash::FxHashMap;
 
-use super::Cursor;
+use super::{key, tight_vec3, Cursor, Lit};
 use crate::log::{Answer, HitClaim, Kind, LogContext, LoggedRay};
+
+/// The names of a scene's entities or of its lights by their bytes: the reader looks a name up
+/// before it is decoded (a name found is the scene's, so it is UTF-8). Names of up to fifteen
+/// bytes are found by the sixteen bytes that hold them, as one integer ([`key`]), longer ones by
+/// their bytes.
+#[derive(Debug, Clone, Default)]
+pub(in crate::log) struct Names {
+    short: FxHashMap<u128, u32>,
+    long: FxHashMap<Box<[u8]>, u32>,
+}
+
+impl Names {
+    /// `names` by their index; a name given twice is the last one's.
+    pub(in crate::log) fn new(names: &[String]) -> Self {
+        let mut index = Self::default();
+        for (i, n) in names.iter().enumerate() {
+            let b = n.as_bytes();
+            if b.len() <= 15 {
+                index.short.insert(key(b), i as u32);
+            } else {
+                index.long.insert(b.into(), i as u32);
+            }
+        }
+        index
+    }
+}
+
+/// A member's key as the shape writes it: `"key":` for the first member of its object, and
+/// with the comma before it for the others.
+struct Member {
+    first: Lit,
+    next: Lit,
+}
+
+impl Member {
+    const fn new(k: &[u8]) -> Member {
+        let mut t = [0u8; 16];
+        t[0] = b',';
+        t[1] = b'"';
+        let mut j = 0;
+        while j < k.len() {
+            t[j + 2] = k[j];
+            j += 1;
+        }
+        t[k.len() + 2] = b'"';
+        t[k.len() + 3] = b':';
+        let (_, with_comma) = t.split_at(0);
+        let (with_comma, _) = with_comma.split_at(k.len() + 4);
+        let (_, without) = with_comma.split_at(1);
+        Member {
+            first: Lit::new(without),
+            next: Lit::new(with_comma),
+        }
+    }
+}
+
+const PIXEL: Member = Member::new(b"pixel");
+const SAMPLE: Member = Member::new(b"sample");
+const ID: Member = Member::new(b"id");
+const PARENT: Member = Member::new(b"parent");
+const KIND: Member = Member::new(b"kind");
+const ORIGIN: Member = Member::new(b"origin");
+const DIRECTION: Member = Member::new(b"direction");
+const HIT: Member = Member::new(b"hit");
+const LIGHT: Member = Member::new(b"light");
+const BLOCKED_BY: Member = Member::new(b"blocked_by");
+const COLOR: Member = Member::new(b"color");
+const T: Member = Member::new(b"t");
+const POINT: Member = Member::new(b"point");
+const NORMAL: Member = Member::new(b"normal");
+const ENTITY: Member = Member::new(b"entity");
+
+/// The kind words rayscope writes, quoted.
+const KINDS: [(Lit, Kind); 4] = [
+    (Lit::new(b"\"camera\""), Kind::Camera),
+    (Lit::new(b"\"shadow\""), Kind::Shadow),
+    (Lit::new(b"\"reflection\""), Kind::Reflection),
+    (Lit::new(b"\"refraction\""), Kind::Refraction),
+];
 
 impl Cursor<'_> {
     /// True, with the cursor moved past it, when the record has exactly `text` at the cursor.
@@ -26,17 +106,19 @@ impl Cursor<'_> {
         found
     }
 
-    /// The member `text` (its key, quoted, and the colon), after a comma unless it is the first
+    /// The member `m` (its key, quoted, and the colon), after a comma unless it is the first
     /// member of its object; `first` is cleared when it is found.
     #[inline(always)]
-    fn member<const N: usize>(&mut self, text: &[u8; N], first: &mut bool) -> bool {
-        let at = self.i;
-        if (*first || self.lit(b",")) && self.lit(text) {
-            *first = false;
-            return true;
+    fn member(&mut self, m: &Member, first: &mut bool) -> bool {
+        // Each text compared as a constant: most members are not the first.
+        if !*first {
+            return self.lit16(&m.next);
         }
-        self.i = at;
-        false
+        let found = self.lit16(&m.first);
+        if found {
+            *first = false;
+        }
+        found
     }
 
     /// `null` as `Some(None)`, digits as their integer of at most `most` digits; `None` for
@@ -49,10 +131,27 @@ impl Cursor<'_> {
         self.plain_integer(most).map(Some)
     }
 
-    /// A string naming one of `names` (the names' bytes), by its index.
+    /// A string naming one of `names`, by its index.
     #[inline(always)]
-    fn name_in(&mut self, names: &rustc_hash::FxHashMap<Box<[u8]>, u32>) -> Option<u32> {
-        names.get(self.string_bytes()?.0).copied()
+    fn name_in(&mut self, names: &Names) -> Option<u32> {
+        let (s, _) = self.string_bytes()?;
+        if s.len() > 15 {
+            return names.long.get(s).copied();
+        }
+        // The sixteen bytes from the name's first one, masked to the name: one load.
+        let v = u128::from_le_bytes(self.window(self.i - 1 - s.len()));
+        let k = (v & ((1u128 << (8 * s.len())) - 1)) | ((s.len() as u128) << 120);
+        names.short.get(&k).copied()
+    }
+
+    /// Three numbers in brackets: without spaces at once, else as [`Cursor::vec3`] reads them.
+    #[inline(always)]
+    fn shaped_vec3(&mut self) -> Option<[f64; 3]> {
+        if let Some((v, end)) = tight_vec3(self.b, self.i) {
+            self.i = end;
+            return Some(v);
+        }
+        self.vec3()
     }
 
     /// A hit object of the shape: `t`, `point`, `normal` and `entity`, each optional.
@@ -62,17 +161,17 @@ impl Cursor<'_> {
         }
         let mut h = HitClaim::default();
         let mut first = true;
-        if self.member(b"\"t\":", &mut first) {
+        if self.member(&T, &mut first) {
             h.t = Some(self.f64()?);
         }
-        if self.member(b"\"point\":", &mut first) {
-            h.point = Some(DVec3::from_array(self.vec3()?));
+        if self.member(&POINT, &mut first) {
+            h.point = Some(DVec3::from_array(self.shaped_vec3()?));
         }
-        if self.member(b"\"normal\":", &mut first) {
-            h.normal = Some(DVec3::from_array(self.vec3()?));
+        if self.member(&NORMAL, &mut first) {
+            h.normal = Some(DVec3::from_array(self.shaped_vec3()?));
         }
-        if self.member(b"\"entity\":", &mut first) {
-            h.entity = Some(self.name_in(&ctx.entity_bytes)?);
+        if self.member(&ENTITY, &mut first) {
+            h.entity = Some(self.name_in(&ctx.entity_names)?);
         }
         self.lit(b"}").then_some(h)
     }
@@ -93,19 +192,13 @@ impl Cursor<'_> {
         if self.lit(b"true") {
             return Some(Answer::Found(None));
         }
-        Some(Answer::Found(Some(self.name_in(&ctx.entity_bytes)?)))
+        Some(Answer::Found(Some(self.name_in(&ctx.entity_names)?)))
     }
 
     /// The kind words rayscope writes; `None` for any other string.
+    #[inline(always)]
     fn shaped_kind(&mut self) -> Option<Kind> {
-        let (w, _) = self.string_bytes()?;
-        Some(match w {
-            b"camera" => Kind::Camera,
-            b"shadow" => Kind::Shadow,
-            b"reflection" => Kind::Reflection,
-            b"refraction" => Kind::Refraction,
-            _ => return None,
-        })
+        KINDS.iter().find(|(w, _)| self.lit16(w)).map(|(_, k)| k.clone())
     }
 }
 
@@ -118,7 +211,7 @@ pub(in crate::log) fn ray(bytes: &[u8], line: u64, ctx: &LogContext) -> Option<L
     }
     let mut r = LoggedRay::blank(line);
     let mut first = true;
-    if c.member(b"\"pixel\":", &mut first) {
+    if c.member(&PIXEL, &mut first) {
         if !c.lit(b"[") {
             return None;
         }
@@ -134,7 +227,7 @@ pub(in crate::log) fn ray(bytes: &[u8], line: u64, ctx: &LogContext) -> Option<L
         r.pixel = Some([x, y]);
     }
     let mut sample = 0;
-    if c.member(b"\"sample\":", &mut first) {
+    if c.member(&SAMPLE, &mut first) {
         sample = c.plain_integer(9)? as u32;
         if sample >= ctx.spp {
             return None;
@@ -142,39 +235,39 @@ pub(in crate::log) fn ray(bytes: &[u8], line: u64, ctx: &LogContext) -> Option<L
     }
     r.sample = Some(sample);
     // Eighteen digits cannot exceed an i64.
-    if c.member(b"\"id\":", &mut first) {
+    if c.member(&ID, &mut first) {
         r.id = c.int_or_null(18)?.map(|v| v as i64);
     }
-    if c.member(b"\"parent\":", &mut first) {
+    if c.member(&PARENT, &mut first) {
         r.parent = c.int_or_null(18)?.map(|v| v as i64);
     }
-    if c.member(b"\"kind\":", &mut first) {
+    if c.member(&KIND, &mut first) {
         r.kind = Some(c.shaped_kind()?);
     }
-    if !c.member(b"\"origin\":", &mut first) {
+    if !c.member(&ORIGIN, &mut first) {
         return None;
     }
-    r.origin = DVec3::from_array(c.vec3()?);
-    if !c.member(b"\"direction\":", &mut first) {
+    r.origin = DVec3::from_array(c.shaped_vec3()?);
+    if !c.member(&DIRECTION, &mut first) {
         return None;
     }
-    let d = DVec3::from_array(c.vec3()?);
+    let d = DVec3::from_array(c.shaped_vec3()?);
     let mut hit = false;
-    if c.member(b"\"hit\":", &mut first) {
+    if c.member(&HIT, &mut first) {
         r.hit = c.shaped_hit_answer(ctx)?;
         hit = true;
     }
-    if c.member(b"\"light\":", &mut first) {
-        r.light = Some(c.name_in(&ctx.light_bytes)?);
+    if c.member(&LIGHT, &mut first) {
+        r.light = Some(c.name_in(&ctx.light_names)?);
     }
-    if c.member(b"\"blocked_by\":", &mut first) {
+    if c.member(&BLOCKED_BY, &mut first) {
         r.blocked_by = c.shaped_blocker(ctx)?;
     }
-    if !hit && c.member(b"\"hit\":", &mut first) {
+    if !hit && c.member(&HIT, &mut first) {
         r.hit = c.shaped_hit_answer(ctx)?;
     }
-    if c.member(b"\"color\":", &mut first) {
-        r.color = Some(DVec3::from_array(c.vec3()?));
+    if c.member(&COLOR, &mut first) {
+        r.color = Some(DVec3::from_array(c.shaped_vec3()?));
     }
     if !c.lit(b"}") || c.i != bytes.len() {
         return None;
