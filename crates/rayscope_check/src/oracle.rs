@@ -481,25 +481,9 @@ impl Oracle {
             return self.closest_by_visit(o, d, t_min, t_max);
         }
         let ray = OracleRay::new(o, d);
-        let mut best: Option<PrimRef> = None;
-        let mut t_far = t_max;
-        for (i, &(p, n)) in self.planes.iter().enumerate() {
-            if let Some(t) = hit_plane(p, n, o, d, t_min, t_far) {
-                t_far = t;
-                best = Some(PrimRef::Plane(i as u32));
-            }
-        }
+        let (mut best, mut t_far) = self.closest_plane(o, d, t_min, t_max);
         self.walk(&ray, t_min, &mut t_far, |r, t_far| {
-            let t = if r & SPHERE != 0 {
-                let (c, rad) = self.spheres[(r & !SPHERE) as usize];
-                hit_sphere(c, rad, o, d, t_min, *t_far)
-            } else {
-                ray.triangle(&self.triangles[r as usize], t_min, *t_far)
-            };
-            if let Some(t) = t {
-                *t_far = t;
-                best = Some(Self::prim(r));
-            }
+            self.test_leaf(&ray, r, t_min, t_far, &mut best);
         });
         self.hit_at(best?, o, d, t_far)
     }
@@ -508,7 +492,18 @@ impl Oracle {
     #[cold]
     fn closest_by_visit(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> Option<OracleHit> {
         let ray = OracleRay::new(o, d);
-        let mut best: Option<PrimRef> = None;
+        let (mut best, mut t_far) = self.closest_plane(o, d, t_min, t_max);
+        self.visit(&ray, t_min, &mut t_far, 0.0, |r, t_far| {
+            self.test_leaf(&ray, r, t_min, t_far, &mut best);
+        });
+        self.hit_at(best?, o, d, t_far)
+    }
+
+    /// The nearest plane `o + t d` meets with `t_min < t < t_max`, in the scene's order on a tie,
+    /// and its `t` (`t_max` where none is met).
+    #[inline]
+    fn closest_plane(&self, o: DVec3, d: DVec3, t_min: f64, t_max: f64) -> (Option<PrimRef>, f64) {
+        let mut best = None;
         let mut t_far = t_max;
         for (i, &(p, n)) in self.planes.iter().enumerate() {
             if let Some(t) = hit_plane(p, n, o, d, t_min, t_far) {
@@ -516,19 +511,23 @@ impl Oracle {
                 best = Some(PrimRef::Plane(i as u32));
             }
         }
-        self.visit(&ray, t_min, &mut t_far, 0.0, |r, t_far| {
-            let t = if r & SPHERE != 0 {
-                let (c, rad) = self.spheres[(r & !SPHERE) as usize];
-                hit_sphere(c, rad, o, d, t_min, *t_far)
-            } else {
-                ray.triangle(&self.triangles[r as usize], t_min, *t_far)
-            };
-            if let Some(t) = t {
-                *t_far = t;
-                best = Some(Self::prim(r));
-            }
-        });
-        self.hit_at(best?, o, d, t_far)
+        (best, t_far)
+    }
+
+    /// Tests leaf primitive `r` (a sphere where [`SPHERE`] is set, else a triangle) against
+    /// `ray` with `t_min < t < *t_far`; a hit becomes `best` and narrows `t_far`.
+    #[inline(always)]
+    fn test_leaf(&self, ray: &OracleRay, r: u32, t_min: f64, t_far: &mut f64, best: &mut Option<PrimRef>) {
+        let t = if r & SPHERE != 0 {
+            let (c, rad) = self.spheres[(r & !SPHERE) as usize];
+            hit_sphere(c, rad, ray.o, ray.d, t_min, *t_far)
+        } else {
+            ray.triangle(&self.triangles[r as usize], t_min, *t_far)
+        };
+        if let Some(t) = t {
+            *t_far = t;
+            *best = Some(Self::prim(r));
+        }
     }
 
     /// The hit of `o + t d` on `prim` at `t`.
