@@ -871,6 +871,55 @@ async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     Ok(())
 }
 
+/// Glass whose refracted ray goes along its surface (a refraction formula without its square
+/// root, a mistake the catalogue does not hold) shows only its reflection: the panel says that
+/// this is one way to get the picture, names no cause, and lists the render as one way.
+#[test]
+fn compare_says_glass_that_only_reflects_is_one_way_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let (w, h) = (64u32, 48u32);
+    let (scene_path, dir, png) = student_png("oneway", &["refraction-no-root"], w, h, "no_root.png");
+    let (_server, url) = serve_stage_two(scene_path, w, h);
+    let png2 = png.clone();
+    in_chromium(&chromium, &driver, &url, "oneway-failure.png", |c, url| async move {
+        let r = drive_one_way(&c, &url, &png2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn drive_one_way(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    let e = |e: fantoccini::error::CmdError| e.to_string();
+    open_page(c, url, "64x48", 60).await?;
+    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
+    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
+    let state = wait_for("the diagnosis", 180, || async {
+        attr(c, "#diagnosis", "data-state")
+            .await
+            .filter(|v| v == "done" || v == "error")
+    })
+    .await;
+    let diagnosis = text(c, "#diagnosis").await?;
+    assert_eq!(state, "done", "{diagnosis}");
+    assert!(
+        diagnosis.starts_with("One way to get your picture, not necessarily yours: your "),
+        "{diagnosis}"
+    );
+    assert!(
+        diagnosis.contains("only its reflection") || diagnosis.contains("only their reflection"),
+        "{diagnosis}"
+    );
+    let first = text(c, "#explanations li:first-child").await?;
+    assert!(
+        first.contains("one way to get it, as is losing the refracted light of"),
+        "{first}"
+    );
+    shot(c, "08c-compare-one-way.png").await;
+    Ok(())
+}
+
 /// A field of view the student took whole instead of halved, a mistake the catalogue does not
 /// hold: the panel says the fitted angle in the core's words and offers to render with it; the
 /// button applies `--fov 120` to the debugger's settings, and the picture then matches.
