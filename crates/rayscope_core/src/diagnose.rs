@@ -762,8 +762,9 @@ enum Atom {
     /// (an `f32`'s bits), fitted to the picture.
     Offset(u32, bool),
     /// Every colour multiplied by this factor (an `f32`'s bits), fitted to the picture, in a
-    /// scene with this many point lights.
-    Scale(u32, u32),
+    /// scene with this many point lights, all of one grey level (an `f32`'s bits, 0 where the
+    /// lights' colours differ or are not grey).
+    Scale(u32, u32, u32),
 }
 
 /// A candidate render: the flags' settings with some atoms applied.
@@ -788,7 +789,7 @@ impl Candidate {
                 Atom::Setting(SettingChange::FovDeg(bits)) => s.camera.fov_deg = f32::from_bits(bits),
                 Atom::Mistake(m) => s.mistakes = s.mistakes.with(m),
                 Atom::Offset(bits, every) => s.mistakes = offset::with(s.mistakes, f32::from_bits(bits), every),
-                Atom::Scale(bits, _) => s.mistakes = s.mistakes.with_colour_scale(f32::from_bits(bits)),
+                Atom::Scale(bits, ..) => s.mistakes = s.mistakes.with_colour_scale(f32::from_bits(bits)),
             }
         }
         s
@@ -822,10 +823,11 @@ impl Candidate {
                     mistakes.push(offset::with(Mistakes::NONE, e, every).to_string());
                     words.push(offset::words(e, every));
                 }
-                Atom::Scale(bits, lights) => {
+                Atom::Scale(bits, lights, grey) => {
                     let k = f32::from_bits(bits);
                     mistakes.push(Mistakes::NONE.with_colour_scale(k).to_string());
-                    words.push(scale::words(k, lights as usize, base.aa));
+                    let grey = (grey != 0).then(|| f32::from_bits(grey));
+                    words.push(scale::words(k, lights as usize, base.aa, grey));
                 }
                 Atom::Setting(c) => {
                     let (flag, word) = match c {
@@ -1628,10 +1630,19 @@ fn fitted_scale(
     let Some(k) = scale::estimate(ours, image.rgb) else {
         return (None, 0);
     };
-    let lights = scenes.get(base.mistakes).lights.len();
+    let scene = scenes.get(base.mistakes);
+    let lights = scene.lights.len();
+    // One grey level every light shares: a tracer that leaves the lights' colour out is that
+    // level's inverse brighter.
+    let grey = scene
+        .lights
+        .first()
+        .map(|l| l.color)
+        .filter(|c| c.x > 0.0 && c.x == c.y && c.y == c.z && scene.lights.iter().all(|l| l.color == *c))
+        .map_or(0, |c| c.x.to_bits());
     let atoms = scale::candidates(k, lights, base.aa)
         .into_iter()
-        .map(|f| Atom::Scale(f.to_bits(), lights as u32));
+        .map(|f| Atom::Scale(f.to_bits(), lights as u32, grey));
     first_confirmed(scenes, base, image, full, atoms)
 }
 

@@ -354,6 +354,25 @@ fn lights_averaged_are_fitted_as_one_factor() {
     );
 }
 
+/// Each light's colour left out of the diffuse term (uncatalogued): scene 2's lights are all
+/// (0.5, 0.5, 0.5), so the picture is twice as bright, fitted as 2 and named by that way.
+#[test]
+fn light_colours_left_out_are_fitted_as_one_factor() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&path, &["light-colour-ignored"], Options::new(80, 60));
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause && e.matches, "{text}");
+    assert_eq!(e.mistakes, ["colour-scale=2"], "{text}");
+    assert!(
+        text.lines().next().unwrap_or_default().contains(
+            "each light's colour (0.5, 0.5, 0.5) left out of the diffuse term (albedo × N·L, as if every light were white) gives exactly this"
+        ),
+        "{text}"
+    );
+}
+
 /// The -x 2 grid's four samples divided by 2 (uncatalogued): twice as bright, clipped where
 /// rayscope's colour is over one half, fitted as 2 and named.
 #[test]

@@ -78,8 +78,8 @@ pub(crate) fn candidates(k: f64, lights: usize, aa: u32) -> Vec<f32> {
 }
 
 /// How a report says the factor `k`, with the known ways to get it where `k` is one of them
-/// (`lights` point lights, the `-x` level `aa`).
-pub(crate) fn words(k: f32, lights: usize, aa: u32) -> String {
+/// (`lights` point lights, the `-x` level `aa`, the one `grey` level every light has).
+pub(crate) fn words(k: f32, lights: usize, aa: u32, grey: Option<f32>) -> String {
     let what = if k < 1.0 { "darker" } else { "brighter" };
     let mut s = format!(
         "every colour multiplied by {k} before it is written as bytes (the whole picture {what} by that one factor)"
@@ -89,6 +89,11 @@ pub(crate) fn words(k: f32, lights: usize, aa: u32) -> String {
     if lights >= 2 && is(1.0 / lights as f64) {
         ways.push(format!(
             "the sum over the {lights} lights divided by their number (the course adds each light's contribution)"
+        ));
+    }
+    if let Some(g) = grey.filter(|&g| is(1.0 / f64::from(g))) {
+        ways.push(format!(
+            "each light's colour ({g}, {g}, {g}) left out of the diffuse term (albedo × N·L, as if every light were white)"
         ));
     }
     if aa >= 2 && is(f64::from(aa)) {
@@ -125,8 +130,10 @@ mod tests {
         let k = estimate(&ours, &half).expect("halved");
         assert!((k - 0.5).abs() < 0.01, "{k}");
         assert_eq!(candidates(k, 2, 4)[0], 0.5);
-        assert!(words(0.5, 2, 4).contains("divided by their number"));
-        assert!(!words(0.5, 3, 4).contains("divided by their number"));
+        assert!(words(0.5, 2, 4, None).contains("divided by their number"));
+        assert!(!words(0.5, 3, 4, None).contains("divided by their number"));
+        assert!(words(2.0, 2, 1, Some(0.5)).contains("each light's colour (0.5, 0.5, 0.5) left out"));
+        assert!(!words(2.0, 2, 1, Some(0.25)).contains("left out"));
         // Four times brighter where it is not clipped: the -x 4 grid divided by 4.
         let bright: Vec<u8> = ours
             .iter()
@@ -135,9 +142,9 @@ mod tests {
         let k = estimate(&ours, &bright).expect("brighter");
         assert_eq!(candidates(k, 1, 4)[0], 4.0);
         assert!(
-            words(4.0, 1, 4).contains("divided by 4 instead of 16"),
+            words(4.0, 1, 4, None).contains("divided by 4 instead of 16"),
             "{}",
-            words(4.0, 1, 4)
+            words(4.0, 1, 4, None)
         );
         // The same picture, and one that differs by no one factor, give none.
         assert_eq!(estimate(&ours, &ours), None);

@@ -374,7 +374,13 @@ impl Student {
             } else {
                 ns.dot(l).max(0.0)
             };
-            let mut add = color * *col * cos;
+            // Uncatalogued: the light's colour left out, as if every light were white.
+            let light = if self.bug("light-colour-ignored") {
+                DVec3::ONE
+            } else {
+                *col
+            };
+            let mut add = color * light * cos;
             if self.bug("light-falloff") {
                 add /= dist * dist;
             }
