@@ -1276,7 +1276,7 @@ fn diagnosis_next_pixels_in_chromium() {
     }
     let (w, h) = (32u32, 24u32);
     let scene_path = rayscope_testkit::scene("whitted.txt");
-    let dir = std::env::temp_dir().join(format!("rayscope-chromium-next-{}", std::process::id()));
+    let dir = std::env::temp_dir().join(format!("rayscope-chromium-next-pixels-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let ppm = dir.join("mine.ppm");
     let log = student_tracer_log(
