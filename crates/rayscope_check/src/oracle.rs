@@ -104,6 +104,17 @@ pub struct OracleRay {
 }
 
 impl OracleRay {
+    /// The children of inner `node`, the one this ray meets first along the node's split axis
+    /// first (the lower one for a direction of +0 or NaN there).
+    #[inline]
+    fn near_far(&self, node: &Node) -> (u32, u32) {
+        if self.da[usize::from(node.axis)] >= 0.0 {
+            (node.first, node.first + 1)
+        } else {
+            (node.first + 1, node.first)
+        }
+    }
+
     /// Prepares `o + t d`; `d` must be a unit vector.
     #[must_use]
     pub fn new(o: DVec3, d: DVec3) -> Self {
@@ -416,11 +427,7 @@ impl Oracle {
                 }
             } else {
                 // The nearer child is visited first, so its hits prune the farther one.
-                let (near, far) = if ray.da[usize::from(node.axis)] >= 0.0 {
-                    (node.first, node.first + 1)
-                } else {
-                    (node.first + 1, node.first)
-                };
+                let (near, far) = ray.near_far(node);
                 if top + 2 > stack.len() {
                     // Deeper than a median split of 2^62 primitives ever goes.
                     unreachable!("oracle hierarchy deeper than its stack");
@@ -567,11 +574,7 @@ impl Oracle {
                         f(r, t_max);
                     }
                 } else {
-                    let (near, far) = if ray.da[usize::from(node.axis)] >= 0.0 {
-                        (node.first, node.first + 1)
-                    } else {
-                        (node.first + 1, node.first)
-                    };
+                    let (near, far) = ray.near_far(node);
                     let Some(slot) = stack.get_mut(top) else {
                         // Deeper than a median split of 2^62 primitives ever goes.
                         unreachable!("oracle hierarchy deeper than its stack");
