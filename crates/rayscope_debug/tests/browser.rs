@@ -843,12 +843,14 @@ fn compare_says_the_obvious_first_in_chromium() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+/// Opens the 64×48 page at `url`, loads the student's `png` through the compare panel's file
+/// picker and waits up to `secs` seconds for the diagnosis, which must finish; its text.
+async fn diagnosed_in_page(c: &Client, url: &str, png: &Path, secs: u64) -> Result<String, String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
     open_page(c, url, "64x48", 60).await?;
     let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
     input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
-    let state = wait_for("the diagnosis", 120, || async {
+    let state = wait_for("the diagnosis", secs, || async {
         attr(c, "#diagnosis", "data-state")
             .await
             .filter(|v| v == "done" || v == "error")
@@ -856,6 +858,11 @@ async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     .await;
     let diagnosis = text(c, "#diagnosis").await?;
     assert_eq!(state, "done", "{diagnosis}");
+    Ok(diagnosis)
+}
+
+async fn drive_obvious(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    let diagnosis = diagnosed_in_page(c, url, png, 120).await?;
     assert!(
         diagnosis.starts_with("Your image is upside down: flipped vertically it is "),
         "{diagnosis}"
@@ -891,18 +898,7 @@ fn compare_says_glass_that_only_reflects_is_one_way_in_chromium() {
 }
 
 async fn drive_one_way(c: &Client, url: &str, png: &Path) -> Result<(), String> {
-    let e = |e: fantoccini::error::CmdError| e.to_string();
-    open_page(c, url, "64x48", 60).await?;
-    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
-    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
-    let state = wait_for("the diagnosis", 180, || async {
-        attr(c, "#diagnosis", "data-state")
-            .await
-            .filter(|v| v == "done" || v == "error")
-    })
-    .await;
-    let diagnosis = text(c, "#diagnosis").await?;
-    assert_eq!(state, "done", "{diagnosis}");
+    let diagnosis = diagnosed_in_page(c, url, png, 180).await?;
     assert!(
         diagnosis.starts_with("One way to get your picture, not necessarily yours: your "),
         "{diagnosis}"
@@ -942,17 +938,7 @@ fn compare_fits_the_field_of_view_in_chromium() {
 
 async fn drive_fov(c: &Client, url: &str, png: &Path) -> Result<(), String> {
     let e = |e: fantoccini::error::CmdError| e.to_string();
-    open_page(c, url, "64x48", 60).await?;
-    let input = c.find(Locator::Css("#compare-file")).await.map_err(e)?;
-    input.send_keys(&png.to_string_lossy()).await.map_err(e)?;
-    let state = wait_for("the diagnosis", 120, || async {
-        attr(c, "#diagnosis", "data-state")
-            .await
-            .filter(|v| v == "done" || v == "error")
-    })
-    .await;
-    let diagnosis = text(c, "#diagnosis").await?;
-    assert_eq!(state, "done", "{diagnosis}");
+    let diagnosis = diagnosed_in_page(c, url, png, 120).await?;
     assert!(
         diagnosis.starts_with(
             "Explained: your image is rayscope's render with a field of view of 120° (horizontal) instead of 60°"
