@@ -93,8 +93,15 @@ impl CauseGroup {
             .map(|(code, count)| Consequence { code, count })
             .collect();
         consequences.sort_by_key(|c| (std::cmp::Reverse(c.count), c.code));
+        // A mistake whose verdict falls on some kinds of ray only is listed where the examples'
+        // rays are of those kinds.
+        let on_its_rays = |m: rayscope_core::Mistake| {
+            let kinds = m.check_ray_kinds();
+            kinds.is_empty() || n.examples.iter().any(|f| kinds.contains(&f.kind.as_str()))
+        };
         let catalogue = rayscope_core::Mistake::ALL
             .into_iter()
+            .filter(|&m| on_its_rays(m))
             .map(rayscope_core::Mistake::info)
             .filter(|i| i.check.iter().any(|k| c.codes().iter().any(|x| x.as_str() == *k)))
             .map(|i| i.name)

@@ -576,20 +576,32 @@ fn rules_that_pass_over_the_nearest_hit_are_named_by_what_they_share() {
     );
 }
 
-/// Glass whose reflected ray starts along the incident ray (inside the glass) is named as the
-/// offset to the wrong side it is, grazing rays included.
+/// Glass whose reflected ray starts along the incident ray (inside the glass), or whose
+/// refracted ray starts on the incoming side, is named as the offset to the wrong side it is,
+/// grazing rays included; the catalogue's mistakes listed beside it are those of that ray.
 #[test]
-fn a_glass_reflection_started_along_the_ray_is_an_offset_to_the_wrong_side() {
+fn a_glass_ray_started_on_the_wrong_side_is_an_offset_to_the_wrong_side() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    assert_one_headline(
-        Run {
-            bug: "reflect-along-ray",
-            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
-        },
-        Code::SecondaryOffsetWrongSide,
-    );
+    for (bug, listed) in [
+        (
+            "reflect-along-ray",
+            &["glass-reflection-along-ray", "glass-reflection-outward"][..],
+        ),
+        ("refraction-origin-outside", &["refraction-offset-outside"][..]),
+    ] {
+        let r = assert_one_headline(
+            Run {
+                bug,
+                ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+            },
+            Code::SecondaryOffsetWrongSide,
+        );
+        if let Some(r) = r {
+            assert_eq!(r.causes[0].catalogue, listed, "{bug}:\n{}", text(&r));
+        }
+    }
 }
 
 /// The student's picture beside its log (`check --image`): written by the course's rule it gets

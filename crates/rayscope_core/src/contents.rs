@@ -72,6 +72,7 @@ impl SceneContents {
             | M::Schlick
             | M::GlassReflectionAlongRay
             | M::GlassReflectionOutward
+            | M::RefractionOffsetOutside
             | M::EtaEnteringInverted
             | M::FresnelSwapped => self.glass,
             M::ReflectNo2 => self.specular,

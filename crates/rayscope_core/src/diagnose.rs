@@ -51,6 +51,7 @@ mod acne;
 mod explained;
 mod families;
 mod fov;
+mod missing;
 mod offset;
 mod scale;
 mod ties;
@@ -176,13 +177,18 @@ pub struct Explanation {
     /// to get the picture that many mistakes share (empty otherwise). Not offered as the cause.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub loses_refraction: Vec<String>,
+    /// Other single mistakes or settings of the search whose renders match the picture as this
+    /// one's does, in words (empty otherwise): the picture cannot tell them apart, so none is
+    /// offered as the cause.
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub same_as: Vec<String>,
 }
 
 impl Explanation {
     /// True when this render is one way to get the picture that other mistakes share
-    /// ([`Self::blackens`], [`Self::loses_refraction`]), not its cause.
+    /// ([`Self::blackens`], [`Self::loses_refraction`], [`Self::same_as`]), not its cause.
     fn one_way(&self) -> bool {
-        !self.blackens.is_empty() || !self.loses_refraction.is_empty()
+        !self.blackens.is_empty() || !self.loses_refraction.is_empty() || !self.same_as.is_empty()
     }
 }
 
@@ -912,6 +918,7 @@ impl Candidate {
             cause: matches,
             blackens: Vec::new(),
             loses_refraction: Vec::new(),
+            same_as: Vec::new(),
         }
     }
 }
@@ -1448,7 +1455,7 @@ pub fn diagnose(
     for &i in &differing {
         differs[i as usize] = true;
     }
-    let attribution = shares(&traced, |k| traced.how(k, &ours, image.rgb, w, h, &differs));
+    let mut attribution = shares(&traced, |k| traced.how(k, &ours, image.rgb, w, h, &differs));
     if !matches && explanations.is_empty() {
         let against = Against {
             plain: constant,
@@ -1517,7 +1524,8 @@ pub fn diagnose(
     if let Some(f) = aa.fitted.filter(|_| best.is_none_or(|e| !e.cause || aa_members(e))) {
         fitted.insert(0, f);
     }
-    let recognised = if matches || constant || best.is_some_and(|e| e.cause) {
+    let caused = best.is_some_and(|e| e.cause);
+    let recognised = if matches || constant || caused {
         Vec::new()
     } else {
         let without = |k: usize, pixels: &[(u32, u32)]| {
@@ -1526,13 +1534,62 @@ pub fn diagnose(
             f.lights.remove(k);
             render_pixels(&Scene::from_owned_file(f), &base, pixels)
         };
-        acne::recognise(scenes.file, &without, &base, &ours, image.rgb, &differing, &traced)
+        let renders = std::cell::Cell::new(0);
+        let gone = |set: &[usize]| -> Vec<u8> {
+            renders.set(renders.get() + 1);
+            let mut f = scenes.file.clone();
+            Scenes::key(base.mistakes).apply_to_file(&mut f);
+            let mut k = 0;
+            f.entities.retain(|_| {
+                k += 1;
+                !set.contains(&(k - 1))
+            });
+            render(&Scene::from_owned_file(f), &base, &|_, _| {}, &never)
+                .map(|o| o.film.to_rgb8())
+                .unwrap_or_default()
+        };
+        let lacks = missing::recognise(
+            scenes.file,
+            &gone,
+            &ours,
+            image.rgb,
+            (w, h),
+            threshold,
+            &differs,
+            &traced,
+        );
+        tried += renders.get();
+        // Where a catalogued render explains a part, entities missing from another part are
+        // said only when they explain all of it.
+        let lacks = lacks.filter(|(_, full)| *full || explanations.is_empty());
+        if let Some((r, true)) = &lacks {
+            // The whole difference is the entities left out: no catalogued render explains all
+            // of it (none is a cause here), and one that explains a part of it is not its cause.
+            explanations.clear();
+            for s in attribution
+                .iter_mut()
+                .filter(|s| s.seen_in.is_empty() && r.entities.contains(&s.entity))
+            {
+                s.how = "missing: your picture shows what lies behind it".to_string();
+            }
+        }
+        lacks
+            .map(|(r, _)| r)
             .into_iter()
+            .chain(acne::recognise(
+                scenes.file,
+                &without,
+                &base,
+                &ours,
+                image.rgb,
+                &differing,
+                &traced,
+            ))
             .collect()
     };
     // An image that matches only turned back is still wrong as it stands.
     let turned = obvious.iter().any(|o| o.turned_back);
-    let next = if matches || best.is_some_and(|e| e.cause) || only_allowed(&fitted) {
+    let next = if matches || caused || only_allowed(&fitted) {
         None
     } else {
         NextStep::new(
@@ -2065,7 +2122,7 @@ fn search(
             .map(|(_, m, ex, matches)| (m.score(), net(ex), *matches))
     };
     let best = ranked.first().map_or(f64::NEG_INFINITY, |(_, m, ..)| m.score());
-    let explanations = ranked
+    let kept: Vec<&(usize, Metrics, Explained, bool)> = ranked
         .into_iter()
         .filter(|c| {
             let (i, m, ex, matches) = c;
@@ -2080,14 +2137,48 @@ fn search(
             !redundant && (*matches || m.score() >= best - 6.0 || !against.plain && ex.partial())
         })
         .take(opts.report)
+        .collect();
+    let mut explanations: Vec<Explanation> = kept
+        .iter()
         .map(|c| Explanation {
             explained: Some(c.2.clone()),
             cause: cause(c),
             ..candidates[c.0].explain(base, c.1, c.3)
         })
         .collect();
+    let mut tried = tried;
+    // A match is confirmed against the single candidates that came as close on the grid and
+    // were not confirmed: where one matches too, the picture cannot tell which mistake is the
+    // student's.
+    if let (Some(&&(i, _, _, true)), Some(e)) = (kept.first(), explanations.first_mut()) {
+        let mut twins: Vec<usize> = (1..candidates.len())
+            .filter(|&j| j != i && candidates[j].0.len() == 1 && results[j].1 >= results[i].1 - TWIN_DB)
+            .filter(|&j| !confirmed.iter().any(|c| c.0 == j && !c.3))
+            // Two values of one setting, or two ways of doing one thing, are one answer.
+            .filter(|&j| !candidates[i].0.iter().any(|&a| exclusive(a, candidates[j].0[0])))
+            .collect();
+        twins.sort_by(|&a, &b| results[b].1.total_cmp(&results[a].1));
+        twins.truncate(MAX_TWINS);
+        for j in twins {
+            let s = candidates[j].settings(base);
+            let bytes = full(scenes, &s);
+            tried += 1;
+            if ties::judge(scenes.get(s.mistakes), &s, &bytes, image.rgb, false).matches {
+                let m = Metrics::of(&bytes, image.rgb, w, h, BLOCK, true);
+                e.same_as.push(candidates[j].explain(base, m, true).summary);
+            }
+        }
+        if !e.same_as.is_empty() {
+            e.cause = false;
+        }
+    }
     (explanations, tried)
 }
+
+/// Most single candidates confirmed beside the best match, and how far below its score on the
+/// coarse grid (dB) one may be.
+const MAX_TWINS: usize = 3;
+const TWIN_DB: f64 = 3.0;
 
 /// An attribution ([`attribution`]) as indented lines, largest share first: the first eight,
 /// then the rest together.
@@ -2326,6 +2417,14 @@ pub fn headline(d: &Diagnosis) -> String {
 /// The headline of an explanation whose render matches by turning entities black, as painting
 /// them black does too ([`Explanation::blackens`]): one way to get the picture, not its cause.
 fn one_way(d: &Diagnosis, e: &Explanation) -> String {
+    if !e.same_as.is_empty() {
+        let others = acne::list(&e.same_as, 3);
+        return format!(
+            "One way to get your picture, not necessarily yours: your image is rayscope's render with {} ({}), and just as much with {others}. These give the same picture, so the picture alone cannot tell which is yours, nor rule out another mistake with the same effect. Log the rays of a few of those pixels to find out (below).",
+            e.summary,
+            match_how(d, e)
+        );
+    }
     if !e.loses_refraction.is_empty() {
         let names = acne::list(&e.loses_refraction, 4);
         let (is, their) = if e.loses_refraction.len() == 1 {

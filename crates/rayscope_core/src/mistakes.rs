@@ -97,6 +97,8 @@ pub enum Mistake {
     PlaneHitsBehind,
     /// N·L is not clamped at 0: lights behind the shading normal subtract.
     NdotLUnclamped,
+    /// The refracted ray starts off the surface on the side the ray came from.
+    RefractionOffsetOutside,
 }
 
 /// What the catalogue says about a mistake.
@@ -142,7 +144,7 @@ pub(crate) const GAMMA: f32 = 1.0 / 2.2;
 
 impl Mistake {
     /// Every mistake, in catalogue order.
-    pub const ALL: [Mistake; 38] = [
+    pub const ALL: [Mistake; 39] = [
         Mistake::FovVertical,
         Mistake::AspectIgnored,
         Mistake::PixelCorners,
@@ -181,6 +183,7 @@ impl Mistake {
         Mistake::SphereNearRootBehind,
         Mistake::PlaneHitsBehind,
         Mistake::NdotLUnclamped,
+        Mistake::RefractionOffsetOutside,
     ];
 
     /// The catalogue entry.
@@ -415,6 +418,12 @@ impl Mistake {
                 "smooth models darken in a band where the interpolated normal turns from a light the face still sees while another light shines; elsewhere a light behind a surface is blocked by the surface itself and nothing changes",
                 SHADOWS,
             ),
+            Mistake::RefractionOffsetOutside => (
+                "refraction-offset-outside",
+                "starts the refracted ray off the surface on the side the ray came from (p + n·ε, as for a reflection) instead of past it (p − n·ε)",
+                "glass goes dark, showing only faint reflections of the room: the refracted ray meets the glass again where it entered, until the recursion limit",
+                REFRACTION,
+            ),
         };
         MistakeInfo {
             name,
@@ -480,6 +489,18 @@ impl Mistake {
             Mistake::SphereNormalUnnormalised => &["hit.normal-not-unit"],
             Mistake::SphereNearRootBehind | Mistake::PlaneHitsBehind => &["hit.behind-origin"],
             Mistake::NdotLUnclamped => &["shading.diffuse"],
+            Mistake::RefractionOffsetOutside => &["secondary.offset-wrong-side"],
+        }
+    }
+
+    /// The kinds of ray (`reflection`, `refraction`) the mistake's `check` verdicts fall on,
+    /// where a verdict it shares with other mistakes falls on other rays for them; empty for any.
+    #[must_use]
+    pub fn check_ray_kinds(self) -> &'static [&'static str] {
+        match self {
+            Mistake::GlassReflectionAlongRay | Mistake::GlassReflectionOutward => &["reflection"],
+            Mistake::RefractionOffsetOutside => &["refraction"],
+            _ => &[],
         }
     }
 

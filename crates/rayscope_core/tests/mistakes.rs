@@ -623,11 +623,15 @@ fn choosing_the_nearest_hit_by_another_distance_changes_only_what_it_should() {
 }
 
 #[test]
-fn glass_reflections_started_on_the_wrong_side_change_only_what_is_seen_in_glass() {
+fn glass_rays_started_on_the_wrong_side_change_only_what_is_seen_in_glass() {
     let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    for m in [Mistake::GlassReflectionAlongRay, Mistake::GlassReflectionOutward] {
+    for m in [
+        Mistake::GlassReflectionAlongRay,
+        Mistake::GlassReflectionOutward,
+        Mistake::RefractionOffsetOutside,
+    ] {
         for path in [course.scene("sample_scene_2.txt"), rayscope_testkit::scene("beer.txt")] {
             let c = case(&path, settings(64, 64), m);
             c.only_where("seen through glass", |t| hits_material(t, "Refractive"));

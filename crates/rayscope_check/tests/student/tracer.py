@@ -35,6 +35,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   origin-distance    the nearest-hit loop keeps the hit whose point is nearest (0, 0, 0)
   farthest-hit       the nearest-hit loop keeps the farthest hit (no catalogue has it)
   reflect-along-ray  glass's reflected ray starts at p + EPS * d, along the incident ray
+  refraction-origin-outside  glass's refracted ray starts at p + EPS * n, on the incoming side
   gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out
                      the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
                      samples averaged as bytes, rows upside down, red and blue swapped
@@ -76,7 +77,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
-        "limit-colour", "mirror-tint", "background", "reflect-along-ray")
+        "limit-colour", "mirror-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
@@ -381,7 +382,8 @@ class Tracer:
             return col
         k = max(k, 0.0)
         tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
-        sub_col = self.trace(sub(p, mul(nn, EPS)), tdir, depth + 1, rid, "refraction")
+        ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))
+        sub_col = self.trace(ro, tdir, depth + 1, rid, "refraction")
         return add(col, mul(sub_col, 1 - kr))
 
 

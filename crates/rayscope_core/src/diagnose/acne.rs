@@ -46,13 +46,16 @@ const MIN_ROUGHNESS: f64 = 0.15;
 /// A mistake recognised from how the picture looks.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recognised {
-    /// What was recognised: `shadow-acne`.
+    /// What was recognised: `shadow-acne`, or `entities-missing` (rayscope's render without
+    /// some entities reproduces the picture).
     pub code: &'static str,
-    /// The catalogue's name for it.
+    /// The catalogue's name for it; empty where the catalogue has none (`entities-missing`
+    /// says what the picture lacks, which many mistakes can cause).
     pub mistake: &'static str,
     /// One sentence for the student: what the picture shows, what the code does, the fix.
     pub text: String,
-    /// The diffuse entities seen directly it was seen on, most pixels first.
+    /// For acne the diffuse entities seen directly it was seen on, most pixels first; for
+    /// missing entities those the picture lacks.
     pub entities: Vec<String>,
     /// Differing pixels it explains.
     pub pixels: u64,

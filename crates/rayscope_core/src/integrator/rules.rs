@@ -236,9 +236,14 @@ impl<I: Intersect> Integrator<'_, I> {
             // Without total internal reflection the ray that should reflect brings nothing.
             kr: if no_tir { 0.0 } else { kr },
             reflected: self.mistaken_reflection(ray, s, n, eps),
-            refracted: refracted
-                .filter(|_| !self.isect.mistakes().refraction_lost())
-                .map(|t| Ray::new(s.point - n * eps, t)),
+            refracted: refracted.filter(|_| !self.isect.mistakes().refraction_lost()).map(|t| {
+                let side = if self.mistake(Mistake::RefractionOffsetOutside) {
+                    eps
+                } else {
+                    -eps
+                };
+                Ray::new(s.point + n * side, t)
+            }),
             refl_medium,
             refr_medium,
         }

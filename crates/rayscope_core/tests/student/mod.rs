@@ -118,7 +118,9 @@ impl Student {
     pub fn new(file: &SceneFile, bugs: &[&'static str], opts: Options) -> Student {
         let bugs: HashSet<&'static str> = bugs.iter().copied().collect();
         let mut objs = Vec::new();
-        for e in &file.entities {
+        // Uncatalogued, `last-entity-skipped`: the loader's loop stops one line short.
+        let read = file.entities.len() - usize::from(bugs.contains("last-entity-skipped"));
+        for e in &file.entities[..read] {
             let m = &file.materials[e.material];
             let geo = match &e.shape {
                 Shape::Plane { point, normal } => Geo::Plane {
@@ -465,8 +467,13 @@ impl Student {
         // along the surface (its tangential part) instead of into the glass.
         let root = if self.bug("refraction-no-root") { 0.0 } else { cos_t };
         let t = (ray.d * eta + n * (eta * cos_i - root)).normalize();
+        let side = if self.bug("refraction-offset-outside") {
+            1.0
+        } else {
+            -1.0
+        };
         let refracted = Ray {
-            o: hit.p - n * self.eps(),
+            o: hit.p + n * (side * self.eps()),
             d: t,
         };
         // Uncatalogued: the two weights exchanged where the colours are mixed.
@@ -561,11 +568,20 @@ impl Student {
     /// The nearer root ahead of the ray, or none. Uncatalogued, `sphere-near-root-only`: the
     /// near root or nothing, so a ray from inside the sphere (through glass) misses it.
     /// `sphere-near-root-behind`: the near root whenever the far one lies ahead, so a ray from
-    /// inside hits the sphere behind its origin.
+    /// inside hits the sphere behind its origin. Uncatalogued, `sphere-b-not-doubled`: the
+    /// quadratic's roots (−b ± √(b² − 4ac)) / 2a with b = d·(o − c) instead of 2 d·(o − c), so
+    /// the discriminant is negative for every sphere a unit or more away: no sphere is hit.
     fn sphere(&self, ray: Ray, c: DVec3, r: f64) -> Option<f64> {
         let t_min = self.t_min();
         let oc = ray.o - c;
         let b = oc.dot(ray.d);
+        if self.bug("sphere-b-not-doubled") {
+            let disc = b * b - 4.0 * (oc.dot(oc) - r * r);
+            let s = disc.sqrt();
+            return [(-b - s) / 2.0, (-b + s) / 2.0]
+                .into_iter()
+                .find(|&t| disc >= 0.0 && t > t_min);
+        }
         let disc = b * b - (oc.dot(oc) - r * r);
         if disc < 0.0 {
             return None;
