@@ -1566,11 +1566,16 @@ pub fn diagnose(
             // The whole difference is the entities left out: no catalogued render explains all
             // of it (none is a cause here), and one that explains a part of it is not its cause.
             explanations.clear();
-            for s in attribution
-                .iter_mut()
-                .filter(|s| s.seen_in.is_empty() && r.entities.contains(&s.entity))
-            {
-                s.how = "missing: your picture shows what lies behind it".to_string();
+            // A part on a missing entity, or seen in a missing mirror, shows what lies behind it.
+            for s in &mut attribution {
+                let front = s.seen_in.first().unwrap_or(&s.entity);
+                if r.entities.contains(front) {
+                    s.how = if s.seen_in.is_empty() {
+                        "missing: your picture shows what lies behind it".to_string()
+                    } else {
+                        format!("{front} missing: your picture shows what lies behind it")
+                    };
+                }
             }
         }
         lacks
@@ -2169,7 +2174,10 @@ fn search(
             }
         }
         if !e.same_as.is_empty() {
-            e.cause = false;
+            // Nothing the picture cannot tell apart from another is its cause.
+            for e in &mut explanations {
+                e.cause = false;
+            }
         }
     }
     (explanations, tried)

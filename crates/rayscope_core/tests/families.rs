@@ -507,6 +507,15 @@ fn entities_the_picture_lacks_are_said_first() {
             d.explanations.is_empty(),
             "{bug}: no catalogued render is offered\n{text}"
         );
+        for e in entities {
+            assert!(
+                d.attribution.iter().any(|s| {
+                    let front = s.seen_in.first().unwrap_or(&s.entity);
+                    front == e && s.how.contains("missing: your picture shows what lies behind it")
+                }),
+                "{bug}: {e} is not said missing where it is\n{text}"
+            );
+        }
         assert!(d.next.is_some(), "{bug}: the pixels to log are given\n{text}");
     }
 }

@@ -916,6 +916,52 @@ async fn drive_one_way(c: &Client, url: &str, png: &Path) -> Result<(), String> 
     Ok(())
 }
 
+/// Two catalogued mistakes that give the student's picture (a refracted ray started on the
+/// incoming side, and a sphere test taking the root behind a ray from inside, on glass spheres):
+/// the panel says both, neither as the cause, and gives the pixels to log.
+#[test]
+fn compare_says_mistakes_with_the_same_picture_together_in_chromium() {
+    let Some((chromium, driver)) = chromium_and_driver() else {
+        return;
+    };
+    let (w, h) = (64u32, 48u32);
+    let (scene_path, dir, png) = student_png("twins", &["refraction-offset-outside"], w, h, "twins.png");
+    let (_server, url) = serve_stage_two(scene_path, w, h);
+    let png2 = png.clone();
+    in_chromium(&chromium, &driver, &url, "twins-failure.png", |c, url| async move {
+        let r = drive_twins(&c, &url, &png2).await;
+        (c, r)
+    });
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+async fn drive_twins(c: &Client, url: &str, png: &Path) -> Result<(), String> {
+    let diagnosis = diagnosed_in_page(c, url, png, 180).await?;
+    assert!(
+        diagnosis
+            .starts_with("One way to get your picture, not necessarily yours: your image is rayscope's render with ")
+            && diagnosis.contains("'refraction-offset-outside'")
+            && diagnosis.contains("'sphere-near-root-behind'"),
+        "{diagnosis}"
+    );
+    let first = text(c, "#explanations li:first-child").await?;
+    assert!(
+        first.contains("one way to get this picture, as is")
+            && first.contains("the picture alone cannot tell which is yours"),
+        "{first}"
+    );
+    if !c
+        .find_all(Locator::Css("#diagnosis-log-env"))
+        .await
+        .map_err(|e| e.to_string())?
+        .is_empty()
+    {
+        shot(c, "08d-compare-same-picture.png").await;
+        return Ok(());
+    }
+    Err("no pixels to log".into())
+}
+
 /// A field of view the student took whole instead of halved, a mistake the catalogue does not
 /// hold: the panel says the fitted angle in the core's words and offers to render with it; the
 /// button applies `--fov 120` to the debugger's settings, and the picture then matches.
