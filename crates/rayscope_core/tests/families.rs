@@ -553,3 +553,21 @@ fn mistakes_that_give_the_same_picture_are_said_together() {
         assert!(d.next.is_some(), "{bug}: the pixels to log are given\n{text}");
     }
 }
+
+/// A mistake that changes the whole picture (the lights' y read with the wrong sign,
+/// uncatalogued) is not explained in part by catalogued renders that change the whole picture
+/// too and match one surface by chance (an image upside down lights the floor as the roof): no
+/// known mistake explains it, and the pixels to log are given.
+#[test]
+fn no_render_that_changes_everything_explains_a_part_by_chance() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&scene, &["light-y-negated"], Options::new(60, 45));
+    assert!(
+        text.starts_with("No known mistake explains your picture: no setting or catalogued mistake"),
+        "{text}"
+    );
+    assert!(d.explanations.is_empty(), "{text}");
+    assert!(d.next.is_some(), "the pixels to log are given\n{text}");
+}

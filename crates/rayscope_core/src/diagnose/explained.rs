@@ -325,6 +325,8 @@ pub struct Explained {
     pub percent: f64,
     /// Pixels the image has as rayscope renders them that the candidate's render changes.
     pub new_pixels: u64,
+    /// Differing pixels the candidate's render changes, but not to the image's colour.
+    pub changed_otherwise: u64,
     /// The share of the image's squared error against rayscope's render that the candidate's
     /// render removes, in percent (negative where it adds error).
     pub error_percent: f64,
@@ -367,11 +369,16 @@ impl Explained {
                 (mc[b + c] - mi[b + c]).abs() <= (0.25 * gap).max(BLOCK_LEVELS)
             })
         };
-        let (mut pixels, mut new_pixels, mut differing) = (0u64, 0u64, 0u64);
+        let changes = |i: usize| {
+            let p = i * 3;
+            (0..3).any(|c| candidate[p + c].abs_diff(ours[p + c]) >= threshold)
+        };
+        let (mut pixels, mut new_pixels, mut changed_otherwise, mut differing) = (0u64, 0u64, 0u64, 0u64);
         for (i, &d) in differs.iter().enumerate() {
             match (d, reproduces(i)) {
                 (true, true) => pixels += 1,
                 (false, false) => new_pixels += 1,
+                (true, false) if changes(i) => changed_otherwise += 1,
                 _ => {}
             }
             differing += u64::from(d);
@@ -401,6 +408,7 @@ impl Explained {
             pixels,
             percent: pct(pixels, differing),
             new_pixels,
+            changed_otherwise,
             error_percent: (1000.0 * removed).round() / 10.0,
             parts: traced
                 .parts
@@ -418,11 +426,15 @@ impl Explained {
     }
 
     /// True when the render explains a real part of the difference: most of the differing
-    /// pixels, or most of one sizeable part's, while adding error nowhere it takes away.
+    /// pixels, or most of one sizeable part's, while adding error nowhere it takes away, and
+    /// changing fewer pixels to colours the image does not have than it reproduces (a mistake
+    /// that changes the whole picture matches a part of another's by chance only).
     pub(crate) fn partial(&self) -> bool {
         let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
         let sizeable = |p: &PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
-        let clean = self.error_percent > 0.0 && self.new_pixels as f64 <= BREAKS_PER_FIX * self.pixels as f64;
+        let clean = self.error_percent > 0.0
+            && self.new_pixels as f64 <= BREAKS_PER_FIX * self.pixels as f64
+            && self.new_pixels + self.changed_otherwise <= self.pixels;
         clean && (self.percent >= WHOLE_PERCENT || self.parts.iter().any(|p| sizeable(p) && p.percent >= PART_PERCENT))
     }
 

@@ -157,7 +157,15 @@ impl Student {
         }
         Student {
             objs,
-            lights: file.lights.iter().map(|l| (l.position, l.color)).collect(),
+            // Uncatalogued, `light-y-negated`: each light's y read with the wrong sign.
+            lights: file
+                .lights
+                .iter()
+                .map(|l| {
+                    let y = if bugs.contains("light-y-negated") { -1.0 } else { 1.0 };
+                    (l.position * DVec3::new(1.0, y, 1.0), l.color)
+                })
+                .collect(),
             bugs,
             opts,
         }
