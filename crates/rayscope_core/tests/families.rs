@@ -571,3 +571,27 @@ fn no_render_that_changes_everything_explains_a_part_by_chance() {
     assert!(d.explanations.is_empty(), "{text}");
     assert!(d.next.is_some(), "the pixels to log are given\n{text}");
 }
+
+/// A sphere drawn smaller than it is (its radius read as a diameter, uncatalogued) lacks a ring
+/// of itself: said as a part of the picture that shows what lies behind the sphere, never as a
+/// sphere the tracer does not hit at all.
+#[test]
+fn a_sphere_partly_missing_is_said_as_partly_missing() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let opts = Options {
+        aa: 2,
+        ..Options::new(60, 45)
+    };
+    let (d, text) = searched(&course.scene("sample_scene_1.txt"), &["radius-halved"], opts);
+    let first = text.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with(
+            "Recognised from how your picture looks: Where your picture differs, much of it is what rayscope's render without its spheres (Sphere) shows: in places your picture shows what lies behind them"
+        ),
+        "{text}"
+    );
+    assert!(!first.contains("never found a hit"), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+}

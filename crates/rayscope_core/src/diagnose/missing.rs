@@ -92,20 +92,23 @@ pub(crate) fn recognise(
         .max_by(|a, b| (a.2.full(), a.2.pixels).cmp(&(b.2.full(), b.2.pixels)))?;
     let names: Vec<String> = set.iter().map(|&i| file.entities[i].name.clone()).collect();
     let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
-    let picture = if e.full() {
-        "Your picture is rayscope's render"
-    } else {
-        "Where your picture differs, much of it is rayscope's render"
-    };
-    let text = match left {
-        Left::Kind(command) => format!(
-            "{picture} without its {} ({}): they are not seen, cast no shadows and show in no mirror, as if your tracer never found a hit on a {}. Look at your {} intersection test: work one ray out by hand and compare, or let `rayscope probe` try it on rays whose answers are known (docs/probe.md).",
+    let full = e.full();
+    let kind = |command: &str| command.to_lowercase();
+    let text = match (left, full) {
+        (Left::Kind(command), true) => format!(
+            "Your picture is rayscope's render without its {} ({}): they are not seen, cast no shadows and show in no mirror, as if your tracer never found a hit on a {}. Look at your {} intersection test: work one ray out by hand and compare, or let `rayscope probe` try it on rays whose answers are known (docs/probe.md).",
             plural(command),
             super::acne::list(&names, 6),
-            command.to_lowercase(),
-            command.to_lowercase(),
+            kind(command),
+            kind(command),
         ),
-        Left::One => {
+        (Left::Kind(command), false) => format!(
+            "Where your picture differs, much of it is what rayscope's render without its {} ({}) shows: in places your picture shows what lies behind them, as if your tracer missed them there. Look at your {} intersection test and at how your tracer reads their lines of the scene file: work one ray out by hand and compare, or let `rayscope probe` try it on rays whose answers are known (docs/probe.md).",
+            plural(command),
+            super::acne::list(&names, 6),
+            kind(command),
+        ),
+        (Left::One, _) => {
             let entity = &file.entities[set[0]];
             let command = entity.shape.command();
             let others = file
@@ -122,8 +125,8 @@ pub(crate) fn recognise(
             } else {
                 format!(
                     " It is the scene's only {}: look at your {} intersection test, and at how your tracer reads its line of the scene file (line {}).",
-                    command.to_lowercase(),
-                    command.to_lowercase(),
+                    kind(command),
+                    kind(command),
                     entity.line
                 )
             };
@@ -135,17 +138,23 @@ pub(crate) fn recognise(
                     _ => "triangle",
                 },
             };
-            format!(
-                "{picture} without {} (a {shape}): it is not seen, casts no shadow and shows in no mirror, as if your tracer never found a hit on it.{like}",
-                quoted[0]
-            )
+            if full {
+                format!(
+                    "Your picture is rayscope's render without {} (a {shape}): it is not seen, casts no shadow and shows in no mirror, as if your tracer never found a hit on it.{like}",
+                    quoted[0]
+                )
+            } else {
+                format!(
+                    "Where your picture differs, much of it is what rayscope's render without {} (a {shape}) shows: in places your picture shows what lies behind it, as if your tracer missed it there.{like}",
+                    quoted[0]
+                )
+            }
         }
     };
     let mut numbers = BTreeMap::new();
     numbers.insert("entities", set.len() as f64);
     numbers.insert("percent_explained", e.percent);
     numbers.insert("error_removed_percent", e.error_percent);
-    let full = e.full();
     Some((
         Recognised {
             code: "entities-missing",

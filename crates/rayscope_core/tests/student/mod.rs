@@ -127,7 +127,15 @@ impl Student {
                     p: *point,
                     n: normal.normalize(),
                 },
-                Shape::Sphere { center, radius } => Geo::Sphere { c: *center, r: *radius },
+                // Uncatalogued, `radius-halved`: the radius read as a diameter.
+                Shape::Sphere { center, radius } => Geo::Sphere {
+                    c: *center,
+                    r: if bugs.contains("radius-halved") {
+                        radius / 2.0
+                    } else {
+                        *radius
+                    },
+                },
                 Shape::Triangle { vertices } => Geo::Tri(Tri { v: *vertices, n: None }),
                 Shape::Mesh {
                     source, offset, scale, ..
