@@ -115,10 +115,12 @@ pub enum Conversion {
     /// Each pixel the sum of its own colour and every pixel's before it, row by row: an
     /// anti-aliasing sum never reset between pixels.
     Accumulated,
+    /// The samples' colours added up and not divided by their number.
+    Summed,
 }
 
 impl Conversion {
-    const ALL: [Conversion; 8] = [
+    const ALL: [Conversion; 9] = [
         Conversion::Course,
         Conversion::Rounded,
         Conversion::Gamma,
@@ -127,6 +129,7 @@ impl Conversion {
         Conversion::Flipped,
         Conversion::Bgr,
         Conversion::Accumulated,
+        Conversion::Summed,
     ];
 
     /// The verdict a picture following this rule gets.
@@ -140,6 +143,7 @@ impl Conversion {
             Conversion::Flipped => Some(Code::ImageFlipped),
             Conversion::Bgr => Some(Code::ImageChannels),
             Conversion::Accumulated => Some(Code::ImageAccumulated),
+            Conversion::Summed => Some(Code::ImageSummed),
         }
     }
 
@@ -164,6 +168,7 @@ impl Conversion {
                 Conversion::Gamma => (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8,
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
                 Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
+                Conversion::Summed => course_byte(v * f64::from(n)),
                 Conversion::ByteAverage | Conversion::Accumulated => 0,
             }
         };
@@ -455,8 +460,12 @@ mod tests {
         let s = sums(&colours, 8, 8);
         for c in Conversion::ALL {
             let j = judge(&s, &picture(&s, c), 3);
-            // One sample a pixel: averaging bytes is averaging colours.
-            let want = if c == Conversion::ByteAverage { None } else { c.code() };
+            // One sample a pixel: averaging bytes is averaging colours, and the sum is the mean.
+            let want = if matches!(c, Conversion::ByteAverage | Conversion::Summed) {
+                None
+            } else {
+                c.code()
+            };
             assert_eq!(j.verdict, want, "{c:?}: {}", j.detail);
         }
         // Two samples a pixel, one dark and one bright: the bytes' average is not the colours'.
@@ -470,6 +479,8 @@ mod tests {
         }
         let j = judge(&two, &picture(&two, Conversion::ByteAverage), 3);
         assert_eq!(j.verdict, Some(Code::ImageByteAverage), "{}", j.detail);
+        let j = judge(&two, &picture(&two, Conversion::Summed), 3);
+        assert_eq!(j.verdict, Some(Code::ImageSummed), "{}", j.detail);
     }
 
     #[test]

@@ -238,6 +238,9 @@ codes! {
     ImageAccumulated = "image.accumulated", false,
         "each pixel adds up all the pixels before it",
         "Each pixel of your picture is the sum of its own logged colour and those of every pixel before it, row by row from the top-left: the variable that sums a pixel's anti-aliasing samples is set to black once, outside the loops over pixels, and never again. Set it to black at the start of each pixel, before the loop over its samples.";
+    ImageSummed = "image.summed", false,
+        "samples added up, not averaged",
+        "Your picture's bytes are the sum of each pixel's logged sample colours, not their average: with -x N, divide the sum of the N×N samples by N² before clamping and converting. The picture is N² times too bright, mostly white.";
     ImageDiffers = "image.differs", false,
         "picture not made from the logged colours",
         "Your picture's bytes are not your logged camera-ray colours turned into bytes by the course's rule (average the samples, clamp to [0, 1], byte = trunc(v · 255)), nor by any usual mistake. Either the picture comes from another run than the log (other flags, older code), or the colour your tracer logs is not the one it writes. The examples give your bytes beside the conversion of the logged colour.";

@@ -633,6 +633,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("bgr-out", Some(Code::ImageChannels)),
         ("stale-image", Some(Code::ImageDiffers)),
         ("accumulator-out", Some(Code::ImageAccumulated)),
+        ("summed-out", Some(Code::ImageSummed)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));

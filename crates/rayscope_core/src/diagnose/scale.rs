@@ -55,7 +55,7 @@ pub(crate) fn candidates(k: f64, lights: usize, aa: u32) -> Vec<f32> {
     }
     if aa >= 2 {
         let n = f64::from(aa);
-        known.extend([n, 1.0 / (n * n)]);
+        known.extend([n, n * n, 1.0 / (n * n)]);
     }
     out.extend(known.into_iter().filter(|&v| near(v)));
     for q in 1..=16u32 {
@@ -103,6 +103,13 @@ pub(crate) fn words(k: f32, lights: usize, aa: u32, grey: Option<f32>) -> String
             aa * aa
         ));
     }
+    if aa >= 2 && is(f64::from(aa * aa)) {
+        ways.push(format!(
+            "the -x {aa} grid's {} samples added up and never divided by {}",
+            aa * aa,
+            aa * aa
+        ));
+    }
     if aa >= 2 && is(1.0 / f64::from(aa * aa)) {
         ways.push(format!(
             "the -x {aa} grid's {} samples divided by {} twice",
@@ -146,6 +153,8 @@ mod tests {
             "{}",
             words(4.0, 1, 4, None)
         );
+        assert!(words(4.0, 1, 2, None).contains("the -x 2 grid's 4 samples added up and never divided by 4"));
+        assert!(!words(4.0, 1, 4, None).contains("never divided"));
         // The same picture, and one that differs by no one factor, give none.
         assert_eq!(estimate(&ours, &ours), None);
         let mixed: Vec<u8> = ours
