@@ -312,6 +312,9 @@ impl Grouper {
     }
 }
 
+/// Batches read and judged between two progress reports.
+const STEPS: usize = 8;
+
 /// Options of a check.
 #[derive(Debug, Clone, Copy)]
 pub struct CheckOptions {
@@ -401,70 +404,84 @@ pub(crate) fn run(
     let mut read: Option<(Vec<LoggedRay>, bool)> = None;
     let mut more = true;
     while more || read.is_some() {
-        if cancel.load(Ordering::Relaxed) {
+        // Several batches at a time on one of the pool's threads: the joins within then need
+        // no hand-over to and from the thread that called `run`, which reports the progress.
+        let steps = rayon::scope(|_| -> Result<bool, LogError> {
+            for _ in 0..STEPS {
+                if !(more || read.is_some()) {
+                    break;
+                }
+                if cancel.load(Ordering::Relaxed) {
+                    return Ok(false);
+                }
+                let reader = || -> Result<(bool, Duration), LogError> {
+                    let t0 = Instant::now();
+                    next.clear();
+                    let again = more && source.next_batch(&mut next)?;
+                    Ok((again, t0.elapsed()))
+                };
+                let judger = || -> Result<(Tally, Duration), Overfull> {
+                    let t1 = Instant::now();
+                    let mut ready = Vec::new();
+                    let mut last = false;
+                    if let Some((batch, end)) = read.take() {
+                        grouper.push_batch(batch, &mut ready);
+                        grouper.close(end, &mut ready)?;
+                        last = end;
+                    }
+                    let Some(sink) = sink.as_mut() else {
+                        let groups: Vec<&[LoggedRay]> = ready.iter().map(|g| grouper.rays(g)).collect();
+                        let t = judge_groups(judge, &groups, keep, false).0;
+                        grouper.release(last);
+                        return Ok((t, t1.elapsed()));
+                    };
+                    // 512 rays at a time (a thirty-second of a batch), so that the verdicts
+                    // waiting for the sink (up to a few KiB a ray) stay bounded however many
+                    // samples complete at once.
+                    let mut tally = Tally::new(keep);
+                    let mut ready = ready.into_iter().peekable();
+                    while ready.peek().is_some() {
+                        let mut rays = 0;
+                        let mut part = Vec::new();
+                        while let Some(g) = ready.next_if(|g| part.is_empty() || rays + g.len() <= log::BATCH / 32) {
+                            rays += g.len();
+                            part.push(g);
+                        }
+                        let groups: Vec<&[LoggedRay]> = part.iter().map(|g| grouper.rays(g)).collect();
+                        let (t, f) = judge_groups(judge, &groups, keep, true);
+                        tally = tally.merge(t);
+                        for (g, f) in part.into_iter().zip(f.unwrap_or_default()) {
+                            let g = match g {
+                                Rays::Copied(v) => v,
+                                run => grouper.rays(&run).to_vec(),
+                            };
+                            sink(g, f);
+                        }
+                    }
+                    grouper.release(last);
+                    Ok((tally, t1.elapsed()))
+                };
+                let (got, judged) = rayon::join(reader, judger);
+                let (t, dt) = judged.map_err(|o: Overfull| o.error(source))?;
+                judging += dt;
+                tally = std::mem::replace(&mut tally, Tally::new(keep)).merge(t);
+                let (again, dt) = got?;
+                reading += dt;
+                // The batch read goes to the grouper, which hands back batches it no longer
+                // needs, so that none is allocated again.
+                let spare = grouper.spare.pop().unwrap_or_else(|| Vec::with_capacity(log::BATCH));
+                if more {
+                    read = Some((std::mem::replace(&mut next, spare), !again));
+                } else {
+                    next = spare;
+                }
+                more = again;
+            }
+            Ok(true)
+        });
+        if !steps? {
             return Ok(None);
         }
-        let reader = || -> Result<(bool, Duration), LogError> {
-            let t0 = Instant::now();
-            next.clear();
-            let again = more && source.next_batch(&mut next)?;
-            Ok((again, t0.elapsed()))
-        };
-        let judger = || -> Result<(Tally, Duration), Overfull> {
-            let t1 = Instant::now();
-            let mut ready = Vec::new();
-            let mut last = false;
-            if let Some((batch, end)) = read.take() {
-                grouper.push_batch(batch, &mut ready);
-                grouper.close(end, &mut ready)?;
-                last = end;
-            }
-            let Some(sink) = sink.as_mut() else {
-                let groups: Vec<&[LoggedRay]> = ready.iter().map(|g| grouper.rays(g)).collect();
-                let t = judge_groups(judge, &groups, keep, false).0;
-                grouper.release(last);
-                return Ok((t, t1.elapsed()));
-            };
-            // A sixteenth of a batch's rays at a time, so that the verdicts waiting for the sink
-            // (up to a few KiB a ray) stay bounded however many samples complete at once.
-            let mut tally = Tally::new(keep);
-            let mut ready = ready.into_iter().peekable();
-            while ready.peek().is_some() {
-                let mut rays = 0;
-                let mut part = Vec::new();
-                while let Some(g) = ready.next_if(|g| part.is_empty() || rays + g.len() <= log::BATCH / 16) {
-                    rays += g.len();
-                    part.push(g);
-                }
-                let groups: Vec<&[LoggedRay]> = part.iter().map(|g| grouper.rays(g)).collect();
-                let (t, f) = judge_groups(judge, &groups, keep, true);
-                tally = tally.merge(t);
-                for (g, f) in part.into_iter().zip(f.unwrap_or_default()) {
-                    let g = match g {
-                        Rays::Copied(v) => v,
-                        run => grouper.rays(&run).to_vec(),
-                    };
-                    sink(g, f);
-                }
-            }
-            grouper.release(last);
-            Ok((tally, t1.elapsed()))
-        };
-        let (got, judged) = rayon::join(reader, judger);
-        let (t, dt) = judged.map_err(|o: Overfull| o.error(source))?;
-        judging += dt;
-        tally = tally.merge(t);
-        let (again, dt) = got?;
-        reading += dt;
-        // The batch read goes to the grouper, which hands back batches it no longer needs, so
-        // that none is allocated again.
-        let spare = grouper.spare.pop().unwrap_or_else(|| Vec::with_capacity(log::BATCH));
-        if more {
-            read = Some((std::mem::replace(&mut next, spare), !again));
-        } else {
-            next = spare;
-        }
-        more = again;
         let (done, total) = source.progress();
         progress(done, total);
     }

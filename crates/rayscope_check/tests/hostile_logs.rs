@@ -4,7 +4,7 @@
 use std::io::{Cursor, Read};
 use std::path::Path;
 
-use rayscope_check::log::{open, printable, BinaryReader, IdRole, JsonlReader, Kind, MAX_LINE};
+use rayscope_check::log::{open, printable, BinaryReader, IdRole, JsonlReader, Kind, BATCH, MAX_LINE};
 use rayscope_check::{check, CheckOptions, Judge, LogContext, LogError, RaySource, Report, MAX_PENDING_RAYS};
 use rayscope_core::{RenderSettings, Scene};
 
@@ -277,4 +277,35 @@ fn only_regular_files_are_opened_as_logs() {
     }
     let msg = open_err(&dir.path().join("missing.jsonl"));
     assert!(msg.contains("missing.jsonl"), "{msg}");
+}
+
+#[test]
+fn every_batch_but_the_last_is_whole_where_a_read_ends_inside_one() {
+    // About 11 MB of records: reads of the log end inside batches, and every record is handed
+    // on once, in order.
+    let line = good_line(0);
+    let lines = (11 << 20) / line.len();
+    let scene = scene();
+    let s = settings(8, 6);
+    let mut r = JsonlReader::new(
+        Cursor::new(line.repeat(lines)),
+        Path::new("rays.jsonl"),
+        0,
+        context(&scene, &s),
+        false,
+    );
+    let mut sizes = Vec::new();
+    let mut next = 1;
+    let mut batch = Vec::new();
+    while r.next_batch(&mut batch).unwrap() {
+        sizes.push(batch.len());
+        for ray in batch.drain(..) {
+            assert_eq!(ray.line, next);
+            next += 1;
+        }
+    }
+    assert_eq!(next - 1, lines as u64);
+    let (last, whole) = sizes.split_last().unwrap();
+    assert!(whole.iter().all(|&n| n == BATCH), "{sizes:?}");
+    assert!(*last > 0 && *last <= BATCH);
 }
