@@ -430,7 +430,7 @@ fn a_log_without_shadow_rays_gets_no_missing_shadow_ray_verdict() {
 }
 
 #[test]
-fn a_tinted_mirror_and_a_background_colour_are_named() {
+fn a_tinted_mirror_a_tinted_glass_and_a_background_colour_are_named() {
     let (Some(scene1), Some(scene2)) = (course_scene("sample_scene_1.txt"), course_scene("sample_scene_2.txt")) else {
         return;
     };
@@ -448,6 +448,24 @@ fn a_tinted_mirror_and_a_background_colour_are_named() {
     for d in details(&r, Code::ShadingMirror) {
         assert!(
             d.contains("'MirrorSphere'") && d.contains("multiplied by the material colour"),
+            "{d}"
+        );
+    }
+    // So is its glass material: the glass's mix multiplied by it is black, said as the tint, in
+    // one headline.
+    let glass = assert_named(
+        Run {
+            bug: "glass-tint",
+            ..Run::new(course_scene("sample_scene_2.txt").expect("scene 2"), 40, 40)
+        },
+        Code::ShadingGlass,
+        &[],
+    )
+    .expect("a report");
+    assert_eq!(glass.causes.len(), 1, "{}", text(&glass));
+    for d in details(&glass, Code::ShadingGlass) {
+        assert!(
+            d.contains("'GlassSphere'") && d.contains("multiplied by the material colour [0.0, 0.0, 0.0]"),
             "{d}"
         );
     }

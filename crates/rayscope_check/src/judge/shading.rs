@@ -670,12 +670,30 @@ impl Judge<'_> {
             [k] => rays[*k].color,
             _ => None,
         };
+        // The course's mix multiplied by the glass's material colour, which plays no part here.
+        let tint = self.scene.materials[lv.material as usize].color.as_dvec3();
+        let tinted = |want: DVec3| {
+            (tint != DVec3::ONE && !fits(c, want, DVec3::ZERO) && fits(c, want * tint, DVec3::ZERO)).then(|| {
+                self.finding(
+                    r,
+                    kind,
+                    Code::ShadingGlass,
+                    format!(
+                        "at '{name}' your colour is the course's mix of your reflected and refracted colours multiplied by the material colour {:?}; here the glass has no colour of its own",
+                        tint.to_array()
+                    ),
+                    vec![colour_value(c, want)],
+                )
+            })
+        };
         if sin2_t >= 1.0 {
             // Total internal reflection: everything is reflected.
             let (Some(rc), true) = (colour(kids.reflection), kids.refraction.is_empty()) else {
                 return Decision::Unjudged;
             };
-            if !fits(c, rc, DVec3::ZERO) {
+            if let Some(t) = tinted(rc) {
+                f.push(t);
+            } else if !fits(c, rc, DVec3::ZERO) {
                 f.push(self.finding(
                     r,
                     kind,
@@ -694,7 +712,17 @@ impl Judge<'_> {
         let unc = fresnel_uncertainty(ci, n1, n2, 2.0 * lv.un + 1e-6);
         let want = rc * exact + tc * (1.0 - exact);
         let kr_value = |k: Option<f64>| kr_value(k, exact);
-        let (code, detail, values) = match classify_glass(c, rc, tc, ci, n1, n2, unc) {
+        let fit = classify_glass(c, rc, tc, ci, n1, n2, unc);
+        // The tint is said where no formula gives the colour; where one does too (with a black
+        // tint, a black colour fits both), the hit cannot tell them apart and is left unjudged.
+        if let Some(t) = tinted(want) {
+            if !matches!(fit, GlassFit::Other(_) | GlassFit::NotAMix) {
+                return Decision::Unjudged;
+            }
+            f.push(t);
+            return Decision::Judged;
+        }
+        let (code, detail, values) = match fit {
             GlassFit::Exact => return Decision::Judged,
             GlassFit::Mistake(formula, k) => (
                 formula.code(),

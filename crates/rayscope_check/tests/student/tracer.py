@@ -55,6 +55,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
+  glass-tint         glass multiplies its Fresnel mix by its material colour
   background         a ray that hits nothing brings back a grey background
   light-colour-ignored  each light taken as white: albedo x N.L (no catalogue has it)
   lights-averaged    the diffuse sum over the lights divided by their number (no catalogue has it)
@@ -78,7 +79,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
-        "limit-colour", "mirror-tint", "background", "reflect-along-ray", "refraction-origin-outside")
+        "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
@@ -315,7 +316,10 @@ class Tracer:
             r = normalize(sub(d, mul(nf, (1 if self.bug == "reflect-no-2" else 2) * dot(d, nf))))
             col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
             return self.colored(rec, hadamard(col, m["color"]) if self.bug == "mirror-tint" else col)
-        return self.colored(rec, self.glass(d, p, n, nf, front, m, depth, rid))
+        g = self.glass(d, p, n, nf, front, m, depth, rid)
+        if self.bug == "glass-tint":
+            g = hadamard(g, m["color"])
+        return self.colored(rec, g)
 
     def diffuse(self, p, nf, m, rid, shaded):
         col = (0.0, 0.0, 0.0)
