@@ -6,7 +6,7 @@
 
 use std::collections::BTreeMap;
 
-use rayscope_scene::{SceneFile, Shape};
+use rayscope_scene::SceneFile;
 
 use super::acne::Recognised;
 use super::explained::{Explained, Traced};
@@ -56,6 +56,16 @@ fn candidates(file: &SceneFile, traced: &Traced) -> Vec<(Left, Vec<usize>)> {
     out
 }
 
+/// The noun one entity of a kind goes by in a sentence, with its article.
+fn singular(command: &str) -> &'static str {
+    match command {
+        "Sphere" => "a sphere",
+        "Plane" => "a plane",
+        "Triangle" => "a triangle",
+        _ => "an OBJ model",
+    }
+}
+
 /// The plural a kind's entities go by in a sentence.
 fn plural(command: &str) -> &'static str {
     match command {
@@ -93,13 +103,14 @@ pub(crate) fn recognise(
     let names: Vec<String> = set.iter().map(|&i| file.entities[i].name.clone()).collect();
     let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
     let full = e.full();
-    let kind = |command: &str| command.to_lowercase();
+    // "sphere" for the test's name: the noun without its article.
+    let kind = |command: &str| singular(command).split_once(' ').map_or("", |(_, noun)| noun);
     let text = match (left, full) {
         (Left::Kind(command), true) => format!(
-            "Your picture is rayscope's render without its {} ({}): they are not seen, cast no shadows and show in no mirror, as if your tracer never found a hit on a {}. Look at your {} intersection test: work one ray out by hand and compare, or let `rayscope probe` try it on rays whose answers are known (docs/probe.md).",
+            "Your picture is rayscope's render without its {} ({}): they are not seen, cast no shadows and show in no mirror, as if your tracer never found a hit on {}. Look at your {} intersection test: work one ray out by hand and compare, or let `rayscope probe` try it on rays whose answers are known (docs/probe.md).",
             plural(command),
             super::acne::list(&names, 6),
-            kind(command),
+            singular(command),
             kind(command),
         ),
         (Left::Kind(command), false) => format!(
@@ -130,22 +141,15 @@ pub(crate) fn recognise(
                     entity.line
                 )
             };
-            let shape = match &entity.shape {
-                Shape::Mesh { .. } => "OBJ model",
-                s => match s.command() {
-                    "Sphere" => "sphere",
-                    "Plane" => "plane",
-                    _ => "triangle",
-                },
-            };
+            let shape = singular(command);
             if full {
                 format!(
-                    "Your picture is rayscope's render without {} (a {shape}): it is not seen, casts no shadow and shows in no mirror, as if your tracer never found a hit on it.{like}",
+                    "Your picture is rayscope's render without {} ({shape}): it is not seen, casts no shadow and shows in no mirror, as if your tracer never found a hit on it.{like}",
                     quoted[0]
                 )
             } else {
                 format!(
-                    "Where your picture differs, much of it is what rayscope's render without {} (a {shape}) shows: in places your picture shows what lies behind it, as if your tracer missed it there.{like}",
+                    "Where your picture differs, much of it is what rayscope's render without {} ({shape}) shows: in places your picture shows what lies behind it, as if your tracer missed it there.{like}",
                     quoted[0]
                 )
             }
