@@ -94,10 +94,10 @@ impl CauseGroup {
             .collect();
         consequences.sort_by_key(|c| (std::cmp::Reverse(c.count), c.code));
         // A mistake whose verdict falls on some kinds of ray only is listed where the examples'
-        // rays are of those kinds.
+        // rays are of those kinds (or where no example was kept to tell).
         let on_its_rays = |m: rayscope_core::Mistake| {
             let kinds = m.check_ray_kinds();
-            kinds.is_empty() || n.examples.iter().any(|f| kinds.contains(&f.kind.as_str()))
+            kinds.is_empty() || n.examples.is_empty() || n.examples.iter().any(|f| kinds.contains(&f.kind.as_str()))
         };
         let catalogue = rayscope_core::Mistake::ALL
             .into_iter()
