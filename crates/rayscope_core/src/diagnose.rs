@@ -1528,23 +1528,34 @@ pub fn diagnose(
     let recognised = if matches || constant || caused {
         Vec::new()
     } else {
-        let without = |k: usize, pixels: &[(u32, u32)]| {
+        // The scene as rendered under the flags' mistakes, with `edit` made to its file.
+        let edited = |edit: &dyn Fn(&mut SceneFile)| {
             let mut f = scenes.file.clone();
             Scenes::key(base.mistakes).apply_to_file(&mut f);
-            f.lights.remove(k);
-            render_pixels(&Scene::from_owned_file(f), &base, pixels)
+            edit(&mut f);
+            Scene::from_owned_file(f)
+        };
+        let without = |k: usize, pixels: &[(u32, u32)]| {
+            render_pixels(
+                &edited(&|f| {
+                    f.lights.remove(k);
+                }),
+                &base,
+                pixels,
+            )
         };
         let renders = std::cell::Cell::new(0);
         let gone = |set: &[usize]| -> Vec<u8> {
             renders.set(renders.get() + 1);
-            let mut f = scenes.file.clone();
-            Scenes::key(base.mistakes).apply_to_file(&mut f);
-            let mut k = 0;
-            f.entities.retain(|_| {
-                k += 1;
-                !set.contains(&(k - 1))
-            });
-            render(&Scene::from_owned_file(f), &base, &|_, _| {}, &never)
+            let kept = |f: &mut SceneFile| {
+                f.entities = std::mem::take(&mut f.entities)
+                    .into_iter()
+                    .enumerate()
+                    .filter(|(i, _)| !set.contains(i))
+                    .map(|(_, e)| e)
+                    .collect();
+            };
+            render(&edited(&kept), &base, &|_, _| {}, &never)
                 .map(|o| o.film.to_rgb8())
                 .unwrap_or_default()
         };
@@ -2158,18 +2169,24 @@ fn search(
     if let (Some(&&(i, _, _, true)), Some(e)) = (kept.first(), explanations.first_mut()) {
         let mut twins: Vec<usize> = (1..candidates.len())
             .filter(|&j| j != i && candidates[j].0.len() == 1 && results[j].1 >= results[i].1 - TWIN_DB)
-            .filter(|&j| !confirmed.iter().any(|c| c.0 == j && !c.3))
             // Two values of one setting, or two ways of doing one thing, are one answer.
             .filter(|&j| !candidates[i].0.iter().any(|&a| exclusive(a, candidates[j].0[0])))
             .collect();
         twins.sort_by(|&a, &b| results[b].1.total_cmp(&results[a].1));
         twins.truncate(MAX_TWINS);
         for j in twins {
-            let s = candidates[j].settings(base);
-            let bytes = full(scenes, &s);
-            tried += 1;
-            if ties::judge(scenes.get(s.mistakes), &s, &bytes, image.rgb, false).matches {
-                let m = Metrics::of(&bytes, image.rgb, w, h, BLOCK, true);
+            // One confirmed already is judged as it was; the others are rendered in full.
+            let matched = if let Some(&(_, m, _, matches)) = confirmed.iter().find(|c| c.0 == j) {
+                matches.then_some(m)
+            } else {
+                let s = candidates[j].settings(base);
+                let bytes = full(scenes, &s);
+                tried += 1;
+                ties::judge(scenes.get(s.mistakes), &s, &bytes, image.rgb, false)
+                    .matches
+                    .then(|| Metrics::of(&bytes, image.rgb, w, h, BLOCK, true))
+            };
+            if let Some(m) = matched {
                 e.same_as.push(candidates[j].explain(base, m, true).summary);
             }
         }
