@@ -219,6 +219,19 @@ impl PacketBest {
         self.found[i] |= take;
     }
 
+    /// [`Self::offer`] for every lane at once, of hits on lane-packet primitive `key` (a sphere
+    /// or a plane, whose hits have u = v = 0 and a = 1, the values `new` holds, so only `t`, the
+    /// key and the flags change) that passed the packet's filter where `ok`. Written as whole
+    /// arrays of bit operations and selects, which the compiler vectorises; with `offer`'s
+    /// short-circuit tests each lane became a chain of branches.
+    #[inline(always)]
+    fn offer_lanes(&mut self, ok: &Mask, t: &F, key: u32) {
+        let take: Mask = std::array::from_fn(|i| ok[i] & (!self.found[i] | (t[i] < self.t[i])));
+        self.t = std::array::from_fn(|i| sel(take[i], t[i], self.t[i]));
+        self.prim = std::array::from_fn(|i| sel_u32(take[i], key, self.prim[i]));
+        self.found = std::array::from_fn(|i| self.found[i] | take[i]);
+    }
+
     /// Writes the packet's hits into the running result.
     #[inline(always)]
     fn commit(&self, rays: &mut RayPacket, hits: &mut PacketHits) {
@@ -411,17 +424,10 @@ fn lanes_closest_rays(
         }
         let (ok, t) = test(k, rays, &entry);
         let key = tag | id;
-        for i in 0..LANES {
-            best.offer(
-                i,
-                ok[i] & beats(t[i], key, entry[i], entry_key[i]),
-                t[i],
-                0.0,
-                0.0,
-                1.0,
-                key,
-            );
-        }
+        // [`beats`] as bit operations, so that the loop vectorises.
+        let ok: Mask =
+            std::array::from_fn(|i| ok[i] & ((t[i] < entry[i]) | ((t[i] == entry[i]) & (key < entry_key[i]))));
+        best.offer_lanes(&ok, &t, key);
     }
     best.commit(rays, hits);
 }
