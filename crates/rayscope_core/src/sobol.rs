@@ -82,47 +82,22 @@ fn upward_hash(mut x: u32, seed: u32) -> u32 {
     x
 }
 
-/// Sobol's second dimension's generator matrix with its output bits reversed, applied eight
-/// index bits at a time: entry `[k][b]` is the bit-reversed xor of the direction numbers of the
-/// set bits of `b` at bits 8k..8k+7. Reversed because every coordinate is read back reversed
-/// by the scramble that follows ([`Sampler::point_2d`]), so no reversal is spent on it.
-const SOBOL1_REVERSED: [[u32; 256]; 4] = {
-    let mut v = [0u32; 32];
-    v[0] = 1 << 31;
-    let mut i = 1;
-    while i < 32 {
-        v[i] = v[i - 1] ^ (v[i - 1] >> 1);
-        i += 1;
-    }
-    let mut t = [[0u32; 256]; 4];
-    let mut k = 0;
-    while k < 4 {
-        let mut b = 0;
-        while b < 256 {
-            let mut x = 0u32;
-            let mut j = 0;
-            while j < 8 {
-                if b & (1 << j) != 0 {
-                    x ^= v[8 * k + j];
-                }
-                j += 1;
-            }
-            t[k][b] = x.reverse_bits();
-            b += 1;
-        }
-        k += 1;
-    }
-    t
-};
-
-/// The second Sobol coordinate of point `i`, bit-reversed.
+/// The second Sobol coordinate of point `i`, bit-reversed. Its generator matrix is Pascal's
+/// triangle mod 2 (direction number `j` is `v[j] = v[j-1] ^ (v[j-1] >> 1)` from `1 << 31`), so
+/// bit `k` of the reversed coordinate is the xor of the bits `j` of `i` whose position has every
+/// set bit of `k`'s (Lucas's theorem: C(j, k) is odd exactly then). That sum over supersets
+/// takes one shift, mask and xor per bit of a position, five in all, with no table, so a loop
+/// over lanes vectorises. Every value is the direction numbers' (the map is linear, and
+/// `sobol1_matches_its_direction_numbers` checks every basis vector).
 #[inline(always)]
 fn sobol1_reversed(i: u32) -> u32 {
-    let t = &SOBOL1_REVERSED;
-    t[0][(i & 255) as usize]
-        ^ t[1][((i >> 8) & 255) as usize]
-        ^ t[2][((i >> 16) & 255) as usize]
-        ^ t[3][(i >> 24) as usize]
+    let mut x = i;
+    x ^= (x >> 1) & 0x5555_5555;
+    x ^= (x >> 2) & 0x3333_3333;
+    x ^= (x >> 4) & 0x0f0f_0f0f;
+    x ^= (x >> 8) & 0x00ff_00ff;
+    x ^= (x >> 16) & 0x0000_ffff;
+    x
 }
 
 /// Two 32-bit values bit-reversed with one 64-bit reversal: `(a.reverse_bits(),
@@ -264,7 +239,7 @@ impl SamplerLanes {
 
     /// [`Sampler::point_2d`] in every lane, by axis: the same integer arithmetic in loops over
     /// the lanes without branches, which the compiler vectorises (the bit reversals become
-    /// byte shuffles); only the table lookups of the second coordinate go lane by lane.
+    /// byte shuffles).
     #[inline(always)]
     fn points_2d(&self, index: &[u32; LANES], dim: &[u32; LANES], salt: &[u64; LANES]) -> [[f32; LANES]; 2] {
         let (mut i, mut hx, mut gy) = ([0u32; LANES], [0u32; LANES], [0u32; LANES]);
@@ -274,11 +249,10 @@ impl SamplerLanes {
             i[k] = upward_hash(index[k].reverse_bits(), h as u32).reverse_bits();
             (hx[k], gy[k]) = ((h >> 32) as u32, g as u32);
         }
-        let second: [u32; LANES] = std::array::from_fn(|k| sobol1_reversed(i[k]));
         let mut out = [[0.0; LANES]; 2];
         for k in 0..LANES {
             out[0][k] = unit(upward_hash(i[k], hx[k]).reverse_bits());
-            out[1][k] = unit(upward_hash(second[k], gy[k]).reverse_bits());
+            out[1][k] = unit(upward_hash(sobol1_reversed(i[k]), gy[k]).reverse_bits());
         }
         out
     }
@@ -310,6 +284,20 @@ mod tests {
             v ^= v >> 1;
         }
         x
+    }
+
+    #[test]
+    fn sobol1_matches_its_direction_numbers() {
+        // Both sides are linear over GF(2), so agreeing on every basis vector is agreeing on all.
+        for bit in 0..32 {
+            let i = 1u32 << bit;
+            assert_eq!(sobol1_reversed(i), sobol1(i).reverse_bits(), "bit {bit}");
+        }
+        let mut z = 0x0123_4567u32;
+        for _ in 0..10_000 {
+            z = z.wrapping_mul(747_796_405).wrapping_add(2_891_336_453);
+            assert_eq!(sobol1_reversed(z), sobol1(z).reverse_bits());
+        }
     }
 
     /// [`Sampler::point_2d`] as the module documentation defines it: the index Owen-scrambled,
