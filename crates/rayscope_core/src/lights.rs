@@ -18,10 +18,12 @@ use glam::Vec3A;
 use crate::accel::ApexCull;
 use crate::geometry::{PrimRef, Sphere, Triangle};
 use crate::material::Material;
-use crate::math::{basis, not_at_most, RayPacket};
-use crate::sampling::{to_world, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle};
+use crate::math::{basis, basis_lanes, not_at_most, RayPacket};
+use crate::sampling::{
+    to_world, to_world_unit_lanes, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle,
+};
 use crate::scene::{Intersect, Scene};
-use crate::simd::{dispatched, lane, sel, Mask, LANES};
+use crate::simd::{dispatched, lane, put, sel, Mask, LANES};
 
 /// Relative margin inside which a point counts as on or inside a sphere emitter.
 const INSIDE_MARGIN: f32 = 1e-4;
@@ -226,7 +228,8 @@ pub(crate) struct LightLanes {
 impl Emitters {
     /// [`Emitters::sample`] from point `p` of every lane in `on`, with that lane's three
     /// numbers: the same arithmetic per lane. Triangle emitters are sampled in one pass over
-    /// the lanes without branches; lanes that chose a sphere call [`sample_sphere`].
+    /// the lanes without branches, sphere emitters in passes of their own
+    /// ([`Self::sample_spheres_lanes`]).
     // Structure-of-arrays code indexes several arrays by the same lane or axis.
     #[allow(clippy::needless_range_loop)]
     pub(crate) fn sample_lanes(
@@ -268,6 +271,8 @@ impl Emitters {
             [[0.0; LANES]; 3],
         );
         let (mut area2, mut pmf, mut tri) = ([1.0; LANES], [0.0; LANES], [false; LANES]);
+        // Each lane's sphere (centre, radius); zeros in other lanes.
+        let (mut centre, mut radius, mut sphere) = ([[0.0; LANES]; 3], [0.0; LANES], [false; LANES]);
         for i in 0..LANES {
             if !on[i] {
                 continue;
@@ -289,18 +294,18 @@ impl Emitters {
                     tri[i] = true;
                 }
                 PrimRef::Sphere(s) => {
-                    if let Some((dir, dist, pdf)) = sample_sphere(&scene.spheres[s as usize], lane(p, i), u1[i], u2[i])
-                    {
-                        for a in 0..3 {
-                            out.dir[a][i] = dir[a];
-                        }
-                        out.dist[i] = dist;
-                        out.pdf[i] = pdf;
-                        out.ok[i] = true;
+                    let s = &scene.spheres[s as usize];
+                    for a in 0..3 {
+                        centre[a][i] = s.center[a];
                     }
+                    radius[i] = s.radius;
+                    sphere[i] = true;
                 }
                 PrimRef::Plane(_) => {}
             }
+        }
+        if sphere.contains(&true) {
+            self.sample_spheres_lanes(p, &sphere, &centre, &radius, [u1, u2], &mut out);
         }
         // sample_triangle_with, lane by lane.
         for i in 0..LANES {
@@ -326,6 +331,81 @@ impl Emitters {
             out.ok[i] = on[i] & out.ok[i] & (pdf > 0.0) & pdf.is_finite();
         }
         out
+    }
+}
+
+impl Emitters {
+    /// [`sample_sphere`] from point `p` in every lane of `sphere`, of the sphere with centre
+    /// `centre` and radius `radius`, with the lane's numbers `u`, into `out` (direction,
+    /// distance, density and `ok`): the same arithmetic per lane. The cone seen from outside is
+    /// computed in loops over the lanes without branches, which the compiler vectorises, except
+    /// for the direction in the cone ([`uniform_cone`], whose sine and cosine are library calls),
+    /// taken lane by lane; a lane inside its sphere calls [`sample_sphere`].
+    #[allow(clippy::needless_range_loop)]
+    #[inline(always)]
+    fn sample_spheres_lanes(
+        &self,
+        p: &[[f32; LANES]; 3],
+        sphere: &Mask,
+        centre: &[[f32; LANES]; 3],
+        radius: &[f32; LANES],
+        [u1, u2]: [&[f32; LANES]; 2],
+        out: &mut LightLanes,
+    ) {
+        // cone_omc, and the axis to the centre.
+        let (mut d, mut axis) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3]);
+        let (mut omc, mut cone) = ([0.0; LANES], [false; LANES]);
+        for i in 0..LANES {
+            let dv: [f32; 3] = std::array::from_fn(|a| centre[a][i] - p[a][i]);
+            // glam's length_squared: (x² + y²) + z².
+            let d2 = dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2];
+            let r2 = radius[i] * radius[i];
+            cone[i] = sphere[i] & !(d2 <= r2 * (1.0 + INSIDE_MARGIN));
+            let sin2 = r2 / d2;
+            omc[i] = sin2 / (1.0 + (1.0 - sin2).sqrt());
+            let len = d2.sqrt();
+            for a in 0..3 {
+                d[a][i] = dv[a];
+                axis[a][i] = dv[a] / len;
+            }
+        }
+        let (t, b) = basis_lanes(&axis);
+        let mut local = [[0.0; LANES]; 3];
+        for i in 0..LANES {
+            if cone[i] {
+                put(&mut local, i, uniform_cone(u1[i], u2[i], omc[i]).to_array());
+            }
+        }
+        let dir = to_world_unit_lanes(&local, &t, &b, &axis);
+        for i in 0..LANES {
+            // The nearest intersection of the direction with the sphere.
+            let proj = dir[0][i] * d[0][i] + dir[1][i] * d[1][i] + dir[2][i] * d[2][i];
+            let l: [f32; 3] = std::array::from_fn(|a| d[a][i] - dir[a][i] * proj);
+            let disc = (radius[i] * radius[i] - (l[0] * l[0] + l[1] * l[1] + l[2] * l[2])).max(0.0);
+            let dist = (proj - disc.sqrt()).max(0.0);
+            let pdf = uniform_cone_pdf(omc[i]);
+            for a in 0..3 {
+                out.dir[a][i] = sel(cone[i], dir[a][i], out.dir[a][i]);
+            }
+            out.dist[i] = sel(cone[i], dist, out.dist[i]);
+            out.pdf[i] = sel(cone[i], pdf, out.pdf[i]);
+            out.ok[i] |= cone[i];
+        }
+        for i in 0..LANES {
+            if !sphere[i] || cone[i] {
+                continue;
+            }
+            let s = Sphere {
+                center: lane(centre, i),
+                radius: radius[i],
+            };
+            if let Some((dir, dist, pdf)) = sample_sphere(&s, lane(p, i), u1[i], u2[i]) {
+                put(&mut out.dir, i, dir.to_array());
+                out.dist[i] = dist;
+                out.pdf[i] = pdf;
+                out.ok[i] = true;
+            }
+        }
     }
 }
 
