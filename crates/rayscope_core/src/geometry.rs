@@ -70,9 +70,9 @@ pub(crate) fn plane_hit<L: Lanes, const TIES: bool>(
 /// negative when the ray's line misses the sphere.
 pub(crate) struct SphereLine<L: Lanes> {
     /// Origin − centre.
-    f: Axes<L>,
+    pub(crate) f: Axes<L>,
     /// −(f · d), the distance along the ray to the point of its line nearest the centre.
-    b: L,
+    pub(crate) b: L,
     /// r² minus the squared distance of the line from the centre.
     pub(crate) disc: L,
 }

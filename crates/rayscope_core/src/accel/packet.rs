@@ -19,7 +19,7 @@ use super::layout::{
     TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
 use super::single::{far, NodeConsts, RayConsts, TraversalStack, Walk, SLAB_SLACK};
-use crate::geometry::{plane_hit, sphere_line, triangle_plane, PrimRef, TrianglePlane};
+use crate::geometry::{plane_hit, sphere_line, triangle_plane, PrimRef, SphereLine, TrianglePlane};
 use crate::math::RayPacket;
 use crate::simd::{dispatched, put, Mask, LANES};
 
@@ -353,17 +353,33 @@ fn block(rays: &mut RayPacket, blocked: &mut Mask, ok: &Mask) {
 }
 
 impl SpherePacket {
-    /// Lane `k`'s sphere against every ray ([`sphere_line`], as in [`SpherePacket::closest`]).
+    /// Lane `k`'s sphere against every ray ([`sphere_line`], as in [`SpherePacket::closest`]);
+    /// `None` when no ray's line meets the sphere (no ray can hit it), checked before the
+    /// second half of the test, as the single-ray test does: most packets pass most spheres by.
     #[inline(always)]
-    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> Option<(Mask, F)> {
         let c = lane_of(&self.c, k);
         let r2 = AsRef::<[f32; 4]>::as_ref(&self.r2)[k];
-        let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
+        // The first half is kept per ray in arrays, so both loops stay vectorised.
+        let (mut f, mut b, mut disc, mut meets) = ([[0.0; LANES]; 3], [0.0; LANES], [0.0; LANES], [false; LANES]);
         for i in 0..LANES {
             let line = sphere_line(&c, r2, &ray_o(rays, i), &ray_d(rays, i));
+            put(&mut f, i, line.f);
+            (b[i], disc[i], meets[i]) = (line.b, line.disc, line.disc >= 0.0);
+        }
+        if !any_fresh(&meets) {
+            return None;
+        }
+        let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
+        for i in 0..LANES {
+            let line = SphereLine {
+                f: [f[0][i], f[1][i], f[2][i]],
+                b: b[i],
+                disc: disc[i],
+            };
             (ok[i], t[i]) = line.hit::<TIES>(r2, t_min, t_max[i]);
         }
-        (ok, t)
+        Some((ok, t))
     }
 
     #[inline(always)]
@@ -382,13 +398,13 @@ impl SpherePacket {
 impl PlanePacket {
     /// Lane `k`'s plane against every ray ([`plane_hit`], as in [`PlanePacket::closest`]).
     #[inline(always)]
-    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> (Mask, F) {
+    fn lane_vs_rays<const TIES: bool>(&self, k: usize, rays: &RayPacket, t_min: f32, t_max: &F) -> Option<(Mask, F)> {
         let (p, n) = (lane_of(&self.p, k), lane_of(&self.n, k));
         let (mut ok, mut t) = ([false; LANES], [0.0; LANES]);
         for i in 0..LANES {
             (ok[i], t[i]) = plane_hit::<_, TIES>(&p, &n, &ray_o(rays, i), &ray_d(rays, i), t_min, t_max[i]);
         }
-        (ok, t)
+        Some((ok, t))
     }
 
     #[inline(always)]
@@ -405,14 +421,14 @@ impl PlanePacket {
 }
 
 /// The closest hits among a packet's four spheres or planes, `test(k, rays, t_max)` giving lane
-/// `k`'s (hit, t) per ray: all four filtered against the distances known on entry, then each ray
+/// `k`'s (hit, t) per ray, or `None` where no ray can hit it: all four filtered against the distances known on entry, then each ray
 /// takes its nearest, as the single-ray test does packet by packet.
 #[inline(always)]
 fn lanes_closest_rays(
     ids: &[u32; 4],
     live: u32,
     tag: u32,
-    test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
+    test: impl Fn(usize, &RayPacket, &F) -> Option<(Mask, F)>,
     rays: &mut RayPacket,
     hits: &mut PacketHits,
 ) {
@@ -422,7 +438,9 @@ fn lanes_closest_rays(
         if id == NO_PRIM || live & (1 << k) == 0 {
             continue;
         }
-        let (ok, t) = test(k, rays, &entry);
+        let Some((ok, t)) = test(k, rays, &entry) else {
+            continue;
+        };
         let key = tag | id;
         // [`beats`] as bit operations, so that the loop vectorises.
         let ok: Mask =
@@ -437,7 +455,7 @@ fn lanes_closest_rays(
 fn lanes_occlude_rays(
     ids: &[u32; 4],
     live: u32,
-    test: impl Fn(usize, &RayPacket, &F) -> (Mask, F),
+    test: impl Fn(usize, &RayPacket, &F) -> Option<(Mask, F)>,
     rays: &mut RayPacket,
     blocked: &mut Mask,
 ) {
@@ -445,8 +463,9 @@ fn lanes_occlude_rays(
         if id == NO_PRIM || live & (1 << k) == 0 {
             continue;
         }
-        let (ok, _) = test(k, rays, &rays.t_max);
-        block(rays, blocked, &ok);
+        if let Some((ok, _)) = test(k, rays, &rays.t_max) {
+            block(rays, blocked, &ok);
+        }
     }
 }
 
