@@ -137,20 +137,26 @@ impl Sampler {
     /// Dimension `dim`'s scramble seeds: the index shuffle's and the first coordinate's.
     #[inline(always)]
     fn seeds(&self, dim: u32) -> u64 {
-        mix(self.key ^ u64::from(dim + 1).wrapping_mul(0xd1b5_4a32_d192_ed03))
+        mix(self.seed_key(dim))
+    }
+
+    /// What [`Self::seeds`] mixes: the key moved by the dimension.
+    #[inline(always)]
+    fn seed_key(&self, dim: u32) -> u64 {
+        self.key ^ u64::from(dim + 1).wrapping_mul(0xd1b5_4a32_d192_ed03)
     }
 
     /// The number at dimension `dim`, uniform in [0, 1).
     #[must_use]
     #[inline]
     pub fn get1d(&self, dim: u32) -> f32 {
-        self.point_1d(dim)
+        self.point_1d(self.seeds(dim))
     }
 
-    /// [`Self::get1d`], always inlined, so that a loop over lanes calling it vectorises.
+    /// [`Self::get1d`] with the dimension's seeds `h` ([`Self::seeds`]), always inlined, so
+    /// that a loop over lanes calling it vectorises.
     #[inline(always)]
-    fn point_1d(&self, dim: u32) -> f32 {
-        let h = self.seeds(dim);
+    fn point_1d(&self, h: u64) -> f32 {
         // The index's Owen scramble i = rev(U(rev(index))), then the first coordinate rev(i)
         // scrambled: rev(U(rev(rev(i)))) = rev(U(i)), U being `upward_hash`.
         let i = upward_hash(self.index.reverse_bits(), h as u32).reverse_bits();
@@ -177,7 +183,7 @@ impl Sampler {
     /// `salt`.
     #[inline(always)]
     fn point_2d(&self, index: u32, dim: u32, salt: u64) -> [f32; 2] {
-        let h = mix(self.key ^ salt ^ u64::from(dim + 1).wrapping_mul(0xd1b5_4a32_d192_ed03));
+        let h = mix(self.seed_key(dim) ^ salt);
         let g = mix(h);
         // The index's Owen scramble i = rev(U(rev(index))), U being `upward_hash`. Each
         // coordinate c is then scrambled as rev(U(rev(c))): for the first, c = rev(i), so
@@ -192,6 +198,19 @@ impl Sampler {
     }
 }
 
+/// [`mix`] of every lane's `z`. Where every lane holds the same value (a wave's lanes, or a
+/// camera batch, drawing one pixel's samples at one dimension) it is mixed once: the 64-bit
+/// multiplications of a mix cost several vector instructions a lane where the CPU has no 64-bit
+/// vector multiply (AVX2).
+#[inline(always)]
+fn mixed_lanes(z: &[u64; LANES]) -> [u64; LANES] {
+    if z.iter().fold(true, |same, &v| same & (v == z[0])) {
+        [mix(z[0]); LANES]
+    } else {
+        z.map(mix)
+    }
+}
+
 /// Sixteen lanes' [`Sampler`]s, drawn lane by lane where a mask is on (0 elsewhere).
 #[derive(Debug, Clone, Copy, Default)]
 pub(crate) struct SamplerLanes(pub(crate) [Sampler; LANES]);
@@ -201,9 +220,11 @@ impl SamplerLanes {
     /// a loop without branches, which the compiler vectorises, and the lanes not on set to 0.
     #[inline]
     pub(crate) fn get1d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [f32; LANES] {
+        let keys = std::array::from_fn(|i| self.0[i].seed_key(dim[i]));
+        let h = mixed_lanes(&keys);
         let mut out = [0.0; LANES];
         for i in 0..LANES {
-            let u = self.0[i].point_1d(dim[i]);
+            let u = self.0[i].point_1d(h[i]);
             out[i] = if on[i] { u } else { 0.0 };
         }
         out
@@ -242,12 +263,13 @@ impl SamplerLanes {
     /// byte shuffles).
     #[inline(always)]
     fn points_2d(&self, index: &[u32; LANES], dim: &[u32; LANES], salt: &[u64; LANES]) -> [[f32; LANES]; 2] {
+        let keys = std::array::from_fn(|k| self.0[k].seed_key(dim[k]) ^ salt[k]);
+        let h = mixed_lanes(&keys);
+        let g = mixed_lanes(&h);
         let (mut i, mut hx, mut gy) = ([0u32; LANES], [0u32; LANES], [0u32; LANES]);
         for k in 0..LANES {
-            let h = mix(self.0[k].key ^ salt[k] ^ u64::from(dim[k] + 1).wrapping_mul(0xd1b5_4a32_d192_ed03));
-            let g = mix(h);
-            i[k] = upward_hash(index[k].reverse_bits(), h as u32).reverse_bits();
-            (hx[k], gy[k]) = ((h >> 32) as u32, g as u32);
+            i[k] = upward_hash(index[k].reverse_bits(), h[k] as u32).reverse_bits();
+            (hx[k], gy[k]) = ((h[k] >> 32) as u32, g[k] as u32);
         }
         let mut out = [[0.0; LANES]; 2];
         for k in 0..LANES {
