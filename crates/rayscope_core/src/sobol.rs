@@ -153,8 +153,7 @@ impl Sampler {
         self.point_1d(self.seeds(dim))
     }
 
-    /// [`Self::get1d`] with the dimension's seeds `h` ([`Self::seeds`]), always inlined, so
-    /// that a loop over lanes calling it vectorises.
+    /// [`Self::get1d`] with the dimension's seeds `h` ([`Self::seeds`]).
     #[inline(always)]
     fn point_1d(&self, h: u64) -> f32 {
         // The index's Owen scramble i = rev(U(rev(index))), then the first coordinate rev(i)
@@ -220,12 +219,19 @@ impl SamplerLanes {
     /// a loop without branches, which the compiler vectorises, and the lanes not on set to 0.
     #[inline]
     pub(crate) fn get1d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [f32; LANES] {
-        let keys = std::array::from_fn(|i| self.0[i].seed_key(dim[i]));
-        let h = mixed_lanes(&keys);
+        // `point_1d` from arrays: the indices gathered and the seeds split first, so that the
+        // loop vectorises (reading them from the samplers in it, the compiler went lane by lane).
+        let index: [u32; LANES] = std::array::from_fn(|i| self.0[i].index);
+        let h = mixed_lanes(&std::array::from_fn(|i| self.0[i].seed_key(dim[i])));
+        let (lo, hi): ([u32; LANES], [u32; LANES]) = (
+            std::array::from_fn(|i| h[i] as u32),
+            std::array::from_fn(|i| (h[i] >> 32) as u32),
+        );
         let mut out = [0.0; LANES];
-        for i in 0..LANES {
-            let u = self.0[i].point_1d(h[i]);
-            out[i] = if on[i] { u } else { 0.0 };
+        for k in 0..LANES {
+            let i = upward_hash(index[k].reverse_bits(), lo[k]).reverse_bits();
+            let u = unit(upward_hash(i, hi[k]).reverse_bits());
+            out[k] = if on[k] { u } else { 0.0 };
         }
         out
     }
