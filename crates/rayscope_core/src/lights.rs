@@ -307,23 +307,25 @@ impl Emitters {
         if sphere.contains(&true) {
             self.sample_spheres_lanes(p, &sphere, &centre, &radius, [u1, u2], &mut out);
         }
-        // sample_triangle_with, lane by lane.
-        for i in 0..LANES {
-            let s = u1[i].sqrt();
-            let (b1, b2) = (s * (1.0 - u2[i]), s * u2[i]);
-            let w: [f32; 3] = std::array::from_fn(|a| v0[a][i] + e1[a][i] * b1 + e2[a][i] * b2 - p[a][i]);
-            let dist2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-            let dist = dist2.sqrt();
-            let dir: [f32; 3] = std::array::from_fn(|a| w[a] / dist);
-            let cos = (cross[0][i] * dir[0] + cross[1][i] * dir[1] + cross[2][i] * dir[2]).abs() / area2[i];
-            let pdf = dist2 / (cos * (0.5 * area2[i]));
-            let ok = tri[i] & not_at_most(dist, 0.0) & (cos > 1e-7);
-            for a in 0..3 {
-                out.dir[a][i] = if tri[i] { dir[a] } else { out.dir[a][i] };
+        // sample_triangle_with, lane by lane, where a lane chose a triangle.
+        if tri.contains(&true) {
+            for i in 0..LANES {
+                let s = u1[i].sqrt();
+                let (b1, b2) = (s * (1.0 - u2[i]), s * u2[i]);
+                let w: [f32; 3] = std::array::from_fn(|a| v0[a][i] + e1[a][i] * b1 + e2[a][i] * b2 - p[a][i]);
+                let dist2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
+                let dist = dist2.sqrt();
+                let dir: [f32; 3] = std::array::from_fn(|a| w[a] / dist);
+                let cos = (cross[0][i] * dir[0] + cross[1][i] * dir[1] + cross[2][i] * dir[2]).abs() / area2[i];
+                let pdf = dist2 / (cos * (0.5 * area2[i]));
+                let ok = tri[i] & not_at_most(dist, 0.0) & (cos > 1e-7);
+                for a in 0..3 {
+                    out.dir[a][i] = if tri[i] { dir[a] } else { out.dir[a][i] };
+                }
+                out.dist[i] = if tri[i] { dist } else { out.dist[i] };
+                out.pdf[i] = if tri[i] { pdf } else { out.pdf[i] };
+                out.ok[i] = if tri[i] { ok } else { out.ok[i] };
             }
-            out.dist[i] = if tri[i] { dist } else { out.dist[i] };
-            out.pdf[i] = if tri[i] { pdf } else { out.pdf[i] };
-            out.ok[i] = if tri[i] { ok } else { out.ok[i] };
         }
         for i in 0..LANES {
             let pdf = out.pdf[i] * pmf[i];
