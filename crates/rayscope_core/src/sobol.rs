@@ -134,6 +134,17 @@ impl Sampler {
         }
     }
 
+    /// The numbers of sample `sample` of the same pixel in the same render: what
+    /// [`Self::new`] returns for it, without hashing the pixel again.
+    #[must_use]
+    #[inline]
+    pub fn with_sample(&self, sample: u32) -> Self {
+        Sampler {
+            key: self.key,
+            index: sample,
+        }
+    }
+
     /// Dimension `dim`'s scramble seeds: the index shuffle's and the first coordinate's.
     #[inline(always)]
     fn seeds(&self, dim: u32) -> u64 {
@@ -312,6 +323,14 @@ mod tests {
             v ^= v >> 1;
         }
         x
+    }
+
+    #[test]
+    fn another_sample_of_the_pixel_is_that_samples_sampler() {
+        let s = Sampler::new(7, 1234, 5);
+        for k in [0, 1, 6, 63, 1 << 20] {
+            assert_eq!(s.with_sample(k), Sampler::new(7, 1234, k));
+        }
     }
 
     #[test]

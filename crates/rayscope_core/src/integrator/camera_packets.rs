@@ -94,7 +94,11 @@ impl<I: Intersect> Integrator<'_, I> {
         let (mut cell, mut path) = ([0; LANES], [0; LANES]);
         let nn = self.grid * self.grid;
         for (k, &(x, y, s)) in jobs.iter().enumerate() {
-            b.rng.0[k] = self.sample_rng(x, y, s);
+            // A batch mostly holds one pixel's samples, whose numbers share the pixel's hash.
+            b.rng.0[k] = match k.checked_sub(1).map(|j| jobs[j]) {
+                Some((xp, yp, _)) if (xp, yp) == (x, y) => b.rng.0[k - 1].with_sample(s),
+                _ => self.sample_rng(x, y, s),
+            };
             [px[k], py[k]] = self.cell_offset(s);
             (cell[k], path[k]) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
         }
