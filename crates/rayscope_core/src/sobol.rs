@@ -231,7 +231,7 @@ impl SamplerLanes {
     #[inline]
     pub(crate) fn get1d(&self, on: &[bool; LANES], dim: &[u32; LANES]) -> [f32; LANES] {
         // `point_1d` from arrays: the indices gathered and the seeds split first, so that the
-        // loop vectorises (reading them from the samplers in it, the compiler went lane by lane).
+        // loop vectorises (read from the samplers inside it, they keep it lane by lane).
         let index: [u32; LANES] = std::array::from_fn(|i| self.0[i].index);
         let h = mixed_lanes(&std::array::from_fn(|i| self.0[i].seed_key(dim[i])));
         let (lo, hi): ([u32; LANES], [u32; LANES]) = (
