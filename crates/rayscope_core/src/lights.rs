@@ -362,7 +362,7 @@ impl Emitters {
             // glam's length_squared: (x² + y²) + z².
             let d2 = dv[0] * dv[0] + dv[1] * dv[1] + dv[2] * dv[2];
             let r2 = radius[i] * radius[i];
-            cone[i] = sphere[i] & !(d2 <= r2 * (1.0 + INSIDE_MARGIN));
+            cone[i] = sphere[i] & not_at_most(d2, r2 * (1.0 + INSIDE_MARGIN));
             let sin2 = r2 / d2;
             omc[i] = sin2 / (1.0 + (1.0 - sin2).sqrt());
             let len = d2.sqrt();
