@@ -90,6 +90,8 @@ impl<I: Intersect> Integrator<'_, I> {
     /// of `jobs` (at most [`LANES`]), all lanes at once, for a render without mistakes.
     fn lens_batch(&self, b: &mut CameraBatch, jobs: &[Job]) {
         let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
+        // Each lane's pixel, as the position's arithmetic takes it.
+        let (mut fx, mut fy) = ([0.0f32; LANES], [0.0f32; LANES]);
         // Each lane's cell (and its place among the cell's paths), for the point in it.
         let (mut cell, mut path) = ([0; LANES], [0; LANES]);
         let nn = self.grid * self.grid;
@@ -100,6 +102,7 @@ impl<I: Intersect> Integrator<'_, I> {
                 _ => self.sample_rng(x, y, s),
             };
             [px[k], py[k]] = self.cell_offset(s);
+            (fx[k], fy[k]) = (x as f32, y as f32);
             (cell[k], path[k]) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
         }
         let jitters = self.jitters();
@@ -107,12 +110,13 @@ impl<I: Intersect> Integrator<'_, I> {
         let lens = b.rng.get2d_all(Draw::Lens.dim(0));
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
-        for (k, &(x, y, _)) in jobs.iter().enumerate() {
+        // Every lane, a loop of fixed length that vectorises; lanes past the jobs are not used.
+        for k in 0..LANES {
             if jitters {
                 [px[k], py[k]] = self.jittered_offset([px[k], py[k]], [at[0][k], at[1][k]]);
             }
             // `camera_ray`'s position, moved by a nudge of zero.
-            (u[k], v[k]) = ((x as f32 + px[k]) / w + 0.0, (y as f32 + py[k]) / h + 0.0);
+            (u[k], v[k]) = ((fx[k] + px[k]) / w + 0.0, (fy[k] + py[k]) / h + 0.0);
         }
         let mut disk = [[0.0; LANES]; 2];
         for k in 0..LANES {
