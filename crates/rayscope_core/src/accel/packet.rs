@@ -421,8 +421,9 @@ impl PlanePacket {
 }
 
 /// The closest hits among a packet's four spheres or planes, `test(k, rays, t_max)` giving lane
-/// `k`'s (hit, t) per ray, or `None` where no ray can hit it: all four filtered against the distances known on entry, then each ray
-/// takes its nearest, as the single-ray test does packet by packet.
+/// `k`'s (hit, t) per ray, or `None` where no ray can hit it: all four filtered against the
+/// distances known on entry, then each ray takes its nearest, as the single-ray test does packet
+/// by packet.
 #[inline(always)]
 fn lanes_closest_rays(
     ids: &[u32; 4],
