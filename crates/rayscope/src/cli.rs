@@ -285,7 +285,7 @@ pub struct RenderOpts {
     /// Render only up to this stage of the course.
     #[arg(long, value_enum)]
     pub stage: Option<StageArg>,
-    /// Field of view in degrees.
+    /// Field of view in degrees (above 180 the picture turns half a turn).
     #[arg(long, default_value_t = 60.0, value_parser = parse_fov)]
     pub fov: f32,
     /// Which image side the field of view spans.

@@ -1640,7 +1640,7 @@ pub fn diagnose(
 
 /// Renders the field-of-view fit tries at most, and the explanation it is when its render
 /// matches `image` (the tie rule): the angle fitted by [`fov::fit`] on a sparse grid of pixels
-/// and confirmed at full size.
+/// and confirmed at full size, the known ways to get an angle near it first.
 fn fitted_fov(
     scenes: &Scenes<'_>,
     base: &RenderSettings,
@@ -1656,7 +1656,13 @@ fn fitted_fov(
     let Some(fitted) = fov::fit(base.width, base.height, image.rgb, base.camera.fov_deg, &render) else {
         return (None, 1);
     };
-    let atoms = fov::round_first(fitted)
+    let mut angles = fov::known_near(fitted, base.camera.fov_deg);
+    for f in fov::round_first(fitted) {
+        if !angles.contains(&f) {
+            angles.push(f);
+        }
+    }
+    let atoms = angles
         .into_iter()
         .map(|f| Atom::Setting(SettingChange::FovDeg(f.to_bits())));
     let (found, n) = first_confirmed(scenes, base, image, full, atoms);

@@ -380,8 +380,10 @@ pub const MAX_QUALITY: u32 = 16;
 /// The ranges a front end accepts for each numeric render setting. [`RenderSettings::check`]
 /// holds settings to them; the command line's value parsers read single values through
 /// [`Ranges::whole`] and [`Ranges::real`], so both report a value out of range in the same words.
-/// The field of view (0° to 180°, both excluded) and `-q` (0 to [`MAX_QUALITY`]) are the same
-/// everywhere.
+/// The field of view (0° to 360°, both excluded, and not 180°) and `-q` (0 to [`MAX_QUALITY`])
+/// are the same everywhere. Above 180° the image plane's half-width, tan(fov/2), is negative and
+/// the picture is turned half a turn: what a tracer computes that takes the tangent of an angle
+/// in degrees as radians, which `diagnose` names.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Ranges {
     /// Most pixels on an image side (`-w`, `-h`; at least 1).
@@ -479,7 +481,13 @@ impl Ranges {
         // (lowest, lowest included, highest, highest included)
         let (lo, lo_in, hi, hi_in) = match setting {
             Setting::CamAngle => (-self.max_angle, true, self.max_angle, true),
-            Setting::Fov => (0.0, false, 180.0, false),
+            Setting::Fov if v == 180.0 => {
+                return Err(format!(
+                    "{} cannot be 180: the image plane's half-width, tan(90°), is infinite",
+                    setting.name()
+                ))
+            }
+            Setting::Fov => (0.0, false, 360.0, false),
             Setting::Aperture => (0.0, true, self.max_aperture, true),
             Setting::FocalLength => (0.0, false, self.max_focal_length, true),
             _ => return Err(format!("{} is not a real-number setting", setting.name())),

@@ -16,7 +16,7 @@ use rayscope_core::{RenderSettings, Stage};
 use student::{Options, Student};
 
 /// The mistakes the test student makes, each on the course scene that shows it.
-const CASES: [(&str, &str); 47] = [
+const CASES: [(&str, &str); 48] = [
     ("sample_scene_2.txt", "none"),
     ("sample_scene_1.txt", "none"),
     ("sample_scene_obj.txt", "none"),
@@ -29,6 +29,7 @@ const CASES: [(&str, &str); 47] = [
     ("sample_scene_2.txt", "first-hit-in-scene-order"),
     ("sample_scene_2.txt", "first-light-only"),
     ("sample_scene_1.txt", "fov-not-halved"),
+    ("sample_scene_2.txt", "fov-in-radians"),
     ("sample_scene_2.txt", "fov-vertical"),
     ("sample_scene_2.txt", "fresnel-half"),
     ("sample_scene_2.txt", "fresnel-one-plus-i-dot-n"),

@@ -260,6 +260,31 @@ fn a_field_of_view_not_halved_is_fitted_to_its_angle() {
     assert!(text.contains("the angle not halved before its tangent"), "{text}");
 }
 
+/// The half angle in degrees given to a tangent that takes radians — tan(30) for the course's
+/// 60°, negative — is a picture turned half a turn and eleven times as wide: fitted above 180°,
+/// confirmed by the tie rule, and named by how it comes about, upside down and mirrored said.
+#[test]
+fn a_field_of_view_given_in_degrees_to_a_tangent_of_radians_is_named() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&path, &["fov-in-radians"], Options::new(96, 72));
+    let e = d.explanations.first().unwrap_or_else(|| panic!("{text}"));
+    assert!(e.cause && e.matches, "{text}");
+    let want = 360.0 + 2.0 * 30f64.tan().atan().to_degrees();
+    assert_eq!(e.settings, [format!("--fov {}", want as f32)], "{text}");
+    let first = text.lines().next().unwrap_or_default();
+    assert!(
+        first.starts_with("Explained: your image is rayscope's render with a field of view of 197.7"),
+        "{text}"
+    );
+    assert!(first.contains("upside down and mirrored"), "{text}");
+    assert!(
+        first.contains("tan(30) — the half angle in degrees given to a tangent that takes radians"),
+        "{text}"
+    );
+}
+
 /// Another angle, anti-aliased, is fitted back to the value planted, with no way named for it.
 #[test]
 fn another_field_of_view_is_fitted_back() {
@@ -279,6 +304,25 @@ fn another_field_of_view_is_fitted_back() {
         !text.contains(" — "),
         "no way is named for an angle no known mistake gives\n{text}"
     );
+}
+
+/// Shading from the shadow ray's start, 0.02 off the surface, changes every lit pixel by a few
+/// levels; where that crosses byte boundaries the lost light lies in scattered specks, but a
+/// speck of acne loses a light's whole share. Not acne, and no catalogued name: nothing known
+/// explains it, and the report says so.
+#[test]
+fn shading_a_little_off_the_surface_is_not_called_acne() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let opts = Options {
+        shadow_offset: Some(0.02),
+        ..Options::new(160, 120)
+    };
+    let (d, text) = searched(&path, &["light-from-shadow-origin"], opts);
+    assert!(d.recognised.iter().all(|r| r.code != "shadow-acne"), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(text.starts_with("No known mistake explains your picture"), "{text}");
 }
 
 /// An epsilon of the student's own, 0.02 (neither the course's 1e-5 nor the catalogue's 0.1),

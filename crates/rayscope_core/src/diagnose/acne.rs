@@ -42,6 +42,11 @@ const MAX_INTERIOR: f64 = 0.4;
 /// Least mean step (in shares of a light) between a pixel's lost share and its neighbours' for
 /// the loss to be uneven: a wrong shadow, a missing light or a fall-off changes it smoothly.
 const MIN_ROUGHNESS: f64 = 0.15;
+/// Least mean share of the lights' light that the specks lose: acne takes a light's whole share
+/// from the samples that hit their own surface, while a slight change of shading everywhere (a
+/// light's direction taken from a point a little off the hit) crosses byte boundaries in the
+/// same scattered pattern, a few levels at a time.
+const MIN_MEAN_SHARE: f64 = 0.2;
 
 /// A mistake recognised from how the picture looks.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -62,7 +67,7 @@ pub struct Recognised {
     /// Its share of the differing pixels (0–1).
     pub share: f64,
     /// The figures behind it: pixels on surfaces seen directly, pieces, mean piece size,
-    /// interior share.
+    /// interior share, the mean share of the lights' light lost.
     pub numbers: BTreeMap<&'static str, f64>,
 }
 
@@ -138,7 +143,8 @@ pub(crate) fn recognise(
     // With anti-aliasing the specks are smaller than a pixel: each pixel loses the share of its
     // samples that hit their own surface, which changes from pixel to pixel.
     let uneven = roughness(&speck, &share, w, h);
-    if speck.len() < MIN_PIXELS || direct < 0.5 || !(specks || uneven >= MIN_ROUGHNESS) {
+    let mean_share = speck.iter().map(|&i| f64::from(share[i as usize])).sum::<f64>() / speck.len().max(1) as f64;
+    if speck.len() < MIN_PIXELS || direct < 0.5 || !(specks || uneven >= MIN_ROUGHNESS) || mean_share < MIN_MEAN_SHARE {
         return None;
     }
     let explained = lost.iter().filter(|&&l| l).count() as u64;
@@ -173,6 +179,7 @@ pub(crate) fn recognise(
         ("interior_share", interior),
         ("direct_diffuse_share", direct),
         ("roughness", uneven),
+        ("mean_share", mean_share),
     ]);
     Some(Recognised {
         code: "shadow-acne",

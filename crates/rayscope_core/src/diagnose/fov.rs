@@ -1,9 +1,12 @@
 //! The field of view a picture was rendered with, fitted to its pixels.
 //!
 //! A student who takes the wrong angle — not halved before its tangent, halved twice, the image
-//! plane two units away, another number — makes a picture that is rayscope's render at another
-//! field of view. The fit scans the command line's range on a sparse grid of pixels, refines the
-//! best angle by golden-section search; the caller confirms it at full size, round values first.
+//! plane two units away, degrees given to a tangent that takes radians, another number — makes a
+//! picture that is rayscope's render at another field of view. The fit scans the command line's
+//! range on a sparse grid of pixels (above 180° the image plane's half-width is negative: the
+//! picture turned half a turn, as tan(30) of a 60° angle taken in radians gives), refines the
+//! best angle by golden-section search; the caller confirms it at full size, the known ways to
+//! get it and round values first.
 
 use rayon::prelude::*;
 
@@ -48,7 +51,8 @@ pub(crate) fn fit(w: u32, h: u32, image: &[u8], course: f32, render: &RenderAt<'
             .map(|(&a, &b)| (f64::from(a) - f64::from(b)).powi(2))
             .sum()
     };
-    let scan: Vec<f32> = (1..72).map(|k| k as f32 * SCAN_STEP).collect();
+    // Both sides of 180°, where the half-width tan(fov/2) is infinite.
+    let scan: Vec<f32> = (1..144).filter(|&k| k != 72).map(|k| k as f32 * SCAN_STEP).collect();
     let errors: Vec<f64> = scan.par_iter().map(|&f| error(f)).collect();
     let k = (0..scan.len()).min_by(|&a, &b| errors[a].total_cmp(&errors[b]))?;
     let (mut a, mut b) = (scan[k] - SCAN_STEP, scan[k] + SCAN_STEP);
@@ -68,6 +72,54 @@ pub(crate) fn fit(w: u32, h: u32, image: &[u8], course: f32, render: &RenderAt<'
     }
     let (best, e_best) = if ec <= ed { (c, ec) } else { (d, ed) };
     (e_best * GAIN < error(course) && (best - course).abs() > 0.01).then_some(best)
+}
+
+/// The fields of view that the known ways of taking the wrong angle give for the course's
+/// `course` degrees, each with its half-width's words: tan(c), tan(c/4), half of tan(c/2),
+/// and the tangents of c/2 and c taken as radians.
+fn known(course: f32) -> [(f64, String); 5] {
+    let c = f64::from(course);
+    let radians = "given to a tangent that takes radians (C#'s Math.Tan, Python's math.tan, C's tan)";
+    [
+        (
+            c.to_radians().tan(),
+            format!("tan({c}°) where the course takes tan({c}°/2) — the angle not halved before its tangent"),
+        ),
+        (
+            (c / 4.0).to_radians().tan(),
+            format!("tan({c}°/4) — the angle halved twice"),
+        ),
+        (
+            (c / 2.0).to_radians().tan() / 2.0,
+            "half the course's, as an image plane two units in front of the camera with the course's size gives"
+                .to_string(),
+        ),
+        (
+            (c / 2.0).tan(),
+            format!("tan({}) — the half angle in degrees {radians}", c / 2.0),
+        ),
+        (
+            c.tan(),
+            format!("tan({c}) — the angle in degrees, not halved, {radians}"),
+        ),
+    ]
+}
+
+/// The field of view in degrees whose image plane has the half-width `t` (negative above 180°).
+fn angle_of(t: f64) -> f64 {
+    let half = t.atan().to_degrees();
+    2.0 * if half < 0.0 { 180.0 + half } else { half }
+}
+
+/// The angles of the known ways ([`known`]) within a degree of a fitted `fov`, for the course's
+/// `course` degrees: confirmed before the fitted value, since a student's angle is one of them
+/// more often than a round number.
+pub(crate) fn known_near(fov: f32, course: f32) -> Vec<f32> {
+    known(course)
+        .iter()
+        .map(|(t, _)| angle_of(*t) as f32)
+        .filter(|a| (a - fov).abs() <= 1.0 && *a != 180.0)
+        .collect()
 }
 
 /// The angles to confirm for a fitted `fov`, roundest first: a student writes 120°, not
@@ -90,18 +142,21 @@ pub(crate) fn words(fitted: f32, course: f32, axis: &str) -> String {
     let (tf, tc) = ((f / 2.0).to_radians().tan(), (c / 2.0).to_radians().tan());
     let r = tf / tc;
     let near = |x: f64, y: f64| (x - y).abs() <= NAMED * y.abs();
-    let known = if near(tf, c.to_radians().tan()) {
-        format!(": tan({c}°) where the course takes tan({c}°/2) — the angle not halved before its tangent")
-    } else if near(tf, (c / 4.0).to_radians().tan()) {
-        format!(": tan({c}°/4) — the angle halved twice")
-    } else if near(r, 0.5) {
-        ": half the course's, as an image plane two units in front of the camera with the course's size gives"
-            .to_string()
+    let known = known(course)
+        .into_iter()
+        .find(|(t, _)| near(tf, *t))
+        .map_or_else(String::new, |(_, w)| format!(": {w}"));
+    let (sign, turned) = if tf < 0.0 {
+        (
+            " and negative",
+            ", so your picture is upside down and mirrored (turned half a turn)",
+        )
     } else {
-        String::new()
+        ("", "")
     };
     format!(
-        "a field of view of {fitted}° ({axis}) instead of {course}°: your image plane's half-width is {tf:.4} where the course's is tan({c}°/2) = {tc:.4}, {r:.3}× as wide{known}"
+        "a field of view of {fitted}° ({axis}) instead of {course}°: your image plane's half-width is {tf:.4} where the course's is tan({c}°/2) = {tc:.4}, {:.3}× as wide{sign}{turned}{known}",
+        r.abs()
     )
 }
 
@@ -122,5 +177,19 @@ mod tests {
             "{other}"
         );
         assert!(other.ends_with("as wide"), "{other}");
+        // tan(30) of a 60° angle in radians: a negative half-width, the picture turned.
+        let turned = angle_of(30f64.tan()) as f32;
+        assert!((turned - 197.75).abs() < 0.01, "{turned}");
+        let w = words(turned, 60.0, "horizontal");
+        assert!(
+            w.contains(
+                "11.094× as wide and negative, so your picture is upside down and mirrored (turned half a turn)"
+            ),
+            "{w}"
+        );
+        assert!(w.ends_with("tan(30) — the half angle in degrees given to a tangent that takes radians (C#'s Math.Tan, Python's math.tan, C's tan)"), "{w}");
+        assert!(words(angle_of(60f64.tan()) as f32, 60.0, "horizontal")
+            .contains("tan(60) — the angle in degrees, not halved"));
+        assert_eq!(known_near(197.5, 60.0), vec![turned]);
     }
 }

@@ -190,6 +190,9 @@ impl Student {
         // Uncatalogued: the angle's tangent taken whole, not of its half.
         let tan = if self.bug("fov-not-halved") {
             self.opts.fov.to_radians().tan()
+        } else if self.bug("fov-in-radians") {
+            // Uncatalogued: the half angle in degrees given to a tangent that takes radians.
+            (self.opts.fov / 2.0).tan()
         } else {
             (self.opts.fov.to_radians() / 2.0).tan()
         };
@@ -372,7 +375,14 @@ impl Student {
             if k > 0 && self.bug("first-light-only") {
                 break;
             }
-            let to = *pos - hit.p;
+            // Uncatalogued: the light's direction and distance taken from the shadow ray's
+            // start, off the surface, instead of from the hit point.
+            let to = *pos
+                - if self.bug("light-from-shadow-origin") {
+                    origin
+                } else {
+                    hit.p
+                };
             let dist = to.length();
             let l = to / dist;
             let reach = if self.bug("shadow-past-light") {
