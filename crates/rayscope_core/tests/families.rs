@@ -325,6 +325,21 @@ fn shading_a_little_off_the_surface_is_not_called_acne() {
     assert!(text.starts_with("No known mistake explains your picture"), "{text}");
 }
 
+/// Triangle normals left at the cross product's length brighten the walls until they clip,
+/// and any mistake that brightens enough clips them alike ('accumulator-not-reset' matched one
+/// wall's clipped green exactly): clipped pixels are no evidence, and no name is given.
+#[test]
+fn clipped_walls_are_not_explained_by_another_mistake_that_clips() {
+    let Some(path) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&path, &["triangle-normal-unnormalised"], Options::new(60, 45));
+    let first = text.lines().next().unwrap_or_default();
+    assert!(first.starts_with("No known mistake explains"), "{text}");
+    assert!(!first.contains("accumulator-not-reset"), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+}
+
 /// An epsilon of the student's own, 0.02 (neither the course's 1e-5 nor the catalogue's 0.1),
 /// is fitted back to the value planted and confirmed as the picture.
 #[test]

@@ -313,6 +313,9 @@ pub struct PartExplained {
     pub pixels: u64,
     /// The share of them the render reproduces, in percent.
     pub percent: f64,
+    /// Of those it reproduces, the share the image has clipped (as [`Explained::clipped`]).
+    #[serde(skip)]
+    pub clipped_share: f64,
 }
 
 /// How much of the difference between the image and rayscope's render a candidate's render
@@ -323,6 +326,10 @@ pub struct Explained {
     pub pixels: u64,
     /// Their share of the differing pixels, in percent.
     pub percent: f64,
+    /// Of `pixels`, those the image has clipped (a channel at 255, every channel at 0 or 255):
+    /// any mistake that brightens enough clips them alike, so they are no evidence of which.
+    #[serde(skip)]
+    pub clipped: u64,
     /// Pixels the image has as rayscope renders them that the candidate's render changes.
     pub new_pixels: u64,
     /// Differing pixels the candidate's render changes, but not to the image's colour.
@@ -373,10 +380,18 @@ impl Explained {
             let p = i * 3;
             (0..3).any(|c| candidate[p + c].abs_diff(ours[p + c]) >= threshold)
         };
+        let clipped = |i: usize| {
+            let p = &image[i * 3..i * 3 + 3];
+            p.contains(&255) && p.iter().all(|&v| v == 0 || v == 255)
+        };
         let (mut pixels, mut new_pixels, mut changed_otherwise, mut differing) = (0u64, 0u64, 0u64, 0u64);
+        let mut clipped_pixels = 0u64;
         for (i, &d) in differs.iter().enumerate() {
             match (d, reproduces(i)) {
-                (true, true) => pixels += 1,
+                (true, true) => {
+                    pixels += 1;
+                    clipped_pixels += u64::from(clipped(i));
+                }
                 (false, false) => new_pixels += 1,
                 (true, false) if changes(i) => changed_otherwise += 1,
                 _ => {}
@@ -394,8 +409,12 @@ impl Explained {
         let removed = |before: f64, after: f64| if before > 0.0 { 1.0 - after / before } else { 0.0 };
         let removed = removed(se(ours), se(candidate)).max(removed(se_blocks(&mo), se_blocks(&mc)));
         let mut got = vec![0u64; traced.parts.len()];
+        let mut got_clipped = vec![0u64; traced.parts.len()];
         for (&i, &k) in traced.pixels.iter().zip(&traced.part_of) {
-            got[k] += u64::from(reproduces(i as usize));
+            if reproduces(i as usize) {
+                got[k] += 1;
+                got_clipped[k] += u64::from(clipped(i as usize));
+            }
         }
         let pct = |a: u64, b: u64| {
             if b == 0 {
@@ -407,6 +426,7 @@ impl Explained {
         Explained {
             pixels,
             percent: pct(pixels, differing),
+            clipped: clipped_pixels,
             new_pixels,
             changed_otherwise,
             error_percent: (1000.0 * removed).round() / 10.0,
@@ -414,12 +434,13 @@ impl Explained {
                 .parts
                 .iter()
                 .zip(&traced.counts)
-                .zip(&got)
-                .map(|((p, &n), &g)| PartExplained {
+                .zip(got.iter().zip(&got_clipped))
+                .map(|((p, &n), (&g, &c))| PartExplained {
                     entity: p.entity.clone(),
                     seen_in: p.seen_in.clone(),
                     pixels: n,
                     percent: pct(g, n),
+                    clipped_share: if g == 0 { 0.0 } else { c as f64 / g as f64 },
                 })
                 .collect(),
         }
@@ -428,14 +449,23 @@ impl Explained {
     /// True when the render explains a real part of the difference: most of the differing
     /// pixels, or most of one sizeable part's, while adding error nowhere it takes away, and
     /// changing fewer pixels to colours the image does not have than it reproduces (a mistake
-    /// that changes the whole picture matches a part of another's by chance only).
+    /// that changes the whole picture matches a part of another's by chance only). Clipped
+    /// pixels count for nothing here: any mistake that brightens enough reproduces them.
     pub(crate) fn partial(&self) -> bool {
         let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
         let sizeable = |p: &PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
+        let evidence = self.pixels - self.clipped;
+        let unclipped = |percent: f64, clipped_share: f64| percent * (1.0 - clipped_share);
+        let whole = unclipped(self.percent, self.clipped as f64 / self.pixels.max(1) as f64);
         let clean = self.error_percent > 0.0
-            && self.new_pixels as f64 <= BREAKS_PER_FIX * self.pixels as f64
-            && self.new_pixels + self.changed_otherwise <= self.pixels;
-        clean && (self.percent >= WHOLE_PERCENT || self.parts.iter().any(|p| sizeable(p) && p.percent >= PART_PERCENT))
+            && self.new_pixels as f64 <= BREAKS_PER_FIX * evidence as f64
+            && self.new_pixels + self.changed_otherwise <= evidence;
+        clean
+            && (whole >= WHOLE_PERCENT
+                || self
+                    .parts
+                    .iter()
+                    .any(|p| sizeable(p) && unclipped(p.percent, p.clipped_share) >= PART_PERCENT))
     }
 
     /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing

@@ -632,6 +632,9 @@ impl Student {
         let (e1, e2) = (b - a, c - a);
         let face = if self.bug("reversed-normals") && tri.n.is_none() {
             e2.cross(e1).normalize()
+        } else if self.bug("triangle-normal-unnormalised") && tri.n.is_none() {
+            // Uncatalogued: the cross product's length kept, so N·L grows with the triangle.
+            e1.cross(e2)
         } else {
             e1.cross(e2).normalize()
         };
