@@ -264,7 +264,7 @@ fn any(m: &Mask) -> bool {
 /// flag by flag, the compiler turned the comparisons' mask register into bytes and then
 /// OR-reduced those through a chain of nine shuffles (4 % of the bunny scene's samples). Used
 /// everywhere in place of the fold, the word made scene 2 6 % slower (its closest-hit kernel
-/// compiled worse), so it is used only here.
+/// compiled worse), so it is used only for the primitive tests' fresh flags.
 #[inline(always)]
 fn any_fresh(m: &Mask) -> bool {
     u128::from_ne_bytes(m.map(u8::from)) != 0
@@ -319,7 +319,7 @@ impl TriPacket {
             let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &bound) else {
                 continue;
             };
-            if !any(&ok) {
+            if !any_fresh(&ok) {
                 continue;
             }
             let key = TAG_TRI | id;
