@@ -15,8 +15,8 @@ use arrayvec::ArrayVec;
 
 use super::frustum::{ApexCull, Beam};
 use super::layout::{
-    beats, Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, EMPTY, LEAF, NO_PRIM, RUN, RUN_SHIFT, SPHERES, STACK,
-    TAG_MASK, TAG_PLANE, TAG_SPHERE, TAG_TRI,
+    Bvh4, Node4, PlanePacket, SpherePacket, TriPacket, EMPTY, LEAF, NO_PRIM, RUN, RUN_SHIFT, SPHERES, STACK, TAG_MASK,
+    TAG_PLANE, TAG_SPHERE, TAG_TRI,
 };
 use super::single::{far, NodeConsts, RayConsts, TraversalStack, Walk, SLAB_SLACK};
 use crate::geometry::{plane_hit, sphere_line, triangle_plane, PrimRef, SphereLine, TrianglePlane};
@@ -176,8 +176,8 @@ fn sel_u32(c: bool, a: u32, b: u32) -> u32 {
 
 /// The best hit found so far inside one 4-wide primitive packet, per ray. The single-ray test
 /// filters all four primitives against the best hit known when the packet is entered and then
-/// takes the nearest (the lowest lane on ties, which holds the lowest index: see [`beats`]);
-/// this replays exactly that.
+/// takes the nearest (the lowest lane on ties, which holds the lowest index: see
+/// [`beats`](super::layout::beats)); this replays exactly that.
 // The arrays first, each on a cache line of its own: behind the sixteen `found` flags they sat
 // 16 bytes off, the compiler zeroed them with overlapping stores, and the first load of `t`
 // then spanned two of those stores, which cannot be forwarded (a stall at every packet).
@@ -205,31 +205,29 @@ impl PacketBest {
         }
     }
 
-    /// Offers lane `i` a hit that passed the packet's filter and beats the lane's best hit on
-    /// entry; true when it is taken. Offers come in lane order, so on a tie the earlier stays.
+    /// Offers every lane the hit on primitive `key` that passed the packet's filter and beats
+    /// the lane's best hit on entry where `ok`; returns where it is taken. Offers come in lane
+    /// order, so on a tie the earlier stays. Written as whole arrays of bit operations and
+    /// selects, which the compiler vectorises: short-circuit tests lane by lane compile to a
+    /// chain of branches per ray and primitive.
     #[inline(always)]
-    #[allow(clippy::too_many_arguments)]
-    fn offer(&mut self, i: usize, ok: bool, t: f32, u: f32, v: f32, a: f32, prim: u32) {
-        let take = ok && (!self.found[i] || t < self.t[i]);
-        self.t[i] = sel(take, t, self.t[i]);
-        self.u[i] = sel(take, u, self.u[i]);
-        self.v[i] = sel(take, v, self.v[i]);
-        self.a[i] = sel(take, a, self.a[i]);
-        self.prim[i] = if take { prim } else { self.prim[i] };
-        self.found[i] |= take;
-    }
-
-    /// [`Self::offer`] for every lane at once, of hits on lane-packet primitive `key` (a sphere
-    /// or a plane, whose hits have u = v = 0 and a = 1, the values `new` holds, so only `t`, the
-    /// key and the flags change) that passed the packet's filter where `ok`. Written as whole
-    /// arrays of bit operations and selects, which the compiler vectorises; with `offer`'s
-    /// short-circuit tests each lane became a chain of branches.
-    #[inline(always)]
-    fn offer_lanes(&mut self, ok: &Mask, t: &F, key: u32) {
+    fn offer_lanes(&mut self, ok: &Mask, t: &F, key: u32) -> Mask {
         let take: Mask = std::array::from_fn(|i| ok[i] & (!self.found[i] | (t[i] < self.t[i])));
         self.t = std::array::from_fn(|i| sel(take[i], t[i], self.t[i]));
         self.prim = std::array::from_fn(|i| sel_u32(take[i], key, self.prim[i]));
         self.found = std::array::from_fn(|i| self.found[i] | take[i]);
+        take
+    }
+
+    /// [`Self::offer_lanes`] of triangle hits, which carry their undivided barycentrics and
+    /// what they are to be divided by. Sphere and plane hits have u = v = 0 and a = 1, the
+    /// values [`Self::new`] holds, so they are offered without them.
+    #[inline(always)]
+    fn offer_lanes_uva(&mut self, ok: &Mask, t: &F, u: &F, v: &F, a: &F, key: u32) {
+        let take = self.offer_lanes(ok, t, key);
+        self.u = std::array::from_fn(|i| sel(take[i], u[i], self.u[i]));
+        self.v = std::array::from_fn(|i| sel(take[i], v[i], self.v[i]));
+        self.a = std::array::from_fn(|i| sel(take[i], a[i], self.a[i]));
     }
 
     /// Writes the packet's hits into the running result.
@@ -250,6 +248,13 @@ impl PacketBest {
     }
 }
 
+/// Where `ok` and the hit at `t` on primitive `key` [`beats`](super::layout::beats) the best
+/// hit on entry (`entry`, `entry_key`), as bit operations, so that the loop vectorises.
+#[inline(always)]
+fn beats_lanes(ok: &Mask, t: &F, key: u32, entry: &F, entry_key: &[u32; LANES]) -> Mask {
+    std::array::from_fn(|i| ok[i] & ((t[i] < entry[i]) | ((t[i] == entry[i]) & (key < entry_key[i]))))
+}
+
 #[inline(always)]
 fn any(m: &Mask) -> bool {
     m.iter().fold(false, |a, &b| a | b)
@@ -259,7 +264,7 @@ fn any(m: &Mask) -> bool {
 /// flag by flag, the compiler turned the comparisons' mask register into bytes and then
 /// OR-reduced those through a chain of nine shuffles (4 % of the bunny scene's samples). Used
 /// everywhere in place of the fold, the word made scene 2 6 % slower (its closest-hit kernel
-/// compiled worse), so it is used only here.
+/// compiled worse), so it is used only for the primitive tests' fresh flags.
 #[inline(always)]
 fn any_fresh(m: &Mask) -> bool {
     u128::from_ne_bytes(m.map(u8::from)) != 0
@@ -314,18 +319,16 @@ impl TriPacket {
             let Some((ok, t, u, v, a)) = self.lane_vs_rays(k, rays, t_min, &bound) else {
                 continue;
             };
-            if !any(&ok) {
+            if !any_fresh(&ok) {
                 continue;
             }
             let key = TAG_TRI | id;
-            for i in 0..LANES {
-                let ti = t[i] / a[i];
-                // As in the single-ray test: the divided distance decides.
-                let ok = ok[i] & beats(ti, key, entry[i], entry_key[i]);
-                // The barycentrics are divided for the nearest hit only (as the single-ray
-                // test does), once the last packet is tested (`PacketHits::divide`).
-                best.offer(i, ok, ti, u[i], v[i], a[i], key);
-            }
+            // As in the single-ray test: the divided distance decides. The barycentrics are
+            // divided for the nearest hit only (as the single-ray test does), once the last
+            // packet is tested (`PacketHits::divide`).
+            let t: F = std::array::from_fn(|i| t[i] / a[i]);
+            let ok = beats_lanes(&ok, &t, key, &entry, &entry_key);
+            best.offer_lanes_uva(&ok, &t, &u, &v, &a, key);
         }
         best.commit(rays, hits);
     }
@@ -442,11 +445,8 @@ fn lanes_closest_rays(
         let Some((ok, t)) = test(k, rays, &entry) else {
             continue;
         };
-        let key = tag | id;
-        // [`beats`] as bit operations, so that the loop vectorises.
-        let ok: Mask =
-            std::array::from_fn(|i| ok[i] & ((t[i] < entry[i]) | ((t[i] == entry[i]) & (key < entry_key[i]))));
-        best.offer_lanes(&ok, &t, key);
+        let ok = beats_lanes(&ok, &t, tag | id, &entry, &entry_key);
+        best.offer_lanes(&ok, &t, tag | id);
     }
     best.commit(rays, hits);
 }
