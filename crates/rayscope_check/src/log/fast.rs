@@ -1057,9 +1057,9 @@ mod tests {
             let mut text = String::from("[");
             for (k, p) in parts.iter().take(3).enumerate() {
                 text.push_str(p);
-                text.push_str(&seps[k]);
+                text.push_str(seps[k]);
             }
-            text.push_str("}");
+            text.push('}');
             let text = &text[..text.len().min(cut.max(1))];
             let b = text.as_bytes();
             prop_assert_eq!(tight_vec3(b, 0), tight_vec3_serial(b, 0), "{}", text);
