@@ -1873,16 +1873,22 @@ fn recognise_black(entities: &[String], painted: &Explained) -> Option<Recognise
 }
 
 /// True when the parts `e` explains ([`Explained::partial`]'s sizeable parts at
-/// [`PART_PERCENT`] or its whole share) are explained as well by `painted`: the render names
+/// [`explained::PART_PERCENT`]) are explained as well by `painted`, or by pixels the image has
+/// black (three in four), and its whole share is no more than `painted`'s: the render names
 /// nothing the black picture does not show.
 fn no_more_than_black(e: &Explained, painted: &Explained) -> bool {
     let traced: u64 = e.parts.iter().map(|p| p.pixels).sum();
     let sizeable = |p: &explained::PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
-    e.percent <= painted.percent + 5.0
-        && e.parts
-            .iter()
-            .zip(&painted.parts)
-            .all(|(a, b)| !sizeable(a) || a.percent < explained::PART_PERCENT || b.percent + 5.0 >= a.percent)
+    let black: f64 = e
+        .parts
+        .iter()
+        .map(|p| p.pixels as f64 * p.percent / 100.0 * p.black_share)
+        .sum();
+    let black_percent = 100.0 * black / traced.max(1) as f64;
+    e.percent - black_percent <= painted.percent + 5.0
+        && e.parts.iter().zip(&painted.parts).all(|(a, b)| {
+            !sizeable(a) || a.percent < explained::PART_PERCENT || b.percent + 5.0 >= a.percent || a.black_share >= 0.75
+        })
 }
 
 /// Catalogued mistakes that are members of the Fresnel family [`families`] fits.

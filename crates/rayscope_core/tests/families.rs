@@ -661,3 +661,44 @@ fn a_sphere_partly_missing_is_said_as_partly_missing() {
     assert!(!first.contains("never found a hit"), "{text}");
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
 }
+
+/// A light read with its y negated lies in course scene 1's plane, which turns the plane black:
+/// a black surface, not a fall-off whose render happens to be as dark on average. The report
+/// says the plane is black and names no mistake.
+#[test]
+fn a_plane_the_light_lies_in_is_said_black_and_named_nothing() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let (d, text) = searched(
+        &course.scene("sample_scene_1.txt"),
+        &["light-y-negated"],
+        Options::new(60, 45),
+    );
+    assert!(
+        text.starts_with("Recognised from how your picture looks: Your Plane is black where rayscope's is lit"),
+        "{text}"
+    );
+    assert!(d.explanations.is_empty(), "{text}");
+    assert!(d.next.is_some(), "the pixels to log are given\n{text}");
+}
+
+/// Spheres drawn at half their radius (uncatalogued) leave shadows smaller and walls lit where
+/// rayscope's are in shadow. A mistake that removes every shadow reproduces those pixels but
+/// takes away the shadows the picture keeps: it explains no part, and nothing is named; the
+/// report says the picture shows, in places, what lies behind the spheres.
+#[test]
+fn spheres_drawn_smaller_name_no_mistake() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&scene, &["radius-halved"], Options::new(60, 45));
+    assert!(d.explanations.is_empty(), "{text}");
+    assert!(
+        text.starts_with(
+            "Recognised from how your picture looks: Where your picture differs, much of it is what rayscope's render without its spheres (MirrorSphere and GlassSphere) shows"
+        ),
+        "{text}"
+    );
+    assert!(!text.contains("never found a hit"), "{text}");
+}

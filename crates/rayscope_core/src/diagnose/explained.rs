@@ -358,6 +358,9 @@ pub struct PartExplained {
     /// Of those it reproduces, the share the image has clipped (as [`Explained::clipped`]).
     #[serde(skip)]
     pub clipped_share: f64,
+    /// Of those it reproduces, the share the image has black.
+    #[serde(skip)]
+    pub black_share: f64,
 }
 
 /// How much of the difference between the image and rayscope's render a candidate's render
@@ -437,6 +440,7 @@ impl Explained {
         };
         let (mut pixels, mut new_pixels, mut changed_otherwise, mut differing) = (0u64, 0u64, 0u64, 0u64);
         let mut clipped_pixels = 0u64;
+        let black = |i: usize| image[i * 3..i * 3 + 3] == [0, 0, 0];
         let mut broken = vec![false; differs.len()];
         for (i, &d) in differs.iter().enumerate() {
             match (d, reproduces(i)) {
@@ -466,10 +470,12 @@ impl Explained {
         let removed = removed(se(ours), se(candidate)).max(removed(se_blocks(&mo), se_blocks(&mc)));
         let mut got = vec![0u64; traced.parts.len()];
         let mut got_clipped = vec![0u64; traced.parts.len()];
+        let mut got_black = vec![0u64; traced.parts.len()];
         for (&i, &k) in traced.pixels.iter().zip(&traced.part_of) {
             if reproduces(i as usize) {
                 got[k] += 1;
                 got_clipped[k] += u64::from(clipped(i as usize));
+                got_black[k] += u64::from(black(i as usize));
             }
         }
         let pct = |a: u64, b: u64| {
@@ -491,13 +497,14 @@ impl Explained {
                 .parts
                 .iter()
                 .zip(&traced.counts)
-                .zip(got.iter().zip(&got_clipped))
-                .map(|((p, &n), (&g, &c))| PartExplained {
+                .zip(got.iter().zip(&got_clipped).zip(&got_black))
+                .map(|((p, &n), ((&g, &c), &b))| PartExplained {
                     entity: p.entity.clone(),
                     seen_in: p.seen_in.clone(),
                     pixels: n,
                     percent: pct(g, n),
                     clipped_share: if g == 0 { 0.0 } else { c as f64 / g as f64 },
+                    black_share: if g == 0 { 0.0 } else { b as f64 / g as f64 },
                 })
                 .collect(),
         }
