@@ -167,8 +167,8 @@ pub struct Explanation {
     /// each tracer's rounding puts its speckles on other pixels). Otherwise the render explains
     /// only a part.
     pub cause: bool,
-    /// Where the render matches only by turning these entities black, and rayscope's render
-    /// with them painted black matches too: one way to get the picture, which any mistake
+    /// Where rayscope's render with these entities (black in the image) painted black gives
+    /// the picture as well as this render does: one way to get the picture, which any mistake
     /// that blackens them shares (empty otherwise). Not offered as the cause.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub blackens: Vec<String>,
@@ -1484,11 +1484,22 @@ pub fn diagnose(
             tried += n;
             explanations.splice(0..0, fitted);
         }
-        if let Some(e) = explanations.first_mut().filter(|e| e.matches) {
-            e.blackens = painted_black_matches(&scenes, &base, image, &traced.blackened(&ours, image.rgb));
-            if !e.blackens.is_empty() {
-                e.cause = false;
+        if let Some(e) = explanations.first_mut().filter(|e| e.cause) {
+            let black = traced.blackened(&ours, image.rgb);
+            if !black.is_empty() {
                 tried += 1;
+                let matches = e.matches;
+                let gives = |render: &[u8], scene: &Scene| {
+                    if matches {
+                        ties::judge(scene, &base, render, image.rgb, false).matches
+                    } else {
+                        Explained::of(render, &ours, image.rgb, (w, h), threshold, &differs, &traced).shows_all()
+                    }
+                };
+                if painted_black(&scenes, &base, &black).is_some_and(|(render, scene)| gives(&render, &scene)) {
+                    e.blackens = black;
+                    e.cause = false;
+                }
             }
         }
         if let Some(e) = explanations.first_mut().filter(|e| e.cause) {
@@ -1570,6 +1581,33 @@ pub fn diagnose(
             &traced,
         );
         tried += renders.get();
+        // Entities the picture turns black: a render that explains no more than painting them
+        // black does names nothing the picture shows, and where what lies behind them is black
+        // a missing entity is one way among those to get it.
+        // A render already said to be one way among those, beside painting them black, says it.
+        let hedged = explanations.first().is_some_and(|e| !e.blackens.is_empty());
+        let black = if hedged {
+            Vec::new()
+        } else {
+            traced.blackened(&ours, image.rgb)
+        };
+        let painted = painted_black(&scenes, &base, &black)
+            .map(|(r, _)| Explained::of(&r, &ours, image.rgb, (w, h), threshold, &differs, &traced));
+        tried += usize::from(painted.is_some());
+        let blackened = painted.as_ref().and_then(|p| Some((recognise_black(&black, p)?, p)));
+        if let Some((_, p)) = &blackened {
+            explanations.retain(|e| {
+                e.explained
+                    .as_ref()
+                    .is_none_or(|x| e.one_way() || !no_more_than_black(x, p))
+            });
+        }
+        let blackened = blackened.map(|(r, _)| r);
+        let lacks = lacks.filter(|(r, _)| {
+            blackened
+                .as_ref()
+                .is_none_or(|b| b.pixels < r.pixels || !r.entities.iter().all(|e| b.entities.contains(e)))
+        });
         // Where a catalogued render explains a part, entities missing from another part are
         // said only when they explain all of it.
         let lacks = lacks.filter(|(_, full)| *full || explanations.is_empty());
@@ -1592,6 +1630,7 @@ pub fn diagnose(
         lacks
             .map(|(r, _)| r)
             .into_iter()
+            .chain(blackened)
             .chain(acne::recognise(
                 scenes.file,
                 &without,
@@ -1771,17 +1810,11 @@ fn fitted_offset(
     (found, scopes.len() + n)
 }
 
-/// `entities` when rayscope's render with them painted black matches `image` (the tie rule):
-/// then every mistake that turns them black gives the picture, and none can be told from the
-/// others by it. Empty otherwise, and for no entities.
-fn painted_black_matches(
-    scenes: &Scenes<'_>,
-    base: &RenderSettings,
-    image: Image<'_>,
-    entities: &[String],
-) -> Vec<String> {
+/// Rayscope's render (RGB8) with `entities` painted black, and its scene; `None` for no
+/// entities or a render that fails.
+fn painted_black(scenes: &Scenes<'_>, base: &RenderSettings, entities: &[String]) -> Option<(Vec<u8>, Scene)> {
     if entities.is_empty() {
-        return Vec::new();
+        return None;
     }
     let mut f = scenes.file.clone();
     Scenes::key(base.mistakes).apply_to_file(&mut f);
@@ -1798,14 +1831,64 @@ fn painted_black_matches(
     }
     let scene = Scene::from_owned_file(f);
     let never = AtomicBool::new(false);
-    let Ok(out) = render(&scene, base, &|_, _| {}, &never) else {
-        return Vec::new();
-    };
-    if ties::judge(&scene, base, &out.film.to_rgb8(), image.rgb, false).matches {
-        entities.to_vec()
-    } else {
-        Vec::new()
+    let out = render(&scene, base, &|_, _| {}, &never).ok()?;
+    Some((out.film.to_rgb8(), scene))
+}
+
+/// The entities the picture turns black, recognised where rayscope's render with them painted
+/// black (`painted`) explains a part of the difference: a statement of what the picture shows
+/// that every mistake making their rays bring back nothing shares, with the pixels it accounts
+/// for. `None` where painting them black explains no part.
+fn recognise_black(entities: &[String], painted: &Explained) -> Option<Recognised> {
+    if entities.is_empty() || !painted.shows_part() {
+        return None;
     }
+    let (are, their, them) = if entities.len() == 1 {
+        ("is", "its", "it")
+    } else {
+        ("are", "their", "them")
+    };
+    let names = acne::list(entities, 6);
+    let what = if painted.shows_all() {
+        "your picture"
+    } else {
+        "this part of your picture"
+    };
+    let text = format!(
+        "Your {names} {are} black where rayscope's {are} lit: rayscope's render with {them} painted black gives {what}. Any mistake that makes {their} rays bring back nothing does it: on a diffuse surface a normal turned away from the lights (N·L below 0, clamped), every shadow ray blocked or a light placed or read wrong; on any surface a weight of 0 or past 1 (clipped), a NaN, a hit kept that is not the nearest and lies in shadow, or {them} not hit at all where what lies behind is black; so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below)."
+    );
+    let mut numbers = BTreeMap::new();
+    numbers.insert("entities", entities.len() as f64);
+    numbers.insert("percent_explained", painted.percent);
+    numbers.insert("error_removed_percent", painted.error_percent);
+    Some(Recognised {
+        code: "entities-black",
+        mistake: "",
+        text,
+        entities: entities.to_vec(),
+        pixels: painted.pixels,
+        share: painted.percent / 100.0,
+        numbers,
+    })
+}
+
+/// True when the parts `e` explains ([`Explained::partial`]'s sizeable parts at
+/// [`explained::PART_PERCENT`]) are explained as well by `painted`, or by pixels the image has
+/// black (three in four), and its whole share is no more than `painted`'s: the render names
+/// nothing the black picture does not show.
+fn no_more_than_black(e: &Explained, painted: &Explained) -> bool {
+    let traced: u64 = e.parts.iter().map(|p| p.pixels).sum();
+    let sizeable = |p: &explained::PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
+    let black: f64 = e
+        .parts
+        .iter()
+        .map(|p| p.pixels as f64 * p.percent / 100.0 * p.black_share)
+        .sum();
+    let black_percent = 100.0 * black / traced.max(1) as f64;
+    e.percent - black_percent <= painted.percent + 5.0
+        && e.parts.iter().zip(&painted.parts).all(|(a, b)| {
+            !sizeable(a) || a.percent < explained::PART_PERCENT || b.percent + 5.0 >= a.percent || a.black_share >= 0.75
+        })
 }
 
 /// Catalogued mistakes that are members of the Fresnel family [`families`] fits.
@@ -2203,6 +2286,24 @@ fn search(
             }
         }
     }
+    // A speckle-tolerant cause (no match) beside another that shares none of its mistakes or
+    // settings: the picture cannot tell them apart either.
+    if let Some(&&(i, _, _, false)) = kept.first().filter(|c| cause(c)) {
+        let others: Vec<String> = kept
+            .iter()
+            .zip(&explanations)
+            .skip(1)
+            .filter(|(c, _)| cause(c) && !candidates[c.0].0.iter().any(|a| candidates[i].0.contains(a)))
+            .map(|(_, e)| e.summary.clone())
+            .take(MAX_TWINS)
+            .collect();
+        if !others.is_empty() {
+            explanations[0].same_as = others;
+            for e in &mut explanations {
+                e.cause = false;
+            }
+        }
+    }
     (explanations, tried)
 }
 
@@ -2356,9 +2457,13 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                 )
             } else if !e.blackens.is_empty() {
                 format!(
-                    "your image matches {} {}: one way to get this picture, as is painting {} black",
-                    e.summary,
-                    match_how(d, e),
+                    "{} {}: one way to get this picture, as is painting {} black",
+                    if e.matches {
+                        format!("your image matches {}", e.summary)
+                    } else {
+                        e.summary.clone()
+                    },
+                    if e.matches { match_how(d, e) } else { whole_how(e) },
                     acne::list(&e.blackens, 4)
                 )
             } else if e.matches {
@@ -2453,7 +2558,7 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
         return format!(
             "One way to get your picture, not necessarily yours: your image is rayscope's render with {} ({}), and just as much with {others}. These give the same picture, so the picture alone cannot tell which is yours, nor rule out another mistake with the same effect. Log the rays of a few of those pixels to find out (below).",
             e.summary,
-            match_how(d, e)
+            if e.matches { match_how(d, e) } else { whole_how(e) }
         );
     }
     if !e.loses_refraction.is_empty() {
@@ -2477,9 +2582,9 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
         ("are", "their")
     };
     format!(
-        "One way to get your picture, not necessarily yours: your {names} {is} black where rayscope's {is} not, and the rest is rayscope's render. Rendering {} gives it ({}), but so does rayscope's render with {names} painted black: any mistake that makes {their} rays bring back nothing gives this picture (a weight of 0, or one past 1 that clips; a NaN; a ray never traced), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
+        "One way to get your picture, not necessarily yours: your {names} {is} black where rayscope's {is} not, and the rest is rayscope's render. Rendering {} gives it ({}), but so does rayscope's render with {names} painted black: any mistake that makes {their} rays bring back nothing gives this picture (a weight of 0, or one past 1 that clips; a NaN; a ray never traced; a hit kept that is not the nearest, in shadow), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
         e.summary,
-        match_how(d, e)
+        if e.matches { match_how(d, e) } else { whole_how(e) }
     )
 }
 

@@ -51,16 +51,17 @@ const MIN_MEAN_SHARE: f64 = 0.2;
 /// A mistake recognised from how the picture looks.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recognised {
-    /// What was recognised: `shadow-acne`, or `entities-missing` (rayscope's render without
-    /// some entities reproduces the picture).
+    /// What was recognised: `shadow-acne`, `entities-missing` (rayscope's render without
+    /// some entities reproduces the picture) or `entities-black` (rayscope's render with some
+    /// entities painted black does).
     pub code: &'static str,
-    /// The catalogue's name for it; empty where the catalogue has none (`entities-missing`
-    /// says what the picture lacks, which many mistakes can cause).
+    /// The catalogue's name for it; empty where the catalogue has none (`entities-missing` and
+    /// `entities-black` say what the picture shows, which many mistakes can cause).
     pub mistake: &'static str,
     /// One sentence for the student: what the picture shows, what the code does, the fix.
     pub text: String,
     /// For acne the diffuse entities seen directly it was seen on, most pixels first; for
-    /// missing entities those the picture lacks.
+    /// missing or black entities those the picture lacks or turns black.
     pub entities: Vec<String>,
     /// Differing pixels it explains.
     pub pixels: u64,

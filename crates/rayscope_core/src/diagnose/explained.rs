@@ -43,6 +43,49 @@ pub(crate) fn block_means(rgb: &[u8], w: u32, h: u32, k: u32) -> Vec<f32> {
     sum
 }
 
+/// Per [`BLOCK`]×[`BLOCK`] block of `w`×`h`: whether the candidate is brighter than the image
+/// at some of its pixels and darker at others (by `threshold` or more, channels summed). Speckle
+/// that falls on other pixels in each tracer does that; a smooth difference (a light moved, a
+/// fall-off) leaves the candidate on one side of the image across the block, and a block average
+/// that comes near the image's there is a coincidence of brightness, not the same mistake.
+fn speckled_blocks(candidate: &[u8], image: &[u8], (w, h): (u32, u32), threshold: u8) -> Vec<bool> {
+    let bw = w.div_ceil(BLOCK);
+    let mut sides = vec![(false, false); (bw * h.div_ceil(BLOCK)) as usize];
+    for y in 0..h {
+        for x in 0..w {
+            let p = ((y * w + x) * 3) as usize;
+            let d = &mut sides[((y / BLOCK) * bw + x / BLOCK) as usize];
+            let signed: i32 = (0..3)
+                .map(|c| i32::from(candidate[p + c]) - i32::from(image[p + c]))
+                .sum();
+            let apart = (0..3).any(|c| candidate[p + c].abs_diff(image[p + c]) >= threshold);
+            d.0 |= apart && signed > 0;
+            d.1 |= apart && signed < 0;
+        }
+    }
+    sides.into_iter().map(|(brighter, darker)| brighter && darker).collect()
+}
+
+/// Flagged pixels of a `w`×`h` mask with three or more of their eight neighbours flagged.
+fn areas(mask: &[bool], w: u32, h: u32) -> u64 {
+    let (w, h) = (w as i64, h as i64);
+    let at = |x: i64, y: i64| x >= 0 && y >= 0 && x < w && y < h && mask[(y * w + x) as usize];
+    let mut n = 0;
+    for y in 0..h {
+        for x in 0..w {
+            if !at(x, y) {
+                continue;
+            }
+            let near = (-1..=1)
+                .flat_map(|dy| (-1..=1).map(move |dx| (dx, dy)))
+                .filter(|&(dx, dy)| (dx, dy) != (0, 0) && at(x + dx, y + dy))
+                .count();
+            n += u64::from(near >= 3);
+        }
+    }
+    n
+}
+
 /// Where a pixel's difference belongs: the first entity its camera ray's path meets that is not
 /// a mirror, the mirrors it is seen in, and that entity's material kind (empty for the
 /// background).
@@ -71,15 +114,22 @@ fn attribute(tree: &RayTree) -> (String, Vec<String>, String) {
 }
 
 /// Share of a part's differing pixels a render must reproduce to explain that part.
-const PART_PERCENT: f64 = 60.0;
+pub(crate) const PART_PERCENT: f64 = 60.0;
 
 /// Share of all differing pixels a render must reproduce to explain the picture in part.
 const WHOLE_PERCENT: f64 = 50.0;
 
 /// Most pixels a partial explanation may break (the image has them as rayscope renders them,
-/// the explanation's render not) per pixel it reproduces: speckle such as acne falls on other
-/// pixels in each tracer, and a partial fit leaves room for another mistake.
+/// the explanation's render not, outside speckled blocks, whose speckle is judged on average)
+/// per pixel it reproduces: room for another mistake that undoes this one here and there. A
+/// render that changes much the image has right is another mistake that shares some pixels'
+/// colours with the image's.
 const BREAKS_PER_FIX: f64 = 0.5;
+
+/// Most pixels in areas ([`Explained::broken_areas`]) a partial explanation may break per
+/// pixel it reproduces: speckle breaks pixels one by one, a mistake that is not the image's
+/// changes whole areas the image has right (a shadow removed, a surface recoloured).
+const AREA_BREAKS_PER_FIX: f64 = 0.1;
 
 /// A block average within this many levels of the image's is the image's there.
 const BLOCK_LEVELS: f32 = 1.0;
@@ -87,10 +137,6 @@ const BLOCK_LEVELS: f32 = 1.0;
 /// Share of the differing pixels a render that is not the image pixel for pixel must reproduce
 /// to explain all of the difference (acne, whose speckles fall on other pixels in each tracer).
 const FULL_PERCENT: f64 = 95.0;
-
-/// Share of the traced differing pixels that must be black in the image (and not in rayscope's
-/// render) for the picture to be one that turns entities black.
-const BLACK_SHARE: f64 = 0.9;
 
 /// Pixels listed for the student to log next.
 const NEXT_PIXELS: usize = 6;
@@ -184,9 +230,8 @@ impl Traced {
         out
     }
 
-    /// The entities the image turns black: where at least [`BLACK_SHARE`] of the traced pixels
-    /// are black in `image` and not in `ours`, the entities (not the background) of the parts
-    /// whose traced pixels are mostly (three in four) black; empty otherwise.
+    /// The entities the image turns black: those (not the background) of the parts whose traced
+    /// pixels are mostly (three in four) black in `image` and not in `ours`.
     pub(crate) fn blackened(&self, ours: &[u8], image: &[u8]) -> Vec<String> {
         let mut black = vec![0u64; self.parts.len()];
         for (&i, &k) in self.pixels.iter().zip(&self.part_of) {
@@ -194,9 +239,6 @@ impl Traced {
             if image[p..p + 3] == [0, 0, 0] && ours[p..p + 3] != [0, 0, 0] {
                 black[k] += 1;
             }
-        }
-        if (black.iter().sum::<u64>() as f64) < BLACK_SHARE * self.pixels.len() as f64 {
-            return Vec::new();
         }
         let mut entities: Vec<String> = Vec::new();
         for (k, part) in self.parts.iter().enumerate() {
@@ -316,6 +358,9 @@ pub struct PartExplained {
     /// Of those it reproduces, the share the image has clipped (as [`Explained::clipped`]).
     #[serde(skip)]
     pub clipped_share: f64,
+    /// Of those it reproduces, the share the image has black.
+    #[serde(skip)]
+    pub black_share: f64,
 }
 
 /// How much of the difference between the image and rayscope's render a candidate's render
@@ -332,6 +377,10 @@ pub struct Explained {
     pub clipped: u64,
     /// Pixels the image has as rayscope renders them that the candidate's render changes.
     pub new_pixels: u64,
+    /// Of `new_pixels`, those in areas (three or more of their eight neighbours are such
+    /// pixels too) rather than speckle.
+    #[serde(skip)]
+    pub broken_areas: u64,
     /// Differing pixels the candidate's render changes, but not to the image's colour.
     pub changed_otherwise: u64,
     /// The share of the image's squared error against rayscope's render that the candidate's
@@ -345,9 +394,9 @@ impl Explained {
     /// Of the `candidate`'s render against rayscope's `ours` and the `image` (all `w`×`h`),
     /// with the `threshold` of [`super::differing_pixels`] and `differs` flagging the pixels it
     /// found. A pixel is reproduced when the candidate has it as the image has it, or, for
-    /// speckle that falls where each tracer's rounding puts it (acne), when the candidate's
-    /// average over the pixel's [`BLOCK`]×[`BLOCK`] block closes most of the gap between
-    /// rayscope's average there and the image's.
+    /// speckle that falls where each tracer's rounding puts it (acne), when the pixel's
+    /// [`BLOCK`]×[`BLOCK`] block is speckled (see [`speckled_blocks`]) and the candidate's
+    /// average over it closes most of the gap between rayscope's average there and the image's.
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn of(
         candidate: &[u8],
@@ -364,13 +413,18 @@ impl Explained {
             block_means(image, w, h, BLOCK),
         );
         let bw = w.div_ceil(BLOCK);
+        let speckled = speckled_blocks(candidate, image, (w, h), threshold);
         let reproduces = |i: usize| {
             let p = i * 3;
             if (0..3).all(|c| candidate[p + c].abs_diff(image[p + c]) < threshold) {
                 return true;
             }
             let (x, y) = (i as u32 % w, i as u32 / w);
-            let b = ((y / BLOCK) * bw + x / BLOCK) as usize * 3;
+            let block = ((y / BLOCK) * bw + x / BLOCK) as usize;
+            if !speckled[block] {
+                return false;
+            }
+            let b = block * 3;
             (0..3).all(|c| {
                 let gap = (mo[b + c] - mi[b + c]).abs();
                 (mc[b + c] - mi[b + c]).abs() <= (0.25 * gap).max(BLOCK_LEVELS)
@@ -386,18 +440,24 @@ impl Explained {
         };
         let (mut pixels, mut new_pixels, mut changed_otherwise, mut differing) = (0u64, 0u64, 0u64, 0u64);
         let mut clipped_pixels = 0u64;
+        let black = |i: usize| image[i * 3..i * 3 + 3] == [0, 0, 0];
+        let mut broken = vec![false; differs.len()];
         for (i, &d) in differs.iter().enumerate() {
             match (d, reproduces(i)) {
                 (true, true) => {
                     pixels += 1;
                     clipped_pixels += u64::from(clipped(i));
                 }
-                (false, false) => new_pixels += 1,
+                (false, false) => {
+                    new_pixels += 1;
+                    broken[i] = true;
+                }
                 (true, false) if changes(i) => changed_otherwise += 1,
                 _ => {}
             }
             differing += u64::from(d);
         }
+        let broken_areas = areas(&broken, w, h);
         let se = |a: &[u8]| -> f64 {
             a.iter()
                 .zip(image)
@@ -410,10 +470,12 @@ impl Explained {
         let removed = removed(se(ours), se(candidate)).max(removed(se_blocks(&mo), se_blocks(&mc)));
         let mut got = vec![0u64; traced.parts.len()];
         let mut got_clipped = vec![0u64; traced.parts.len()];
+        let mut got_black = vec![0u64; traced.parts.len()];
         for (&i, &k) in traced.pixels.iter().zip(&traced.part_of) {
             if reproduces(i as usize) {
                 got[k] += 1;
                 got_clipped[k] += u64::from(clipped(i as usize));
+                got_black[k] += u64::from(black(i as usize));
             }
         }
         let pct = |a: u64, b: u64| {
@@ -428,33 +490,50 @@ impl Explained {
             percent: pct(pixels, differing),
             clipped: clipped_pixels,
             new_pixels,
+            broken_areas,
             changed_otherwise,
             error_percent: (1000.0 * removed).round() / 10.0,
             parts: traced
                 .parts
                 .iter()
                 .zip(&traced.counts)
-                .zip(got.iter().zip(&got_clipped))
-                .map(|((p, &n), (&g, &c))| PartExplained {
+                .zip(got.iter().zip(&got_clipped).zip(&got_black))
+                .map(|((p, &n), ((&g, &c), &b))| PartExplained {
                     entity: p.entity.clone(),
                     seen_in: p.seen_in.clone(),
                     pixels: n,
                     percent: pct(g, n),
                     clipped_share: if g == 0 { 0.0 } else { c as f64 / g as f64 },
+                    black_share: if g == 0 { 0.0 } else { b as f64 / g as f64 },
                 })
                 .collect(),
         }
     }
 
     /// True when the render explains a real part of the difference: most of the differing
-    /// pixels, or most of one sizeable part's, while adding error nowhere it takes away, and
+    /// pixels, or most of one sizeable part's, while adding error nowhere it takes away,
     /// changing fewer pixels to colours the image does not have than it reproduces (a mistake
-    /// that changes the whole picture matches a part of another's by chance only). Clipped
-    /// pixels count for nothing here: any mistake that brightens enough reproduces them.
+    /// that changes the whole picture matches a part of another's by chance only), and leaving
+    /// the areas the image has right as they are (a mistake that is not the image's removes a
+    /// shadow the image keeps). Clipped pixels count for nothing here: any mistake that
+    /// brightens enough reproduces them.
     pub(crate) fn partial(&self) -> bool {
+        self.shows_part() && self.broken_areas as f64 <= AREA_BREAKS_PER_FIX * self.evidence() as f64
+    }
+
+    /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing
+    /// pixels, as [`Self::partial`] does.
+    pub(crate) fn full(&self) -> bool {
+        self.percent >= FULL_PERCENT && self.partial()
+    }
+
+    /// [`Self::partial`] for a render that shows what the picture looks like rather than a
+    /// mistake (entities left out): it may change areas the image has right, as a sphere left
+    /// out does where the image's sphere is only smaller.
+    pub(crate) fn shows_part(&self) -> bool {
         let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
         let sizeable = |p: &PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
-        let evidence = self.pixels - self.clipped;
+        let evidence = self.evidence();
         let unclipped = |percent: f64, clipped_share: f64| percent * (1.0 - clipped_share);
         let whole = unclipped(self.percent, self.clipped as f64 / self.pixels.max(1) as f64);
         let clean = self.error_percent > 0.0
@@ -468,10 +547,14 @@ impl Explained {
                     .any(|p| sizeable(p) && unclipped(p.percent, p.clipped_share) >= PART_PERCENT))
     }
 
-    /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing
-    /// pixels, without adding error.
-    pub(crate) fn full(&self) -> bool {
-        self.percent >= FULL_PERCENT && self.partial()
+    /// [`Self::full`] for a render that shows what the picture looks like ([`Self::shows_part`]).
+    pub(crate) fn shows_all(&self) -> bool {
+        self.percent >= FULL_PERCENT && self.shows_part()
+    }
+
+    /// Reproduced pixels the image has not clipped: the evidence for the render.
+    fn evidence(&self) -> u64 {
+        self.pixels - self.clipped
     }
 
     /// The part it explains best, among the sizeable ones, in words: "74 % of GlassSphere's

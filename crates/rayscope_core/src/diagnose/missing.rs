@@ -78,8 +78,8 @@ fn plural(command: &str) -> &'static str {
 
 /// The entities the picture lacks, where rayscope's render without them (from `without`, the
 /// full image for a set of the file's entity indices) explains the difference between `image`
-/// and `ours` at least in part ([`Explained::partial`]), the set explaining the most differing
-/// pixels, with whether it explains all of it ([`Explained::full`]); `None` otherwise.
+/// and `ours` at least in part ([`Explained::shows_part`]), the set explaining the most differing
+/// pixels, with whether it explains all of it ([`Explained::shows_all`]); `None` otherwise.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn recognise(
     file: &SceneFile,
@@ -98,11 +98,11 @@ pub(crate) fn recognise(
             let e = Explained::of(&render, ours, image, size, threshold, differs, traced);
             (left, set, e)
         })
-        .filter(|(.., e)| e.partial())
-        .max_by(|a, b| (a.2.full(), a.2.pixels).cmp(&(b.2.full(), b.2.pixels)))?;
+        .filter(|(.., e)| e.shows_part())
+        .max_by(|a, b| (a.2.shows_all(), a.2.pixels).cmp(&(b.2.shows_all(), b.2.pixels)))?;
     let names: Vec<String> = set.iter().map(|&i| file.entities[i].name.clone()).collect();
     let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
-    let full = e.full();
+    let full = e.shows_all();
     // "sphere" for the test's name: the noun without its article.
     let kind = |command: &str| singular(command).split_once(' ').map_or("", |(_, noun)| noun);
     let text = match (left, full) {
