@@ -379,18 +379,20 @@ fn judge_groups(judge: &Judge<'_>, groups: &[&[LoggedRay]], keep: usize, finding
         }
         (tally, Some(all))
     } else {
+        // The tally is boxed so that each sample passes a pointer along the fold, not the
+        // tally's few hundred bytes.
         let t = groups
             .par_iter()
             .with_min_len(16)
             .fold(
-                || Tally::new(keep),
+                || Box::new(Tally::new(keep)),
                 |mut t, g| {
                     judge.judge_group(g, &mut t);
                     t
                 },
             )
-            .reduce(|| Tally::new(keep), Tally::merge);
-        (t, None)
+            .reduce(|| Box::new(Tally::new(keep)), |a, b| Box::new(a.merge(*b)));
+        (*t, None)
     }
 }
 
