@@ -36,7 +36,7 @@ pub use report::Report;
 pub use verdict::Code;
 
 /// Rays of one pixel sample.
-type Key = (Option<[u32; 2]>, Option<u32>);
+type Key = log::SampleKey;
 
 /// Records after which a pixel sample that got no new ray is taken as complete. Tracers that
 /// write each sample's rays together close every sample at once; a multi-threaded tracer whose
@@ -134,11 +134,6 @@ struct Grouper {
     spare: Vec<Vec<LoggedRay>>,
 }
 
-/// The pixel sample of a ray.
-fn key_of(r: &LoggedRay) -> Key {
-    (r.pixel, r.sample)
-}
-
 /// The rays numbered `a..b`, all in one batch: in `batch` (whose first ray is numbered `base`)
 /// or in one of `batches`.
 fn rays_of<'b>(
@@ -161,7 +156,7 @@ impl Grouper {
     /// [`Self::push_keyed`] with the keys taken from the rays.
     #[cfg(test)]
     fn push_batch(&mut self, batch: Vec<LoggedRay>, ready: &mut Vec<Rays>) {
-        let keys: Vec<Key> = batch.iter().map(key_of).collect();
+        let keys: Vec<Key> = batch.iter().map(LoggedRay::sample_key).collect();
         self.push_keyed(batch, &keys, ready);
     }
 
@@ -435,12 +430,11 @@ pub(crate) fn run(
                 let reader = || -> Result<(bool, Duration), LogError> {
                     let t0 = Instant::now();
                     next.clear();
-                    let again = more && source.next_batch(&mut next)?;
-                    // Taken out in parallel here, where the rays were just written: the
-                    // grouping, which runs on one thread, then reads 20 packed bytes a ray
-                    // rather than a cache line of each ray's 312.
                     next_keys.clear();
-                    next_keys.par_extend(next.par_iter().with_min_len(1024).map(key_of));
+                    // With each ray's key, written as the ray is: the grouping, which runs on
+                    // one thread, then reads 20 packed bytes a ray rather than a cache line of
+                    // each ray's 312.
+                    let again = more && source.next_batch_keyed(&mut next, &mut next_keys)?;
                     Ok((again, t0.elapsed()))
                 };
                 let judger = || -> Result<(Tally, Duration), Overfull> {
