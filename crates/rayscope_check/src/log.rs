@@ -361,10 +361,28 @@ impl fmt::Display for LogError {
 
 impl std::error::Error for LogError {}
 
+/// The pixel sample a ray belongs to: its pixel and its sample, each as logged.
+pub type SampleKey = (Option<[u32; 2]>, Option<u32>);
+
+impl LoggedRay {
+    /// The pixel sample the ray belongs to.
+    #[must_use]
+    pub fn sample_key(&self) -> SampleKey {
+        (self.pixel, self.sample)
+    }
+}
+
 /// A stream of validated rays, read batch by batch.
 pub trait RaySource {
     /// Appends the next rays to `out` (at most about [`BATCH`]); false once the log is exhausted.
     fn next_batch(&mut self, out: &mut Vec<LoggedRay>) -> Result<bool, LogError>;
+    /// [`Self::next_batch`], also appending each ray's [`SampleKey`] to `keys`.
+    fn next_batch_keyed(&mut self, out: &mut Vec<LoggedRay>, keys: &mut Vec<SampleKey>) -> Result<bool, LogError> {
+        let before = out.len();
+        let more = self.next_batch(out)?;
+        keys.par_extend(out[before..].par_iter().with_min_len(1024).map(LoggedRay::sample_key));
+        Ok(more)
+    }
     /// Bytes consumed so far and the log's size, for a progress bar.
     fn progress(&self) -> (u64, u64);
     /// Records skipped as malformed under `--lenient`, and the first one's diagnostic.
@@ -642,6 +660,29 @@ impl<R: Read> JsonlReader<R> {
 
 impl<R: Read> RaySource for JsonlReader<R> {
     fn next_batch(&mut self, out: &mut Vec<LoggedRay>) -> Result<bool, LogError> {
+        self.batch(out, None)
+    }
+
+    fn next_batch_keyed(&mut self, out: &mut Vec<LoggedRay>, keys: &mut Vec<SampleKey>) -> Result<bool, LogError> {
+        self.batch(out, Some(keys))
+    }
+
+    fn progress(&self) -> (u64, u64) {
+        (self.dropped + self.pos as u64, self.total)
+    }
+
+    fn skipped(&self) -> (u64, Option<&Diagnostic>) {
+        (self.skipped, self.first_skipped.as_ref())
+    }
+
+    fn place(&self, record: u64) -> String {
+        format!("{}:{record}", self.path.display())
+    }
+}
+
+impl<R: Read> JsonlReader<R> {
+    /// The next batch into `out`, and with `keys` each ray's sample key into it.
+    fn batch(&mut self, out: &mut Vec<LoggedRay>, mut keys: Option<&mut Vec<SampleKey>>) -> Result<bool, LogError> {
         if self.skipping {
             self.skip_long_line()?;
         }
@@ -668,22 +709,40 @@ impl<R: Read> RaySource for JsonlReader<R> {
         // Most batches are all rays: they are parsed straight into `out`, each ray written once.
         // A batch with a blank or malformed line is parsed again below, line by line.
         let before = out.len();
+        let keys_before = keys.as_ref().map_or(0, |k| k.len());
         let odd = AtomicBool::new(false);
-        out.par_extend(lines.par_iter().with_min_len(256).map(|&(n, a, b)| {
-            match parse_line(&buf[a..b], n, path, ctx) {
-                Ok(Some(r)) => r,
-                _ => {
-                    odd.store(true, Ordering::Relaxed);
-                    LoggedRay::blank(n)
-                }
+        let parse = |&(n, a, b): &LineSpan| match parse_line(&buf[a..b], n, path, ctx) {
+            Ok(Some(r)) => r,
+            _ => {
+                odd.store(true, Ordering::Relaxed);
+                LoggedRay::blank(n)
             }
-        }));
+        };
+        match keys.as_deref_mut() {
+            // Each ray's key is written as the ray is, in one pass over the batch's lines.
+            Some(keys) if out.is_empty() && keys.is_empty() => lines
+                .par_iter()
+                .with_min_len(256)
+                .map(|line| {
+                    let r = parse(line);
+                    let k = r.sample_key();
+                    (r, k)
+                })
+                .unzip_into_vecs(out, keys),
+            _ => out.par_extend(lines.par_iter().with_min_len(256).map(parse)),
+        }
         if !odd.load(Ordering::Relaxed) {
+            if let Some(keys) = keys.filter(|k| k.len() == keys_before) {
+                keys.extend(out[before..].iter().map(LoggedRay::sample_key));
+            }
             self.lines = lines;
             self.parsed = parsed;
             return self.finish_batch(long);
         }
         out.truncate(before);
+        if let Some(keys) = keys.as_deref_mut() {
+            keys.truncate(keys_before);
+        }
         // A malformed line's diagnostic is dropped at once and made again for the one reported,
         // so a log of bad lines costs no memory per line.
         parsed.clear();
@@ -717,20 +776,11 @@ impl<R: Read> RaySource for JsonlReader<R> {
         }
         self.parsed = parsed;
         self.lines = lines;
+        if let Some(keys) = keys {
+            keys.extend(out[before..].iter().map(LoggedRay::sample_key));
+        }
         result?;
         self.finish_batch(long)
-    }
-
-    fn progress(&self) -> (u64, u64) {
-        (self.dropped + self.pos as u64, self.total)
-    }
-
-    fn skipped(&self) -> (u64, Option<&Diagnostic>) {
-        (self.skipped, self.first_skipped.as_ref())
-    }
-
-    fn place(&self, record: u64) -> String {
-        format!("{}:{record}", self.path.display())
     }
 }
 

@@ -309,3 +309,50 @@ fn every_batch_but_the_last_is_whole_where_a_read_ends_inside_one() {
     assert!(whole.iter().all(|&n| n == BATCH), "{sizes:?}");
     assert!(*last > 0 && *last <= BATCH);
 }
+
+#[test]
+fn keyed_batches_hold_each_rays_sample_whatever_the_lines() {
+    let scene = scene();
+    let s = settings(8, 6);
+    let line = |x: u32, y: u32, k: u32| {
+        format!(
+            "{{\"pixel\":[{x},{y}],\"sample\":0,\"id\":{k},\"parent\":null,\"kind\":\"camera\",\"origin\":[0,0,0],\"direction\":[0,0,1]}}\n"
+        )
+    };
+    // Clean lines of rayscope's shape; then the same with blank and malformed lines among them
+    // (read under --lenient), and a record of another shape.
+    let clean: String = (0..3 * BATCH as u32).map(|k| line(k % 8, k / 8 % 6, k)).collect();
+    let mut odd = String::new();
+    for k in 0..3 * BATCH as u32 {
+        odd.push_str(&line(k % 8, k / 8 % 6, k));
+        match k % 1000 {
+            0 => odd.push('\n'),
+            1 => odd.push_str("not a ray\n"),
+            2 => odd.push_str(&good_line(1)),
+            _ => {}
+        }
+    }
+    for (log, lenient) in [(clean, false), (odd, true)] {
+        for prefilled in [false, true] {
+            let mut r = JsonlReader::new(
+                Cursor::new(log.clone()),
+                Path::new("rays.jsonl"),
+                0,
+                context(&scene, &s),
+                lenient,
+            );
+            let (mut rays, mut keys, mut total) = (Vec::new(), Vec::new(), 0);
+            if prefilled {
+                assert!(r.next_batch(&mut rays).unwrap());
+                keys.extend(rays.iter().map(|x: &rayscope_check::LoggedRay| x.sample_key()));
+            }
+            while r.next_batch_keyed(&mut rays, &mut keys).unwrap() {
+                assert_eq!(keys, rays.iter().map(|x| x.sample_key()).collect::<Vec<_>>());
+                total += rays.len();
+                rays.clear();
+                keys.clear();
+            }
+            assert!(total >= 2 * BATCH, "{total}");
+        }
+    }
+}
