@@ -568,7 +568,8 @@ fn channels_finding(ours: &[u8], judged: &mut Vec<u8>, w: u32, h: u32) -> Option
             (order, back, m)
         })
         .max_by(|a, b| a.2.score().total_cmp(&b.2.score()))
-        .filter(|(.., m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB)?;
+        .filter(|(.., m)| m.score() >= PLAIN_DB && m.score() >= as_is.score() + PLAIN_GAIN_DB)
+        .filter(|(_, back, _)| keeps_what_was_right(ours, judged, back))?;
     let stored: Vec<&str> = order.iter().map(|&c| CHANNEL[c]).collect();
     let which = if order == [2, 1, 0] {
         "red and blue exchanged (BGR: a bitmap's memory or a library that stores BGR, like OpenCV's imwrite, takes blue first)".to_string()
@@ -591,6 +592,24 @@ fn channels_finding(ours: &[u8], judged: &mut Vec<u8>, w: u32, h: u32) -> Option
         text,
         &[("psnr_db_turned", m.psnr), ("psnr_db_as_stored", as_is.psnr)],
     ))
+}
+
+/// True when `turned` (the image `judged` transformed back) keeps the pixels `judged` has as
+/// `ours` has them, but for one in twenty of those it puts right. A writer's transform moves
+/// every pixel, so the pixels it leaves right stored are those it does not change (greys for a
+/// channel order); an object whose material colour differs by a permutation of its channels
+/// is put right while others, right as stored, go wrong.
+fn keeps_what_was_right(ours: &[u8], judged: &[u8], turned: &[u8]) -> bool {
+    let same = |a: &[u8], i: usize| (0..3).all(|c| a[i * 3 + c].abs_diff(ours[i * 3 + c]) < 2);
+    let (mut broken, mut fixed) = (0u64, 0u64);
+    for i in 0..ours.len() / 3 {
+        match (same(judged, i), same(turned, i)) {
+            (true, false) => broken += 1,
+            (false, true) => fixed += 1,
+            _ => {}
+        }
+    }
+    broken * 20 <= fixed
 }
 
 /// Ways a writer may turn a colour into one grey value: the words for it and its weights of

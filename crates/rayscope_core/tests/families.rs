@@ -8,7 +8,7 @@ mod student;
 
 use std::path::{Path, PathBuf};
 
-use diagnosing::{diagnosed, Flags};
+use diagnosing::{diagnosed, diagnosed_edited, Flags};
 use rayscope_core::diagnose::{report_text, Diagnosis};
 use student::Options;
 
@@ -701,4 +701,66 @@ fn spheres_drawn_smaller_name_no_mistake() {
         "{text}"
     );
     assert!(!text.contains("never found a hit"), "{text}");
+}
+
+/// The student's picture of `path` read with `edit`, diagnosed with the full search.
+fn edited(path: &Path, edit: &dyn Fn(&mut rayscope_scene::SceneFile), opts: Options) -> (Diagnosis, String) {
+    let flags = Flags {
+        full_search: true,
+        ..Flags::of(opts)
+    };
+    diagnosed_edited(path, edit, &[], opts, flags)
+}
+
+/// A glass's index read wrong (1.36 or 1.45 instead of 1.4) bends what the glass shows, and
+/// nothing else: not random anti-aliasing samples, whose noise is at every edge of the picture.
+/// No mistake is named and nothing is said to be allowed.
+#[test]
+fn a_glass_index_read_wrong_is_not_called_jittered_anti_aliasing() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    for (ior, aa) in [(1.36, 1), (1.45, 2)] {
+        let glass = move |f: &mut rayscope_scene::SceneFile| {
+            for m in f.materials.iter_mut().filter(|m| m.name == "GlassMat") {
+                m.value = ior;
+            }
+        };
+        let (d, text) = edited(
+            &scene,
+            &glass,
+            Options {
+                aa,
+                ..Options::new(80, 60)
+            },
+        );
+        assert!(d.fitted.iter().all(|f| !f.allowed), "{ior} -x {aa}:\n{text}");
+        assert!(!text.contains("jittered"), "{ior} -x {aa}:\n{text}");
+        assert!(d.explanations.iter().all(|e| !e.cause), "{ior} -x {aa}:\n{text}");
+        assert!(text.starts_with("No known mistake explains"), "{ior} -x {aa}:\n{text}");
+    }
+}
+
+/// The sphere of course scene 1 given the blue material instead of the green: putting green
+/// and blue back in order would turn it right and the blue triangle wrong, which a writer's
+/// channel order never does. Not said to be the channel order.
+#[test]
+fn one_object_in_another_colour_is_not_a_channel_order() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let blue = |f: &mut rayscope_scene::SceneFile| {
+        let b = f
+            .materials
+            .iter()
+            .position(|m| m.name == "Blue")
+            .expect("scene 1 has Blue");
+        for e in f.entities.iter_mut().filter(|e| e.name == "Sphere") {
+            e.material = b;
+        }
+    };
+    let (d, text) = edited(&course.scene("sample_scene_1.txt"), &blue, Options::new(60, 45));
+    assert!(d.obvious.iter().all(|o| o.code != "channels"), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(text.starts_with("No known mistake explains"), "{text}");
 }

@@ -32,8 +32,23 @@ impl Flags {
 /// The diagnosis of the student's picture of `path` with `bugs` and `opts` under `flags`, and
 /// its report (naming the scene `scene.txt`).
 pub fn diagnosed(path: &Path, bugs: &[&'static str], opts: Options, flags: Flags) -> (Diagnosis, String) {
+    diagnosed_edited(path, &|_| {}, bugs, opts, flags)
+}
+
+/// As [`diagnosed`], with the student's tracer reading the scene with `edit` made to it (a
+/// value read wrong, an entity given another material), and `diagnose` the scene as it is.
+#[allow(dead_code)]
+pub fn diagnosed_edited(
+    path: &Path,
+    edit: &dyn Fn(&mut rayscope_scene::SceneFile),
+    bugs: &[&'static str],
+    opts: Options,
+    flags: Flags,
+) -> (Diagnosis, String) {
     let file = rayscope_scene::load(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
-    let img = Student::new(&file, bugs, opts).render();
+    let mut read = file.clone();
+    edit(&mut read);
+    let img = Student::new(&read, bugs, opts).render();
     let image = Image {
         width: opts.width,
         height: opts.height,

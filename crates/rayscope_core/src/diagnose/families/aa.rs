@@ -74,6 +74,17 @@ const NOISE_Z2: f64 = 2.0;
 /// noise).
 const SYSTEMATIC: f64 = 30.0;
 
+/// A pixel's noise under random samples is loud at this standard deviation (levels): at or
+/// above it, one channel stays within [`DIFF_LEVELS`] of the mean about two times in five.
+const LOUD: f64 = 4.0;
+
+/// Fewest loud pixels that tell whether the noise is everywhere.
+const MIN_LOUD: usize = 10;
+
+/// Largest weighted share of the loud pixels that may be as rayscope renders them under
+/// random samples.
+const MAX_QUIET: f64 = 0.6;
+
 /// Most pixels random samples are judged on.
 const JITTER_PIXELS: usize = 200;
 
@@ -643,7 +654,7 @@ fn read_jitter<I: crate::scene::Intersect + Sync>(
         return Reading::default();
     };
     let drift = systematic(&ch, l, k);
-    if mean_z2 > NOISE_Z2 || drift > SYSTEMATIC {
+    if mean_z2 > NOISE_Z2 || drift > SYSTEMATIC || !noise_everywhere(pixels, &spreads, l, k) {
         return Reading::default();
     }
     let n = JITTER_LEVELS[l];
@@ -663,6 +674,27 @@ fn read_jitter<I: crate::scene::Intersect + Sync>(
             },
         )),
     }
+}
+
+/// True when the pixels whose noise under level `l` and kind `k` would be large (a standard
+/// deviation of [`LOUD`] levels or more) mostly differ from rayscope's render, as random
+/// samples make them: noise is at every edge of the picture. A difference confined to some
+/// edges (a glass's refraction bent otherwise, one object moved) leaves the others as they
+/// are. Fewer than [`MIN_LOUD`] such pixels tell nothing, and pass.
+fn noise_everywhere(pixels: &[&Pixel], spreads: &[Spread], l: usize, k: usize) -> bool {
+    let (mut loud, mut quiet, mut count) = (0.0, 0.0, 0usize);
+    for (p, s) in pixels.iter().zip(spreads) {
+        let v = if k == 0 { s.var[l].0 } else { s.var[l].1 };
+        if v.iter().all(|&v| v < LOUD * LOUD) {
+            continue;
+        }
+        count += 1;
+        loud += p.weight;
+        if !p.differs {
+            quiet += p.weight;
+        }
+    }
+    count < MIN_LOUD || quiet <= MAX_QUIET * loud
 }
 
 /// The figures every finding carries.
