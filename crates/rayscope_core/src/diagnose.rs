@@ -1618,10 +1618,39 @@ pub fn diagnose(
             explanations.retain(|e| {
                 e.explained
                     .as_ref()
-                    .is_none_or(|x| e.one_way() || !no_more_than_black(x, p))
+                    .is_none_or(|x| e.one_way() || !no_more_than(x, p, true))
             });
         }
         let blackened = blackened.map(|(r, _)| r);
+        // Glass that shows only the light through it: a render that explains no more than
+        // losing every glass's reflection names nothing the picture shows.
+        let glass = traced.glass_entities();
+        let reflectionless = (!glass.is_empty() && base.stage == Stage::Two)
+            .then(|| {
+                tried += 1;
+                let lost = RenderSettings {
+                    mistakes: base.mistakes.with_reflection_lost(),
+                    ..base
+                };
+                Explained::of(
+                    &full(&scenes, &lost),
+                    &ours,
+                    image.rgb,
+                    (w, h),
+                    threshold,
+                    &differs,
+                    &traced,
+                )
+            })
+            .filter(Explained::shows_part);
+        if let Some(x) = &reflectionless {
+            explanations.retain(|e| {
+                e.explained
+                    .as_ref()
+                    .is_none_or(|y| e.one_way() || !no_more_than(y, x, false))
+            });
+        }
+        let reflectionless = reflectionless.map(|x| recognise_reflectionless(&glass, &x));
         let lacks = lacks.filter(|(r, _)| {
             blackened
                 .as_ref()
@@ -1650,6 +1679,7 @@ pub fn diagnose(
             .map(|(r, _)| r)
             .into_iter()
             .chain(blackened)
+            .chain(reflectionless)
             .chain(acne::recognise(
                 scenes.file,
                 &without,
@@ -1892,22 +1922,59 @@ fn recognise_black(entities: &[String], painted: &Explained) -> Option<Recognise
 }
 
 /// True when the parts `e` explains ([`Explained::partial`]'s sizeable parts at
-/// [`explained::PART_PERCENT`]) are explained as well by `painted`, or by pixels the image has
-/// black (three in four), and its whole share is no more than `painted`'s: the render names
-/// nothing the black picture does not show.
-fn no_more_than_black(e: &Explained, painted: &Explained) -> bool {
+/// [`explained::PART_PERCENT`]) are explained as well by `other` (a render of what the picture
+/// shows: entities painted black, the glass's reflection lost), or, where `black` counts, by
+/// pixels the image has black (three in four), and its whole share is no more than `other`'s:
+/// the render names nothing that `other` does not show.
+fn no_more_than(e: &Explained, other: &Explained, black: bool) -> bool {
     let traced: u64 = e.parts.iter().map(|p| p.pixels).sum();
     let sizeable = |p: &explained::PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
-    let black: f64 = e
+    let black_share = |p: &explained::PartExplained| if black { p.black_share } else { 0.0 };
+    let blacks: f64 = e
         .parts
         .iter()
-        .map(|p| p.pixels as f64 * p.percent / 100.0 * p.black_share)
+        .map(|p| p.pixels as f64 * p.percent / 100.0 * black_share(p))
         .sum();
-    let black_percent = 100.0 * black / traced.max(1) as f64;
-    e.percent - black_percent <= painted.percent + 5.0
-        && e.parts.iter().zip(&painted.parts).all(|(a, b)| {
-            !sizeable(a) || a.percent < explained::PART_PERCENT || b.percent + 5.0 >= a.percent || a.black_share >= 0.75
+    let black_percent = 100.0 * blacks / traced.max(1) as f64;
+    e.percent - black_percent <= other.percent + 5.0
+        && e.parts.iter().zip(&other.parts).all(|(a, b)| {
+            !sizeable(a)
+                || a.percent < explained::PART_PERCENT
+                || b.percent + 5.0 >= a.percent
+                || black_share(a) >= 0.75
         })
+}
+
+/// The glass entities that show only the light through them, recognised where rayscope's
+/// render with every glass's reflection lost (`lost`) explains a part of the difference.
+fn recognise_reflectionless(glass: &[String], lost: &Explained) -> Recognised {
+    let (shows, its, it) = if glass.len() == 1 {
+        ("shows", "its", "it")
+    } else {
+        ("show", "their", "them")
+    };
+    let names = acne::list(glass, 4);
+    let what = if lost.shows_all() {
+        "your picture"
+    } else {
+        "this part of your picture"
+    };
+    let text = format!(
+        "Your {names} {shows} only the light through {it}, with nothing of {its} reflection, where rayscope's {shows} both: rayscope's render with every glass's reflected ray bringing back black gives {what}. Any mistake that loses the reflected light does it: a reflected ray never traced, started inside the glass or sent the wrong way, its weight taken as 0; so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below)."
+    );
+    let mut numbers = BTreeMap::new();
+    numbers.insert("entities", glass.len() as f64);
+    numbers.insert("percent_explained", lost.percent);
+    numbers.insert("error_removed_percent", lost.error_percent);
+    Recognised {
+        code: "glass-reflection-lost",
+        mistake: "",
+        text,
+        entities: glass.to_vec(),
+        pixels: lost.pixels,
+        share: lost.percent / 100.0,
+        numbers,
+    }
 }
 
 /// Catalogued mistakes that are members of the Fresnel family [`families`] fits.

@@ -542,6 +542,10 @@ const COLOUR_SCALE: &str = "colour-scale";
 /// [`Mistakes::with_refraction_lost`]); no catalogued mistake has it.
 const REFRACTION_LOST: u64 = 1 << 63;
 
+/// The bit of a set's mistakes that loses every glass's reflected light (see
+/// [`Mistakes::with_reflection_lost`]); no catalogued mistake has it.
+const REFLECTION_LOST: u64 = 1 << 62;
+
 /// The largest colour scale `colour-scale=K` takes: at 256 every lit byte is already 255.
 const MAX_COLOUR_SCALE: f32 = 256.0;
 
@@ -615,6 +619,22 @@ impl Mistakes {
     #[inline]
     pub fn refraction_lost(self) -> bool {
         self.0 & REFRACTION_LOST != 0
+    }
+
+    /// The set with every glass's reflected ray bringing back nothing, its refraction kept:
+    /// what many different mistakes reduce to (a reflected ray never traced, started inside
+    /// the glass, weighted 0), which `diagnose` renders to tell whether a picture can name one
+    /// of them. It has no name and is never offered as a mistake.
+    #[must_use]
+    pub fn with_reflection_lost(self) -> Mistakes {
+        Mistakes(self.0 | REFLECTION_LOST, self.1, self.2, self.3)
+    }
+
+    /// True when every glass's reflected light is lost ([`Self::with_reflection_lost`]).
+    #[must_use]
+    #[inline]
+    pub fn reflection_lost(self) -> bool {
+        self.0 & REFLECTION_LOST != 0
     }
 
     /// True when `m` is in the set.

@@ -764,3 +764,23 @@ fn one_object_in_another_colour_is_not_a_channel_order() {
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
     assert!(text.starts_with("No known mistake explains"), "{text}");
 }
+
+/// A glass that never traces its reflected ray (uncatalogued) shows only the light through it.
+/// Catalogued renders that start the reflection in the wrong place match parts of it; the
+/// report says instead what the picture shows, which any mistake that loses the reflection
+/// gives, and names none.
+#[test]
+fn a_glass_without_its_reflection_is_said_so_and_named_nothing() {
+    let Some(scene) = scene2() else {
+        return;
+    };
+    let (d, text) = searched(&scene, &["glass-reflection-skipped"], Options::new(60, 45));
+    assert!(
+        text.starts_with(
+            "Recognised from how your picture looks: Your GlassSphere shows only the light through it, with nothing of its reflection"
+        ),
+        "{text}"
+    );
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(d.recognised.iter().all(|r| r.mistake.is_empty()), "{text}");
+}

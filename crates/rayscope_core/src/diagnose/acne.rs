@@ -52,11 +52,12 @@ const MIN_MEAN_SHARE: f64 = 0.2;
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct Recognised {
     /// What was recognised: `shadow-acne`, `entities-missing` (rayscope's render without
-    /// some entities reproduces the picture) or `entities-black` (rayscope's render with some
-    /// entities painted black does).
+    /// some entities reproduces the picture), `entities-black` (rayscope's render with some
+    /// entities painted black does) or `glass-reflection-lost` (its render with every glass's
+    /// reflection lost does).
     pub code: &'static str,
-    /// The catalogue's name for it; empty where the catalogue has none (`entities-missing` and
-    /// `entities-black` say what the picture shows, which many mistakes can cause).
+    /// The catalogue's name for it; empty where the catalogue has none (the findings but acne
+    /// say what the picture shows, which many mistakes can cause).
     pub mistake: &'static str,
     /// One sentence for the student: what the picture shows, what the code does, the fix.
     pub text: String,

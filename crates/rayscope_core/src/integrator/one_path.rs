@@ -307,7 +307,10 @@ impl<I: Intersect> Integrator<'_, I> {
         let g = self.glass(ray, s, m, path);
         if path.branch || self.settings.stage != Stage::Full {
             let mut out = Vec3A::ZERO;
-            let reflected = self.glass_reflected(&g, path);
+            // Only renders with mistakes lose the reflection, and they all take this engine.
+            let reflected = self
+                .glass_reflected(&g, path)
+                .filter(|_| !self.isect.mistakes().reflection_lost());
             let refracted = self.glass_refracted(&g, path);
             if O::ENABLED {
                 let fate = |kept: bool, exists: bool| match (kept, exists) {

@@ -509,7 +509,9 @@ impl Student {
             kr
         };
         let mut c = self.trace(refracted, depth + 1) * (1.0 - kr);
-        if kr > 0.0 {
+        // Uncatalogued: the reflected ray left out where the glass also refracts (a reflection
+        // "added later" and never added).
+        if kr > 0.0 && !self.bug("glass-reflection-skipped") {
             c += self.trace(reflected, depth + 1) * kr;
         }
         c
