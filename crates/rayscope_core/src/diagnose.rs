@@ -1898,27 +1898,11 @@ fn recognise_black(entities: &[String], painted: &Explained) -> Option<Recognise
         ("are", "their", "them")
     };
     let names = acne::list(entities, 6);
-    let what = if painted.shows_all() {
-        "your picture"
-    } else {
-        "this part of your picture"
-    };
+    let what = how_much(painted);
     let text = format!(
         "Your {names} {are} black where rayscope's {are} lit: rayscope's render with {them} painted black gives {what}. Any mistake that makes {their} rays bring back nothing does it: on a diffuse surface a normal turned away from the lights (N·L below 0, clamped), every shadow ray blocked or a light placed or read wrong; on any surface a weight of 0 or past 1 (clipped), a NaN, a hit kept that is not the nearest and lies in shadow, or {them} not hit at all where what lies behind is black; so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below)."
     );
-    let mut numbers = BTreeMap::new();
-    numbers.insert("entities", entities.len() as f64);
-    numbers.insert("percent_explained", painted.percent);
-    numbers.insert("error_removed_percent", painted.error_percent);
-    Some(Recognised {
-        code: "entities-black",
-        mistake: "",
-        text,
-        entities: entities.to_vec(),
-        pixels: painted.pixels,
-        share: painted.percent / 100.0,
-        numbers,
-    })
+    Some(seen("entities-black", entities, text, painted))
 }
 
 /// True when the parts `e` explains ([`Explained::partial`]'s sizeable parts at
@@ -1954,26 +1938,37 @@ fn recognise_reflectionless(glass: &[String], lost: &Explained) -> Recognised {
         ("show", "their", "them")
     };
     let names = acne::list(glass, 4);
-    let what = if lost.shows_all() {
-        "your picture"
-    } else {
-        "this part of your picture"
-    };
+    let what = how_much(lost);
     let text = format!(
         "Your {names} {shows} only the light through {it}, with nothing of {its} reflection, where rayscope's {shows} both: rayscope's render with every glass's reflected ray bringing back black gives {what}. Any mistake that loses the reflected light does it: a reflected ray never traced, started inside the glass or sent the wrong way, its weight taken as 0; so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below)."
     );
+    seen("glass-reflection-lost", glass, text, lost)
+}
+
+/// A finding of what the picture shows (no catalogue name): `code`, the `entities` it is on,
+/// its `text`, and what the render that shows it (`by`) explains.
+fn seen(code: &'static str, entities: &[String], text: String, by: &Explained) -> Recognised {
     let mut numbers = BTreeMap::new();
-    numbers.insert("entities", glass.len() as f64);
-    numbers.insert("percent_explained", lost.percent);
-    numbers.insert("error_removed_percent", lost.error_percent);
+    numbers.insert("entities", entities.len() as f64);
+    numbers.insert("percent_explained", by.percent);
+    numbers.insert("error_removed_percent", by.error_percent);
     Recognised {
-        code: "glass-reflection-lost",
+        code,
         mistake: "",
         text,
-        entities: glass.to_vec(),
-        pixels: lost.pixels,
-        share: lost.percent / 100.0,
+        entities: entities.to_vec(),
+        pixels: by.pixels,
+        share: by.percent / 100.0,
         numbers,
+    }
+}
+
+/// "your picture" where `by` shows all of the difference, "this part of your picture" otherwise.
+fn how_much(by: &Explained) -> &'static str {
+    if by.shows_all() {
+        "your picture"
+    } else {
+        "this part of your picture"
     }
 }
 
