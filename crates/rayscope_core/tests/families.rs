@@ -784,3 +784,25 @@ fn a_glass_without_its_reflection_is_said_so_and_named_nothing() {
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
     assert!(d.recognised.iter().all(|r| r.mistake.is_empty()), "{text}");
 }
+
+/// The bunny placed 0.1 to the right (its offset read wrong, uncatalogued) changes its shading
+/// unevenly from pixel to pixel and moves its shadow: pixels lose light and as many gain it.
+/// Acne only takes light away, so it is not said to be acne; nothing is named.
+#[test]
+fn a_model_placed_otherwise_is_not_called_acne() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let moved = |f: &mut rayscope_scene::SceneFile| {
+        for e in &mut f.entities {
+            if let rayscope_scene::Shape::Mesh { offset, .. } = &mut e.shape {
+                offset.x += 0.1;
+            }
+        }
+    };
+    let (d, text) = edited(&course.scene("sample_scene_obj.txt"), &moved, Options::new(80, 60));
+    assert!(!d.matches, "{text}");
+    assert!(d.recognised.iter().all(|r| r.code != "shadow-acne"), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(!text.contains("no-shadow-offset"), "{text}");
+}

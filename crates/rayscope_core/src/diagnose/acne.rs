@@ -42,6 +42,8 @@ const MAX_INTERIOR: f64 = 0.4;
 /// Least mean step (in shares of a light) between a pixel's lost share and its neighbours' for
 /// the loss to be uneven: a wrong shadow, a missing light or a fall-off changes it smoothly.
 const MIN_ROUGHNESS: f64 = 0.15;
+/// Most differing pixels that gain light per pixel that loses it.
+const MAX_GAINED: f64 = 0.5;
 /// Least mean share of the lights' light that the specks lose: acne takes a light's whole share
 /// from the samples that hit their own surface, while a slight change of shading everywhere (a
 /// light's direction taken from a point a little off the hit) crosses byte boundaries in the
@@ -138,6 +140,21 @@ pub(crate) fn recognise(
         .copied()
         .filter(|&i| lost[i as usize] && smooth(ours, w, h, i))
         .collect();
+    // Acne only takes light away: where many pixels gain light beside those that lose it, the
+    // shading or the shadows moved (an object placed or shaped otherwise), which loses light in
+    // some pixels and adds it in others.
+    let gained = differing
+        .iter()
+        .filter(|&&i| {
+            let p = i as usize * 3;
+            (0..3).any(|c| f32::from(theirs[p + c]) >= f32::from(ours[p + c]) + LOST_LEVELS)
+                && (0..3).all(|c| theirs[p + c] >= ours[p + c])
+        })
+        .count();
+    let losing = lost.iter().filter(|&&l| l).count();
+    if gained as f64 > MAX_GAINED * losing as f64 {
+        return None;
+    }
     let direct = direct_diffuse_share(traced, &lost);
     let (pieces, interior) = pieces(&speck, &lost, w, h);
     let mean = speck.len() as f64 / pieces.max(1) as f64;
