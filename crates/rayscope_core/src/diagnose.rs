@@ -1912,7 +1912,6 @@ fn recognise_black(entities: &[String], painted: &Explained) -> Option<Recognise
 /// the render names nothing that `other` does not show.
 fn no_more_than(e: &Explained, other: &Explained, black: bool) -> bool {
     let traced: u64 = e.parts.iter().map(|p| p.pixels).sum();
-    let sizeable = |p: &explained::PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
     let black_share = |p: &explained::PartExplained| if black { p.black_share } else { 0.0 };
     let blacks: f64 = e
         .parts
@@ -1922,7 +1921,7 @@ fn no_more_than(e: &Explained, other: &Explained, black: bool) -> bool {
     let black_percent = 100.0 * blacks / traced.max(1) as f64;
     e.percent - black_percent <= other.percent + 5.0
         && e.parts.iter().zip(&other.parts).all(|(a, b)| {
-            !sizeable(a)
+            !e.sizeable(a)
                 || a.percent < explained::PART_PERCENT
                 || b.percent + 5.0 >= a.percent
                 || black_share(a) >= 0.75

@@ -531,8 +531,7 @@ impl Explained {
     /// mistake (entities left out): it may change areas the image has right, as a sphere left
     /// out does where the image's sphere is only smaller.
     pub(crate) fn shows_part(&self) -> bool {
-        let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
-        let sizeable = |p: &PartExplained| p.pixels >= 10 && p.pixels * 20 >= traced;
+        let sizeable = |p: &PartExplained| self.sizeable(p);
         let evidence = self.evidence();
         let unclipped = |percent: f64, clipped_share: f64| percent * (1.0 - clipped_share);
         let whole = unclipped(self.percent, self.clipped as f64 / self.pixels.max(1) as f64);
@@ -552,6 +551,13 @@ impl Explained {
         self.percent >= FULL_PERCENT && self.shows_part()
     }
 
+    /// True for a part big enough to be explained on its own: ten traced pixels or more, and
+    /// a twentieth of all those traced.
+    pub(crate) fn sizeable(&self, p: &PartExplained) -> bool {
+        let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
+        p.pixels >= 10 && p.pixels * 20 >= traced
+    }
+
     /// Reproduced pixels the image has not clipped: the evidence for the render.
     fn evidence(&self) -> u64 {
         self.pixels - self.clipped
@@ -560,10 +566,9 @@ impl Explained {
     /// The part it explains best, among the sizeable ones, in words: "74 % of GlassSphere's
     /// differing pixels".
     pub(crate) fn best_part(&self) -> Option<String> {
-        let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
         self.parts
             .iter()
-            .filter(|p| p.pixels >= 10 && p.pixels * 20 >= traced)
+            .filter(|p| self.sizeable(p))
             .max_by(|a, b| a.percent.total_cmp(&b.percent))
             .map(|p| {
                 let seen = if p.seen_in.is_empty() {
