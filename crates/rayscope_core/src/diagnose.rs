@@ -2532,7 +2532,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                 format!(
                     "{} {}: one way to get this picture, as is losing the refracted light of {}",
                     e.summary,
-                    if e.matches { match_how(d, e) } else { whole_how(e) },
+                    found_how(d, e),
                     acne::list(&e.loses_refraction, 4)
                 )
             } else if !e.blackens.is_empty() {
@@ -2543,7 +2543,7 @@ pub fn report_text(d: &Diagnosis, scene: &str) -> String {
                     } else {
                         e.summary.clone()
                     },
-                    if e.matches { match_how(d, e) } else { whole_how(e) },
+                    found_how(d, e),
                     acne::list(&e.blackens, 4)
                 )
             } else if e.matches {
@@ -2638,7 +2638,7 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
         return format!(
             "One way to get your picture, not necessarily yours: your image is rayscope's render with {} ({}), and just as much with {others}. These give the same picture, so the picture alone cannot tell which is yours, nor rule out another mistake with the same effect. Log the rays of a few of those pixels to find out (below).",
             e.summary,
-            if e.matches { match_how(d, e) } else { whole_how(e) }
+            found_how(d, e)
         );
     }
     if !e.loses_refraction.is_empty() {
@@ -2652,7 +2652,7 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
             "One way to get your picture, not necessarily yours: your {names} {is} only {their} reflection, with nothing of the light through {} where rayscope's {is} both. Rendering {} gives it ({}), but so does rayscope's render with every glass's refracted ray bringing back black: any mistake that loses the refracted light gives this picture (a refracted ray that starts on the wrong side, goes the wrong way or leaves the glass at once; a weight of 0; a ray never traced), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
             if e.loses_refraction.len() == 1 { "it" } else { "them" },
             e.summary,
-            if e.matches { match_how(d, e) } else { whole_how(e) }
+            found_how(d, e)
         );
     }
     let names = acne::list(&e.blackens, 4);
@@ -2664,7 +2664,7 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
     format!(
         "One way to get your picture, not necessarily yours: your {names} {is} black where rayscope's {is} not, and the rest is rayscope's render. Rendering {} gives it ({}), but so does rayscope's render with {names} painted black: any mistake that makes {their} rays bring back nothing gives this picture (a weight of 0, or one past 1 that clips; a NaN; a ray never traced; a hit kept that is not the nearest, in shadow), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
         e.summary,
-        if e.matches { match_how(d, e) } else { whole_how(e) }
+        found_how(d, e)
     )
 }
 
@@ -2743,6 +2743,16 @@ fn whole_how(e: &Explanation) -> String {
     format!(
         "accounts for the whole difference: its render reproduces {p:.0} % of the differing pixels, pixel for pixel or on average over {BLOCK}×{BLOCK} blocks (speckle falls where each tracer's rounding puts it), and removes {err:.0} % of the error"
     )
+}
+
+/// How a cause was found, in words: as a match ([`match_how`]) or as the whole difference
+/// reproduced ([`whole_how`]).
+fn found_how(d: &Diagnosis, e: &Explanation) -> String {
+    if e.matches {
+        match_how(d, e)
+    } else {
+        whole_how(e)
+    }
 }
 
 /// How much of the difference a partial explanation reproduces, in words.
