@@ -182,13 +182,21 @@ pub struct Explanation {
     /// offered as the cause.
     #[serde(skip_serializing_if = "Vec::is_empty")]
     pub same_as: Vec<String>,
+    /// Where rayscope's render with every entity of one kind casting no shadow gives the
+    /// picture as well as this render does: that kind's scene command (`Triangle`), one way to
+    /// get the picture that many mistakes share (empty otherwise). Not offered as the cause.
+    #[serde(skip_serializing_if = "String::is_empty")]
+    pub shadowless: String,
 }
 
 impl Explanation {
     /// True when this render is one way to get the picture that other mistakes share
     /// ([`Self::blackens`], [`Self::loses_refraction`], [`Self::same_as`]), not its cause.
     fn one_way(&self) -> bool {
-        !self.blackens.is_empty() || !self.loses_refraction.is_empty() || !self.same_as.is_empty()
+        !self.blackens.is_empty()
+            || !self.loses_refraction.is_empty()
+            || !self.same_as.is_empty()
+            || !self.shadowless.is_empty()
     }
 }
 
@@ -938,6 +946,7 @@ impl Candidate {
             blackens: Vec::new(),
             loses_refraction: Vec::new(),
             same_as: Vec::new(),
+            shadowless: String::new(),
         }
     }
 }
@@ -1089,6 +1098,58 @@ impl Scenes<'_> {
     fn get(&self, m: Mistakes) -> &Scene {
         &self.built[&Self::key(m)]
     }
+}
+
+/// Share of the differing pixels that rayscope's colours with an entity kind's shadows taken
+/// away must give (within the threshold) before a whole render is made to judge it.
+const SHADOWLESS_FIRST: f64 = 0.9;
+
+/// The entity kind (`Sphere`, `Plane`, `Triangle`, `ObjModel`) whose shadows, taken away
+/// from rayscope's render, give the picture as `gives` judges a whole render, with that render,
+/// and the number of renders tried: each kind the scene has, its `differing` pixels first (most of them must come
+/// out as the image has them) and only then a whole render.
+#[allow(clippy::too_many_arguments)]
+fn shadowless_kind(
+    scenes: &Scenes<'_>,
+    base: &RenderSettings,
+    image: &[u8],
+    differing: &[u32],
+    threshold: u8,
+    full: &FullRender<'_>,
+    gives: &dyn Fn(&[u8], &RenderSettings) -> bool,
+) -> (Option<(&'static str, Vec<u8>)>, usize) {
+    let scene = scenes.get(base.mistakes);
+    let w = base.width.max(1);
+    let pixels: Vec<(u32, u32)> = differing.iter().map(|&i| (i % w, i / w)).collect();
+    let mut kinds: Vec<&'static str> = scene.entities.iter().map(|e| e.kind).collect();
+    kinds.sort_unstable();
+    kinds.dedup();
+    let mut tried = 0;
+    for kind in kinds {
+        let s = RenderSettings {
+            mistakes: base.mistakes.with_shadowless(kind),
+            ..*base
+        };
+        tried += 1;
+        let some = render_pixels(scene, &s, &pixels);
+        let close = differing
+            .iter()
+            .enumerate()
+            .filter(|&(k, &i)| {
+                let (a, b) = (&some[3 * k..3 * k + 3], &image[3 * i as usize..3 * i as usize + 3]);
+                (0..3).all(|c| a[c].abs_diff(b[c]) < threshold)
+            })
+            .count();
+        if (close as f64) < SHADOWLESS_FIRST * differing.len() as f64 {
+            continue;
+        }
+        tried += 1;
+        let render = full(scenes, &s);
+        if gives(&render, &s) {
+            return (Some((kind, render)), tried);
+        }
+    }
+    (None, tried)
 }
 
 /// A whole render under some settings, of the scene their mistakes make, as RGB8 bytes.
@@ -1544,6 +1605,20 @@ pub fn diagnose(
                 }
             }
         }
+        if let Some(e) = explanations.first_mut().filter(|e| e.cause) {
+            let (kind, n) = shadowless_kind(&scenes, &base, image.rgb, &differing, threshold, &full, &|render, s| {
+                if e.matches {
+                    ties::judge(scenes.get(s.mistakes), s, render, image.rgb, false).matches
+                } else {
+                    Explained::of(render, &ours, image.rgb, (w, h), threshold, &differs, &traced).full()
+                }
+            });
+            tried += n;
+            if let Some((kind, _)) = kind {
+                e.shadowless = kind.to_string();
+                e.cause = false;
+            }
+        }
     }
     let mut fitted = if matches || constant || !fitted_applies(explanations.first()) {
         Vec::new()
@@ -1651,11 +1726,42 @@ pub fn diagnose(
             });
         }
         let reflectionless = reflectionless.map(|x| recognise_reflectionless(&glass, &x));
-        let lacks = lacks.filter(|(r, _)| {
+        // Shadows the picture lacks: every shadow of one kind of entity, the rest as rayscope's.
+        let shadows_of = |render: &[u8]| Explained::of(render, &ours, image.rgb, (w, h), threshold, &differs, &traced);
+        let (kind, n) = shadowless_kind(&scenes, &base, image.rgb, &differing, threshold, &full, &|render, _| {
+            shadows_of(render).shows_all()
+        });
+        tried += n;
+        let shadowless = kind.map(|(kind, render)| {
+            let x = shadows_of(&render);
+            // The whole difference is the shadows taken away: a catalogued render explaining a
+            // part of it is not its cause.
+            explanations.clear();
+            let names: Vec<String> = (scenes.get(base.mistakes).entities.iter())
+                .filter(|e| e.kind == kind)
+                .map(|e| e.name.clone())
+                .collect();
+            recognise_shadowless(kind, &names, &x)
+        });
+        let lacks = lacks.filter(|(r, x)| {
             blackened
                 .as_ref()
                 .is_none_or(|b| b.pixels < r.pixels || !r.entities.iter().all(|e| b.entities.contains(e)))
+                // Where what it reproduces is black (three in four), what lies behind is black
+                // and an entity that brings back nothing looks the same: no evidence it is missing.
+                && x.black_share() < 0.75
         });
+        // A catalogued render that explains no more than leaving the entities out shows only
+        // that they are missing there, which many mistakes (a model placed otherwise, a test
+        // that misses) share: it names nothing.
+        if let Some((_, x)) = &lacks {
+            explanations.retain(|e| {
+                e.explained
+                    .as_ref()
+                    .is_none_or(|y| e.one_way() || !no_more_than(y, x, false))
+            });
+        }
+        let lacks = lacks.map(|(r, x)| (r, x.shows_all()));
         // Where a catalogued render explains a part, entities missing from another part are
         // said only when they explain all of it.
         let lacks = lacks.filter(|(_, full)| *full || explanations.is_empty());
@@ -1680,6 +1786,7 @@ pub fn diagnose(
             .into_iter()
             .chain(blackened)
             .chain(reflectionless)
+            .chain(shadowless)
             .chain(acne::recognise(
                 scenes.file,
                 &without,
@@ -1942,6 +2049,17 @@ fn recognise_reflectionless(glass: &[String], lost: &Explained) -> Recognised {
         "Your {names} {shows} only the light through {it}, with nothing of {its} reflection, where rayscope's {shows} both: rayscope's render with every glass's reflected ray bringing back black gives {what}. Any mistake that loses the reflected light does it: a reflected ray never traced, started inside the glass or sent the wrong way, its weight taken as 0; so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below)."
     );
     seen("glass-reflection-lost", glass, text, lost)
+}
+
+/// The finding that the entities declared by `kind` (`names`) cast no shadow in the picture,
+/// which rayscope's render with shadow rays passing through them (`by`) shows.
+fn recognise_shadowless(kind: &str, names: &[String], by: &Explained) -> Recognised {
+    let kinds = missing::plural(kind);
+    let text = format!(
+        "Your {kinds} ({}) cast no shadows where rayscope's do: rayscope's render with every shadow ray passing through them gives your picture. They are seen and show in mirrors, so your intersection test finds them; look at your shadow test: a loop that tries only some kinds of entity (or skips the one the ray leaves), or a blocker's distance compared wrongly, gives this picture. Log the rays of a few of those pixels to find out which (below).",
+        acne::list(names, 6)
+    );
+    seen("shadows-missing", names, text, by)
 }
 
 /// A finding of what the picture shows (no catalogue name): `code`, the `entities` it is on,
@@ -2637,6 +2755,14 @@ fn one_way(d: &Diagnosis, e: &Explanation) -> String {
         let others = acne::list(&e.same_as, 3);
         return format!(
             "One way to get your picture, not necessarily yours: your image is rayscope's render with {} ({}), and just as much with {others}. These give the same picture, so the picture alone cannot tell which is yours, nor rule out another mistake with the same effect. Log the rays of a few of those pixels to find out (below).",
+            e.summary,
+            found_how(d, e)
+        );
+    }
+    if !e.shadowless.is_empty() {
+        let kinds = missing::plural(&e.shadowless);
+        return format!(
+            "One way to get your picture, not necessarily yours: your {kinds} cast no shadows where rayscope's do, and the rest is rayscope's render. Rendering {} gives it ({}), but so does rayscope's render with every shadow ray passing through the {kinds}: any mistake that makes your shadow test miss them gives this picture (a shadow test that tries only some kinds of entity, or skips the one the ray leaves; a blocker's distance compared wrongly), so the picture alone cannot tell which is yours. Log the rays of a few of those pixels to find out (below).",
             e.summary,
             found_how(d, e)
         );

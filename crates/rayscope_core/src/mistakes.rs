@@ -546,6 +546,13 @@ const REFRACTION_LOST: u64 = 1 << 63;
 /// [`Mistakes::with_reflection_lost`]); no catalogued mistake has it.
 const REFLECTION_LOST: u64 = 1 << 62;
 
+/// The entity kinds whose shadows [`Mistakes::with_shadowless`] takes away, each by its bit
+/// from [`SHADOWLESS_BIT`]; no catalogued mistake has them.
+const SHADOWLESS_KINDS: [&str; 4] = ["Sphere", "Plane", "Triangle", "ObjModel"];
+
+/// The bit of a set's mistakes for the first of [`SHADOWLESS_KINDS`], the others above it.
+const SHADOWLESS_BIT: u32 = 58;
+
 /// The largest colour scale `colour-scale=K` takes: at 256 every lit byte is already 255.
 const MAX_COLOUR_SCALE: f32 = 256.0;
 
@@ -635,6 +642,38 @@ impl Mistakes {
     #[inline]
     pub fn reflection_lost(self) -> bool {
         self.0 & REFLECTION_LOST != 0
+    }
+
+    /// The set with every entity declared by `command` (`Sphere`, `Plane`, `Triangle`,
+    /// `ObjModel`) casting no shadow: shadow rays pass through them, which many different
+    /// mistakes reduce to (a shadow test that tries only some kinds of entity, or skips the
+    /// entity the ray leaves), and which `diagnose` renders to tell whether a picture can name
+    /// one of them. It has no name and is never offered as a mistake. Another command leaves
+    /// the set as it is.
+    #[must_use]
+    pub fn with_shadowless(self, command: &str) -> Mistakes {
+        let bit = SHADOWLESS_KINDS
+            .iter()
+            .position(|&k| k == command)
+            .map_or(0, |k| 1 << (SHADOWLESS_BIT + k as u32));
+        Mistakes(self.0 | bit, self.1, self.2, self.3)
+    }
+
+    /// True when entities declared by `command` cast no shadow ([`Self::with_shadowless`]).
+    #[must_use]
+    #[inline]
+    pub fn shadowless(self, command: &str) -> bool {
+        SHADOWLESS_KINDS
+            .iter()
+            .position(|&k| k == command)
+            .is_some_and(|k| self.0 & (1 << (SHADOWLESS_BIT + k as u32)) != 0)
+    }
+
+    /// True when entities of some kind cast no shadow ([`Self::with_shadowless`]).
+    #[must_use]
+    #[inline]
+    pub fn any_shadowless(self) -> bool {
+        self.0 & (0b1111 << SHADOWLESS_BIT) != 0
     }
 
     /// True when `m` is in the set.

@@ -638,17 +638,25 @@ impl<I: Intersect> Intersect for Mistaken<'_, I> {
                 .filter(|h| h.t < t_max)
                 .map(|h| h.prim);
         }
-        if !self.mistakes.has(Mistake::OneSidedTriangles) && !self.mistakes.has(Mistake::StrictEdges) {
+        let shadowless = self.mistakes.any_shadowless();
+        if !self.mistakes.has(Mistake::OneSidedTriangles) && !self.mistakes.has(Mistake::StrictEdges) && !shadowless {
             return self.inner.occluder(ray, lo, t_max);
         }
-        // Any hit blocks, whichever the student's nearest-hit rule would keep.
+        // Any hit blocks, whichever the student's nearest-hit rule would keep, but one on an
+        // entity that casts no shadow.
+        let passes = |h: &Hit| {
+            shadowless && {
+                let entity = self.scene.prim_info(h.prim).0;
+                self.mistakes.shadowless(self.scene.entities[entity as usize].kind)
+            }
+        };
         let (mut lo, mut last): (f32, Last) = (lo, None);
         for _ in 0..MAX_CULLED {
             let hit = self.inner.intersect(ray, lo, t_max)?;
-            if !again(&hit, last) && !self.culled(ray, &hit) {
+            if !again(&hit, last) && !self.culled(ray, &hit) && !passes(&hit) {
                 return Some(hit.prim);
             }
-            if let Some(p) = self.coplanar_plane(ray, lo, hit.t, t_max) {
+            if let Some(p) = self.coplanar_plane(ray, lo, hit.t, t_max).filter(|p| !passes(p)) {
                 return Some(p.prim);
             }
             lo = past(&hit, last);

@@ -806,3 +806,27 @@ fn a_model_placed_otherwise_is_not_called_acne() {
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
     assert!(!text.contains("no-shadow-offset"), "{text}");
 }
+
+/// A shadow test that loops over the spheres alone (uncatalogued) takes away course scene 1's
+/// triangle's shadow, which a triangle test that rejects back faces does too. The picture cannot
+/// tell them apart: the report says the triangles cast no shadows and names no mistake.
+#[test]
+fn shadows_a_kind_of_entity_does_not_cast_are_said_and_named_nothing() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let (d, text) = searched(
+        &course.scene("sample_scene_1.txt"),
+        &["shadows-from-spheres-only"],
+        Options::new(60, 45),
+    );
+    assert!(
+        text.starts_with(
+            "Recognised from how your picture looks: Your triangles (Triangle) cast no shadows where rayscope's do"
+        ),
+        "{text}"
+    );
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(!text.lines().next().unwrap_or("").contains("one-sided"), "{text}");
+    assert!(d.next.is_some(), "the pixels to log are given\n{text}");
+}

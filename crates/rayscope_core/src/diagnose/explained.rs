@@ -230,8 +230,9 @@ impl Traced {
         out
     }
 
-    /// The entities the image turns black: those (not the background) of the parts whose traced
-    /// pixels are mostly (three in four) black in `image` and not in `ours`.
+    /// The entities the image turns black: the surfaces seen first (a mirror, not what it
+    /// shows; not the background) whose traced pixels are mostly (three in four) black in
+    /// `image` and not in `ours`, over all the parts seen on them.
     pub(crate) fn blackened(&self, ours: &[u8], image: &[u8]) -> Vec<String> {
         let mut black = vec![0u64; self.parts.len()];
         for (&i, &k) in self.pixels.iter().zip(&self.part_of) {
@@ -240,14 +241,25 @@ impl Traced {
                 black[k] += 1;
             }
         }
-        let mut entities: Vec<String> = Vec::new();
+        // Per surface seen first: its black pixels and all its pixels, in the parts' order.
+        let mut fronts: Vec<(&str, u64, u64)> = Vec::new();
         for (k, part) in self.parts.iter().enumerate() {
-            let mostly = black[k] * 4 >= self.counts[k] * 3;
-            if mostly && !part.material.is_empty() && !entities.contains(&part.entity) {
-                entities.push(part.entity.clone());
+            let front = part.seen_in.first().unwrap_or(&part.entity);
+            if part.seen_in.is_empty() && part.material.is_empty() {
+                continue;
+            }
+            match fronts.iter_mut().find(|f| f.0 == front) {
+                Some(f) => {
+                    f.1 += black[k];
+                    f.2 += self.counts[k];
+                }
+                None => fronts.push((front, black[k], self.counts[k])),
             }
         }
-        entities
+        (fronts.into_iter())
+            .filter(|&(_, b, n)| b * 4 >= n * 3)
+            .map(|(e, ..)| e.to_string())
+            .collect()
     }
 
     /// Traced pixels of part `k`.
@@ -556,6 +568,21 @@ impl Explained {
     pub(crate) fn sizeable(&self, p: &PartExplained) -> bool {
         let traced: u64 = self.parts.iter().map(|p| p.pixels).sum();
         p.pixels >= 10 && p.pixels * 20 >= traced
+    }
+
+    /// The share of the reproduced pixels (of the traced ones) that the image has black.
+    pub(crate) fn black_share(&self) -> f64 {
+        let (mut black, mut all) = (0.0, 0.0);
+        for p in &self.parts {
+            let got = p.pixels as f64 * p.percent / 100.0;
+            black += got * p.black_share;
+            all += got;
+        }
+        if all > 0.0 {
+            black / all
+        } else {
+            0.0
+        }
     }
 
     /// Reproduced pixels the image has not clipped: the evidence for the render.

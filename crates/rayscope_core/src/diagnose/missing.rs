@@ -67,7 +67,7 @@ fn singular(command: &str) -> &'static str {
 }
 
 /// The plural a kind's entities go by in a sentence.
-fn plural(command: &str) -> &'static str {
+pub(crate) fn plural(command: &str) -> &'static str {
     match command {
         "Sphere" => "spheres",
         "Plane" => "planes",
@@ -79,7 +79,7 @@ fn plural(command: &str) -> &'static str {
 /// The entities the picture lacks, where rayscope's render without them (from `without`, the
 /// full image for a set of the file's entity indices) explains the difference between `image`
 /// and `ours` at least in part ([`Explained::shows_part`]), the set explaining the most differing
-/// pixels, with whether it explains all of it ([`Explained::shows_all`]); `None` otherwise.
+/// pixels, with what its render explains; `None` otherwise.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn recognise(
     file: &SceneFile,
@@ -90,7 +90,7 @@ pub(crate) fn recognise(
     threshold: u8,
     differs: &[bool],
     traced: &Traced,
-) -> Option<(Recognised, bool)> {
+) -> Option<(Recognised, Explained)> {
     let (left, set, e) = candidates(file, traced)
         .into_iter()
         .map(|(left, set)| {
@@ -169,6 +169,6 @@ pub(crate) fn recognise(
             share: e.percent / 100.0,
             numbers,
         },
-        full,
+        e,
     ))
 }

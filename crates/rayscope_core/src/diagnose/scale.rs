@@ -96,6 +96,11 @@ pub(crate) fn words(k: f32, lights: usize, aa: u32, grey: Option<f32>) -> String
             "each light's colour ({g}, {g}, {g}) left out of the diffuse term (albedo × N·L, as if every light were white)"
         ));
     }
+    if let Some(g) = grey.filter(|&g| g < 1.0 && is(f64::from(g))) {
+        ways.push(format!(
+            "each light's colour ({g}, {g}, {g}) multiplied in twice (albedo × light × light × N·L)"
+        ));
+    }
     if aa >= 2 && is(f64::from(aa)) {
         ways.push(format!(
             "the -x {aa} grid's {} samples divided by {aa} instead of {}",
@@ -120,7 +125,9 @@ pub(crate) fn words(k: f32, lights: usize, aa: u32, grey: Option<f32>) -> String
     if !ways.is_empty() {
         s.push_str(" — ");
         s.push_str(&ways.join(", or "));
-        s.push_str(" gives exactly this");
+        s.push_str(&format!(
+            " gives exactly this, as does any other mistake that multiplies every colour by {k}"
+        ));
     }
     s
 }
@@ -139,6 +146,13 @@ mod tests {
         assert_eq!(candidates(k, 2, 4)[0], 0.5);
         assert!(words(0.5, 2, 4, None).contains("divided by their number"));
         assert!(!words(0.5, 3, 4, None).contains("divided by their number"));
+        // Two lights of grey 0.5: averaged, or each colour multiplied in twice.
+        let both = words(0.5, 2, 1, Some(0.5));
+        assert!(
+            both.contains("divided by their number") && both.contains("multiplied in twice"),
+            "{both}"
+        );
+        assert!(both.contains("any other mistake"), "{both}");
         assert!(words(2.0, 2, 1, Some(0.5)).contains("each light's colour (0.5, 0.5, 0.5) left out"));
         assert!(!words(2.0, 2, 1, Some(0.25)).contains("left out"));
         // Four times brighter where it is not clipped: the -x 4 grid divided by 4.

@@ -53,9 +53,10 @@ const TRIM: f64 = 0.02;
 /// A fixed member fits when its residual is at most this many levels (root mean square).
 const FIT_RMS: f64 = 0.6;
 
-/// A member other than the course's grid is the finding only where its residual is at most
-/// this share of the course's: the pixels that differ are few beside the edges that do not,
-/// so the course's residual over them all may be small too.
+/// A member other than the course's grid, or the course's grid shifted, is the finding only
+/// where its residual is below this share of the course's: the pixels that differ are few
+/// beside the edges that do not, so the course's residual over them all may be small too, and a
+/// picture whose bytes are made otherwise leaves a residual at every edge that no grid removes.
 const BETTER: f64 = 0.5;
 
 /// Fewest pixels that tell the members apart for a reading.
@@ -134,17 +135,24 @@ enum Member {
     Interior(u32),
     /// The course's grid at N moved by (dx, dy) pixels.
     Shifted(u32, [f64; 2]),
+    /// N samples on the pixel's diagonal, sample k at the course's k-th cell centre across and
+    /// down alike: one loop counter used for both axes.
+    Diagonal(u32),
 }
 
 impl Member {
     /// The grid's axes, x then y.
     fn axes(self) -> [Axis; 2] {
         let n = match self {
-            Member::Course(n) | Member::Corner(n) | Member::Interior(n) | Member::Shifted(n, _) => n,
+            Member::Course(n)
+            | Member::Corner(n)
+            | Member::Interior(n)
+            | Member::Shifted(n, _)
+            | Member::Diagonal(n) => n,
         };
         let nf = f64::from(n);
         match self {
-            Member::Course(_) => [Axis { c: 0.5, d: nf, n }; 2],
+            Member::Course(_) | Member::Diagonal(_) => [Axis { c: 0.5, d: nf, n }; 2],
             Member::Corner(_) => [Axis { c: 0.0, d: nf, n }; 2],
             Member::Interior(_) => [Axis { c: 1.0, d: nf + 1.0, n }; 2],
             Member::Shifted(_, s) => s.map(|s| Axis {
@@ -194,16 +202,19 @@ fn colour_at<I: crate::scene::Intersect>(integ: &Integrator<'_, I>, x: u32, y: u
 fn predict<I: crate::scene::Intersect>(integ: &Integrator<'_, I>, p: &Pixel, m: Member) -> [u8; 3] {
     let [ax, ay] = m.axes();
     let (xs, ys) = (ax.positions(), ay.positions());
+    let at: Vec<[f32; 2]> = if matches!(m, Member::Diagonal(_)) {
+        xs.iter().zip(&ys).map(|(&x, &y)| [x, y]).collect()
+    } else {
+        ys.iter().flat_map(|&y| xs.iter().map(move |&x| [x, y])).collect()
+    };
     let mut sum = Vec3A::ZERO;
-    for &oy in &ys {
-        for &ox in &xs {
-            let v = colour_at(integ, p.x, p.y, [ox, oy]);
-            if v.is_finite() {
-                sum += v;
-            }
+    for &o in &at {
+        let v = colour_at(integ, p.x, p.y, o);
+        if v.is_finite() {
+            sum += v;
         }
     }
-    let v = sum * (1.0 / (xs.len() * ys.len()) as f32);
+    let v = sum * (1.0 / at.len() as f32);
     [to_byte(v.x), to_byte(v.y), to_byte(v.z)]
 }
 
@@ -296,8 +307,9 @@ fn fixed_members() -> Vec<Member> {
     let course = levels.clone().map(Member::Course);
     let corner = levels.clone().map(Member::Corner);
     // One interior sample is the course's one sample at the pixel's centre.
-    let interior = levels.filter(|&n| n > 1).map(Member::Interior);
-    course.chain(corner).chain(interior).collect()
+    let interior = levels.clone().filter(|&n| n > 1).map(Member::Interior);
+    let diagonal = levels.filter(|&n| n > 1).map(Member::Diagonal);
+    course.chain(corner).chain(interior).chain(diagonal).collect()
 }
 
 /// Reads the student's anti-aliasing from `theirs` (RGB8 of the settings' size) against
@@ -370,7 +382,10 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
         .filter(|f| f.1 <= FIT_RMS)
         .min_by(|a, b| a.1.total_cmp(&b.1));
     match best {
-        Some((m, r)) if course_rms > FIT_RMS || r <= BETTER * course_rms => {
+        // Strictly better, whatever the course's grid leaves: where it fits exactly nothing
+        // fits better, and a picture off by a level everywhere (its bytes made otherwise)
+        // leaves a residual at the edges that no grid takes away.
+        Some((m, r)) if m != Member::Course(declared) && r < BETTER * course_rms => {
             return Reading {
                 level: Some(m.level()),
                 fitted: Some(finding(m, r, &facts)),
@@ -392,7 +407,7 @@ pub(crate) fn read<I: crate::scene::Intersect + Sync>(
         vec![declared, nearest]
     };
     let (m, r) = fit_shifts(integ, &pixels, &levels);
-    if r <= FIT_RMS {
+    if r <= FIT_RMS && r < BETTER * course_rms {
         return Reading {
             level: Some(m.level()),
             fitted: Some(finding(m, r, &facts)),
@@ -799,6 +814,13 @@ fn finding(m: Member, rms: f64, facts: &Facts) -> Fitted {
             format!(
                 "Your anti-aliasing samples sit at k/{} of the pixel {theirs_at}, none on its edges{count} ({from}); {ours_at}.",
                 n + 1
+            ),
+        ),
+        Member::Diagonal(_) => (
+            "aa-diagonal",
+            format!(
+                "Your anti-aliasing samples lie on the pixel's diagonal, at {n} places, the k-th at the k-th cell centre across and down alike ({}), where the course's {d}×{d} cover the whole pixel ({from}): one loop counter used for both axes does this.",
+                ax.said()
             ),
         ),
         Member::Shifted(_, s) => {

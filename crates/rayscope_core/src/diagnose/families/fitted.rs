@@ -9,7 +9,7 @@ use serde::Serialize;
 pub struct Fitted {
     /// What was fitted and which member fits: `fresnel-none`, `fresnel-half`,
     /// `fresnel-constant`, `fresnel-schlick` or `fresnel-curve`; `aa-level`, `aa-corner`,
-    /// `aa-interior`, `aa-shifted`, `aa-jittered`, `aa-jittered-cells` or `aa-stage1`.
+    /// `aa-interior`, `aa-diagonal`, `aa-shifted`, `aa-jittered`, `aa-jittered-cells` or `aa-stage1`.
     pub code: &'static str,
     /// One sentence for the student, the fitted value against the course's.
     pub text: String,
