@@ -1664,7 +1664,7 @@ pub fn diagnose(
                 .map(|o| o.film.to_rgb8())
                 .unwrap_or_default()
         };
-        let lacks = missing::recognise(
+        let (lacks, left_out) = missing::recognise(
             scenes.file,
             &gone,
             &ours,
@@ -1751,16 +1751,14 @@ pub fn diagnose(
                 // and an entity that brings back nothing looks the same: no evidence it is missing.
                 && x.black_share() < 0.75
         });
-        // A catalogued render that explains no more than leaving the entities out shows only
-        // that they are missing there, which many mistakes (a model placed otherwise, a test
-        // that misses) share: it names nothing.
-        if let Some((_, x)) = &lacks {
-            explanations.retain(|e| {
-                e.explained
-                    .as_ref()
-                    .is_none_or(|y| e.one_way() || !no_more_than(y, x, false))
-            });
-        }
+        // A catalogued render that explains no more than leaving some entities out (whether or
+        // not that render shows a part itself) shows only that they are missing there, which
+        // many mistakes (a model placed otherwise, a test that misses) share: it names nothing.
+        explanations.retain(|e| {
+            e.explained
+                .as_ref()
+                .is_none_or(|y| e.one_way() || !left_out.iter().any(|x| no_more_than(y, x, false)))
+        });
         let lacks = lacks.map(|(r, x)| (r, x.shows_all()));
         // Where a catalogued render explains a part, entities missing from another part are
         // said only when they explain all of it.

@@ -1,8 +1,9 @@
 //! `diagnose` fits the student's anti-aliasing sample grid to their picture: grids the
 //! student's tracer (`student/`) plants (cells' corners, spaced inside the pixel, shifted by
 //! 3/8 px, 3×3 where the flags say 4×4) are fitted back and said against the course's; the
-//! correct grid, samples jittered within each cell, and a stage-1 picture anti-aliased as
-//! `-x` asks give no finding.
+//! correct grid, samples jittered within each cell, a stage-1 picture anti-aliased as `-x`
+//! asks, and rayscope's own picture with one pixel off give no finding; samples on the pixel's
+//! diagonal are fitted as that.
 
 mod diagnosing;
 mod student;
@@ -11,7 +12,7 @@ use std::path::{Path, PathBuf};
 
 use diagnosing::{diagnosed, Flags};
 use rayscope_core::diagnose::{report_text, Diagnosis, Fitted};
-use rayscope_core::Stage;
+use rayscope_core::{RenderSettings, Stage};
 use student::Options;
 
 const W: u32 = 80;
@@ -312,4 +313,69 @@ fn samples_jittered_over_the_pixel_are_allowed() {
         text.starts_with("Your image is rayscope's render but for its anti-aliasing: Your samples are jittered at random within the pixel"),
         "{text}"
     );
+}
+
+/// Samples whose inner loop reads the outer loop's counter (uncatalogued) lie on the pixel's
+/// diagonal: no grid of the family is that, so it is fitted as the diagonal it is, with the
+/// positions said, not as another grid, a jitter or another level.
+#[test]
+fn samples_on_the_pixel_s_diagonal_are_fitted_as_such() {
+    let Some(path) = scene("sample_scene_1.txt") else {
+        return;
+    };
+    let opts = Options {
+        aa: 2,
+        ..Options::new(W, H)
+    };
+    let flags = Flags {
+        aa: 2,
+        ..Flags::of(opts)
+    };
+    let d = diagnosed(&path, &["aa-one-counter"], opts, flags).0;
+    let text = report_text(&d, "scene.txt");
+    let f = aa_finding(&d);
+    assert_eq!(f.code, "aa-diagonal", "{text}");
+    assert!(!f.allowed, "{text}");
+    assert_eq!((f.numbers["start_x"], f.numbers["step_x"]), (0.25, 0.5), "{text}");
+    assert!(d.explanations.iter().all(|e| !e.cause), "{text}");
+    assert!(
+        text.starts_with(
+            "No known mistake explains your picture; your anti-aliasing differs: Your anti-aliasing samples lie on the pixel's diagonal, at 2 places"
+        ),
+        "{text}"
+    );
+}
+
+/// rayscope's own picture with one pixel a level brighter is a match with a pixel beyond its
+/// ties: no anti-aliasing finding, whose grid would be the course's own.
+#[test]
+fn one_pixel_off_reads_no_anti_aliasing() {
+    let Some(path) = scene("sample_scene_1.txt") else {
+        return;
+    };
+    let file = rayscope_scene::load(&path).expect("scene");
+    let settings = RenderSettings {
+        width: W,
+        height: H,
+        aa: 1,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let never = std::sync::atomic::AtomicBool::new(false);
+    let mut rgb = rayscope_core::render(&rayscope_core::Scene::from_file(&file), &settings, &|_, _| {}, &never)
+        .expect("render")
+        .film
+        .to_rgb8();
+    let p = ((30 * W + 50) * 3) as usize;
+    rgb[p] = if rgb[p] == 255 { 254 } else { rgb[p] + 1 };
+    let image = rayscope_core::diagnose::Image {
+        width: W,
+        height: H,
+        rgb: &rgb,
+        alpha: None,
+    };
+    let d = rayscope_core::diagnose::diagnose(&file, &settings, image, &Default::default()).expect("sizes agree");
+    let text = report_text(&d, "scene.txt");
+    assert!(d.fitted.iter().all(|f| !f.code.starts_with("aa-")), "{text}");
+    assert!(!text.contains("anti-aliasing differs"), "{text}");
 }

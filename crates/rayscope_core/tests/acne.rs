@@ -76,8 +76,18 @@ fn other_mistakes_are_not_called_acne() {
         "reflect-sign",
     ] {
         let (d, text) = run(&scene, &[bug], 160, 120, 1);
-        assert!(d.recognised.is_empty(), "{bug}: called acne:\n{text}");
+        assert!(
+            d.recognised.iter().all(|r| r.code != "shadow-acne"),
+            "{bug}: called acne:\n{text}"
+        );
         let first = text.lines().next().unwrap_or_default();
         assert!(!first.contains("acne"), "{bug}:\n{text}");
+        // A reflection sent into the mirror leaves the mirror black: said as what it is.
+        if bug == "reflect-sign" {
+            assert!(
+                first.starts_with("Recognised from how your picture looks: Your MirrorSphere is black"),
+                "{text}"
+            );
+        }
     }
 }

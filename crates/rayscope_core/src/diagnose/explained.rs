@@ -528,9 +528,23 @@ impl Explained {
     /// that changes the whole picture matches a part of another's by chance only), and leaving
     /// the areas the image has right as they are (a mistake that is not the image's removes a
     /// shadow the image keeps). Clipped pixels count for nothing here: any mistake that
-    /// brightens enough reproduces them.
+    /// brightens enough reproduces them; nor, short of the whole difference (where painting
+    /// black is tried against it), do black ones: any mistake that loses the light does.
     pub(crate) fn partial(&self) -> bool {
-        self.shows_part() && self.broken_areas as f64 <= AREA_BREAKS_PER_FIX * self.evidence() as f64
+        self.shows_part()
+            && self.broken_areas as f64 <= AREA_BREAKS_PER_FIX * self.evidence() as f64
+            && (self.percent >= FULL_PERCENT || self.shows_part_beyond_black())
+    }
+
+    /// True when the whole share, or a sizeable part's, reaches its threshold without the
+    /// pixels the image has clipped or black.
+    fn shows_part_beyond_black(&self) -> bool {
+        let whole = self.percent * (1.0 - self.clipped as f64 / self.pixels.max(1) as f64 - self.black_share());
+        whole >= WHOLE_PERCENT
+            || self
+                .parts
+                .iter()
+                .any(|p| self.sizeable(p) && p.percent * (1.0 - p.clipped_share - p.black_share) >= PART_PERCENT)
     }
 
     /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing

@@ -79,7 +79,8 @@ pub(crate) fn plural(command: &str) -> &'static str {
 /// The entities the picture lacks, where rayscope's render without them (from `without`, the
 /// full image for a set of the file's entity indices) explains the difference between `image`
 /// and `ours` at least in part ([`Explained::shows_part`]), the set explaining the most differing
-/// pixels, with what its render explains; `None` otherwise.
+/// pixels, with what its render explains; `None` otherwise. Beside it, what each set tried
+/// explains, whether or not it shows a part.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn recognise(
     file: &SceneFile,
@@ -90,16 +91,23 @@ pub(crate) fn recognise(
     threshold: u8,
     differs: &[bool],
     traced: &Traced,
-) -> Option<(Recognised, Explained)> {
-    let (left, set, e) = candidates(file, traced)
+) -> (Option<(Recognised, Explained)>, Vec<Explained>) {
+    let tried: Vec<(Left, Vec<usize>, Explained)> = candidates(file, traced)
         .into_iter()
         .map(|(left, set)| {
             let render = without(&set);
             let e = Explained::of(&render, ours, image, size, threshold, differs, traced);
             (left, set, e)
         })
+        .collect();
+    let all: Vec<Explained> = tried.iter().map(|(.., e)| e.clone()).collect();
+    let best = tried
+        .into_iter()
         .filter(|(.., e)| e.shows_part())
-        .max_by(|a, b| (a.2.shows_all(), a.2.pixels).cmp(&(b.2.shows_all(), b.2.pixels)))?;
+        .max_by(|a, b| (a.2.shows_all(), a.2.pixels).cmp(&(b.2.shows_all(), b.2.pixels)));
+    let Some((left, set, e)) = best else {
+        return (None, all);
+    };
     let names: Vec<String> = set.iter().map(|&i| file.entities[i].name.clone()).collect();
     let quoted: Vec<String> = names.iter().map(|n| format!("'{n}'")).collect();
     let full = e.shows_all();
@@ -159,16 +167,14 @@ pub(crate) fn recognise(
     numbers.insert("entities", set.len() as f64);
     numbers.insert("percent_explained", e.percent);
     numbers.insert("error_removed_percent", e.error_percent);
-    Some((
-        Recognised {
-            code: "entities-missing",
-            mistake: "",
-            text,
-            entities: names,
-            pixels: e.pixels,
-            share: e.percent / 100.0,
-            numbers,
-        },
-        e,
-    ))
+    let found = Recognised {
+        code: "entities-missing",
+        mistake: "",
+        text,
+        entities: names,
+        pixels: e.pixels,
+        share: e.percent / 100.0,
+        numbers,
+    };
+    (Some((found, e)), all)
 }

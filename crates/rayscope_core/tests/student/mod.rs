@@ -225,6 +225,9 @@ impl Student {
                 let mut rng = Rng(u64::from(y * w + x));
                 for j in 0..n {
                     for i in 0..n {
+                        // Uncatalogued, `aa-one-counter`: the inner loop's position taken from
+                        // the outer loop's counter, so every sample lies on the diagonal.
+                        let j = if self.bug("aa-one-counter") { i } else { j };
                         let (ox, oy) = self.offset(i, j, &mut rng);
                         let u = (x as f64 + ox + self.opts.shift[0]) / w as f64;
                         let v = (y as f64 + oy + self.opts.shift[1]) / h as f64;
