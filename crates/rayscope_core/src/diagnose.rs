@@ -1726,11 +1726,16 @@ pub fn diagnose(
             });
         }
         let reflectionless = reflectionless.map(|x| recognise_reflectionless(&glass, &x));
-        // Shadows the picture lacks: every shadow of one kind of entity, the rest as rayscope's.
+        // Shadows the picture lacks: every shadow of one kind of entity, the rest as rayscope's
+        // (unless a cause found is already said to be one way to get that).
         let shadows_of = |render: &[u8]| Explained::of(render, &ours, image.rgb, (w, h), threshold, &differs, &traced);
-        let (kind, n) = shadowless_kind(&scenes, &base, image.rgb, &differing, threshold, &full, &|render, _| {
-            shadows_of(render).shows_all()
-        });
+        let (kind, n) = if explanations.iter().any(|e| !e.shadowless.is_empty()) {
+            (None, 0)
+        } else {
+            shadowless_kind(&scenes, &base, image.rgb, &differing, threshold, &full, &|render, _| {
+                shadows_of(render).shows_all()
+            })
+        };
         tried += n;
         let shadowless = kind.map(|(kind, render)| {
             let x = shadows_of(&render);
@@ -2723,7 +2728,7 @@ pub fn headline(d: &Diagnosis) -> String {
             match_how(d, e)
         ),
         Some(e) if e.cause => format!("Explained: {} {}.\n{fitted}", e.summary, whole_how(e)),
-        _ if !d.recognised.is_empty() => recognised_lines(d),
+        _ if !d.recognised.is_empty() => format!("{}{fitted}", recognised_lines(d)),
         _ if only_allowed(&d.fitted) => {
             let found: Vec<&str> = d.fitted.iter().map(|f| f.text.as_str()).collect();
             format!(

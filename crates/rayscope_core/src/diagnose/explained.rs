@@ -230,9 +230,10 @@ impl Traced {
         out
     }
 
-    /// The entities the image turns black: the surfaces seen first (a mirror, not what it
-    /// shows; not the background) whose traced pixels are mostly (three in four) black in
-    /// `image` and not in `ours`, over all the parts seen on them.
+    /// The entities the image turns black: those (not the background) of the parts seen
+    /// directly whose traced pixels are mostly (three in four) black in `image` and not in
+    /// `ours`; and where what a mirror shows is black but for no such entity, the mirror, when
+    /// three in four of the traced pixels of all the parts seen in it are black.
     pub(crate) fn blackened(&self, ours: &[u8], image: &[u8]) -> Vec<String> {
         let mut black = vec![0u64; self.parts.len()];
         for (&i, &k) in self.pixels.iter().zip(&self.part_of) {
@@ -241,25 +242,38 @@ impl Traced {
                 black[k] += 1;
             }
         }
-        // Per surface seen first: its black pixels and all its pixels, in the parts' order.
-        let mut fronts: Vec<(&str, u64, u64)> = Vec::new();
+        let mostly = |b: u64, n: u64| b * 4 >= n * 3;
+        let mut entities: Vec<String> = Vec::new();
         for (k, part) in self.parts.iter().enumerate() {
-            let front = part.seen_in.first().unwrap_or(&part.entity);
-            if part.seen_in.is_empty() && part.material.is_empty() {
-                continue;
-            }
-            match fronts.iter_mut().find(|f| f.0 == front) {
-                Some(f) => {
-                    f.1 += black[k];
-                    f.2 += self.counts[k];
-                }
-                None => fronts.push((front, black[k], self.counts[k])),
+            let direct = part.seen_in.is_empty() && !part.material.is_empty();
+            if direct && mostly(black[k], self.counts[k]) && !entities.contains(&part.entity) {
+                entities.push(part.entity.clone());
             }
         }
-        (fronts.into_iter())
-            .filter(|&(_, b, n)| b * 4 >= n * 3)
-            .map(|(e, ..)| e.to_string())
-            .collect()
+        // Per mirror seen first: the black and all traced pixels of the parts seen in it that
+        // no entity found black above explains.
+        let mut mirrors: Vec<(&str, u64, u64)> = Vec::new();
+        for (k, part) in self.parts.iter().enumerate() {
+            let Some(front) = part.seen_in.first() else {
+                continue;
+            };
+            if entities.contains(&part.entity) {
+                continue;
+            }
+            match mirrors.iter_mut().find(|m| m.0 == front) {
+                Some(m) => {
+                    m.1 += black[k];
+                    m.2 += self.counts[k];
+                }
+                None => mirrors.push((front, black[k], self.counts[k])),
+            }
+        }
+        for (mirror, b, n) in mirrors {
+            if mostly(b, n) && !entities.iter().any(|e| e == mirror) {
+                entities.push(mirror.to_string());
+            }
+        }
+        entities
     }
 
     /// Traced pixels of part `k`.
@@ -528,23 +542,9 @@ impl Explained {
     /// that changes the whole picture matches a part of another's by chance only), and leaving
     /// the areas the image has right as they are (a mistake that is not the image's removes a
     /// shadow the image keeps). Clipped pixels count for nothing here: any mistake that
-    /// brightens enough reproduces them; nor, short of the whole difference (where painting
-    /// black is tried against it), do black ones: any mistake that loses the light does.
+    /// brightens enough reproduces them.
     pub(crate) fn partial(&self) -> bool {
-        self.shows_part()
-            && self.broken_areas as f64 <= AREA_BREAKS_PER_FIX * self.evidence() as f64
-            && (self.percent >= FULL_PERCENT || self.shows_part_beyond_black())
-    }
-
-    /// True when the whole share, or a sizeable part's, reaches its threshold without the
-    /// pixels the image has clipped or black.
-    fn shows_part_beyond_black(&self) -> bool {
-        let whole = self.percent * (1.0 - self.clipped as f64 / self.pixels.max(1) as f64 - self.black_share());
-        whole >= WHOLE_PERCENT
-            || self
-                .parts
-                .iter()
-                .any(|p| self.sizeable(p) && p.percent * (1.0 - p.clipped_share - p.black_share) >= PART_PERCENT)
+        self.shows_part() && self.broken_areas as f64 <= AREA_BREAKS_PER_FIX * self.evidence() as f64
     }
 
     /// True when the render explains the whole difference: [`FULL_PERCENT`] of the differing

@@ -891,16 +891,20 @@ function compareDiagnosis(d) {
     box.append(ol);
   };
   // A render that matches by turning entities black, as painting them black does too, by losing
-  // glass's refracted light, as losing it any other way does too, or as other mistakes' renders
-  // do, is one way to get the picture: listed with the causes, said as what it is.
+  // glass's refracted light or a kind's shadows, as losing them any other way does too, or as
+  // other mistakes' renders do, is one way to get the picture: listed with the causes, said as
+  // what it is.
   const lost = (e) => Boolean(e.loses_refraction && e.loses_refraction.length);
   const twins = (e) => Boolean(e.same_as && e.same_as.length);
-  const oneWay = (e) => Boolean(e.blackens && e.blackens.length) || lost(e) || twins(e);
+  const shadowless = (e) => Boolean(e.shadowless);
+  const oneWay = (e) => Boolean(e.blackens && e.blackens.length) || lost(e) || twins(e) || shadowless(e);
+  const kinds = { Sphere: "spheres", Plane: "planes", Triangle: "triangles", ObjModel: "OBJ models" };
   list(r.explanations.filter((e) => e.cause || oneWay(e)), "What explains it, best first:", "explanations", (e) => {
     const how = e.psnr_db == null ? "exactly" : `at ${db(e.psnr_db)}, each pixel that differs within its ties`;
     // A one-coloured picture is what many renders are: an identical one is a lead, not its match.
     if (plain && e.psnr_db == null) return `${e.summary} renders it too, pixel for pixel: one way to get this picture. `;
     if (twins(e)) return `Your image matches ${e.summary}, ${how}: one way to get this picture, as is ${e.same_as.join(", and ")}: the picture alone cannot tell which is yours. `;
+    if (shadowless(e)) return `${e.summary} gives your picture: one way to get it, as is every shadow of the ${kinds[e.shadowless] || e.shadowless} taken away any other way. `;
     if (lost(e)) return `${e.summary} gives your picture: one way to get it, as is losing the refracted light of ${e.loses_refraction.join(", ")} any other way. `;
     if (oneWay(e)) return `Your image matches ${e.summary}, ${how}: one way to get this picture, as is painting ${e.blackens.join(", ")} black. `;
     if (e.matches) return `Your image matches ${e.summary}, ${how}; rayscope's render is at ${db(r.psnr_db)}. `;
