@@ -126,6 +126,31 @@ fn a_grid_shifted_by_three_eighths_is_fitted_back() {
     );
 }
 
+/// A sample at x − ½ where the course takes x + ½ (a sign slip): the whole picture one pixel
+/// left and up, fitted back as a shift of a whole pixel on each axis, on course scene 2 too.
+#[test]
+fn a_grid_shifted_by_a_whole_pixel_is_fitted_back() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for name in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+        let opts = Options {
+            shift: [-1.0, -1.0],
+            ..Options::new(W, H)
+        };
+        let d = run(&course.scene(name), opts, 1, Stage::Two);
+        let text = report_text(&d, "scene.txt");
+        let f = aa_finding(&d);
+        assert_eq!(f.code, "aa-shifted", "{name}\n{text}");
+        for key in ["shift_x", "shift_y"] {
+            let s = f.numbers[key];
+            assert!((s + 1.0).abs() <= 1.0 / 64.0, "{name}: {key} {s}\n{text}");
+        }
+        assert!(text.contains("1 px left and 1 px up of the course's"), "{name}\n{text}");
+        assert!(d.explanations.iter().all(|e| !e.cause), "{name}\n{text}");
+    }
+}
+
 /// 3×3 samples where the flags say 4×4: the edges show the level, and the search's `-x 3` is
 /// the cause, with the level read beneath it.
 #[test]

@@ -823,7 +823,9 @@ fn shadows_a_kind_of_entity_does_not_cast_are_said_and_named_nothing() {
         Options::new(60, 45),
     );
     assert!(
-        text.starts_with("One way to get your picture, not necessarily yours: your triangles cast no shadows where rayscope's do"),
+        text.starts_with(
+            "One way to get your picture, not necessarily yours: your triangles cast no shadows where rayscope's do"
+        ),
         "{text}"
     );
     assert!(d.explanations.iter().all(|e| !e.cause), "{text}");

@@ -59,6 +59,10 @@ const FIT_RMS: f64 = 0.6;
 /// picture whose bytes are made otherwise leaves a residual at every edge that no grid removes.
 const BETTER: f64 = 0.5;
 
+/// Largest shift of the course's grid fitted, in pixels per axis: a whole pixel, as a sample
+/// taken at x − ½ where the course takes x + ½ puts it.
+const MAX_SHIFT: f64 = 1.0;
+
 /// Fewest pixels that tell the members apart for a reading.
 const MIN_PIXELS: usize = 30;
 
@@ -458,7 +462,7 @@ fn fit_shift<I: crate::scene::Intersect + Sync>(
             for k in -reach..=reach {
                 let mut t = s;
                 t[axis] = centre + f64::from(k) * step;
-                if k == 0 || t[axis].abs() > 0.5 {
+                if k == 0 || t[axis].abs() > MAX_SHIFT {
                     continue;
                 }
                 let c = cost(t);
@@ -472,15 +476,16 @@ fn fit_shift<I: crate::scene::Intersect + Sync>(
 }
 
 /// The course's grid moved, at the one of `levels` and by the shift that fit `pixels` best:
-/// each axis searched over a few pixels in eighths of a pixel, then in thirty-seconds and
-/// sixty-fourths around the best, and the best checked on all of them.
+/// each axis searched over half a pixel each way in eighths of a pixel, three times around
+/// the best so far, then in thirty-seconds and sixty-fourths, and the best checked on all of
+/// them.
 fn fit_shifts<I: crate::scene::Intersect + Sync>(
     integ: &Integrator<'_, I>,
     pixels: &[&Pixel],
     levels: &[u32],
 ) -> (Member, f64) {
     let some = spread(pixels, SHIFT_PIXELS);
-    let schedule = [(0.125, 4), (0.125, 4), (1.0 / 32.0, 2), (1.0 / 64.0, 1)];
+    let schedule = [(0.125, 4), (0.125, 4), (0.125, 4), (1.0 / 32.0, 2), (1.0 / 64.0, 1)];
     let (n, s, _) = levels
         .iter()
         .map(|&n| {
