@@ -1625,6 +1625,10 @@ pub fn diagnose(
     } else {
         families::fit(scenes.get(base.mistakes), &base, image.rgb)
     };
+    // Where the samples sit in their pixels changes every edge of the picture alike: a member
+    // of their family (another level, the cells' corners) that explains only a part of it does
+    // so by chance (a shift of another size moves the same smooth walls the same way).
+    explanations.retain(|e| e.cause || e.one_way() || !aa_members(e) || e.settings.is_empty() && e.mistakes.is_empty());
     let best = explanations.first();
     if let Some(f) = aa.fitted.filter(|_| best.is_none_or(|e| !e.cause || aa_members(e))) {
         fitted.insert(0, f);
