@@ -191,7 +191,8 @@ pub struct Explanation {
 
 impl Explanation {
     /// True when this render is one way to get the picture that other mistakes share
-    /// ([`Self::blackens`], [`Self::loses_refraction`], [`Self::same_as`]), not its cause.
+    /// ([`Self::blackens`], [`Self::loses_refraction`], [`Self::same_as`],
+    /// [`Self::shadowless`]), not its cause.
     fn one_way(&self) -> bool {
         !self.blackens.is_empty()
             || !self.loses_refraction.is_empty()
@@ -1106,8 +1107,9 @@ const SHADOWLESS_FIRST: f64 = 0.9;
 
 /// The entity kind (`Sphere`, `Plane`, `Triangle`, `ObjModel`) whose shadows, taken away
 /// from rayscope's render, give the picture as `gives` judges a whole render, with that render,
-/// and the number of renders tried: each kind the scene has, its `differing` pixels first (most of them must come
-/// out as the image has them) and only then a whole render.
+/// and the number of renders tried: each kind the scene has, its `differing` pixels first
+/// ([`SHADOWLESS_FIRST`] of them must come out as the image has them), and only then a whole
+/// render.
 #[allow(clippy::too_many_arguments)]
 fn shadowless_kind(
     scenes: &Scenes<'_>,
@@ -1628,7 +1630,7 @@ pub fn diagnose(
     // Where the samples sit in their pixels changes every edge of the picture alike: a member
     // of their family (another level, the cells' corners) that explains only a part of it does
     // so by chance (a shift of another size moves the same smooth walls the same way).
-    explanations.retain(|e| e.cause || e.one_way() || !aa_members(e) || e.settings.is_empty() && e.mistakes.is_empty());
+    explanations.retain(|e| e.cause || e.one_way() || !aa_members(e));
     let best = explanations.first();
     if let Some(f) = aa.fitted.filter(|_| best.is_none_or(|e| !e.cause || aa_members(e))) {
         fitted.insert(0, f);
@@ -2116,7 +2118,9 @@ fn fresnel_members(e: &Explanation) -> bool {
 /// True when `e` changes the anti-aliasing level or puts the samples at the cells' corners
 /// ('pixel-corners') and nothing else: a member of the anti-aliasing family.
 fn aa_members(e: &Explanation) -> bool {
-    e.settings.iter().all(|s| s.starts_with("-x ")) && e.mistakes.iter().all(|m| m == Mistake::PixelCorners.name())
+    !(e.settings.is_empty() && e.mistakes.is_empty())
+        && e.settings.iter().all(|s| s.starts_with("-x "))
+        && e.mistakes.iter().all(|m| m == Mistake::PixelCorners.name())
 }
 
 /// True when `fitted` holds findings and every one is a correct way too (random samples).
