@@ -377,9 +377,42 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     #[must_use]
     #[inline(always)]
     pub(crate) fn cell_point(&self, s: u32, rng: &Sampler) -> [f32; 2] {
-        let nn = self.grid * self.grid;
-        let (cell, path) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
+        let (cell, path) = self.cell_and_path(s);
         rng.get2d_in_stratum(Draw::Pixel.dim(0), cell, path)
+    }
+
+    /// Sample `s`'s cell and its place among the cell's paths.
+    #[inline(always)]
+    fn cell_and_path(&self, s: u32) -> (u32, u32) {
+        let nn = self.grid * self.grid;
+        if s < nn {
+            (s, 0)
+        } else {
+            (s % nn, s / nn)
+        }
+    }
+
+    /// True when a sample's pixel and lens points come from one scrambled Sobol sequence over
+    /// the whole pixel rather than one per cell: a lens render whose grid side N is a power of
+    /// two. The first N²·2^q points of that sequence put 2^q in every cell, as the cells' own
+    /// sequences do, and the pixel and lens points of all the pixel's samples together are one
+    /// 4-D net, which blurs out-of-focus edges with less noise than pixel and lens points
+    /// stratified apart.
+    #[inline(always)]
+    pub(crate) fn whole_pixel_lens(&self) -> bool {
+        self.thin_lens() && self.grid.is_power_of_two()
+    }
+
+    /// Sample `s`'s stratum and index for its camera numbers ([`Sampler::get2d_in_stratum`],
+    /// [`Sampler::lens_in_stratum`]): the whole pixel's where [`Self::whole_pixel_lens`], else
+    /// its cell's.
+    #[inline(always)]
+    pub(crate) fn camera_stratum(&self, s: u32) -> (u32, u32) {
+        if self.whole_pixel_lens() {
+            (0, s)
+        } else {
+            self.cell_and_path(s)
+        }
     }
 
     /// Paths traced through each `-x` grid position: 2^q when a stochastic effect is on, else 1.
@@ -429,7 +462,12 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             ox = (ox * n - 0.5).round() / n;
             oy = (oy * n - 0.5).round() / n;
         }
-        if self.jitters() {
+        if self.whole_pixel_lens() {
+            // The point in the pixel, moved as a mistake moves the cell.
+            let [u, v] = rng.get2d(Draw::Pixel.dim(0));
+            let [cx, cy] = self.cell_offset(s);
+            [ox, oy] = [u + (ox - cx), v + (oy - cy)];
+        } else if self.jitters() {
             [ox, oy] = self.jittered_offset([ox, oy], self.cell_point(s, rng));
         }
         let w = self.settings.width as f32;
@@ -462,7 +500,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         let (u, v) = self.position_in_cell(x, y, s, rng);
         let (u, v) = (u + nudge[0], v + nudge[1]);
         if self.thin_lens() {
-            let [l0, l1] = rng.get2d(Draw::Lens.dim(0));
+            let (stratum, index) = self.camera_stratum(s);
+            let [l0, l1] = rng.lens_in_stratum(Draw::Pixel.dim(0), stratum, index);
             self.camera.lens_ray(u, v, concentric_disk(l0, l1))
         } else {
             self.camera.ray(u, v)

@@ -10,16 +10,20 @@
 //! in every 2-D draw (stratified at every power of two), and different dimensions are
 //! independent of one another. Dimensions are fixed per decision and per path vertex, so a
 //! draw one path takes and another does not shifts nothing else.
+//!
+//! The lens point is not a dimension of its own: it is Sobol coordinates 2 and 3 of the pixel
+//! point's scrambled index ([`Sampler::lens_in_stratum`]), so that a pixel's pixel and lens
+//! points together are a 4-D net (Sobol's first four coordinates, t = 2 at 16 and 64 points)
+//! and out-of-focus edges, an integral over both, are stratified in both at once.
 
 use crate::simd::LANES;
 
 /// What a number is drawn for; with the path vertex it fixes the dimension ([`Draw::dim`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Draw {
-    /// The sample's point in its pixel (or `-x` grid cell), 2-D.
+    /// The sample's point in its pixel (or `-x` grid cell), 2-D, and with it the point on the
+    /// lens ([`Sampler::lens_in_stratum`]).
     Pixel,
-    /// The point on the lens, 2-D.
-    Lens,
     /// Which emitter a vertex samples, 1-D.
     LightChoice,
     /// The point on that emitter, 2-D.
@@ -34,7 +38,8 @@ pub enum Draw {
     GlassChoice,
 }
 
-/// Dimensions the camera takes (pixel point and lens point) before the first vertex's.
+/// Dimensions the camera takes (pixel point and lens point, one 4-D draw) before the first
+/// vertex's.
 const CAMERA_DIMS: u32 = 4;
 /// Dimensions each path vertex takes.
 const VERTEX_DIMS: u32 = 8;
@@ -48,7 +53,6 @@ impl Draw {
         let base = CAMERA_DIMS + VERTEX_DIMS * vertex;
         match self {
             Draw::Pixel => 0,
-            Draw::Lens => 2,
             Draw::LightPoint => base,
             Draw::BsdfDirection => base + 2,
             Draw::LightChoice => base + 4,
@@ -106,6 +110,63 @@ fn sobol1_reversed(i: u32) -> u32 {
 fn reverse_pair(a: u32, b: u32) -> (u32, u32) {
     let r = ((u64::from(b) << 32) | u64::from(a)).reverse_bits();
     ((r >> 32) as u32, r as u32)
+}
+
+/// Direction numbers (32-bit fractions) of a Sobol coordinate from its primitive polynomial of
+/// degree `s` with inner coefficients `a` (bit `s - 1 - k` is the coefficient of x^(s-k)) and
+/// its first `s` odd integers `m` (Joe and Kuo's table).
+const fn directions(s: usize, a: u32, m: [u32; 3]) -> [u32; 32] {
+    let mut mm = [0u32; 33];
+    let mut k = 1;
+    while k <= 32 {
+        if k <= s {
+            mm[k] = m[k - 1];
+        } else {
+            let mut v = mm[k - s] ^ (mm[k - s] << s);
+            let mut j = 1;
+            while j < s {
+                if (a >> (s - 1 - j)) & 1 == 1 {
+                    v ^= mm[k - j] << j;
+                }
+                j += 1;
+            }
+            mm[k] = v;
+        }
+        k += 1;
+    }
+    let mut out = [0u32; 32];
+    let mut k = 1;
+    while k <= 32 {
+        out[k - 1] = mm[k] << (32 - k);
+        k += 1;
+    }
+    out
+}
+
+/// The third Sobol coordinate's direction numbers (x^2 + x + 1; m = 1, 3).
+const SOBOL2: [u32; 32] = directions(2, 1, [1, 3, 0]);
+/// The fourth Sobol coordinate's direction numbers (x^3 + x + 1; m = 1, 3, 1).
+const SOBOL3: [u32; 32] = directions(3, 1, [1, 3, 1]);
+
+/// Coordinate `dirs` of Sobol point `i` (a 32-bit fraction), for `i` below 2^16.
+#[inline(always)]
+fn sobol_low(i: u32, dirs: &[u32; 32]) -> u32 {
+    let mut x = 0;
+    for (b, v) in dirs.iter().enumerate().take(16) {
+        x ^= v & 0u32.wrapping_sub((i >> b) & 1);
+    }
+    x
+}
+
+/// Sobol coordinates 2 and 3 of the scrambled index `i` (below 2^16), each Owen-scrambled: the
+/// first by `seed`, the second by a hash of it.
+#[inline(always)]
+fn lens_bits(i: u32, seed: u32) -> (u32, u32) {
+    let other = (seed ^ 0x68e3_1da4).wrapping_mul(0x2c1b_3c6d) ^ (seed >> 15);
+    reverse_pair(
+        upward_hash(sobol_low(i, &SOBOL2).reverse_bits(), seed),
+        upward_hash(sobol_low(i, &SOBOL3).reverse_bits(), other),
+    )
 }
 
 /// A 32-bit fraction as a float in [0, 1).
@@ -189,6 +250,19 @@ impl Sampler {
         self.point_2d(index, dim, u64::from(stratum) << 32)
     }
 
+    /// The lens point of the `index`-th sample of stratum `stratum`: Sobol coordinates 2 and 3
+    /// of the same scrambled index as that sample's pixel point ([`Self::get2d_in_stratum`] at
+    /// `dim`), so that the pixel and lens points of a stratum's samples are one 4-D net.
+    #[must_use]
+    #[inline]
+    pub fn lens_in_stratum(&self, dim: u32, stratum: u32, index: u32) -> [f32; 2] {
+        let h = mix(self.seed_key(dim) ^ (u64::from(stratum) << 32));
+        let g = mix(h);
+        let i = upward_hash(index.reverse_bits(), h as u32).reverse_bits();
+        let (x, y) = lens_bits(i, (g >> 32) as u32);
+        [unit(x), unit(y)]
+    }
+
     /// Point `index` of the 2-D sequence at dimension `dim`, scrambled by the key moved by
     /// `salt`.
     #[inline(always)]
@@ -260,19 +334,22 @@ impl SamplerLanes {
         out
     }
 
-    /// [`Sampler::get2d`] at dimension `dim` in every lane, by axis.
+    /// [`Sampler::get2d_in_stratum`] at dimension `dim` and [`Sampler::lens_in_stratum`] of the
+    /// same samples, in every lane, by axis: the pixel points, then the lens points.
     #[inline]
-    pub(crate) fn get2d_all(&self, dim: u32) -> [[f32; LANES]; 2] {
-        let index = std::array::from_fn(|i| self.0[i].index);
-        self.points_2d(&index, &[dim; LANES], &[0; LANES])
-    }
-
-    /// [`Sampler::get2d_in_stratum`] at dimension `dim` in every lane `i`, in stratum
-    /// `stratum[i]` as its `index[i]`-th sample, by axis.
-    #[inline]
-    pub(crate) fn get2d_in_stratum(&self, dim: u32, stratum: &[u32; LANES], index: &[u32; LANES]) -> [[f32; LANES]; 2] {
-        let salt = std::array::from_fn(|i| u64::from(stratum[i]) << 32);
-        self.points_2d(index, &[dim; LANES], &salt)
+    pub(crate) fn camera_points(&self, dim: u32, stratum: &[u32; LANES], index: &[u32; LANES]) -> [[[f32; LANES]; 2]; 2] {
+        let keys = std::array::from_fn(|k| self.0[k].seed_key(dim) ^ (u64::from(stratum[k]) << 32));
+        let h = mixed_lanes(&keys);
+        let g = mixed_lanes(&h);
+        let mut out = [[[0.0; LANES]; 2]; 2];
+        for k in 0..LANES {
+            let i = upward_hash(index[k].reverse_bits(), h[k] as u32).reverse_bits();
+            out[0][0][k] = unit(upward_hash(i, (h[k] >> 32) as u32).reverse_bits());
+            out[0][1][k] = unit(upward_hash(sobol1_reversed(i), g[k] as u32).reverse_bits());
+            let (x, y) = lens_bits(i, (g[k] >> 32) as u32);
+            (out[1][0][k], out[1][1][k]) = (unit(x), unit(y));
+        }
+        out
     }
 
     /// [`Sampler::point_2d`] in every lane, by axis: the same integer arithmetic in loops over
@@ -383,6 +460,50 @@ mod tests {
     }
 
     /// True when `pts` (2^m of them) put one point in every elementary interval of area 2^-m.
+    /// True when the 2^m points `pts` are a (t, m, s)-net in base 2: every box of sides 2^-d_k
+    /// with Σ d_k = m − t holds exactly 2^t of them.
+    fn is_tms_net<const S: usize>(pts: &[[f32; S]], m: u32, t: u32) -> bool {
+        fn boxes<const S: usize>(pts: &[[f32; S]], d: &mut [u32; S], k: usize, left: u32, t: u32) -> bool {
+            if k == S - 1 {
+                d[k] = left;
+                let mut count = std::collections::HashMap::new();
+                for p in pts {
+                    let key: [u32; S] = std::array::from_fn(|j| (p[j] * (1u64 << d[j]) as f32) as u32);
+                    *count.entry(key).or_insert(0u32) += 1;
+                }
+                return count.values().all(|&c| c == 1 << t);
+            }
+            (0..=left).all(|a| {
+                d[k] = a;
+                boxes(pts, d, k + 1, left - a, t)
+            })
+        }
+        boxes(pts, &mut [0; S], 0, m - t, t)
+    }
+
+    #[test]
+    fn pixel_and_lens_points_are_one_4d_net() {
+        // The t of Sobol's first four coordinates at 2^m points, and of the lens's two alone.
+        // Scrambling keeps every t.
+        for pixel in 0..12 {
+            for stratum in [0, 3] {
+                let s = Sampler::new(4, pixel, 0);
+                for (m, t, lens_t) in [(2, 1, 1), (4, 2, 0), (6, 2, 1), (8, 3, 1)] {
+                    let pts: Vec<[f32; 4]> = (0..1u32 << m)
+                        .map(|j| {
+                            let [a, b] = s.get2d_in_stratum(0, stratum, j);
+                            let [c, d] = s.lens_in_stratum(0, stratum, j);
+                            [a, b, c, d]
+                        })
+                        .collect();
+                    assert!(is_tms_net(&pts, m, t), "pixel {pixel}, stratum {stratum}, 2^{m}");
+                    let lens: Vec<[f32; 2]> = pts.iter().map(|p| [p[2], p[3]]).collect();
+                    assert!(is_tms_net(&lens, m, lens_t), "lens, pixel {pixel}, 2^{m}");
+                }
+            }
+        }
+    }
+
     fn is_net(pts: &[[f32; 2]], m: u32) -> bool {
         (0..=m).all(|a| {
             let (nx, ny) = (1u32 << a, 1u32 << (m - a));
@@ -416,7 +537,7 @@ mod tests {
     #[test]
     fn every_pixels_first_samples_are_nets_in_every_draw() {
         for pixel in 0..20 {
-            for dim in [Draw::Pixel.dim(0), Draw::Lens.dim(0), Draw::BsdfDirection.dim(3), 1001] {
+            for dim in [Draw::Pixel.dim(0), 2, Draw::BsdfDirection.dim(3), 1001] {
                 for m in 0..=7 {
                     let pts: Vec<[f32; 2]> = (0..1u32 << m).map(|s| Sampler::new(9, pixel, s).get2d(dim)).collect();
                     assert!(is_net(&pts, m), "pixel {pixel}, dimension {dim}, 2^{m} samples");
@@ -517,18 +638,13 @@ mod tests {
         let lanes = SamplerLanes(std::array::from_fn(|i| {
             Sampler::new(3, i as u64, (i as u32).wrapping_mul(0x9e37_79b9))
         }));
-        let all = lanes.get2d_all(2);
         let stratum: [u32; LANES] = std::array::from_fn(|i| i as u32 % 4);
         let index: [u32; LANES] = std::array::from_fn(|i| (i as u32).wrapping_mul(0x0101_0107));
-        let strata = lanes.get2d_in_stratum(6, &stratum, &index);
+        let [at, lens] = lanes.camera_points(6, &stratum, &index);
         for i in 0..LANES {
             let s = &lanes.0[i];
-            assert_eq!([all[0][i], all[1][i]], s.get2d(2), "lane {i}");
-            assert_eq!(
-                [strata[0][i], strata[1][i]],
-                s.get2d_in_stratum(6, stratum[i], index[i]),
-                "lane {i}"
-            );
+            assert_eq!([at[0][i], at[1][i]], s.get2d_in_stratum(6, stratum[i], index[i]), "lane {i}");
+            assert_eq!([lens[0][i], lens[1][i]], s.lens_in_stratum(6, stratum[i], index[i]), "lane {i}");
         }
     }
 }

@@ -202,3 +202,42 @@ fn depth_of_field_is_sharp_at_the_focal_distance_and_blurs_away_from_it() {
         last = b;
     }
 }
+
+/// With a lens, a pixel's samples take their pixel and lens points from one sequence over the
+/// whole pixel where the grid side is a power of two: still 2^q samples in every `-x` cell. For
+/// other grids sample s stays in cell s mod N², as without a lens.
+#[test]
+fn lens_samples_fill_every_grid_cell_equally() {
+    let sc = scene(&transformed_scene(|v| v, |n| n));
+    for (aa, q) in [(1, 3), (2, 2), (2, 4), (4, 1), (3, 2)] {
+        let s = RenderSettings {
+            width: 16,
+            height: 12,
+            aa,
+            quality: q,
+            stage: Stage::Full,
+            camera: CameraSettings {
+                aperture_radius: 0.2,
+                focal_length: 4.0,
+                ..CameraSettings::default()
+            },
+            ..RenderSettings::default()
+        };
+        let integ = Integrator::new(&sc, &s);
+        let spp = integ.samples_per_pixel();
+        assert_eq!(spp, (aa * aa) << q);
+        let mut count = vec![0u32; (aa * aa) as usize];
+        for sample in 0..spp {
+            let (u, v) = integ.sample_position(5, 7, sample);
+            let (fx, fy) = (u * 16.0 - 5.0, v * 12.0 - 7.0);
+            assert!((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy), "-x {aa} -q {q}: {fx}, {fy}");
+            let n = aa as f32;
+            let cell = (fy * n) as u32 * aa + (fx * n) as u32;
+            if !aa.is_power_of_two() {
+                assert_eq!(cell, sample % (aa * aa), "-x {aa}: sample {sample}");
+            }
+            count[cell as usize] += 1;
+        }
+        assert!(count.iter().all(|&c| c == 1 << q), "-x {aa} -q {q}: {count:?}");
+    }
+}

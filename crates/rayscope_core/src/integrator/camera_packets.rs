@@ -92,9 +92,8 @@ impl<I: Intersect> Integrator<'_, I> {
         let (mut px, mut py) = ([0.0; LANES], [0.0; LANES]);
         // Each lane's pixel, as the position's arithmetic takes it.
         let (mut fx, mut fy) = ([0.0f32; LANES], [0.0f32; LANES]);
-        // Each lane's cell (and its place among the cell's paths), for the point in it.
-        let (mut cell, mut path) = ([0; LANES], [0; LANES]);
-        let nn = self.grid * self.grid;
+        // Each lane's stratum and its place in it, for its pixel and lens points.
+        let (mut stratum, mut index) = ([0; LANES], [0; LANES]);
         for (k, &(x, y, s)) in jobs.iter().enumerate() {
             // A batch mostly holds one pixel's samples, whose numbers share the pixel's hash.
             b.rng.0[k] = match k.checked_sub(1).map(|j| jobs[j]) {
@@ -103,16 +102,17 @@ impl<I: Intersect> Integrator<'_, I> {
             };
             [px[k], py[k]] = self.cell_offset(s);
             (fx[k], fy[k]) = (x as f32, y as f32);
-            (cell[k], path[k]) = if s < nn { (s, 0) } else { (s % nn, s / nn) };
+            (stratum[k], index[k]) = self.camera_stratum(s);
         }
-        let jitters = self.jitters();
-        let at = b.rng.get2d_in_stratum(Draw::Pixel.dim(0), &cell, &path);
-        let lens = b.rng.get2d_all(Draw::Lens.dim(0));
+        let (jitters, whole) = (self.jitters(), self.whole_pixel_lens());
+        let [at, lens] = b.rng.camera_points(Draw::Pixel.dim(0), &stratum, &index);
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
         // Every lane, a loop of fixed length that vectorises; lanes past the jobs are not used.
         for k in 0..LANES {
-            if jitters {
+            if whole {
+                [px[k], py[k]] = [at[0][k], at[1][k]];
+            } else if jitters {
                 [px[k], py[k]] = self.jittered_offset([px[k], py[k]], [at[0][k], at[1][k]]);
             }
             // `camera_ray`'s position, moved by a nudge of zero.
