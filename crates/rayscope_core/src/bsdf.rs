@@ -38,8 +38,8 @@ use glam::Vec3A;
 use crate::math::{basis, not_at_most};
 use crate::optics::fresnel;
 use crate::sampling::{
-    cosine_hemisphere, cosine_hemisphere_lane, cosine_hemisphere_pdf, ggx_d, ggx_g2, ggx_reflect_pdf, ggx_sample_vndf,
-    reflect_about,
+    circle_point, cosine_hemisphere, cosine_hemisphere_lane, cosine_hemisphere_pdf, ggx_d, ggx_g2, ggx_reflect_pdf,
+    ggx_sample_vndf, reflect_about,
 };
 use crate::scene::Material;
 use crate::simd::LANES;
@@ -86,13 +86,13 @@ fn phong_lobe(cos_a: f32, n: f32) -> (f32, f32) {
 }
 
 /// A direction about the unit axis `r` drawn with density (n + 1)/(2π) · cos ⁿα from two
-/// uniform numbers: cos α = u1^(1/(n+1)), the azimuth 2π·u2.
+/// uniform numbers: cos α = u1^(1/(n+1)), the azimuth 2π·u2 − π/4.
 #[must_use]
 #[inline]
 fn phong_lobe_sample(r: Vec3A, n: f32, u1: f32, u2: f32) -> Vec3A {
     let cos_a = u1.powf(1.0 / (n + 1.0));
     let sin_a = (1.0 - cos_a * cos_a).max(0.0).sqrt();
-    let (s, c) = (std::f32::consts::TAU * u2).sin_cos();
+    let (c, s) = circle_point(u2);
     let (t, b) = basis(r);
     (t * (sin_a * c) + b * (sin_a * s) + r * cos_a).normalize()
 }

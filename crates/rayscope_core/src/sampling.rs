@@ -7,7 +7,7 @@
 //! also have lane forms for the path-tracing wave, tested below to return the one-vector
 //! forms' bits.
 
-use std::f32::consts::{FRAC_1_PI, FRAC_PI_4, PI};
+use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
 use glam::{Vec2, Vec3, Vec3A};
 
@@ -48,6 +48,24 @@ pub(crate) fn sin_cos_eighth(x: f32) -> (f32, f32) {
     let head = 1.0 - half;
     let tail = z * z * (0.041_666_646 + z * (-0.001_388_736_8 + z * 0.000_024_438_45));
     (sin, head + (((1.0 - head) - half) + tail))
+}
+
+/// `(cos φ, sin φ)` for φ = 2π·u − π/4: for a uniform u in [0, 1), a uniform point on the unit
+/// circle. The quarter turn u falls in is taken by swapping signs (exact), the angle within
+/// it, in [−π/4, π/4), by [`sin_cos_eighth`]: no range reduction, and no branch, so a loop
+/// over lanes calling it vectorises.
+#[must_use]
+#[inline(always)]
+pub(crate) fn circle_point(u: f32) -> (f32, f32) {
+    let t = 4.0 * u;
+    let quarter = t.min(3.0).floor();
+    let (s, c) = sin_cos_eighth((t - quarter - 0.5) * FRAC_PI_2);
+    let (c, s) = if quarter >= 2.0 { (-c, -s) } else { (c, s) };
+    if quarter == 1.0 || quarter == 3.0 {
+        (-s, c)
+    } else {
+        (c, s)
+    }
 }
 
 /// Cosine-weighted direction about +z (Malley's method); density `cosθ / π`.
@@ -100,8 +118,8 @@ pub(crate) fn uniform_cone(u1: f32, u2: f32, omc: f32) -> Vec3A {
     let x = u1 * omc; // 1 − cosθ
     let cos = 1.0 - x;
     let sin = (x * (2.0 - x)).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
-    Vec3A::new(sin * phi.cos(), sin * phi.sin(), cos)
+    let (c, s) = circle_point(u2);
+    Vec3A::new(sin * c, sin * s, cos)
 }
 
 /// Density of [`uniform_cone`] inside the cone.
@@ -117,8 +135,8 @@ pub(crate) fn uniform_cone_pdf(omc: f32) -> f32 {
 pub fn uniform_sphere(u1: f32, u2: f32) -> Vec3A {
     let z = 1.0 - 2.0 * u1;
     let r = (1.0 - z * z).max(0.0).sqrt();
-    let phi = 2.0 * PI * u2;
-    Vec3A::new(r * phi.cos(), r * phi.sin(), z)
+    let (c, s) = circle_point(u2);
+    Vec3A::new(r * c, r * s, z)
 }
 
 /// Uniform barycentrics (b1, b2) on a triangle (weights of v1 and v2), the square-root mapping.
@@ -239,9 +257,9 @@ pub fn ggx_sample_vndf(wo: Vec3A, alpha: f32, u1: f32, u2: f32) -> Vec3A {
     };
     let t2 = vh.cross(t1);
     let r = u1.sqrt();
-    let phi = 2.0 * PI * u2;
-    let p1 = r * phi.cos();
-    let mut p2 = r * phi.sin();
+    let (c, s) = circle_point(u2);
+    let p1 = r * c;
+    let mut p2 = r * s;
     let s = 0.5 * (1.0 + vh.z);
     p2 = (1.0 - s) * (1.0 - p1 * p1).max(0.0).sqrt() + s * p2;
     let nh = t1 * p1 + t2 * p2 + vh * (1.0 - p1 * p1 - p2 * p2).max(0.0).sqrt();
@@ -305,6 +323,23 @@ mod tests {
             let p = concentric_disk(u1, u2);
             let r = (2.0 * u1 - 1.0f32).abs().max((2.0 * u2 - 1.0f32).abs());
             assert!((p.length() - r).abs() < 1e-6, "{u1} {u2}: {p}");
+        }
+    }
+
+    #[test]
+    fn circle_points_are_the_angle_2_pi_u_less_an_eighth_turn() {
+        let steps = 100_000;
+        for i in 0..steps {
+            // Every quarter's ends included: u = k/4 and the float just below.
+            let u = match i % 3 {
+                0 => i as f32 / steps as f32,
+                1 => ((i % 4) as f32 * 0.25).max(f32::MIN_POSITIVE),
+                _ => f32::from_bits(((i % 4 + 1) as f32 * 0.25).to_bits() - 1),
+            };
+            let (c, s) = circle_point(u);
+            let phi = std::f64::consts::TAU * f64::from(u) - std::f64::consts::FRAC_PI_4;
+            let err = (f64::from(c) - phi.cos()).abs().max((f64::from(s) - phi.sin()).abs());
+            assert!(err < 1e-6, "u = {u}: ({c}, {s}) against angle {phi}");
         }
     }
 

@@ -337,7 +337,12 @@ impl SamplerLanes {
     /// [`Sampler::get2d_in_stratum`] at dimension `dim` and [`Sampler::lens_in_stratum`] of the
     /// same samples, in every lane, by axis: the pixel points, then the lens points.
     #[inline]
-    pub(crate) fn camera_points(&self, dim: u32, stratum: &[u32; LANES], index: &[u32; LANES]) -> [[[f32; LANES]; 2]; 2] {
+    pub(crate) fn camera_points(
+        &self,
+        dim: u32,
+        stratum: &[u32; LANES],
+        index: &[u32; LANES],
+    ) -> [[[f32; LANES]; 2]; 2] {
         let keys = std::array::from_fn(|k| self.0[k].seed_key(dim) ^ (u64::from(stratum[k]) << 32));
         let h = mixed_lanes(&keys);
         let g = mixed_lanes(&h);
@@ -643,8 +648,16 @@ mod tests {
         let [at, lens] = lanes.camera_points(6, &stratum, &index);
         for i in 0..LANES {
             let s = &lanes.0[i];
-            assert_eq!([at[0][i], at[1][i]], s.get2d_in_stratum(6, stratum[i], index[i]), "lane {i}");
-            assert_eq!([lens[0][i], lens[1][i]], s.lens_in_stratum(6, stratum[i], index[i]), "lane {i}");
+            assert_eq!(
+                [at[0][i], at[1][i]],
+                s.get2d_in_stratum(6, stratum[i], index[i]),
+                "lane {i}"
+            );
+            assert_eq!(
+                [lens[0][i], lens[1][i]],
+                s.lens_in_stratum(6, stratum[i], index[i]),
+                "lane {i}"
+            );
         }
     }
 }

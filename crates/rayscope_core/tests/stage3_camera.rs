@@ -230,7 +230,10 @@ fn lens_samples_fill_every_grid_cell_equally() {
         for sample in 0..spp {
             let (u, v) = integ.sample_position(5, 7, sample);
             let (fx, fy) = (u * 16.0 - 5.0, v * 12.0 - 7.0);
-            assert!((0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy), "-x {aa} -q {q}: {fx}, {fy}");
+            assert!(
+                (0.0..1.0).contains(&fx) && (0.0..1.0).contains(&fy),
+                "-x {aa} -q {q}: {fx}, {fy}"
+            );
             let n = aa as f32;
             let cell = (fy * n) as u32 * aa + (fx * n) as u32;
             if !aa.is_power_of_two() {
