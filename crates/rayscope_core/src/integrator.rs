@@ -396,19 +396,20 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// the whole pixel rather than one per cell: a lens render whose grid side N is a power of
     /// two. The first N²·2^q points of that sequence put 2^q in every cell, as the cells' own
     /// sequences do, and the pixel and lens points of all the pixel's samples together are one
-    /// 4-D net, which blurs out-of-focus edges with less noise than pixel and lens points
-    /// stratified apart.
+    /// 4-D net, which blurs out-of-focus edges with less noise than one net per cell, whose lens
+    /// points are stratified within the cell only. (Without a lens the two give the same noise:
+    /// each cell's points are a (0, k, 2)-net in it either way.)
     #[inline(always)]
-    pub(crate) fn whole_pixel_lens(&self) -> bool {
+    pub(crate) fn whole_pixel_net(&self) -> bool {
         self.thin_lens() && self.grid.is_power_of_two()
     }
 
     /// Sample `s`'s stratum and index for its camera numbers ([`Sampler::get2d_in_stratum`],
-    /// [`Sampler::lens_in_stratum`]): the whole pixel's where [`Self::whole_pixel_lens`], else
+    /// [`Sampler::lens_in_stratum`]): the whole pixel's where [`Self::whole_pixel_net`], else
     /// its cell's.
     #[inline(always)]
     pub(crate) fn camera_stratum(&self, s: u32) -> (u32, u32) {
-        if self.whole_pixel_lens() {
+        if self.whole_pixel_net() {
             (0, s)
         } else {
             self.cell_and_path(s)
@@ -462,7 +463,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             ox = (ox * n - 0.5).round() / n;
             oy = (oy * n - 0.5).round() / n;
         }
-        if self.whole_pixel_lens() {
+        if self.whole_pixel_net() {
             // The point in the pixel, moved as a mistake moves the cell.
             let [u, v] = rng.get2d(Draw::Pixel.dim(0));
             let [cx, cy] = self.cell_offset(s);

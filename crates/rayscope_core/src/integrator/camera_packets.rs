@@ -104,7 +104,7 @@ impl<I: Intersect> Integrator<'_, I> {
             (fx[k], fy[k]) = (x as f32, y as f32);
             (stratum[k], index[k]) = self.camera_stratum(s);
         }
-        let (jitters, whole) = (self.jitters(), self.whole_pixel_lens());
+        let (jitters, whole) = (self.jitters(), self.whole_pixel_net());
         let [at, lens] = b.rng.camera_points(Draw::Pixel.dim(0), &stratum, &index);
         let (w, h) = (self.settings.width as f32, self.settings.height as f32);
         let (mut u, mut v) = ([0.0; LANES], [0.0; LANES]);
