@@ -341,8 +341,8 @@ impl Emitters {
     /// `centre` and radius `radius`, with the lane's numbers `u`, into `out` (direction,
     /// distance, density and `ok`): the same arithmetic per lane. The cone seen from outside is
     /// computed in loops over the lanes without branches, which the compiler vectorises, except
-    /// for the direction in the cone ([`uniform_cone`], whose sine and cosine are library calls),
-    /// taken lane by lane; a lane inside its sphere calls [`sample_sphere`].
+    /// for the direction in the cone ([`uniform_cone`]), taken lane by lane where the lane has a
+    /// cone; a lane inside its sphere calls [`sample_sphere`].
     #[allow(clippy::needless_range_loop)]
     #[inline(always)]
     fn sample_spheres_lanes(
