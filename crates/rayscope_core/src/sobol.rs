@@ -148,7 +148,11 @@ const SOBOL2: [u32; 32] = directions(2, 1, [1, 3, 0]);
 /// The fourth Sobol coordinate's direction numbers (x^3 + x + 1; m = 1, 3, 1).
 const SOBOL3: [u32; 32] = directions(3, 1, [1, 3, 1]);
 
-/// Coordinate `dirs` of Sobol point `i` (a 32-bit fraction), for `i` below 2^16.
+/// Coordinate `dirs` (a 32-bit fraction) of the Sobol point whose index is the low 16 bits of
+/// `i`. A shuffled index's higher bits are the same for a pixel's first 2^16 samples (bit `b`
+/// of the shuffle depends on the index's bits `b` and above): leaving them out is a digital
+/// shift of every point, which the coordinate's own scramble randomises anyway. Each later
+/// block of 2^16 samples covers the same strata again.
 #[inline(always)]
 fn sobol_low(i: u32, dirs: &[u32; 32]) -> u32 {
     let mut x = 0;
@@ -158,8 +162,8 @@ fn sobol_low(i: u32, dirs: &[u32; 32]) -> u32 {
     x
 }
 
-/// Sobol coordinates 2 and 3 of the scrambled index `i` (below 2^16), each Owen-scrambled: the
-/// first by `seed`, the second by a hash of it.
+/// Sobol coordinates 2 and 3 of the shuffled index `i` ([`sobol_low`]), each Owen-scrambled:
+/// the first by `seed`, the second by a hash of it.
 #[inline(always)]
 fn lens_bits(i: u32, seed: u32) -> (u32, u32) {
     let other = (seed ^ 0x68e3_1da4).wrapping_mul(0x2c1b_3c6d) ^ (seed >> 15);
