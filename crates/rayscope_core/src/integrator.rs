@@ -465,7 +465,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
         }
         if self.whole_pixel_net() {
             // The point in the pixel, moved as a mistake moves the cell.
-            let [u, v] = rng.get2d(Draw::Pixel.dim(0));
+            let (stratum, index) = self.camera_stratum(s);
+            let [u, v] = rng.get2d_in_stratum(Draw::Pixel.dim(0), stratum, index);
             let [cx, cy] = self.cell_offset(s);
             [ox, oy] = [u + (ox - cx), v + (oy - cy)];
         } else if self.jitters() {

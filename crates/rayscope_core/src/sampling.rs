@@ -52,8 +52,7 @@ pub(crate) fn sin_cos_eighth(x: f32) -> (f32, f32) {
 
 /// `(cos φ, sin φ)` for φ = 2π·u − π/4: for a uniform u in [0, 1), a uniform point on the unit
 /// circle. The quarter turn u falls in is taken by swapping signs (exact), the angle within
-/// it, in [−π/4, π/4), by [`sin_cos_eighth`]: no range reduction, and no branch, so a loop
-/// over lanes calling it vectorises.
+/// it, in [−π/4, π/4), by [`sin_cos_eighth`]: no range reduction and no library call.
 #[must_use]
 #[inline(always)]
 pub(crate) fn circle_point(u: f32) -> (f32, f32) {
