@@ -456,7 +456,8 @@ impl<'a, I: Intersect> Integrator<'a, I> {
     /// [`Self::sample_position`], with `rng` the sample's numbers.
     #[inline]
     fn position_in_cell(&self, x: u32, y: u32, s: u32, rng: &Sampler) -> (f32, f32) {
-        let [mut ox, mut oy] = self.cell_offset(s);
+        let centre = self.cell_offset(s);
+        let [mut ox, mut oy] = centre;
         if self.mistake(Mistake::PixelCorners) {
             // The cell's top-left corner, (i/N, j/N), rather than its centre.
             let n = self.grid as f32;
@@ -467,8 +468,7 @@ impl<'a, I: Intersect> Integrator<'a, I> {
             // The point in the pixel, moved as a mistake moves the cell.
             let (stratum, index) = self.camera_stratum(s);
             let [u, v] = rng.get2d_in_stratum(Draw::Pixel.dim(0), stratum, index);
-            let [cx, cy] = self.cell_offset(s);
-            [ox, oy] = [u + (ox - cx), v + (oy - cy)];
+            [ox, oy] = [u + (ox - centre[0]), v + (oy - centre[1])];
         } else if self.jitters() {
             [ox, oy] = self.jittered_offset([ox, oy], self.cell_point(s, rng));
         }

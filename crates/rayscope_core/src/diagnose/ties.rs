@@ -10,7 +10,7 @@
 //! under any of those moves is a tie, and the colours those moves give are the colours of the
 //! tie's sides. Each sample is traced again with its secondary rays (shadow, mirror, glass)
 //! leaving their surface at a tenth and at ten times rayscope's offset (1e-5 of the
-//! coordinates' size) and at the course's 1e-5 or less (1e-5, 1e-7), the offsets correct
+//! coordinates' size) and at 1e-5 and 1e-7 (the course's "1e-5 or less"), the offsets correct
 //! tracers use: a shadow ray whose blocker lies that
 //! close to its origin (a smooth mesh's shadow terminator, where the ray grazes its own
 //! surface), or a path through glass whose way depends on where its rays start, is a tie too.
