@@ -10,7 +10,9 @@
 //! An emitter is two-sided and emits its material colour as radiance, uniformly over its surface.
 //! One emitter is chosen with probability proportional to its power (luminance × area); a point
 //! on it is then drawn by solid angle for spheres seen from outside (uniform in the cone the
-//! sphere subtends) and by area otherwise (triangles, and spheres seen from inside). Emissive
+//! sphere subtends), for triangles uniformly in the solid angle they subtend unless that is
+//! tiny or nearly the whole sphere, and by area otherwise (those triangles, and spheres seen
+//! from inside). Emissive
 //! planes are infinite, so they cannot be sampled; they are found by BSDF sampling only.
 
 use glam::Vec3A;
@@ -20,7 +22,8 @@ use crate::geometry::{PrimRef, Sphere, Triangle};
 use crate::material::Material;
 use crate::math::{basis, basis_lanes, not_at_most, RayPacket};
 use crate::sampling::{
-    to_world, to_world_unit_lanes, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle,
+    spherical_sampling, spherical_triangle, spherical_triangle_point, to_world, to_world_unit_lanes, uniform_cone,
+    uniform_cone_pdf, uniform_sphere, uniform_triangle,
 };
 use crate::scene::{Intersect, Scene};
 use crate::simd::{dispatched, lane, put, sel, Mask, LANES};
@@ -174,7 +177,8 @@ impl Emitters {
         let (dir, dist, pdf) = match e.prim {
             PrimRef::Sphere(s) => sample_sphere(&scene.spheres[s as usize], p, u1, u2)?,
             PrimRef::Triangle(t) => {
-                sample_triangle_with(&scene.triangles[t as usize], e.cross, 2.0 * e.area, p, u1, u2)?
+                let t = &scene.triangles[t as usize];
+                sample_triangle_with(t.v0(), t.e1(), t.e2(), e.cross, 2.0 * e.area, p, u1, u2)?
             }
             PrimRef::Plane(_) => return None,
         };
@@ -199,9 +203,9 @@ impl Emitters {
         };
         let pdf = match prim {
             PrimRef::Sphere(s) => sphere_pdf(&scene.spheres[s as usize], origin, point),
-            PrimRef::Triangle(_) => {
-                let e = &self.list[i as usize];
-                triangle_pdf_with(e.cross, 2.0 * e.area, origin, point)
+            PrimRef::Triangle(t) => {
+                let (e, t) = (&self.list[i as usize], &scene.triangles[t as usize]);
+                triangle_pdf_with(t, e.cross, 2.0 * e.area, origin, point)
             }
             PrimRef::Plane(_) => 0.0,
         };
@@ -307,24 +311,36 @@ impl Emitters {
         if sphere.contains(&true) {
             self.sample_spheres_lanes(p, &sphere, &centre, &radius, [u1, u2], &mut out);
         }
-        // sample_triangle_with, lane by lane, where a lane chose a triangle.
+        // sample_triangle_with where a lane chose a triangle: the draw by solid angle in one
+        // pass over the lanes without branches, then by area lane by lane where that draw was
+        // not taken.
         if tri.contains(&true) {
+            let mut by_area = [false; LANES];
             for i in 0..LANES {
-                let s = u1[i].sqrt();
-                let (b1, b2) = (s * (1.0 - u2[i]), s * u2[i]);
-                let w: [f32; 3] = std::array::from_fn(|a| v0[a][i] + e1[a][i] * b1 + e2[a][i] * b2 - p[a][i]);
-                let dist2 = w[0] * w[0] + w[1] * w[1] + w[2] * w[2];
-                let dist = dist2.sqrt();
-                let dir: [f32; 3] = std::array::from_fn(|a| w[a] / dist);
-                let cos = (cross[0][i] * dir[0] + cross[1][i] * dir[1] + cross[2][i] * dir[2]).abs() / area2[i];
-                let pdf = dist2 / (cos * (0.5 * area2[i]));
-                let ok = tri[i] & not_at_most(dist, 0.0) & (cos > 1e-7);
+                let at = |v: &[[f32; LANES]; 3]| [v[0][i], v[1][i], v[2][i]];
+                let (dir, dist, pdf, ok) =
+                    spherical_triangle_point(at(&v0), at(&e1), at(&e2), at(&cross), at(p), u1[i], u2[i]);
+                let take = tri[i] & ok;
                 for a in 0..3 {
-                    out.dir[a][i] = if tri[i] { dir[a] } else { out.dir[a][i] };
+                    out.dir[a][i] = sel(take, dir[a], out.dir[a][i]);
                 }
-                out.dist[i] = if tri[i] { dist } else { out.dist[i] };
-                out.pdf[i] = if tri[i] { pdf } else { out.pdf[i] };
-                out.ok[i] = if tri[i] { ok } else { out.ok[i] };
+                out.dist[i] = sel(take, dist, out.dist[i]);
+                out.pdf[i] = sel(take, pdf, out.pdf[i]);
+                out.ok[i] |= take;
+                by_area[i] = tri[i] & !ok;
+            }
+            for i in 0..LANES {
+                if !by_area[i] {
+                    continue;
+                }
+                let at = |v: &[[f32; LANES]; 3]| lane(v, i);
+                let drawn = sample_triangle_with(at(&v0), at(&e1), at(&e2), at(&cross), area2[i], at(p), u1[i], u2[i]);
+                if let Some((dir, dist, pdf)) = drawn {
+                    put(&mut out.dir, i, dir.to_array());
+                    out.dist[i] = dist;
+                    out.pdf[i] = pdf;
+                    out.ok[i] = true;
+                }
             }
         }
         for i in 0..LANES {
@@ -480,18 +496,36 @@ pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
     area_to_solid_angle(dist2, n.dot(w).abs() / dist2.sqrt(), sphere_area(s)).unwrap_or(0.0)
 }
 
-/// Direction, distance and solid-angle density of a point drawn uniformly on triangle `t` from `p`.
+/// Direction, distance and solid-angle density of a point drawn on triangle `t` from `p`:
+/// uniformly by solid angle where the triangle's solid angle is in [`SPHERICAL_SAMPLING`]
+/// (a triangle near `p` then brings no noise from its distance and slant), uniformly by area
+/// elsewhere.
 #[must_use]
 pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
     let c = t.e1().cross(t.e2());
-    sample_triangle_with(t, c, c.length(), p, u1, u2)
+    sample_triangle_with(t.v0(), t.e1(), t.e2(), c, c.length(), p, u1, u2)
 }
 
-/// [`sample_triangle`] with the triangle's e1 × e2 and its length given.
+/// [`sample_triangle`] of the triangle with corner `v0` and edges `e1`, `e2`, with its
+/// e1 × e2 and that vector's length given.
+#[allow(clippy::too_many_arguments)]
 #[inline]
-fn sample_triangle_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+fn sample_triangle_with(
+    v0: Vec3A,
+    e1: Vec3A,
+    e2: Vec3A,
+    c: Vec3A,
+    area2: f32,
+    p: Vec3A,
+    u1: f32,
+    u2: f32,
+) -> Option<(Vec3A, f32, f32)> {
+    let (dir, dist, pdf, ok) = spherical_triangle_point(v0.into(), e1.into(), e2.into(), c.into(), p.into(), u1, u2);
+    if ok {
+        return Some((dir.into(), dist, pdf));
+    }
     let (b1, b2) = uniform_triangle(u1, u2);
-    let y = t.v0() + t.e1() * b1 + t.e2() * b2;
+    let y = v0 + e1 * b1 + e2 * b2;
     let w = y - p;
     let dist2 = w.length_squared();
     let dist = dist2.sqrt();
@@ -507,12 +541,16 @@ fn sample_triangle_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, u1: f32, u
 #[must_use]
 pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
     let c = t.e1().cross(t.e2());
-    triangle_pdf_with(c, c.length(), p, y)
+    triangle_pdf_with(t, c, c.length(), p, y)
 }
 
 /// [`triangle_pdf`] with the triangle's e1 × e2 and its length given.
 #[inline]
-fn triangle_pdf_with(c: Vec3A, area2: f32, p: Vec3A, y: Vec3A) -> f32 {
+fn triangle_pdf_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, y: Vec3A) -> f32 {
+    let (area, _) = spherical_triangle(t.v0().into(), t.e1().into(), t.e2().into(), p.into());
+    if spherical_sampling(area) {
+        return 1.0 / area;
+    }
     let w = y - p;
     let dist2 = w.length_squared();
     area_to_solid_angle(dist2, c.dot(w).abs() / (area2 * dist2.sqrt()), 0.5 * area2).unwrap_or(0.0)
@@ -718,8 +756,12 @@ mod tests {
                         u[a][i] = rng.next_f32();
                     }
                 }
-                // The sphere's inside and the ends of the unit interval.
+                // The sphere's inside, a point 0.01 from the first panel (a large solid angle,
+                // drawn by solid angle), one far from everything (drawn by area), and the ends
+                // of the unit interval.
                 (p[0][1], p[1][1], p[2][1]) = (0.1, 1.1, 4.0);
+                (p[0][4], p[1][4], p[2][4]) = (-9.98, 0.02, 4.99);
+                (p[0][5], p[1][5], p[2][5]) = (0.0, 0.0, -300.0);
                 (u[0][2], u[1][2], u[2][2]) = (0.0, 0.0, 0.0);
                 u[1][3] = 1.0f32.next_down();
                 let got = e.sample_lanes(&scene, &p, &on, [&u[0], &u[1], &u[2]]);

@@ -11,7 +11,7 @@ use std::f32::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4, PI};
 
 use glam::{Vec2, Vec3, Vec3A};
 
-use crate::simd::LANES;
+use crate::simd::{sel, LANES};
 
 /// Uniform point on the unit disk from two uniform numbers (Shirley–Chiu concentric mapping).
 #[must_use]
@@ -144,6 +144,150 @@ pub fn uniform_sphere(u1: f32, u2: f32) -> Vec3A {
 pub(crate) fn uniform_triangle(u1: f32, u2: f32) -> (f32, f32) {
     let s = u1.sqrt();
     (s * (1.0 - u2), s * u2)
+}
+
+/// `atan r` for `|r| ≤ 1`, within 2e-7 of the exact value, without a library call (libm's
+/// `atanf` may take another code path on another instruction set, and renders must not change
+/// with the CPU) and without branches, so that a loop over lanes vectorises.
+#[must_use]
+#[inline(always)]
+pub(crate) fn atan_unit(r: f32) -> f32 {
+    let a = r.abs();
+    // Above tan(π/8), atan a = π/4 + atan((a − 1)/(a + 1)) brings the argument within
+    // ±tan(π/8), where each term of the series is at most a sixth of the one before.
+    let big = a > 0.414_213_57;
+    let x = sel(big, (a - 1.0) / (a + 1.0), a);
+    let z = x * x;
+    // The Taylor series to x^17: the first term left out is below 3e-9.
+    let series = -1.0 / 3.0
+        + z * (1.0 / 5.0
+            + z * (-1.0 / 7.0
+                + z * (1.0 / 9.0 + z * (-1.0 / 11.0 + z * (1.0 / 13.0 + z * (-1.0 / 15.0 + z * (1.0 / 17.0)))))));
+    let y = x + x * z * series;
+    sel(big, FRAC_PI_4 + y, y).copysign(r)
+}
+
+/// The angle of the point (x, y) with `y ≥ 0`, in [0, π], by [`atan_unit`]; NaN at the origin.
+#[must_use]
+#[inline(always)]
+pub(crate) fn angle_upper(y: f32, x: f32) -> f32 {
+    let flat = y <= x.abs();
+    let at = atan_unit(sel(flat, y / x.abs(), x / y));
+    sel(flat, sel(x >= 0.0, at, PI - at), FRAC_PI_2 - at)
+}
+
+/// Solid angles inside which a triangle emitter is sampled uniformly by solid angle
+/// ([`spherical_triangle_sample`]); outside, by area. Below the lower bound the spherical
+/// triangle's angles lose their precision in f32 and area sampling is as good (the triangle is
+/// small and far); above the upper one (nearly the whole sphere) the same holds for its
+/// complement.
+pub(crate) const SPHERICAL_SAMPLING: (f32, f32) = (3e-4, 6.22);
+
+type V3 = [f32; 3];
+
+#[inline(always)]
+fn dot3(a: V3, b: V3) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+#[inline(always)]
+fn cross3(a: V3, b: V3) -> V3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+#[inline(always)]
+fn scaled(a: V3, k: f32) -> V3 {
+    [a[0] * k, a[1] * k, a[2] * k]
+}
+
+#[inline(always)]
+fn sum3(a: V3, b: V3) -> V3 {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+#[inline(always)]
+fn diff3(a: V3, b: V3) -> V3 {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+#[inline(always)]
+fn unit3(a: V3) -> V3 {
+    scaled(a, 1.0 / dot3(a, a).sqrt())
+}
+
+/// The solid angle of the triangle with corners `v0`, `v0 + e1`, `v0 + e2` seen from `p`, and
+/// the unit directions to its corners (NaN when `p` is on a corner).
+#[must_use]
+#[inline(always)]
+pub(crate) fn spherical_triangle(v0: V3, e1: V3, e2: V3, p: V3) -> (f32, [V3; 3]) {
+    let a = unit3(diff3(v0, p));
+    let b = unit3(diff3(sum3(v0, e1), p));
+    let c = unit3(diff3(sum3(v0, e2), p));
+    // tan(Ω/2) = |a · (b × c)| / (1 + a·b + b·c + c·a) (Van Oosterom and Strackee); the
+    // denominator is negative for solid angles above π.
+    let num = dot3(a, cross3(b, c)).abs();
+    let den = 1.0 + dot3(a, b) + dot3(b, c) + dot3(c, a);
+    (2.0 * angle_upper(num, den), [a, b, c])
+}
+
+/// Whether [`spherical_triangle_sample`] draws from a triangle of solid angle `area`.
+#[must_use]
+#[inline(always)]
+pub(crate) fn spherical_sampling(area: f32) -> bool {
+    (area >= SPHERICAL_SAMPLING.0) & (area <= SPHERICAL_SAMPLING.1)
+}
+
+/// A direction drawn uniformly by solid angle inside the spherical triangle with corners
+/// `[a, b, c]` and solid angle `area`, from two uniform numbers (Arvo's method: `u1` picks the
+/// sub-triangle of area `u1 · area` at corner a, `u2` the point on its arc from b); density
+/// `1 / area`. Not finite where rounding leaves no direction (a triangle seen nearly edge-on).
+/// Branch-free, so that a loop over lanes vectorises.
+#[must_use]
+#[inline(always)]
+pub(crate) fn spherical_triangle_sample(area: f32, [a, b, c]: [V3; 3], u1: f32, u2: f32) -> V3 {
+    // The angle α at corner a, between the great circles through a and b and through a and c.
+    let (nab, nac) = (cross3(a, b), cross3(a, c));
+    let inv = 1.0 / (dot3(nab, nab) * dot3(nac, nac)).sqrt();
+    let cos_alpha = (dot3(nab, nac) * inv).clamp(-1.0, 1.0);
+    let n = cross3(nab, nac);
+    let sin_alpha = dot3(n, n).sqrt() * inv;
+    // (cos, sin) of the sub-triangle's area u1 · Ω, as an angle: circle_point turns by
+    // 2π·u − π/4, so an eighth of a turn is added (and a whole one taken off past it).
+    let turn = u1 * area * (0.5 * FRAC_1_PI) + 0.125;
+    let (cos_h, sin_h) = circle_point(sel(turn >= 1.0, turn - 1.0, turn));
+    // sin and cos of (area − α).
+    let s = sin_h * cos_alpha - cos_h * sin_alpha;
+    let co = cos_h * cos_alpha + sin_h * sin_alpha;
+    let u = co - cos_alpha;
+    let v = s + sin_alpha * dot3(a, b);
+    // The cosine of the arc from a to the sub-triangle's third corner, on the arc from a to c.
+    let q = (((v * co - u * s) * cos_alpha - v) / ((v * s + u * co) * sin_alpha)).clamp(-1.0, 1.0);
+    let c_perp = unit3(diff3(c, scaled(a, dot3(c, a))));
+    let c_hat = sum3(scaled(a, q), scaled(c_perp, (1.0 - q * q).max(0.0).sqrt()));
+    // The point on the arc from b to that corner.
+    let z = (1.0 - u2 * (1.0 - dot3(c_hat, b))).clamp(-1.0, 1.0);
+    let b_perp = unit3(diff3(c_hat, scaled(b, dot3(c_hat, b))));
+    sum3(scaled(b, z), scaled(b_perp, (1.0 - z * z).max(0.0).sqrt()))
+}
+
+/// A point drawn uniformly by solid angle on the triangle with corners `v0`, `v0 + e1`,
+/// `v0 + e2` and e1 × e2 `c`, seen from `p`: (direction, distance, density, drawn). Not drawn
+/// (the caller then samples by area) where the solid angle is outside [`SPHERICAL_SAMPLING`] or
+/// rounding leaves no direction.
+#[must_use]
+#[inline(always)]
+pub(crate) fn spherical_triangle_point(v0: V3, e1: V3, e2: V3, c: V3, p: V3, u1: f32, u2: f32) -> (V3, f32, f32, bool) {
+    let (area, corners) = spherical_triangle(v0, e1, e2, p);
+    let dir = spherical_triangle_sample(area, corners, u1, u2);
+    // Where the direction meets the triangle's plane.
+    let dist = dot3(c, diff3(v0, p)) / dot3(c, dir);
+    let finite = dir[0].is_finite() & dir[1].is_finite() & dir[2].is_finite() & dist.is_finite();
+    let ok = spherical_sampling(area) & (dist > 0.0) & finite;
+    (dir, dist, 1.0 / area, ok)
 }
 
 /// The power heuristic (β = 2) weight of a strategy with density `a` against one with density `b`.
@@ -291,6 +435,48 @@ pub fn reflect_about(wo: Vec3A, h: Vec3A) -> Vec3A {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn atan_without_libm_is_within_2e_7_of_the_exact_angle() {
+        let mut worst = 0.0f64;
+        for k in 0..=200_000 {
+            let r = -1.0 + 2.0 * k as f32 / 200_000.0;
+            worst = worst.max((f64::from(atan_unit(r)) - f64::from(r).atan()).abs());
+        }
+        assert!(worst < 2e-7, "atan_unit is {worst} off");
+        let mut worst = 0.0f64;
+        for k in 0..=720 {
+            let phi = std::f64::consts::PI * f64::from(k) / 720.0;
+            for len in [1e-3f64, 1.0, 7.5] {
+                let (y, x) = ((len * phi.sin()) as f32, (len * phi.cos()) as f32);
+                let exact = f64::from(y).atan2(f64::from(x));
+                worst = worst.max((f64::from(angle_upper(y, x)) - exact).abs());
+            }
+        }
+        assert!(worst < 4e-7, "angle_upper is {worst} off");
+        assert!(angle_upper(0.0, 0.0).is_nan());
+    }
+
+    #[test]
+    fn a_spherical_triangle_has_the_solid_angle_of_its_triangle() {
+        // Half of one face of the cube [−1, 1]³ seen from its centre: a twelfth of the sphere,
+        // π/3; the triangle (1,0,0) (0,1,0) (0,0,1) from the origin: an octant, π/2.
+        let (v0, e1, e2) = ([-1.0, -1.0, 1.0], [2.0, 0.0, 0.0], [2.0, 2.0, 0.0]);
+        let (area, _) = spherical_triangle(v0, e1, e2, [0.0; 3]);
+        assert!((area - PI / 3.0).abs() < 1e-6, "{area}");
+        let (area, _) = spherical_triangle([1.0, 0.0, 0.0], [-1.0, 1.0, 0.0], [-1.0, 0.0, 1.0], [0.0; 3]);
+        assert!((area - FRAC_PI_2).abs() < 1e-6, "{area}");
+        // Nearly a hemisphere from just above a large triangle; tiny from far away.
+        let (area, _) = spherical_triangle(
+            [-100.0, -100.0, 0.0],
+            [300.0, 0.0, 0.0],
+            [0.0, 300.0, 0.0],
+            [0.0, 0.0, 1.0],
+        );
+        assert!(area > 6.0 && area < 2.0 * PI, "{area}");
+        let (area, _) = spherical_triangle([0.0, 0.0, 1000.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0; 3]);
+        assert!((area - 5e-7).abs() < 1e-8 && !spherical_sampling(area), "{area}");
+    }
 
     #[test]
     fn cone_small_angles_stay_inside() {

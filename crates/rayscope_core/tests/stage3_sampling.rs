@@ -263,14 +263,8 @@ fn chi2_sphere_emitter_area_from_inside() {
     sphere_test("sphere inside", s, Vec3A::new(0.7, -0.4, 0.9), -1.0);
 }
 
-#[test]
-fn chi2_triangle_emitter_area() {
-    let tri = Triangle::new(
-        Vec3A::new(-1.0, 1.5, 2.0),
-        Vec3A::new(1.2, 1.7, 2.5),
-        Vec3A::new(0.1, 1.4, 4.0),
-    );
-    let p = Vec3A::new(0.2, 0.0, 1.0);
+/// A χ² test of [`sample_triangle`] against [`triangle_pdf`] for triangle `tri` seen from `p`.
+fn triangle_test(name: &str, tri: Triangle, p: Vec3A) {
     let centroid = (tri.vertices()[0] + tri.vertices()[1] + tri.vertices()[2]) / 3.0;
     let (t, b, n) = frame(p, centroid);
     let c0 = tri
@@ -287,7 +281,7 @@ fn chi2_triangle_emitter_area() {
         samples: 200_000,
     };
     let pv = test.run(
-        "triangle",
+        name,
         |r| {
             let (d, _, _) = sample_triangle(&tri, p, r.next_f32(), r.next_f32())?;
             Some(to_local(d, t, b, n))
@@ -301,6 +295,183 @@ fn chi2_triangle_emitter_area() {
         },
     );
     assert!(pv > P_MIN, "p = {pv}");
+}
+
+/// A triangle of moderate solid angle (0.3 sr), drawn by solid angle.
+#[test]
+fn chi2_triangle_emitter_solid_angle() {
+    let tri = Triangle::new(
+        Vec3A::new(-1.0, 1.5, 2.0),
+        Vec3A::new(1.2, 1.7, 2.5),
+        Vec3A::new(0.1, 1.4, 4.0),
+    );
+    triangle_test("triangle", tri, Vec3A::new(0.2, 0.0, 1.0));
+    triangle_cells_test("triangle", tri, Vec3A::new(0.2, 0.0, 1.0), true);
+}
+
+type D3 = [f64; 3];
+
+fn d3(v: Vec3A) -> D3 {
+    [f64::from(v.x), f64::from(v.y), f64::from(v.z)]
+}
+
+fn dot_d(a: D3, b: D3) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+fn cross_d(a: D3, b: D3) -> D3 {
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
+}
+
+/// The solid angle of the triangle (a, b, c) seen from `p`, in f64.
+fn solid_angle_d(p: D3, [a, b, c]: [D3; 3]) -> f64 {
+    let unit = |v: D3| {
+        let w = [v[0] - p[0], v[1] - p[1], v[2] - p[2]];
+        let l = dot_d(w, w).sqrt();
+        [w[0] / l, w[1] / l, w[2] / l]
+    };
+    let (a, b, c) = (unit(a), unit(b), unit(c));
+    let num = dot_d(a, cross_d(b, c)).abs();
+    let den = 1.0 + dot_d(a, b) + dot_d(b, c) + dot_d(c, a);
+    2.0 * num.atan2(den)
+}
+
+/// A χ² test of where [`sample_triangle`]'s points land on `tri`, seen from `p`, by the n² cells
+/// of its subdivision into n × n: each cell's expected share is its share of the triangle's solid
+/// angle (`by_solid_angle`) or of its area. Unlike the test by directions, no cell is thinner
+/// than the directions' grid, however close `p` is to the triangle's plane.
+fn triangle_cells_test(name: &str, tri: Triangle, p: Vec3A, by_solid_angle: bool) {
+    let pv = triangle_cells_p(name, tri, p, by_solid_angle);
+    assert!(pv > P_MIN, "{name}: p = {pv}");
+}
+
+/// The p-value of [`triangle_cells_test`].
+fn triangle_cells_p(name: &str, tri: Triangle, p: Vec3A, by_solid_angle: bool) -> f64 {
+    const N: usize = 8;
+    const SAMPLES: usize = 400_000;
+    let [v0, v1, v2] = tri.vertices().map(d3);
+    let (e1, e2) = (
+        [v1[0] - v0[0], v1[1] - v0[1], v1[2] - v0[2]],
+        [v2[0] - v0[0], v2[1] - v0[1], v2[2] - v0[2]],
+    );
+    let at = |b1: f64, b2: f64| -> D3 { std::array::from_fn(|a| v0[a] + e1[a] * b1 + e2[a] * b2) };
+    let pd = d3(p);
+    // Cells: (i, j, up) with corners at barycentrics on the 1/N grid.
+    let mut cells = Vec::new();
+    for i in 0..N {
+        for j in 0..N - i {
+            let (x, y, k) = (i as f64, j as f64, N as f64);
+            cells.push([at(x / k, y / k), at((x + 1.0) / k, y / k), at(x / k, (y + 1.0) / k)]);
+            if i + j + 1 < N {
+                cells.push([
+                    at((x + 1.0) / k, y / k),
+                    at((x + 1.0) / k, (y + 1.0) / k),
+                    at(x / k, (y + 1.0) / k),
+                ]);
+            }
+        }
+    }
+    let index = |b1: f64, b2: f64| -> Option<usize> {
+        let (x, y) = (b1 * N as f64, b2 * N as f64);
+        let (i, j) = (x.floor().max(0.0) as usize, y.floor().max(0.0) as usize);
+        if i + j >= N {
+            return None;
+        }
+        // The last cell of a row has no lower neighbour: a point on the hypotenuse is in it.
+        let up = (x - i as f64) + (y - j as f64) < 1.0 || i + j + 1 == N;
+        // Cells are pushed row by row of i: before row i come Σ_{r<i} (2(N − r) − 1) cells.
+        let before: usize = (0..i).map(|r| 2 * (N - r) - 1).sum();
+        Some(before + 2 * j + usize::from(!up))
+    };
+    let omega = solid_angle_d(pd, [v0, v1, v2]);
+    let expected: Vec<f64> = cells
+        .iter()
+        .map(|&c| {
+            if by_solid_angle {
+                solid_angle_d(pd, c) / omega
+            } else {
+                1.0 / cells.len() as f64
+            }
+        })
+        .collect();
+    let total: f64 = expected.iter().sum();
+    assert!((total - 1.0).abs() < 1e-9, "{name}: the cells' shares sum to {total}");
+    let n = cross_d(e1, e2);
+    let nn = dot_d(n, n);
+    let mut observed = vec![0f64; cells.len()];
+    let mut rng = Rng::for_sample(0x5eed, 1, 0);
+    let mut failed = 0usize;
+    for _ in 0..SAMPLES {
+        let Some((dir, dist, pdf)) = sample_triangle(&tri, p, rng.next_f32(), rng.next_f32()) else {
+            failed += 1;
+            continue;
+        };
+        let y: D3 = std::array::from_fn(|a| pd[a] + f64::from(dir[a]) * f64::from(dist));
+        let w = [y[0] - v0[0], y[1] - v0[1], y[2] - v0[2]];
+        let b1 = dot_d(cross_d(w, e2), n) / nn;
+        let b2 = dot_d(cross_d(e1, w), n) / nn;
+        let want = triangle_pdf(&tri, p, p + dir * dist);
+        assert!(
+            (pdf - want).abs() <= 1e-4 * want,
+            "{name}: drawn with density {pdf}, triangle_pdf says {want}"
+        );
+        if by_solid_angle && omega > 3e-4 {
+            assert!(
+                (f64::from(pdf) * omega - 1.0).abs() < 1e-4,
+                "{name}: density {pdf} is not 1/Ω, Ω = {omega}"
+            );
+        }
+        // Points that rounding puts a hair outside go to the nearest cell.
+        let (b1, b2) = (b1.clamp(0.0, 1.0), b2.clamp(0.0, 1.0));
+        let s = b1 + b2;
+        let (b1, b2) = if s > 1.0 { (b1 / s, b2 / s) } else { (b1, b2) };
+        let k = index(b1.min(1.0 - 1e-12), b2.min(1.0 - 1e-12)).unwrap_or(cells.len() - 1);
+        observed[k] += 1.0;
+    }
+    assert!(failed * 10_000 <= SAMPLES, "{name}: {failed} of {SAMPLES} draws failed");
+    let drawn = (SAMPLES - failed) as f64;
+    let chi2: f64 = expected
+        .iter()
+        .zip(&observed)
+        .map(|(e, o)| (o - e * drawn).powi(2) / (e * drawn))
+        .sum();
+    let dof = cells.len() - 1;
+    let pv = gamma_q(dof as f64 / 2.0, chi2 / 2.0);
+    eprintln!("{name} by cells: chi2 = {chi2:.1}, dof = {dof}, p = {pv:.4}");
+    pv
+}
+
+/// Points 0.005–0.01 from a triangle's plane, above it and beside it (the ceiling around a lamp
+/// hung just below it): the solid angle is large and most directions graze the triangle; drawn
+/// by solid angle.
+#[test]
+fn chi2_triangle_emitter_seen_from_close_by() {
+    let tri = Triangle::new(
+        Vec3A::new(-0.35, 0.995, 1.9),
+        Vec3A::new(0.35, 0.995, 1.9),
+        Vec3A::new(0.35, 0.995, 2.6),
+    );
+    triangle_cells_test("above the triangle", tri, Vec3A::new(0.1, 1.0, 2.3), true);
+    triangle_cells_test("beside the triangle", tri, Vec3A::new(0.4, 1.005, 2.0), true);
+    triangle_cells_test("at a corner", tri, Vec3A::new(-0.36, 1.0, 1.89), true);
+    // The same draws judged as if they were uniform by area must fail: the test can tell.
+    let pv = triangle_cells_p("above, judged by area", tri, Vec3A::new(0.1, 1.0, 2.3), false);
+    assert!(pv < 1e-9, "draws by solid angle passed as draws by area: p = {pv}");
+}
+
+/// A small, far triangle (solid angle below 3e-4 sr), drawn by area.
+#[test]
+fn chi2_triangle_emitter_area_far_away() {
+    let tri = Triangle::new(
+        Vec3A::new(-0.1, 1.5, 20.0),
+        Vec3A::new(0.12, 1.7, 20.5),
+        Vec3A::new(0.01, 1.4, 20.3),
+    );
+    triangle_cells_test("small far triangle", tri, Vec3A::new(0.2, 0.0, 1.0), false);
 }
 
 #[test]
