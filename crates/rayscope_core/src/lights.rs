@@ -22,8 +22,8 @@ use crate::geometry::{PrimRef, Sphere, Triangle};
 use crate::material::Material;
 use crate::math::{basis, basis_lanes, not_at_most, RayPacket};
 use crate::sampling::{
-    spherical_sampling, spherical_triangle, spherical_triangle_point, to_world, to_world_unit_lanes, uniform_cone,
-    uniform_cone_pdf, uniform_sphere, uniform_triangle,
+    spherical_sampling, spherical_triangle, spherical_triangle_point, spherical_triangle_point_in, to_world,
+    to_world_unit_lanes, uniform_cone, uniform_cone_pdf, uniform_sphere, uniform_triangle,
 };
 use crate::scene::{Intersect, Scene};
 use crate::simd::{dispatched, lane, put, sel, Mask, LANES};
@@ -312,29 +312,29 @@ impl Emitters {
             self.sample_spheres_lanes(p, &sphere, &centre, &radius, [u1, u2], &mut out);
         }
         // sample_triangle_with where a lane chose a triangle: the draw by solid angle in one
-        // pass over the lanes without branches, then by area lane by lane where that draw was
-        // not taken.
+        // pass over the lanes without branches, then by area lane by lane where the solid
+        // angle is out of that draw's range.
         if tri.contains(&true) {
             let mut by_area = [false; LANES];
             for i in 0..LANES {
                 let at = |v: &[[f32; LANES]; 3]| [v[0][i], v[1][i], v[2][i]];
-                let (dir, dist, pdf, ok) =
-                    spherical_triangle_point(at(&v0), at(&e1), at(&e2), at(&cross), at(p), u1[i], u2[i]);
-                let take = tri[i] & ok;
+                let s = spherical_triangle_point(at(&v0), at(&e1), at(&e2), at(&cross), at(p), u1[i], u2[i]);
+                let take = tri[i] & s.taken & s.ok;
                 for a in 0..3 {
-                    out.dir[a][i] = sel(take, dir[a], out.dir[a][i]);
+                    out.dir[a][i] = sel(take, s.dir[a], out.dir[a][i]);
                 }
-                out.dist[i] = sel(take, dist, out.dist[i]);
-                out.pdf[i] = sel(take, pdf, out.pdf[i]);
+                out.dist[i] = sel(take, s.dist, out.dist[i]);
+                out.pdf[i] = sel(take, s.pdf, out.pdf[i]);
                 out.ok[i] |= take;
-                by_area[i] = tri[i] & !ok;
+                by_area[i] = tri[i] & !s.taken;
             }
             for i in 0..LANES {
                 if !by_area[i] {
                     continue;
                 }
                 let at = |v: &[[f32; LANES]; 3]| lane(v, i);
-                let drawn = sample_triangle_with(at(&v0), at(&e1), at(&e2), at(&cross), area2[i], at(p), u1[i], u2[i]);
+                let drawn =
+                    sample_triangle_by_area(at(&v0), at(&e1), at(&e2), at(&cross), area2[i], at(p), u1[i], u2[i]);
                 if let Some((dir, dist, pdf)) = drawn {
                     put(&mut out.dir, i, dir.to_array());
                     out.dist[i] = dist;
@@ -520,10 +520,27 @@ fn sample_triangle_with(
     u1: f32,
     u2: f32,
 ) -> Option<(Vec3A, f32, f32)> {
-    let (dir, dist, pdf, ok) = spherical_triangle_point(v0.into(), e1.into(), e2.into(), c.into(), p.into(), u1, u2);
-    if ok {
-        return Some((dir.into(), dist, pdf));
+    let (area, corners) = spherical_triangle(v0.into(), e1.into(), e2.into(), p.into());
+    if spherical_sampling(area) {
+        let s = spherical_triangle_point_in(area, corners, v0.into(), c.into(), p.into(), u1, u2);
+        return s.ok.then(|| (s.dir.into(), s.dist, s.pdf));
     }
+    sample_triangle_by_area(v0, e1, e2, c, area2, p, u1, u2)
+}
+
+/// [`sample_triangle_with`] by area: a point uniform on the triangle.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn sample_triangle_by_area(
+    v0: Vec3A,
+    e1: Vec3A,
+    e2: Vec3A,
+    c: Vec3A,
+    area2: f32,
+    p: Vec3A,
+    u1: f32,
+    u2: f32,
+) -> Option<(Vec3A, f32, f32)> {
     let (b1, b2) = uniform_triangle(u1, u2);
     let y = v0 + e1 * b1 + e2 * b2;
     let w = y - p;

@@ -275,19 +275,56 @@ pub(crate) fn spherical_triangle_sample(area: f32, [a, b, c]: [V3; 3], u1: f32, 
 }
 
 /// A point drawn uniformly by solid angle on the triangle with corners `v0`, `v0 + e1`,
-/// `v0 + e2` and e1 × e2 `c`, seen from `p`: (direction, distance, density, drawn). Not drawn
-/// (the caller then samples by area) where the solid angle is outside [`SPHERICAL_SAMPLING`] or
-/// rounding leaves no direction.
+/// `v0 + e2` and e1 × e2 `c`, seen from `p`: (direction, distance, density, whether the
+/// triangle is drawn this way at all, whether the draw succeeded). The triangle is drawn this
+/// way where its solid angle is inside [`SPHERICAL_SAMPLING`] (elsewhere the caller samples it
+/// by area); the draw fails where rounding leaves no direction. Branch-free, so that a loop
+/// over lanes vectorises.
 #[must_use]
 #[inline(always)]
-pub(crate) fn spherical_triangle_point(v0: V3, e1: V3, e2: V3, c: V3, p: V3, u1: f32, u2: f32) -> (V3, f32, f32, bool) {
+pub(crate) fn spherical_triangle_point(v0: V3, e1: V3, e2: V3, c: V3, p: V3, u1: f32, u2: f32) -> SphericalPoint {
     let (area, corners) = spherical_triangle(v0, e1, e2, p);
+    spherical_triangle_point_in(area, corners, v0, c, p, u1, u2)
+}
+
+/// [`spherical_triangle_point`] with the triangle's solid angle and corner directions given.
+#[must_use]
+#[inline(always)]
+pub(crate) fn spherical_triangle_point_in(
+    area: f32,
+    corners: [V3; 3],
+    v0: V3,
+    c: V3,
+    p: V3,
+    u1: f32,
+    u2: f32,
+) -> SphericalPoint {
     let dir = spherical_triangle_sample(area, corners, u1, u2);
     // Where the direction meets the triangle's plane.
     let dist = dot3(c, diff3(v0, p)) / dot3(c, dir);
     let finite = dir[0].is_finite() & dir[1].is_finite() & dir[2].is_finite() & dist.is_finite();
-    let ok = spherical_sampling(area) & (dist > 0.0) & finite;
-    (dir, dist, 1.0 / area, ok)
+    SphericalPoint {
+        dir,
+        dist,
+        pdf: 1.0 / area,
+        taken: spherical_sampling(area),
+        ok: (dist > 0.0) & finite,
+    }
+}
+
+/// What [`spherical_triangle_point`] draws.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct SphericalPoint {
+    /// Unit direction to the point.
+    pub(crate) dir: V3,
+    /// Distance to it.
+    pub(crate) dist: f32,
+    /// Solid-angle density, 1 / Ω.
+    pub(crate) pdf: f32,
+    /// The triangle is drawn by solid angle from here (else by area).
+    pub(crate) taken: bool,
+    /// The draw gave a direction.
+    pub(crate) ok: bool,
 }
 
 /// The power heuristic (β = 2) weight of a strategy with density `a` against one with density `b`.
