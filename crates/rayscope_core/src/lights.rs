@@ -178,7 +178,7 @@ impl Emitters {
             PrimRef::Sphere(s) => sample_sphere(&scene.spheres[s as usize], p, u1, u2)?,
             PrimRef::Triangle(t) => {
                 let t = &scene.triangles[t as usize];
-                sample_triangle_with(t.v0(), t.e1(), t.e2(), e.cross, 2.0 * e.area, p, u1, u2)?
+                TriangleShape::of(t, e.cross, 2.0 * e.area).sample(p, u1, u2)?
             }
             PrimRef::Plane(_) => return None,
         };
@@ -205,7 +205,7 @@ impl Emitters {
             PrimRef::Sphere(s) => sphere_pdf(&scene.spheres[s as usize], origin, point),
             PrimRef::Triangle(t) => {
                 let (e, t) = (&self.list[i as usize], &scene.triangles[t as usize]);
-                triangle_pdf_with(t, e.cross, 2.0 * e.area, origin, point)
+                TriangleShape::of(t, e.cross, 2.0 * e.area).pdf(origin, point)
             }
             PrimRef::Plane(_) => 0.0,
         };
@@ -311,7 +311,7 @@ impl Emitters {
         if sphere.contains(&true) {
             self.sample_spheres_lanes(p, &sphere, &centre, &radius, [u1, u2], &mut out);
         }
-        // sample_triangle_with where a lane chose a triangle: the draw by solid angle in one
+        // TriangleShape::sample where a lane chose a triangle: the draw by solid angle in one
         // pass over the lanes without branches, then by area lane by lane where the solid
         // angle is out of that draw's range.
         if tri.contains(&true) {
@@ -333,9 +333,14 @@ impl Emitters {
                     continue;
                 }
                 let at = |v: &[[f32; LANES]; 3]| lane(v, i);
-                let drawn =
-                    sample_triangle_by_area(at(&v0), at(&e1), at(&e2), at(&cross), area2[i], at(p), u1[i], u2[i]);
-                if let Some((dir, dist, pdf)) = drawn {
+                let shape = TriangleShape {
+                    v0: at(&v0),
+                    e1: at(&e1),
+                    e2: at(&e2),
+                    cross: at(&cross),
+                    area2: area2[i],
+                };
+                if let Some((dir, dist, pdf)) = shape.sample_by_area(at(p), u1[i], u2[i]) {
                     put(&mut out.dir, i, dir.to_array());
                     out.dist[i] = dist;
                     out.pdf[i] = pdf;
@@ -503,74 +508,79 @@ pub fn sphere_pdf(s: &Sphere, p: Vec3A, y: Vec3A) -> f32 {
 #[must_use]
 pub fn sample_triangle(t: &Triangle, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
     let c = t.e1().cross(t.e2());
-    sample_triangle_with(t.v0(), t.e1(), t.e2(), c, c.length(), p, u1, u2)
-}
-
-/// [`sample_triangle`] of the triangle with corner `v0` and edges `e1`, `e2`, with its
-/// e1 × e2 and that vector's length given.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn sample_triangle_with(
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-    c: Vec3A,
-    area2: f32,
-    p: Vec3A,
-    u1: f32,
-    u2: f32,
-) -> Option<(Vec3A, f32, f32)> {
-    let (area, corners) = spherical_triangle(v0.into(), e1.into(), e2.into(), p.into());
-    if spherical_sampling(area) {
-        let s = spherical_triangle_point_in(area, corners, v0.into(), c.into(), p.into(), u1, u2);
-        return s.ok.then(|| (s.dir.into(), s.dist, s.pdf));
-    }
-    sample_triangle_by_area(v0, e1, e2, c, area2, p, u1, u2)
-}
-
-/// [`sample_triangle_with`] by area: a point uniform on the triangle.
-#[allow(clippy::too_many_arguments)]
-#[inline]
-fn sample_triangle_by_area(
-    v0: Vec3A,
-    e1: Vec3A,
-    e2: Vec3A,
-    c: Vec3A,
-    area2: f32,
-    p: Vec3A,
-    u1: f32,
-    u2: f32,
-) -> Option<(Vec3A, f32, f32)> {
-    let (b1, b2) = uniform_triangle(u1, u2);
-    let y = v0 + e1 * b1 + e2 * b2;
-    let w = y - p;
-    let dist2 = w.length_squared();
-    let dist = dist2.sqrt();
-    if dist <= 0.0 {
-        return None;
-    }
-    let dir = w / dist;
-    let pdf = area_to_solid_angle(dist2, c.dot(dir).abs() / area2, 0.5 * area2)?;
-    Some((dir, dist, pdf))
+    TriangleShape::of(t, c, c.length()).sample(p, u1, u2)
 }
 
 /// Solid-angle density of [`sample_triangle`] from `p` for the point `y` on the triangle.
 #[must_use]
 pub fn triangle_pdf(t: &Triangle, p: Vec3A, y: Vec3A) -> f32 {
     let c = t.e1().cross(t.e2());
-    triangle_pdf_with(t, c, c.length(), p, y)
+    TriangleShape::of(t, c, c.length()).pdf(p, y)
 }
 
-/// [`triangle_pdf`] with the triangle's e1 × e2 and its length given.
-#[inline]
-fn triangle_pdf_with(t: &Triangle, c: Vec3A, area2: f32, p: Vec3A, y: Vec3A) -> f32 {
-    let (area, _) = spherical_triangle(t.v0().into(), t.e1().into(), t.e2().into(), p.into());
-    if spherical_sampling(area) {
-        return 1.0 / area;
+/// A triangle as its draws and densities need it: corner `v0`, edges `e1` and `e2`, their
+/// cross product and that vector's length (twice the area), the last two kept with each emitter.
+#[derive(Debug, Clone, Copy)]
+struct TriangleShape {
+    v0: Vec3A,
+    e1: Vec3A,
+    e2: Vec3A,
+    cross: Vec3A,
+    area2: f32,
+}
+
+impl TriangleShape {
+    /// `t` with its e1 × e2 and that vector's length given.
+    #[inline]
+    fn of(t: &Triangle, cross: Vec3A, area2: f32) -> Self {
+        TriangleShape {
+            v0: t.v0(),
+            e1: t.e1(),
+            e2: t.e2(),
+            cross,
+            area2,
+        }
     }
-    let w = y - p;
-    let dist2 = w.length_squared();
-    area_to_solid_angle(dist2, c.dot(w).abs() / (area2 * dist2.sqrt()), 0.5 * area2).unwrap_or(0.0)
+
+    /// [`sample_triangle`] of this triangle.
+    #[inline]
+    fn sample(&self, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+        let (area, corners) = spherical_triangle(self.v0.into(), self.e1.into(), self.e2.into(), p.into());
+        if spherical_sampling(area) {
+            let s = spherical_triangle_point_in(area, corners, self.v0.into(), self.cross.into(), p.into(), u1, u2);
+            return s.ok.then(|| (s.dir.into(), s.dist, s.pdf));
+        }
+        self.sample_by_area(p, u1, u2)
+    }
+
+    /// [`Self::sample`] by area: a point uniform on the triangle.
+    #[inline]
+    fn sample_by_area(&self, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
+        let (b1, b2) = uniform_triangle(u1, u2);
+        let y = self.v0 + self.e1 * b1 + self.e2 * b2;
+        let w = y - p;
+        let dist2 = w.length_squared();
+        let dist = dist2.sqrt();
+        if dist <= 0.0 {
+            return None;
+        }
+        let dir = w / dist;
+        let pdf = area_to_solid_angle(dist2, self.cross.dot(dir).abs() / self.area2, 0.5 * self.area2)?;
+        Some((dir, dist, pdf))
+    }
+
+    /// [`triangle_pdf`] of this triangle.
+    #[inline]
+    fn pdf(&self, p: Vec3A, y: Vec3A) -> f32 {
+        let (area, _) = spherical_triangle(self.v0.into(), self.e1.into(), self.e2.into(), p.into());
+        if spherical_sampling(area) {
+            return 1.0 / area;
+        }
+        let w = y - p;
+        let dist2 = w.length_squared();
+        let (c, area2) = (self.cross, self.area2);
+        area_to_solid_angle(dist2, c.dot(w).abs() / (area2 * dist2.sqrt()), 0.5 * area2).unwrap_or(0.0)
+    }
 }
 
 /// The unit direction `l` from `from` toward a point light at `light`, the light's distance,
