@@ -465,7 +465,14 @@ pub fn sample_sphere(s: &Sphere, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f
     }
     // From inside: uniform by area, converted to solid angle.
     let n = uniform_sphere(u1, u2);
-    let y = s.center + n * s.radius;
+    toward_area_point(p, s.center + n * s.radius, sphere_area(s), |dir| n.dot(dir).abs())
+}
+
+/// Direction, distance and solid-angle density from `p` of the point `y`, drawn uniformly on a
+/// surface of area `area` whose |cos| with the direction `cos` gives; `None` at `y` itself or
+/// where the surface is seen edge-on.
+#[inline]
+fn toward_area_point(p: Vec3A, y: Vec3A, area: f32, cos: impl Fn(Vec3A) -> f32) -> Option<(Vec3A, f32, f32)> {
     let w = y - p;
     let dist2 = w.length_squared();
     let dist = dist2.sqrt();
@@ -473,7 +480,7 @@ pub fn sample_sphere(s: &Sphere, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f
         return None;
     }
     let dir = w / dist;
-    let pdf = area_to_solid_angle(dist2, n.dot(dir).abs(), sphere_area(s))?;
+    let pdf = area_to_solid_angle(dist2, cos(dir), area)?;
     Some((dir, dist, pdf))
 }
 
@@ -558,15 +565,7 @@ impl TriangleShape {
     fn sample_by_area(&self, p: Vec3A, u1: f32, u2: f32) -> Option<(Vec3A, f32, f32)> {
         let (b1, b2) = uniform_triangle(u1, u2);
         let y = self.v0 + self.e1 * b1 + self.e2 * b2;
-        let w = y - p;
-        let dist2 = w.length_squared();
-        let dist = dist2.sqrt();
-        if dist <= 0.0 {
-            return None;
-        }
-        let dir = w / dist;
-        let pdf = area_to_solid_angle(dist2, self.cross.dot(dir).abs() / self.area2, 0.5 * self.area2)?;
-        Some((dir, dist, pdf))
+        toward_area_point(p, y, 0.5 * self.area2, |dir| self.cross.dot(dir).abs() / self.area2)
     }
 
     /// [`triangle_pdf`] of this triangle.
