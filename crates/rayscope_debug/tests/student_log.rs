@@ -510,5 +510,12 @@ fn a_log_that_misses_the_mistake_gets_the_pixels_to_log_next() {
         }
         server.stop();
     }
+    // The same log sent from the page: the upload's own answer carries the advice, since the
+    // page shows whichever answer arrives last and stops asking once the log is judged.
+    let server = start(&whitted(), w, h, rayscope_debug::student::StudentInput::default());
+    let s = upload(server.addr, top.as_bytes());
+    assert_eq!(s["state"], "done", "{s:#}");
+    assert_eq!(s["judged"]["next"]["kind"], "sparse", "{s:#}");
+    server.stop();
     let _ = std::fs::remove_dir_all(&dir);
 }

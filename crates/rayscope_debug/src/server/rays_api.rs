@@ -523,7 +523,14 @@ fn next_for_picture(
 
 pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> {
     refresh(&st);
-    let mut v = summary(&st);
+    Json(summary_with_next(&st).await)
+}
+
+/// [`summary`] with what to log next ([`log_next`]) in its judgement. Every answer that carries
+/// the summary carries it, since the page shows the last answer to arrive: an upload's answer
+/// that lacked it could replace a poll's answer that had it.
+async fn summary_with_next(st: &Arc<AppState>) -> Value {
+    let mut v = summary(st);
     if v.get("judged").is_some() {
         // Traces up to a few thousand pixels the first time: off the async workers.
         let s = st.clone();
@@ -531,7 +538,7 @@ pub(super) async fn api_summary(State(st): State<Arc<AppState>>) -> Json<Value> 
             v["judged"]["next"] = next;
         }
     }
-    Json(v)
+    v
 }
 
 /// A file name as sent, without its folders and control characters, at most 120 characters.
@@ -608,13 +615,14 @@ pub(super) async fn api_upload(
     };
     let outcome = receive(&st, body, &abort, name, binary, roles, lenient, declared).await;
     drop(permit);
-    let mut g = st.rays.lock();
-    if g.receiving.as_ref().is_some_and(|a| Arc::ptr_eq(a, &abort)) {
-        g.receiving = None;
+    {
+        let mut g = st.rays.lock();
+        if g.receiving.as_ref().is_some_and(|a| Arc::ptr_eq(a, &abort)) {
+            g.receiving = None;
+        }
     }
-    drop(g);
     outcome?;
-    Ok(Json(summary(&st)))
+    Ok(Json(summary_with_next(&st).await))
 }
 
 /// Receives an upload's body and judges it as it arrives; `Ok` once judged.
@@ -816,7 +824,7 @@ pub(super) async fn api_image_upload(
     .map_err(|e| ApiError(StatusCode::INTERNAL_SERVER_ERROR, e.to_string()))?
     .map_err(ApiError::bad)?;
     st.rays.lock().image = Some((name, Arc::new(img)));
-    Ok(Json(summary(&st)))
+    Ok(Json(summary_with_next(&st).await))
 }
 
 pub(super) async fn api_image(State(st): State<Arc<AppState>>) -> ApiResult<Response> {
