@@ -181,6 +181,9 @@ codes! {
     ShadingDiffuse = "shading.diffuse", false,
         "diffuse colour does not follow the course's formula",
         "A diffuse hit's colour is albedo × Σ light colour × max(0, N·L) over the lights its shadow rays reach, with N the unit normal facing the incoming ray and L the unit direction to the light: no fall-off with distance, no ambient term, nothing for a light whose shadow ray is blocked. The details compare your colour with that sum over your own shadow rays and name the likely mistake when it fits one: N·L not clamped at 0 (lights behind the surface subtract), divided by the squared distance, the albedo or the light's colour left out, the whole sum times a plain factor (the lights averaged instead of added), or a constant ambient term added. Fix the diffuse term in your shading function.";
+    ShadingShadowDirection = "shading.shadow-direction", false,
+        "diffuse colour takes N·L along shadow rays that miss their lights",
+        "The colour fits the course's diffuse sum, albedo × Σ light colour × max(0, N·L), with L taken along your own shadow rays; but those rays do not point at their lights, so N·L is wrong with them. It is what the shadow rays' mistake does to the colour: make the shadow ray's direction normalise(light − point) and use that same unit vector as L in N·L, and the colour follows.";
     ShadingMirror = "shading.mirror", false,
         "mirror colour is not its reflected ray's colour",
         "A Reflective hit brings back exactly what its reflected ray brought back: the course's mirror is perfect and its material colour plays no part at stage 2. Your colour differs from your own reflected ray's; the details say whether it fits the reflected colour multiplied by the material colour. Return the reflected ray's colour unchanged.";

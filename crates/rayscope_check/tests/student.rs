@@ -467,6 +467,42 @@ fn a_mistake_heads_the_report_above_its_consequences() {
     }
 }
 
+/// A mistake no catalogue has (the shadow ray aimed along the light's position, as if from the
+/// camera, with N·L along it too): one headline, the shadow rays that miss their lights, and the
+/// colours that follow from them listed under it, not as a diffuse-shading mistake of their own
+/// with guesses at fall-off or ambient light.
+#[test]
+fn colours_made_with_wrong_shadow_rays_follow_from_those_rays() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "light-as-direction",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::ShadowNotAtLight,
+    ) else {
+        return;
+    };
+    let t = text(&r);
+    let follows = r.causes[0]
+        .consequences
+        .iter()
+        .find(|c| c.code == Code::ShadingShadowDirection);
+    assert!(follows.is_some_and(|c| c.count > 100), "{t}");
+    assert!(r.verdicts.iter().all(|v| v.code != Code::ShadingDiffuse), "{t}");
+    assert!(!t.contains("light-falloff") && !t.contains("ambient-term"), "{t}");
+    // Each example says what the direction is instead: the light's own position.
+    assert!(
+        r.causes[0]
+            .examples
+            .iter()
+            .all(|e| e.detail.contains("light − point without the point")),
+        "{t}"
+    );
+}
+
 #[test]
 fn a_too_strict_triangle_test_is_named_as_such_not_as_one_sided() {
     let Some(course) = rayscope_testkit::course() else {

@@ -139,7 +139,7 @@ pub fn causes(order: &[usize], parent: &[Option<usize>], findings: &[Vec<Finding
         blame[i] = handed_down(c.code).then_some(c);
     }
     fold_siblings(&mut out, parent);
-    fold_missing_reflection(&mut out, parent);
+    fold_into_child(&mut out, parent);
     out
 }
 
@@ -166,19 +166,27 @@ fn fold_siblings(out: &mut SampleCauses, parent: &[Option<usize>]) {
     }
 }
 
-/// A missing reflected ray at glass whose refracted ray bends wrong: the tracer's Fresnel weight
-/// comes from the same wrong indices or normal, so the missing ray follows from the refraction.
-fn fold_missing_reflection(out: &mut SampleCauses, parent: &[Option<usize>]) {
+/// Causes on a ray that a cause on one of the rays cast from its hit explains: the parent's code
+/// and the start of the child's. A missing reflected ray at glass whose refracted ray bends
+/// wrong: the tracer's Fresnel weight comes from the same wrong indices or normal. A diffuse
+/// colour that takes N·L along shadow rays that miss their lights: the shadow rays' direction is
+/// the mistake.
+const FROM_CHILD: &[(Code, &str)] = &[
+    (Code::MissingReflection, "refraction."),
+    (Code::ShadingShadowDirection, "shadow.not-at-light"),
+];
+
+/// Folds a root into the cause of a ray cast from its hit where [`FROM_CHILD`] says that cause
+/// explains it.
+fn fold_into_child(out: &mut SampleCauses, parent: &[Option<usize>]) {
     let mut k = 0;
     while k < out.roots.len() {
         let (i, c) = out.roots[k];
-        let by = (c.code == Code::MissingReflection)
-            .then(|| {
-                out.roots
-                    .iter()
-                    .find(|&&(j, d)| parent[j] == Some(i) && d.code.as_str().starts_with("refraction."))
-            })
-            .flatten();
+        let by = FROM_CHILD.iter().find(|(p, _)| *p == c.code).and_then(|&(_, child)| {
+            out.roots
+                .iter()
+                .find(|&&(j, d)| parent[j] == Some(i) && d.code.as_str().starts_with(child))
+        });
         match by {
             Some(&(_, d)) => {
                 out.consequences.push((d, c.code));
@@ -309,5 +317,45 @@ mod tests {
         ];
         let c = causes(&[0, 1], &parent, &findings);
         assert_eq!(c.roots.len(), 2);
+    }
+
+    #[test]
+    fn a_colour_made_with_a_wrong_shadow_ray_follows_from_that_ray_alone() {
+        // Camera ray 0's diffuse colour takes N·L along its shadow ray 1, which misses its light;
+        // shadow ray 2, aimed right, has nothing to add. A diffuse colour wrong on its own terms
+        // stays a cause.
+        let parent = [None, Some(0), Some(0)];
+        let findings = vec![
+            vec![finding(Code::ShadingShadowDirection)],
+            vec![finding(Code::ShadowNotAtLight)],
+            vec![],
+        ];
+        let c = causes(&[0, 1, 2], &parent, &findings);
+        assert_eq!(
+            c.roots,
+            vec![(
+                1,
+                Cause {
+                    code: Code::ShadowNotAtLight,
+                    or: None
+                }
+            )]
+        );
+        assert_eq!(
+            c.consequences,
+            vec![(
+                Cause {
+                    code: Code::ShadowNotAtLight,
+                    or: None
+                },
+                Code::ShadingShadowDirection
+            )]
+        );
+        let findings = vec![
+            vec![finding(Code::ShadingDiffuse)],
+            vec![finding(Code::ShadowNotAtLight)],
+            vec![],
+        ];
+        assert_eq!(causes(&[0, 1, 2], &parent, &findings).roots.len(), 2);
     }
 }

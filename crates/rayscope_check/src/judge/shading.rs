@@ -541,6 +541,46 @@ impl Judge<'_> {
         if fits(c, t.exact, t.slack) {
             return Decision::Judged;
         }
+        let name = self.name(lv.entity);
+        let lit: Vec<&str> = reached
+            .iter()
+            .enumerate()
+            .filter(|(_, &x)| x)
+            .map(|(li, _)| self.light_name(li as u32))
+            .collect();
+        let from = if lit.is_empty() {
+            "no light (every shadow ray is blocked), so it is black".to_string()
+        } else {
+            format!("light{} {}", if lit.len() == 1 { "" } else { "s" }, lit.join(", "))
+        };
+        // A tracer that takes L in N·L from its own shadow rays, where those miss their lights,
+        // makes the colour that follows from them: the sum along each reaching shadow ray.
+        let mut along = DVec3::ZERO;
+        let mut apart = 0.0f64;
+        for li in lit_by() {
+            let reaching = kids
+                .shadow
+                .iter()
+                .find(|&&k| aimed(k) == Some(li) && matches!(rays[k].blocked_by, Answer::Nothing));
+            if let Some(&k) = reaching {
+                let s = &rays[k];
+                along += albedo * lights[li].color.as_dvec3() * lv.shade.dot(s.direction.normalize_or_zero()).max(0.0);
+                apart = apart.max(angle(s.direction, light_pos(li) - s.origin));
+            }
+        }
+        if apart > self.tol.direction && fits(c, along, t.slack) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::ShadingShadowDirection,
+                format!(
+                    "diffuse '{name}' lit by {from}: your colour is the course's sum with L along your shadow rays, which point up to {:.3}° away from their lights",
+                    apart.to_degrees()
+                ),
+                vec![colour_value(c, t.exact)],
+            ));
+            return Decision::Judged;
+        }
         // The same terms by the usual mistakes, needed only for a colour that does not fit.
         for li in lit_by() {
             let to = light_pos(li) - lv.point;
@@ -553,13 +593,6 @@ impl Judge<'_> {
             t.no_light += albedo * cos.max(0.0);
             t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
         }
-        let name = self.name(lv.entity);
-        let lit: Vec<&str> = reached
-            .iter()
-            .enumerate()
-            .filter(|(_, &x)| x)
-            .map(|(li, _)| self.light_name(li as u32))
-            .collect();
         let guess = diffuse_guess(
             c,
             &t,
@@ -568,11 +601,6 @@ impl Judge<'_> {
             lit.is_empty(),
             lights.len(),
         );
-        let from = if lit.is_empty() {
-            "no light (every shadow ray is blocked), so it is black".to_string()
-        } else {
-            format!("light{} {}", if lit.len() == 1 { "" } else { "s" }, lit.join(", "))
-        };
         let detail = match guess {
             Some(g) => format!("diffuse '{name}' lit by {from}: {g}"),
             None => format!(

@@ -54,9 +54,17 @@ impl Judge<'_> {
         }
         let target = to(li);
         let backwards = angle(r.direction, -target) <= self.tol.direction;
+        let position = d3(Vec3A::from(lights[li as usize].position));
+        let unshifted = position.length_squared() > 0.0 && angle(r.direction, position) <= self.tol.direction;
         let detail = if backwards {
             format!(
                 "points straight away from light '{}': the direction looks like point − light instead of light − point",
+                self.light_name(li)
+            )
+        } else if unshifted {
+            format!(
+                "{:.3}° away from the direction to light '{}', along the light's own position: the direction looks like light − point without the point",
+                err.to_degrees(),
                 self.light_name(li)
             )
         } else {

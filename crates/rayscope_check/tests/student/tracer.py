@@ -30,6 +30,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      block the light
   shadow-unnormalised the shadow test is given light - point unnormalised, so its spheres' t is
                      off (it logs the normalised direction; no catalogue has it)
+  light-as-direction the shadow ray's direction is the light's position, normalised: light - point
+                     without the point, which N.L uses too (no catalogue has it)
   min-distance       every intersection test ignores hits nearer than t = 0.05
   first-in-list      the nearest-hit loop keeps the first entity hit in the scene's order
   origin-distance    the nearest-hit loop keeps the hit whose point is nearest (0, 0, 0)
@@ -85,7 +87,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image", "accumulator-out", "summed-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
-                 "strict-edges", "radius-not-squared", "min-distance", "first-in-list", "origin-distance",
+                 "strict-edges", "radius-not-squared", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit")
 
 
@@ -326,7 +328,7 @@ class Tracer:
         lights = self.lights[:-1] if self.bug == "skip-shadow-ray" else self.lights
         for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
-            to = sub(light["pos"], so)
+            to = light["pos"] if self.bug == "light-as-direction" else sub(light["pos"], so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
             b = self.blocker(so, to if self.bug == "shadow-unnormalised" else ldir, dist, shaded if self.bug == "no-clamp" else None)
