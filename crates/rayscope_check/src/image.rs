@@ -117,6 +117,9 @@ pub enum Conversion {
     Accumulated,
     /// The samples' colours added up and not divided by their number.
     Summed,
+    /// The samples' average times one factor for every pixel ([`ImageCheck::factor`]), then
+    /// the course's conversion.
+    Scaled,
 }
 
 impl Conversion {
@@ -144,6 +147,7 @@ impl Conversion {
             Conversion::Bgr => Some(Code::ImageChannels),
             Conversion::Accumulated => Some(Code::ImageAccumulated),
             Conversion::Summed => Some(Code::ImageSummed),
+            Conversion::Scaled => Some(Code::ImageScaled),
         }
     }
 
@@ -157,7 +161,7 @@ impl Conversion {
         };
         let i = at(x, y);
         let n = s.n[i];
-        if n != s.spp || n == 0 || self == Conversion::Accumulated {
+        if n != s.spp || n == 0 || matches!(self, Conversion::Accumulated | Conversion::Scaled) {
             return None;
         }
         let avg = s.sum[i].map(|v| v / f64::from(n));
@@ -169,7 +173,7 @@ impl Conversion {
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
                 Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
                 Conversion::Summed => course_byte(v * f64::from(n)),
-                Conversion::ByteAverage | Conversion::Accumulated => 0,
+                Conversion::ByteAverage | Conversion::Accumulated | Conversion::Scaled => 0,
             }
         };
         let mut b = if self == Conversion::ByteAverage {
@@ -208,6 +212,8 @@ pub struct ImageCheck {
     pub best: (Conversion, u64),
     /// The verdict: the rule the picture follows instead of the course's, or `image.differs`.
     pub verdict: Option<Code>,
+    /// The factor of [`Conversion::Scaled`], when the picture follows it.
+    pub factor: Option<f64>,
     /// What differs, in words.
     pub detail: String,
     /// The first pixels that differ from the course's conversion, by row.
@@ -286,7 +292,8 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
         let (k, n) = top(&fits);
         (k, n, fits[0])
     };
-    let best = Conversion::ALL[bk];
+    let mut best = (Conversion::ALL[bk], bn);
+    let mut factor = None;
     let (verdict, detail) = if compared == 0 {
         (
             None,
@@ -297,11 +304,30 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             None,
             format!("{course} of {compared} pixels are your logged colours turned into bytes as the course does"),
         )
-    } else if best != Conversion::Course && share(bn) >= FOLLOWS {
+    } else if best.0 != Conversion::Course && share(bn) >= FOLLOWS {
         (
-            best.code(),
+            best.0.code(),
             format!(
                 "{bn} of {compared} pixels are your logged colours converted that way; {course} as the course converts them"
+            ),
+        )
+    } else if let Some((k, n)) = plain_factor(s, image).filter(|&(_, n)| share(n) >= FOLLOWS) {
+        best = (Conversion::Scaled, n);
+        factor = Some(k);
+        let side = f64::from(s.spp).sqrt().round() as u32;
+        let why = if s.spp > 1 && side * side == s.spp && k == f64::from(side) {
+            format!(
+                ": the sum of each pixel's {side}×{side} samples divided by {side}, not by {}",
+                s.spp
+            )
+        } else {
+            String::new()
+        };
+        (
+            Some(Code::ImageScaled),
+            format!(
+                "{n} of {compared} pixels are your logged colours' average times {}, then turned into bytes as the course does{why}; {course} as the course converts them",
+                factor_words(k)
             ),
         )
     } else {
@@ -315,10 +341,88 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     ImageCheck {
         compared,
         course,
-        best: (best, bn),
+        best,
         verdict,
+        factor,
         detail,
         examples,
+    }
+}
+
+/// The one factor that the average of each fully logged pixel's colours is multiplied by before
+/// the course's conversion, when the picture has one, with the number of pixels it fits (each
+/// channel within one level). Estimated as the median of the channels' ratios where neither the
+/// clamp nor the byte's rounding hides it, then taken as a whole number, the reciprocal of one
+/// or the side of the sample grid when within 1 % of it.
+fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
+    let pixels = || {
+        (0..s.n.len()).filter_map(|i| {
+            let n = s.n[i];
+            let yours = image.get(3 * i..3 * i + 3)?;
+            (n == s.spp && n != 0).then(|| (s.sum[i].map(|v| v / f64::from(n)), [yours[0], yours[1], yours[2]]))
+        })
+    };
+    let mut ratios: Vec<f64> = pixels()
+        .flat_map(|(avg, yours)| {
+            (0..3).filter_map(move |c| {
+                let (v, b) = (avg[c], yours[c]);
+                (v * 255.0 >= 8.0 && (1..255).contains(&b)).then(|| (f64::from(b) + 0.5) / (v * 255.0))
+            })
+        })
+        .collect();
+    if ratios.len() < 16 {
+        return None;
+    }
+    let mid = ratios.len() / 2;
+    let (_, &mut k, _) = ratios.select_nth_unstable_by(mid, f64::total_cmp);
+    let near = |a: f64| ((k - a) / a).abs() < 0.01;
+    let (k, snapped) = if near(k.round()) && k.round() >= 1.0 {
+        (k.round(), true)
+    } else if k < 1.0 && near(1.0 / (1.0 / k).round()) {
+        (1.0 / (1.0 / k).round(), true)
+    } else {
+        (k, false)
+    };
+    if near(1.0) || !k.is_finite() {
+        return None;
+    }
+    // The pixels a factor fits, and how many byte levels above black they show.
+    let fit = |k: f64| {
+        let mut levels = [false; 256];
+        let mut n = 0u64;
+        for (avg, yours) in pixels() {
+            if (0..3).all(|c| course_byte(avg[c] * k).abs_diff(yours[c]) <= 1) {
+                n += 1;
+                for b in yours {
+                    levels[usize::from(b)] = b > 0;
+                }
+            }
+        }
+        (n, levels.iter().filter(|&&l| l).count())
+    };
+    // A factor a person wrote has few digits: two decimals where they fit as many pixels.
+    let (mut n, mut levels) = fit(k);
+    let mut k = k;
+    let short = (k * 100.0).round() / 100.0;
+    if !snapped && short != k && short > 0.0 {
+        let (sn, sl) = fit(short);
+        if sn >= n {
+            (k, n, levels) = (short, sn, sl);
+        }
+    }
+    // One colour everywhere fits any factor: the fit needs colours of several levels to say the
+    // picture is a factor of them.
+    (levels >= 8).then_some((k, n))
+}
+
+/// A factor as a report words it: a whole number, 1/n, or three decimals.
+fn factor_words(k: f64) -> String {
+    if k == k.round() {
+        format!("{k}")
+    } else if k < 1.0 && (1.0 / k) == (1.0 / k).round() {
+        format!("1/{}", 1.0 / k)
+    } else {
+        format!("{k:.3}")
     }
 }
 
@@ -481,6 +585,47 @@ mod tests {
         assert_eq!(j.verdict, Some(Code::ImageByteAverage), "{}", j.detail);
         let j = judge(&two, &picture(&two, Conversion::Summed), 3);
         assert_eq!(j.verdict, Some(Code::ImageSummed), "{}", j.detail);
+    }
+
+    #[test]
+    fn a_picture_scaled_by_one_factor_gives_the_factor() {
+        let colours: Vec<[f64; 3]> = (0..64)
+            .map(|i| {
+                let v = f64::from(i) / 140.0;
+                [v, 0.3 * v + 0.05, 0.45 - v / 2.0]
+            })
+            .collect();
+        // Four samples a pixel, their sum divided by 2: the picture twice as bright.
+        let mut four = PixelSums::new(8, 8, 4);
+        for (i, c) in colours.iter().enumerate() {
+            for (k, f) in [0.5, 1.5, 0.8, 1.2].into_iter().enumerate() {
+                let mut r = LoggedRay::for_tests([i as u32 % 8, i as u32 / 8], k as u32, 1);
+                r.color = Some(DVec3::from_array(*c) * f);
+                four.add(&r);
+            }
+        }
+        let twice: Vec<u8> = (0..64)
+            .flat_map(|i| four.sum[i].map(|v| course_byte(v / 2.0)))
+            .collect();
+        let j = judge(&four, &twice, 3);
+        assert_eq!(j.verdict, Some(Code::ImageScaled), "{}", j.detail);
+        assert_eq!(j.factor, Some(2.0));
+        assert!(j.detail.contains("divided by 2, not by 4"), "{}", j.detail);
+        // An older run's picture, every colour at 0.9 of the logged one.
+        let s = sums(&colours, 8, 8);
+        let dim: Vec<u8> = colours.iter().flat_map(|c| c.map(|v| course_byte(v * 0.9))).collect();
+        let j = judge(&s, &dim, 3);
+        assert_eq!(j.verdict, Some(Code::ImageScaled), "{}", j.detail);
+        assert_eq!(j.factor, Some(0.9));
+        assert!(j.detail.contains("times 0.900"), "{}", j.detail);
+        // Half as bright is 1/2; a factor plus an offset is no factor.
+        let half: Vec<u8> = colours.iter().flat_map(|c| c.map(|v| course_byte(v / 2.0))).collect();
+        assert!(judge(&s, &half, 3).detail.contains("times 1/2"));
+        let shifted: Vec<u8> = colours
+            .iter()
+            .flat_map(|c| c.map(|v| course_byte(v * 0.9 + 0.03)))
+            .collect();
+        assert_eq!(judge(&s, &shifted, 3).verdict, Some(Code::ImageDiffers));
     }
 
     #[test]

@@ -244,6 +244,9 @@ codes! {
     ImageSummed = "image.summed", false,
         "samples added up, not averaged",
         "Your picture's bytes are the sum of each pixel's logged sample colours, not their average: with -x N, divide the sum of the N×N samples by N² before clamping and converting. The picture is N² times too bright, mostly white.";
+    ImageScaled = "image.scaled", false,
+        "colours multiplied by a plain factor before they are written",
+        "Your picture's bytes are your logged colours' average times one factor, the same for every pixel (the details give it), then turned into bytes by the course's rule. With -x N the usual cause is the N×N samples' sum divided by N instead of N² (the picture N times too bright), or divided by N² twice; otherwise a brightness factor applied only when writing the picture, or the picture of another run. Divide the sum of the samples by N², then clamp and convert, with nothing else in between.";
     ImageDiffers = "image.differs", false,
         "picture not made from the logged colours",
         "Your picture's bytes are not your logged camera-ray colours turned into bytes by the course's rule (average the samples, clamp to [0, 1], byte = trunc(v · 255)), nor by any usual mistake. Either the picture comes from another run than the log (other flags, older code), or the colour your tracer logs is not the one it writes. The examples give your bytes beside the conversion of the logged colour.";

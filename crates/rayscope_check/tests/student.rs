@@ -670,6 +670,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("stale-image", Some(Code::ImageDiffers)),
         ("accumulator-out", Some(Code::ImageAccumulated)),
         ("summed-out", Some(Code::ImageSummed)),
+        ("aa-divided-by-n", Some(Code::ImageScaled)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -702,6 +703,9 @@ fn the_picture_is_judged_against_the_logged_colours() {
         assert_eq!(j.verdict, want, "{bug}: {}", j.detail);
         if want == Some(Code::ImageDiffers) {
             assert!(!j.examples.is_empty(), "{bug}: no example");
+        }
+        if bug == "aa-divided-by-n" {
+            assert!(j.detail.contains("divided by 2, not by 4"), "{bug}: {}", j.detail);
         }
     }
 }

@@ -44,6 +44,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   stale-image        the picture is not made of the logged colours (no catalogue has it)
   accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   summed-out         the picture's pixels are the sums of their samples, never divided
+  aa-divided-by-n    the picture's pixels are the sums of their N x N samples divided by N, not N^2
   no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
   schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
@@ -85,7 +86,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
-               "stale-image", "accumulator-out", "summed-out")
+               "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit")
@@ -403,8 +404,8 @@ def out_pixel(c, bug):
     if bug == "bgr-out":
         return (c[2], c[1], c[0])
     if bug == "stale-image":
-        # The picture of an older run: every colour a little darker than the one logged.
-        return tuple(v * 0.9 for v in c)
+        # The picture of an older run: every colour a little darker and greyer than the one logged.
+        return tuple(v * 0.9 + 0.03 for v in c)
     return c
 
 
@@ -467,7 +468,7 @@ def main():
                     byte_total = [b + to_byte(v) for b, v in zip(byte_total, col)]
                     if log:
                         tr.flush()
-            image[(x, y)] = mul(total, 1 if args.bug == "summed-out" else 1 / (n * n))
+            image[(x, y)] = mul(total, 1 if args.bug == "summed-out" else 1 / n if args.bug == "aa-divided-by-n" else 1 / (n * n))
             if args.bug == "byte-average-out":
                 image[(x, y)] = tuple(b // (n * n) for b in byte_total)
     if log is not sys.stdout:
