@@ -553,6 +553,19 @@ mod tests {
         out
     }
 
+    /// An 8×8 picture's sums with one sample a factor: pixel `i`'s colour times each factor.
+    fn samples(colours: &[[f64; 3]], factors: &[f64]) -> PixelSums {
+        let mut s = PixelSums::new(8, 8, factors.len() as u32);
+        for (i, c) in colours.iter().enumerate() {
+            for (k, f) in factors.iter().enumerate() {
+                let mut r = LoggedRay::for_tests([i as u32 % 8, i as u32 / 8], k as u32, 1);
+                r.color = Some(DVec3::from_array(*c) * *f);
+                s.add(&r);
+            }
+        }
+        s
+    }
+
     #[test]
     fn each_rule_is_recognised_and_the_courses_gets_no_verdict() {
         let colours: Vec<[f64; 3]> = (0..64)
@@ -573,14 +586,7 @@ mod tests {
             assert_eq!(j.verdict, want, "{c:?}: {}", j.detail);
         }
         // Two samples a pixel, one dark and one bright: the bytes' average is not the colours'.
-        let mut two = PixelSums::new(8, 8, 2);
-        for (i, c) in colours.iter().enumerate() {
-            for (k, f) in [0.37, 1.63].into_iter().enumerate() {
-                let mut r = LoggedRay::for_tests([i as u32 % 8, i as u32 / 8], k as u32, 1);
-                r.color = Some(DVec3::from_array(*c) * f);
-                two.add(&r);
-            }
-        }
+        let two = samples(&colours, &[0.37, 1.63]);
         let j = judge(&two, &picture(&two, Conversion::ByteAverage), 3);
         assert_eq!(j.verdict, Some(Code::ImageByteAverage), "{}", j.detail);
         let j = judge(&two, &picture(&two, Conversion::Summed), 3);
@@ -596,14 +602,7 @@ mod tests {
             })
             .collect();
         // Four samples a pixel, their sum divided by 2: the picture twice as bright.
-        let mut four = PixelSums::new(8, 8, 4);
-        for (i, c) in colours.iter().enumerate() {
-            for (k, f) in [0.5, 1.5, 0.8, 1.2].into_iter().enumerate() {
-                let mut r = LoggedRay::for_tests([i as u32 % 8, i as u32 / 8], k as u32, 1);
-                r.color = Some(DVec3::from_array(*c) * f);
-                four.add(&r);
-            }
-        }
+        let four = samples(&colours, &[0.5, 1.5, 0.8, 1.2]);
         let twice: Vec<u8> = (0..64)
             .flat_map(|i| four.sum[i].map(|v| course_byte(v / 2.0)))
             .collect();
