@@ -110,6 +110,12 @@ pub enum Conversion {
     ByteAverage,
     /// Rows upside down.
     Flipped,
+    /// Columns right to left.
+    Mirrored,
+    /// Rows and columns both reversed: half a turn.
+    Rotated,
+    /// Rows and columns exchanged (a square picture only).
+    Transposed,
     /// Red and blue exchanged.
     Bgr,
     /// Each pixel the sum of its own colour and every pixel's before it, row by row: an
@@ -123,13 +129,16 @@ pub enum Conversion {
 }
 
 impl Conversion {
-    const ALL: [Conversion; 9] = [
+    const ALL: [Conversion; 12] = [
         Conversion::Course,
         Conversion::Rounded,
         Conversion::Gamma,
         Conversion::Unclamped,
         Conversion::ByteAverage,
         Conversion::Flipped,
+        Conversion::Mirrored,
+        Conversion::Rotated,
+        Conversion::Transposed,
         Conversion::Bgr,
         Conversion::Accumulated,
         Conversion::Summed,
@@ -144,6 +153,9 @@ impl Conversion {
             Conversion::Unclamped => Some(Code::ImageUnclamped),
             Conversion::ByteAverage => Some(Code::ImageByteAverage),
             Conversion::Flipped => Some(Code::ImageFlipped),
+            Conversion::Mirrored => Some(Code::ImageMirrored),
+            Conversion::Rotated => Some(Code::ImageRotated),
+            Conversion::Transposed => Some(Code::ImageTransposed),
             Conversion::Bgr => Some(Code::ImageChannels),
             Conversion::Accumulated => Some(Code::ImageAccumulated),
             Conversion::Summed => Some(Code::ImageSummed),
@@ -154,10 +166,14 @@ impl Conversion {
     /// Pixel `i`'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
     fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
         let at = |x: u32, y: u32| (y * s.width + x) as usize;
-        let (x, y) = if self == Conversion::Flipped {
-            (x, s.height - 1 - y)
-        } else {
-            (x, y)
+        // The logged pixel whose colours this rule writes at (x, y).
+        let (x, y) = match self {
+            Conversion::Flipped => (x, s.height - 1 - y),
+            Conversion::Mirrored => (s.width - 1 - x, y),
+            Conversion::Rotated => (s.width - 1 - x, s.height - 1 - y),
+            Conversion::Transposed if s.width == s.height => (y, x),
+            Conversion::Transposed => return None,
+            _ => (x, y),
         };
         let i = at(x, y);
         let n = s.n[i];
@@ -167,7 +183,12 @@ impl Conversion {
         let avg = s.sum[i].map(|v| v / f64::from(n));
         let one = |v: f64| -> u8 {
             match self {
-                Conversion::Course | Conversion::Flipped | Conversion::Bgr => course_byte(v),
+                Conversion::Course
+                | Conversion::Flipped
+                | Conversion::Mirrored
+                | Conversion::Rotated
+                | Conversion::Transposed
+                | Conversion::Bgr => course_byte(v),
                 Conversion::Rounded => (v.clamp(0.0, 1.0) * 255.0).round() as u8,
                 Conversion::Gamma => (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8,
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.

@@ -235,6 +235,15 @@ codes! {
     ImageFlipped = "image.flipped", false,
         "picture written upside down",
         "Your picture's rows are in the opposite order to the pixels your camera rays logged: row 0 of the image is the top row. Either the rows are written bottom-up, or the camera and the output disagree on which way y goes.";
+    ImageMirrored = "image.mirrored", false,
+        "picture written mirrored left to right",
+        "Your picture's columns are in the opposite order to the pixels your camera rays logged: column 0 of the image is its left edge, and your rays for it are right, so the mistake is in writing the picture. Either the columns are written right to left, or the loop that writes them counts x down from width − 1.";
+    ImageRotated = "image.rotated", false,
+        "picture written turned half a turn",
+        "Your picture's rows and columns are both in the opposite order to the pixels your camera rays logged: the picture is turned half a turn (180°), while your rays are right. The loops that write the picture run backwards in x and in y, or the pixels are written last to first. Write row 0 (the top) first, each row from left to right.";
+    ImageTransposed = "image.transposed", false,
+        "rows and columns exchanged in the picture",
+        "Your picture has at (x, y) the colours your camera rays logged for pixel (y, x): where the picture is written, x and y are exchanged — a [row, column] index given (x, y), or an index x · width + y instead of y · width + x. On a square picture nothing else shows it; on another size the picture is also the wrong shape.";
     ImageChannels = "image.channels", false,
         "red and blue exchanged in the picture",
         "Your picture's red and blue bytes are exchanged relative to the colours your camera rays logged (BGR order): write red, green, blue in that order.";

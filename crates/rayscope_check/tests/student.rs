@@ -671,6 +671,8 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("accumulator-out", Some(Code::ImageAccumulated)),
         ("summed-out", Some(Code::ImageSummed)),
         ("aa-divided-by-n", Some(Code::ImageScaled)),
+        ("mirrored-out", Some(Code::ImageMirrored)),
+        ("rotated-out", Some(Code::ImageRotated)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
