@@ -163,19 +163,23 @@ impl Conversion {
         }
     }
 
-    /// Pixel `i`'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
-    fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
-        let at = |x: u32, y: u32| (y * s.width + x) as usize;
-        // The logged pixel whose colours this rule writes at (x, y).
-        let (x, y) = match self {
+    /// The logged pixel whose colours this rule writes at (x, y); `None` for a transposed
+    /// picture that is not square.
+    fn source(self, s: &PixelSums, x: u32, y: u32) -> Option<(u32, u32)> {
+        Some(match self {
             Conversion::Flipped => (x, s.height - 1 - y),
             Conversion::Mirrored => (s.width - 1 - x, y),
             Conversion::Rotated => (s.width - 1 - x, s.height - 1 - y),
             Conversion::Transposed if s.width == s.height => (y, x),
             Conversion::Transposed => return None,
             _ => (x, y),
-        };
-        let i = at(x, y);
+        })
+    }
+
+    /// Pixel (x, y)'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
+    fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
+        let (x, y) = self.source(s, x, y)?;
+        let i = (y * s.width + x) as usize;
         let n = s.n[i];
         if n != s.spp || n == 0 || matches!(self, Conversion::Accumulated | Conversion::Scaled) {
             return None;
@@ -235,6 +239,9 @@ pub struct ImageCheck {
     pub verdict: Option<Code>,
     /// The factor of [`Conversion::Scaled`], when the picture follows it.
     pub factor: Option<f64>,
+    /// The verdict on the bytes when the picture follows two rules at once, one that moves its
+    /// pixels (the verdict) and one that changes their bytes (this one).
+    pub also: Option<Code>,
     /// What differs, in words.
     pub detail: String,
     /// The first pixels that differ from the course's conversion, by row.
@@ -315,6 +322,7 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     };
     let mut best = (Conversion::ALL[bk], bn);
     let mut factor = None;
+    let mut also = None;
     let (verdict, detail) = if compared == 0 {
         (
             None,
@@ -330,6 +338,20 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             best.0.code(),
             format!(
                 "{bn} of {compared} pixels are your logged colours converted that way; {course} as the course converts them"
+            ),
+        )
+    } else if let Some((moved, value, n)) = two_rules(s, image).filter(|&(_, _, n)| share(n) >= FOLLOWS) {
+        best = (moved, n);
+        also = value.code();
+        let code = |c: Conversion| c.code().unwrap_or(Code::ImageDiffers);
+        (
+            moved.code(),
+            format!(
+                "{n} of {compared} pixels are your logged colours written with two mistakes at once: {} ({}) and {} ({}); {course} as the course converts them",
+                code(moved).summary(),
+                code(moved).as_str(),
+                code(value).summary(),
+                code(value).as_str()
             ),
         )
     } else if let Some((k, n)) = plain_factor(s, image).filter(|&(_, n)| share(n) >= FOLLOWS) {
@@ -365,9 +387,49 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
         best,
         verdict,
         factor,
+        also,
         detail,
         examples,
     }
+}
+
+/// The pair of a rule that moves pixels and one that changes their bytes that the most pixels
+/// of `image` follow (each channel within one level), with that number of pixels: a picture
+/// written with two mistakes at once.
+fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64)> {
+    const MOVES: [Conversion; 4] = [
+        Conversion::Flipped,
+        Conversion::Mirrored,
+        Conversion::Rotated,
+        Conversion::Transposed,
+    ];
+    const VALUES: [Conversion; 6] = [
+        Conversion::Rounded,
+        Conversion::Gamma,
+        Conversion::Unclamped,
+        Conversion::ByteAverage,
+        Conversion::Bgr,
+        Conversion::Summed,
+    ];
+    let close = |a: [u8; 3], b: &[u8]| a.iter().zip(b).all(|(&p, &q)| p.abs_diff(q) <= 1);
+    MOVES
+        .iter()
+        .flat_map(|&m| VALUES.iter().map(move |&v| (m, v)))
+        .map(|(m, v)| {
+            let mut n = 0;
+            for y in 0..s.height {
+                for x in 0..s.width {
+                    let o = 3 * (y * s.width + x) as usize;
+                    let yours = image.get(o..o + 3);
+                    let b = m.source(s, x, y).and_then(|(sx, sy)| v.bytes(s, sx, sy));
+                    n += u64::from(b.zip(yours).is_some_and(|(b, yours)| close(b, yours)));
+                }
+            }
+            (m, v, n)
+        })
+        // On a tie the simpler pair, earlier in the lists (a picture symmetric left to right is
+        // flipped as well as turned).
+        .reduce(|a, b| if b.2 > a.2 { b } else { a })
 }
 
 /// The one factor that the average of each fully logged pixel's colours is multiplied by before
@@ -646,6 +708,31 @@ mod tests {
             .flat_map(|c| c.map(|v| course_byte(v * 0.9 + 0.03)))
             .collect();
         assert_eq!(judge(&s, &shifted, 3).verdict, Some(Code::ImageDiffers));
+    }
+
+    #[test]
+    fn a_picture_with_two_mistakes_names_the_move_and_the_bytes() {
+        let colours: Vec<[f64; 3]> = (0..64)
+            .map(|i| {
+                let v = f64::from(i) / 70.0;
+                [v, 0.3 * v + 0.05, 0.95 - v / 2.0]
+            })
+            .collect();
+        let s = sums(&colours, 8, 8);
+        let gamma = picture(&s, Conversion::Gamma);
+        // The gamma-corrected picture written mirrored: each row's bytes in reverse order.
+        let mirrored: Vec<u8> = gamma
+            .chunks(24)
+            .flat_map(|row| row.chunks(3).rev().flatten().copied().collect::<Vec<u8>>())
+            .collect();
+        let j = judge(&s, &mirrored, 3);
+        assert_eq!(j.verdict, Some(Code::ImageMirrored), "{}", j.detail);
+        assert_eq!(j.also, Some(Code::ImageGamma), "{}", j.detail);
+        assert!(
+            j.detail.contains("two mistakes") && j.detail.contains("(image.gamma)"),
+            "{}",
+            j.detail
+        );
     }
 
     #[test]

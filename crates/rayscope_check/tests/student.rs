@@ -673,6 +673,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("aa-divided-by-n", Some(Code::ImageScaled)),
         ("mirrored-out", Some(Code::ImageMirrored)),
         ("rotated-out", Some(Code::ImageRotated)),
+        ("flipped-gamma-out", Some(Code::ImageFlipped)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -705,6 +706,13 @@ fn the_picture_is_judged_against_the_logged_colours() {
         assert_eq!(j.verdict, want, "{bug}: {}", j.detail);
         if want == Some(Code::ImageDiffers) {
             assert!(!j.examples.is_empty(), "{bug}: no example");
+        }
+        if bug == "flipped-gamma-out" {
+            assert!(
+                j.detail.contains("two mistakes") && j.detail.contains("image.gamma"),
+                "{bug}: {}",
+                j.detail
+            );
         }
         if bug == "aa-divided-by-n" {
             assert!(j.detail.contains("divided by 2, not by 4"), "{bug}: {}", j.detail);

@@ -42,6 +42,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      the picture (--image) gamma-corrected, rounded, not clamped (bytes wrap),
                      samples averaged as bytes, rows upside down, red and blue swapped,
                      columns right to left, rows and columns both reversed
+  flipped-gamma-out  the picture both upside down and gamma-corrected (two mistakes at once)
   stale-image        the picture is not made of the logged colours (no catalogue has it)
   accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   summed-out         the picture's pixels are the sums of their samples, never divided
@@ -87,7 +88,8 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-si
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
-               "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n", "mirrored-out", "rotated-out")
+               "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
+               "flipped-gamma-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit")
@@ -413,7 +415,7 @@ def out_pixel(c, bug):
 def out_byte(v, bug):
     if bug == "byte-average-out":
         return v
-    if bug == "gamma-out":
+    if bug in ("gamma-out", "flipped-gamma-out"):
         return to_byte(max(v, 0.0) ** (1 / 2.2))
     if bug == "rounded-out":
         return int(round(min(max(v, 0.0), 1.0) * 255))
@@ -477,7 +479,7 @@ def main():
     if args.image:
         with open(args.image, "w") as f:
             f.write(f"P3\n{x1 - x0} {y1 - y0}\n255\n")
-            rows = range(y1 - 1, y0 - 1, -1) if args.bug in ("flipped-out", "rotated-out") else range(y0, y1)
+            rows = range(y1 - 1, y0 - 1, -1) if args.bug in ("flipped-out", "rotated-out", "flipped-gamma-out") else range(y0, y1)
             cols = range(x1 - 1, x0 - 1, -1) if args.bug in ("mirrored-out", "rotated-out") else range(x0, x1)
             for y in rows:
                 f.write(" ".join(" ".join(str(out_byte(c, args.bug)) for c in out_pixel(image[(x, y)], args.bug))
