@@ -412,24 +412,28 @@ fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64
         Conversion::Summed,
     ];
     let close = |a: [u8; 3], b: &[u8]| a.iter().zip(b).all(|(&p, &q)| p.abs_diff(q) <= 1);
-    MOVES
+    // The pixels a pair fits among every `step`-th pixel.
+    let fits = |m: Conversion, v: Conversion, step: usize| -> u64 {
+        (0..s.n.len())
+            .step_by(step)
+            .filter(|&i| {
+                let (x, y) = (i as u32 % s.width, i as u32 / s.width);
+                let yours = image.get(3 * i..3 * i + 3);
+                let b = m.source(s, x, y).and_then(|(sx, sy)| v.bytes(s, sx, sy));
+                b.zip(yours).is_some_and(|(b, yours)| close(b, yours))
+            })
+            .count() as u64
+    };
+    // The pair is chosen on an even spread of at most about 2^16 pixels, then counted on all.
+    let step = (s.n.len() >> 16).max(1);
+    let (m, v, _) = MOVES
         .iter()
         .flat_map(|&m| VALUES.iter().map(move |&v| (m, v)))
-        .map(|(m, v)| {
-            let mut n = 0;
-            for y in 0..s.height {
-                for x in 0..s.width {
-                    let o = 3 * (y * s.width + x) as usize;
-                    let yours = image.get(o..o + 3);
-                    let b = m.source(s, x, y).and_then(|(sx, sy)| v.bytes(s, sx, sy));
-                    n += u64::from(b.zip(yours).is_some_and(|(b, yours)| close(b, yours)));
-                }
-            }
-            (m, v, n)
-        })
+        .map(|(m, v)| (m, v, fits(m, v, step)))
         // On a tie the simpler pair, earlier in the lists (a picture symmetric left to right is
         // flipped as well as turned).
-        .reduce(|a, b| if b.2 > a.2 { b } else { a })
+        .reduce(|a, b| if b.2 > a.2 { b } else { a })?;
+    Some((m, v, fits(m, v, 1)))
 }
 
 /// The one factor that the average of each fully logged pixel's colours is multiplied by before
@@ -445,7 +449,11 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
             (n == s.spp && n != 0).then(|| (s.sum[i].map(|v| v / f64::from(n)), [yours[0], yours[1], yours[2]]))
         })
     };
+    // The median of an even spread of at most about 2^16 pixels: the same factor, in bounded
+    // memory whatever the picture's size.
+    let every = (s.n.len() >> 16).max(1);
     let mut ratios: Vec<f64> = pixels()
+        .step_by(every)
         .flat_map(|(avg, yours)| {
             (0..3).filter_map(move |c| {
                 let (v, b) = (avg[c], yours[c]);
