@@ -186,7 +186,7 @@ codes! {
         "The colour fits the course's diffuse sum, albedo × Σ light colour × max(0, N·L), with L taken along your own shadow rays; but those rays do not point at their lights, so N·L is wrong with them. It is what the shadow rays' mistake does to the colour: make the shadow ray's direction normalise(light − point) and use that same unit vector as L in N·L, and the colour follows.";
     ShadingMirror = "shading.mirror", false,
         "mirror colour is not its reflected ray's colour",
-        "A Reflective hit brings back exactly what its reflected ray brought back: the course's mirror is perfect and its material colour plays no part at stage 2. Your colour differs from your own reflected ray's; the details say whether it fits the reflected colour multiplied by the material colour. Return the reflected ray's colour unchanged.";
+        "A Reflective hit brings back exactly what its reflected ray brought back: the course's mirror is perfect and its material colour plays no part at stage 2. Your colour differs from your own reflected ray's; the details say whether it fits the reflected colour multiplied by the material colour, or by one factor (which they give). Return the reflected ray's colour unchanged.";
     ShadingFresnelSchlick = "shading.fresnel-schlick", false,
         "glass mixed by Schlick's approximation instead of the Fresnel equations",
         "Your glass mixes its reflected and refracted colours as kr·R + (1 − kr)·T with kr from Schlick's approximation, R0 + (1 − R0)(1 − cos θ)⁵. The course asks for the exact unpolarised Fresnel equations: kr = (rs² + rp²) / 2 with rs = (n1 cos θi − n2 cos θt) / (n1 cos θi + n2 cos θt) and rp = (n2 cos θi − n1 cos θt) / (n2 cos θi + n1 cos θt). The two agree near normal incidence and part at grazing angles.";
@@ -199,6 +199,9 @@ codes! {
     ShadingFresnelNone = "shading.fresnel-none", false,
         "glass brings back its refracted colour only (no Fresnel reflection)",
         "Your glass brings back only what its refracted ray brought back, as if nothing were reflected (kr = 0), although it cast a reflected ray. Glass reflects a share kr of the light by the Fresnel equations, kr = (rs² + rp²) / 2, and transmits the rest: the colour is kr·R + (1 − kr)·T. Without it glass looks too clear and loses its rim reflections.";
+    ShadingFresnelWeightsExchanged = "shading.fresnel-weights-exchanged", false,
+        "glass weights its reflected colour by 1 − kr and its refracted colour by kr",
+        "Your glass mixes its colours as (1 − kr)·R + kr·T, with R the reflected and T the refracted ray's colour: the Fresnel reflectance kr, the share of light that is reflected, goes to the refracted colour instead. The colour is kr·R + (1 − kr)·T with kr = (rs² + rp²) / 2, about 3 % head-on for index 1.4: with the weights exchanged, glass seen head-on looks like a mirror and its rim like clear glass.";
     ShadingFresnel = "shading.fresnel", false,
         "glass reflects a share the Fresnel equations do not give",
         "Your glass mixes its reflected and refracted colours with a reflected share kr that is not the Fresnel reflectance at this angle, nor one of the usual mistakes rayscope knows. The details give the share your colour implies beside the exact one. Check cos θi (from the normal facing the ray, positive), cos θt = √(1 − η²(1 − cos² θi)), which index is n1 (the side the ray comes from), and that past the critical angle kr = 1.";

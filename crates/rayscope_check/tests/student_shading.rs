@@ -189,6 +189,11 @@ fn fresnel_mistakes_are_named_by_the_formula_they_fit() {
         ("fresnel-swapped", Code::ShadingFresnelSwappedCosines, "rs² alone"),
         ("schlick", Code::ShadingFresnelSchlick, "Schlick"),
         ("fresnel-half", Code::ShadingFresnelHalf, "half and half"),
+        (
+            "fresnel-weights-exchanged",
+            Code::ShadingFresnelWeightsExchanged,
+            "the Fresnel share given to the refracted colour",
+        ),
     ] {
         let Some(r) = assert_named(
             Run {
@@ -224,6 +229,8 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
             scene2.clone(),
             "the albedo without the lights' colour",
         ),
+        // Not in the catalogue either: the light's vector not normalised in N·L.
+        ("l-unnormalised", scene2.clone(), "L = light − point not normalised"),
         (
             "lights-averaged",
             scene2,
@@ -448,6 +455,22 @@ fn a_tinted_mirror_a_tinted_glass_and_a_background_colour_are_named() {
     for d in details(&r, Code::ShadingMirror) {
         assert!(
             d.contains("'MirrorSphere'") && d.contains("multiplied by the material colour"),
+            "{d}"
+        );
+    }
+    // A mirror that keeps 0.8 of what it reflects (no catalogue has it): the factor is given.
+    let dim = assert_named(
+        Run {
+            bug: "mirror-dim",
+            ..Run::new(course_scene("sample_scene_2.txt").expect("scene 2"), 40, 40)
+        },
+        Code::ShadingMirror,
+        &[],
+    )
+    .expect("a report");
+    for d in details(&dim, Code::ShadingMirror) {
+        assert!(
+            d.contains("'MirrorSphere'") && d.contains("0.8000 × what your reflected ray"),
             "{d}"
         );
     }

@@ -64,15 +64,18 @@ enum Formula {
     RpOnly,
     Half,
     NoFresnel,
+    /// The exact share given to the refracted colour and the rest to the reflected one.
+    WeightsExchanged,
 }
 
 impl Formula {
     /// Every mistaken formula, in the order they are tried.
-    const MISTAKES: [Formula; 6] = [
+    const MISTAKES: [Formula; 7] = [
         Formula::Schlick,
         Formula::SchlickIncident,
         Formula::RsOnly,
         Formula::RpOnly,
+        Formula::WeightsExchanged,
         Formula::Half,
         Formula::NoFresnel,
     ];
@@ -96,6 +99,7 @@ impl Formula {
             Formula::RpOnly => rp * rp,
             Formula::Half => 0.5,
             Formula::NoFresnel => 0.0,
+            Formula::WeightsExchanged => 1.0 - 0.5 * (rs * rs + rp * rp),
         }
     }
 
@@ -106,6 +110,7 @@ impl Formula {
             Formula::RsOnly | Formula::RpOnly => Code::ShadingFresnelSwappedCosines,
             Formula::Half => Code::ShadingFresnelHalf,
             Formula::NoFresnel => Code::ShadingFresnelNone,
+            Formula::WeightsExchanged => Code::ShadingFresnelWeightsExchanged,
         }
     }
 
@@ -118,6 +123,7 @@ impl Formula {
             Formula::RpOnly => "rp² alone (cos θi and cos θt exchanged in rs)",
             Formula::Half => "half and half",
             Formula::NoFresnel => "no reflection at all",
+            Formula::WeightsExchanged => "the Fresnel share given to the refracted colour (1 − kr to the reflected)",
         }
     }
 }
@@ -592,6 +598,8 @@ impl Judge<'_> {
             t.no_albedo += cl * cos.max(0.0);
             t.no_light += albedo * cos.max(0.0);
             t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
+            t.unnormalised += term * lv.shade.dot(to).max(0.0);
+            t.reach = t.reach.max(to.length());
         }
         let guess = diffuse_guess(
             c,
@@ -631,11 +639,21 @@ impl Judge<'_> {
             return Decision::Judged;
         }
         let tint = self.scene.materials[lv.material as usize].color.as_dvec3();
+        // One factor for all three channels, where the reflected colour is not black.
+        let factor = (rc.length_squared() > 1e-12)
+            .then(|| c.dot(rc) / rc.length_squared())
+            .filter(|&s| fits(c, rc * s, DVec3::ZERO));
         let detail = if fits(c, rc * tint, DVec3::ZERO) {
             format!(
                 "mirror '{}': your colour is the reflected colour multiplied by the material colour {:?}; the course's mirror has no colour of its own",
                 self.name(lv.entity),
                 tint.to_array()
+            )
+        } else if let Some(s) = factor {
+            format!(
+                "mirror '{}': your colour is {s:.4} × what your reflected ray (line {}) brought back; the course's mirror reflects everything, a factor of 1",
+                self.name(lv.entity),
+                rays[*k].line
             )
         } else {
             format!(
@@ -851,6 +869,7 @@ mod tests {
                 (Formula::RpOnly, Code::ShadingFresnelSwappedCosines),
                 (Formula::Half, Code::ShadingFresnelHalf),
                 (Formula::NoFresnel, Code::ShadingFresnelNone),
+                (Formula::WeightsExchanged, Code::ShadingFresnelWeightsExchanged),
             ] {
                 let k = f.kr(ci, n1, n2);
                 match classify_glass(mixed(k), R, T, ci, n1, n2, 1e-6) {
@@ -921,6 +940,10 @@ struct DiffuseTerms {
     no_albedo: DVec3,
     no_light: DVec3,
     flat: DVec3,
+    /// N·L with L = light − point not normalised: each term times the light's distance.
+    unnormalised: DVec3,
+    /// The distance to the farthest light that is reached, which scales `unnormalised`'s slack.
+    reach: f64,
     slack: DVec3,
 }
 
@@ -951,6 +974,8 @@ fn diffuse_guess(
         Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
     } else if fits(c, t.falloff, t.slack) {
         Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
+    } else if fits(c, t.unnormalised, t.slack * t.reach.max(1.0)) {
+        Some("it fits N·L with L = light − point not normalised (each light's term times its distance): normalise L before the dot product".into())
     } else if fits(c, t.no_light, t.slack) {
         Some(if fits(c, t.no_albedo, t.slack) {
             "it fits the albedo without the lights' colour or, the same on this hit (the albedo is the lights' colour), the lights' colour without the albedo".into()

@@ -51,15 +51,18 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
   schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
   fresnel-half       glass mixes reflection and refraction half and half
+  fresnel-weights-exchanged  glass mixes (1 - kr) R + kr T: the reflectance given to the refracted colour
   no-clamp           N.L not clamped at 0, and the shadow test skips the surface being shaded
   falloff            each light divided by its squared distance
   ambient            an ambient term of 0.1 x albedo added to every diffuse hit
   skip-shadow-ray    the loop over lights stops before the last one (no shadow ray to it)
   no-reflection-ray  glass casts no reflected ray and drops the reflected share
   cos-twice          the diffuse term multiplied by N.L twice
+  l-unnormalised     N.L taken with L = light - point not normalised (no catalogue has it)
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
+  mirror-dim         a mirror brings back 0.8 of what it reflects (no catalogue has it)
   glass-tint         glass multiplies its Fresnel mix by its material colour
   background         a ray that hits nothing brings back a grey background
   light-colour-ignored  each light taken as white: albedo x N.L (no catalogue has it)
@@ -82,7 +85,7 @@ MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
-        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
@@ -321,6 +324,8 @@ class Tracer:
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, (1 if self.bug == "reflect-no-2" else 2) * dot(d, nf))))
             col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
+            if self.bug == "mirror-dim":
+                col = mul(col, 0.8)
             return self.colored(rec, hadamard(col, m["color"]) if self.bug == "mirror-tint" else col)
         g = self.glass(d, p, n, nf, front, m, depth, rid)
         if self.bug == "glass-tint":
@@ -340,7 +345,7 @@ class Tracer:
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
             if b is None:
-                cos = dot(nf, ldir) if self.bug == "no-clamp" else max(0.0, dot(nf, ldir))
+                cos = dot(nf, ldir) if self.bug == "no-clamp" else max(0.0, dot(nf, to if self.bug == "l-unnormalised" else ldir))
                 if self.bug == "cos-twice":
                     cos *= cos
                 if self.bug == "falloff":
@@ -381,6 +386,8 @@ class Tracer:
             else:
                 rp = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
             kr = 0.5 * (rs * rs + rp * rp)
+            if self.bug == "fresnel-weights-exchanged":
+                kr = 1 - kr
         r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
         if self.bug == "no-reflection-ray":
             col = (0.0, 0.0, 0.0)
