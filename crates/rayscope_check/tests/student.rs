@@ -503,6 +503,31 @@ fn colours_made_with_wrong_shadow_rays_follow_from_those_rays() {
     );
 }
 
+/// Camera rays left unnormalised with a sphere test that takes a = d·d = 1 (no catalogue has
+/// it): one headline on the spheres' intersection, and each example on a sphere says its t is
+/// that test's root (or miss) for a direction of that length.
+#[test]
+fn a_sphere_test_that_takes_unit_directions_is_told_the_directions_length() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "camera-unnormalised",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::HitSurfaceWrong,
+    ) else {
+        return;
+    };
+    let t = text(&r);
+    assert!(t.lines().next().is_some_and(|l| l.contains("spheres")), "{t}");
+    assert!(!r.causes[0].examples.is_empty(), "{t}");
+    for e in &r.causes[0].examples {
+        assert!(e.detail.contains("takes the direction as unit length"), "{t}");
+    }
+}
+
 #[test]
 fn a_too_strict_triangle_test_is_named_as_such_not_as_one_sided() {
     let Some(course) = rayscope_testkit::course() else {

@@ -356,11 +356,12 @@ impl Judge<'_> {
                         kind,
                         Code::HitPhantom,
                         format!(
-                            "your tracer reports '{}' at t = {ts:.6}, but {} there; rayscope's nearest hit is '{}' at t = {:.6}",
+                            "your tracer reports '{}' at t = {ts:.6}, but {} there; rayscope's nearest hit is '{}' at t = {:.6}{}",
                             self.name(e),
                             if dist <= pos { "the ray misses it" } else { "it is not" },
                             self.name(h.entity),
-                            h.t
+                            h.t,
+                            self.unit_sphere_note(r, e, Some(ts), pos)
                         ),
                         v(),
                     ));
@@ -427,9 +428,10 @@ impl Judge<'_> {
                 kind,
                 Code::HitWrongT,
                 format!(
-                    "'{}' is hit at t = {:.6}, your tracer says t = {ts:.6}",
+                    "'{}' is hit at t = {:.6}, your tracer says t = {ts:.6}{}",
                     self.name(h.entity),
-                    h.t
+                    h.t,
+                    self.unit_sphere_note(r, h.entity, Some(ts), self.tol.position * l)
                 ),
                 v(),
             ));
@@ -470,12 +472,53 @@ impl Judge<'_> {
                 kind,
                 Code::HitFarther,
                 format!(
-                    "'{}' at t = {:.6} is nearer than the hit your tracer reports at t = {ts:.6}",
+                    "'{}' at t = {:.6} is nearer than the hit your tracer reports at t = {ts:.6}{}",
                     self.name(h.entity),
-                    h.t
+                    h.t,
+                    self.unit_sphere_note(r, h.entity, None, 0.0)
                 ),
                 v(),
             ));
+        }
+    }
+
+    /// What a sphere test that takes ray `r`'s logged direction as a unit vector (a = d·d = 1)
+    /// finds on entity `e`, when that direction is not unit length and `e` is a sphere:
+    /// `Some(Some(t))` its nearest root ahead, in the oracle's distances, `Some(None)` a miss.
+    fn unit_sphere_root(&self, r: &LoggedRay, e: u32) -> Option<Option<f64>> {
+        let &[PrimRef::Sphere(i)] = self.geo.prims(e) else {
+            return None;
+        };
+        if (r.dir_len - 1.0).abs() <= 1e-6 {
+            return None;
+        }
+        let s = &self.scene.spheres[i as usize];
+        let d = r.direction * r.dir_len;
+        let oc = r.origin - d3(s.center);
+        let b = oc.dot(d);
+        let disc = b * b - (oc.length_squared() - f64::from(s.radius).powi(2));
+        if disc < 0.0 {
+            return Some(None);
+        }
+        let q = disc.sqrt();
+        Some([-b - q, -b + q].into_iter().find(|&t| t > 0.0).map(|t| t * r.dir_len))
+    }
+
+    /// Words for a hit on sphere `e` at `ts` (`None`: the tracer missed it) that a sphere test
+    /// taking ray `r`'s direction as unit length gives, within `pos`; empty otherwise.
+    fn unit_sphere_note(&self, r: &LoggedRay, e: u32, ts: Option<f64>, pos: f64) -> String {
+        let fits = match (self.unit_sphere_root(r, e), ts) {
+            (Some(Some(t)), Some(ts)) => (t - ts).abs() <= pos,
+            (Some(None), None) => true,
+            _ => false,
+        };
+        if fits {
+            format!(
+                "; that is what a sphere test gives that takes the direction as unit length (a = d·d = 1), and this ray's direction has length {:.4}: normalise the direction, or keep a = d·d in the quadratic",
+                r.dir_len
+            )
+        } else {
+            String::new()
         }
     }
 

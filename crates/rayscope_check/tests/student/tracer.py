@@ -30,6 +30,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      block the light
   shadow-unnormalised the shadow test is given light - point unnormalised, so its spheres' t is
                      off (it logs the normalised direction; no catalogue has it)
+  camera-unnormalised camera rays' directions are not normalised, and the sphere test takes a = 1
+                     (no catalogue has it)
   light-as-direction the shadow ray's direction is the light's position, normalised: light - point
                      without the point, which N.L uses too (no catalogue has it)
   min-distance       every intersection test ignores hits nearer than t = 0.05
@@ -94,7 +96,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
                "flipped-gamma-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
-                 "strict-edges", "radius-not-squared", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
+                 "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit")
 
 
@@ -472,7 +474,9 @@ def main():
                     u = (x + (i + c) / n) / w
                     v = (y + (j + c) / n) / h
                     z = 2.0 if args.bug == "plane-distance" else 1.0
-                    d = normalize(((2 * u - 1) * hx, (1 - 2 * v) * hy, z))
+                    d = ((2 * u - 1) * hx, (1 - 2 * v) * hy, z)
+                    if args.bug != "camera-unnormalised":
+                        d = normalize(d)
                     col = tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera")
                     total = add(total, col)
                     byte_total = [b + to_byte(v) for b, v in zip(byte_total, col)]
