@@ -657,14 +657,20 @@ mod tests {
         s
     }
 
+    /// 64 colours rising in red and green and falling in blue: channel values i / `div`, blue
+    /// from `blue`.
+    fn ramp(div: f64, blue: f64) -> Vec<[f64; 3]> {
+        (0..64)
+            .map(|i| {
+                let v = f64::from(i) / div;
+                [v, 0.3 * v + 0.05, blue - v / 2.0]
+            })
+            .collect()
+    }
+
     #[test]
     fn each_rule_is_recognised_and_the_courses_gets_no_verdict() {
-        let colours: Vec<[f64; 3]> = (0..64)
-            .map(|i| {
-                let v = f64::from(i) / 40.0;
-                [v, 0.3 * v + 0.05, 1.2 - v / 2.0]
-            })
-            .collect();
+        let colours = ramp(40.0, 1.2);
         let s = sums(&colours, 8, 8);
         for c in Conversion::ALL {
             let j = judge(&s, &picture(&s, c), 3);
@@ -686,12 +692,7 @@ mod tests {
 
     #[test]
     fn a_picture_scaled_by_one_factor_gives_the_factor() {
-        let colours: Vec<[f64; 3]> = (0..64)
-            .map(|i| {
-                let v = f64::from(i) / 140.0;
-                [v, 0.3 * v + 0.05, 0.45 - v / 2.0]
-            })
-            .collect();
+        let colours = ramp(140.0, 0.45);
         // Four samples a pixel, their sum divided by 2: the picture twice as bright.
         let four = samples(&colours, &[0.5, 1.5, 0.8, 1.2]);
         let twice: Vec<u8> = (0..64)
@@ -720,12 +721,7 @@ mod tests {
 
     #[test]
     fn a_picture_with_two_mistakes_names_the_move_and_the_bytes() {
-        let colours: Vec<[f64; 3]> = (0..64)
-            .map(|i| {
-                let v = f64::from(i) / 70.0;
-                [v, 0.3 * v + 0.05, 0.95 - v / 2.0]
-            })
-            .collect();
+        let colours = ramp(70.0, 0.95);
         let s = sums(&colours, 8, 8);
         let gamma = picture(&s, Conversion::Gamma);
         // The gamma-corrected picture written mirrored: each row's bytes in reverse order.

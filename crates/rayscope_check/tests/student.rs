@@ -467,22 +467,26 @@ fn a_mistake_heads_the_report_above_its_consequences() {
     }
 }
 
+/// [`assert_one_headline`] for `bug` on course scene 2 at 40×40; `None` without the course's
+/// files or Python.
+fn one_headline_on_scene_2(bug: &str, code: Code) -> Option<Report> {
+    let course = rayscope_testkit::course()?;
+    assert_one_headline(
+        Run {
+            bug,
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        code,
+    )
+}
+
 /// A mistake no catalogue has (the shadow ray aimed along the light's position, as if from the
 /// camera, with N·L along it too): one headline, the shadow rays that miss their lights, and the
 /// colours that follow from them listed under it, not as a diffuse-shading mistake of their own
 /// with guesses at fall-off or ambient light.
 #[test]
 fn colours_made_with_wrong_shadow_rays_follow_from_those_rays() {
-    let Some(course) = rayscope_testkit::course() else {
-        return;
-    };
-    let Some(r) = assert_one_headline(
-        Run {
-            bug: "light-as-direction",
-            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
-        },
-        Code::ShadowNotAtLight,
-    ) else {
+    let Some(r) = one_headline_on_scene_2("light-as-direction", Code::ShadowNotAtLight) else {
         return;
     };
     let t = text(&r);
@@ -508,16 +512,7 @@ fn colours_made_with_wrong_shadow_rays_follow_from_those_rays() {
 /// that test's root (or miss) for a direction of that length.
 #[test]
 fn a_sphere_test_that_takes_unit_directions_is_told_the_directions_length() {
-    let Some(course) = rayscope_testkit::course() else {
-        return;
-    };
-    let Some(r) = assert_one_headline(
-        Run {
-            bug: "camera-unnormalised",
-            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
-        },
-        Code::HitSurfaceWrong,
-    ) else {
+    let Some(r) = one_headline_on_scene_2("camera-unnormalised", Code::HitSurfaceWrong) else {
         return;
     };
     let t = text(&r);
