@@ -45,6 +45,12 @@ impl PixelSums {
         }
     }
 
+    /// Pixel `i`'s average logged colour, when every one of its samples logged one.
+    fn average(&self, i: usize) -> Option<[f64; 3]> {
+        let n = self.n[i];
+        (n == self.spp && n != 0).then(|| self.sum[i].map(|v| v / f64::from(n)))
+    }
+
     /// The pixels with a logged camera ray, row by row.
     #[must_use]
     pub fn into_logged(self) -> Vec<bool> {
@@ -179,12 +185,12 @@ impl Conversion {
     /// Pixel (x, y)'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
     fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
         let (x, y) = self.source(s, x, y)?;
-        let i = (y * s.width + x) as usize;
-        let n = s.n[i];
-        if n != s.spp || n == 0 || matches!(self, Conversion::Accumulated | Conversion::Scaled) {
+        if matches!(self, Conversion::Accumulated | Conversion::Scaled) {
             return None;
         }
-        let avg = s.sum[i].map(|v| v / f64::from(n));
+        let i = (y * s.width + x) as usize;
+        let avg = s.average(i)?;
+        let n = s.spp;
         let one = |v: f64| -> u8 {
             match self {
                 Conversion::Course
@@ -258,16 +264,13 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     let mut exact = [0u64; Conversion::ALL.len()];
     let mut compared = 0;
     let mut examples = Vec::new();
-    let close = |a: [u8; 3], b: [u8; 3]| a.iter().zip(b).all(|(&p, q)| p.abs_diff(q) <= 1);
     // The running sum of the logged colours, row by row, while every pixel so far is logged.
     let mut sum = Some([0.0f64; 3]);
     let running: Vec<Option<[u8; 3]>> = (0..s.n.len())
         .map(|i| {
-            let n = s.n[i];
-            sum = sum.filter(|_| n == s.spp && n != 0).map(|t| {
-                let avg = s.sum[i].map(|v| v / f64::from(n));
-                [t[0] + avg[0], t[1] + avg[1], t[2] + avg[2]]
-            });
+            sum = sum
+                .zip(s.average(i))
+                .map(|(t, avg)| [t[0] + avg[0], t[1] + avg[1], t[2] + avg[2]]);
             sum.map(|t| t.map(course_byte))
         })
         .collect();
@@ -287,16 +290,16 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
                 } else {
                     c.bytes(s, x, y)
                 };
-                fits[k] += u64::from(b.is_some_and(|b| close(b, yours)));
+                fits[k] += u64::from(b.is_some_and(|b| within_a_level(b, yours)));
                 exact[k] += u64::from(b == Some(yours));
             }
-            if !close(expected, yours) && examples.len() < keep {
+            if !within_a_level(expected, yours) && examples.len() < keep {
                 let i = (y * s.width + x) as usize;
                 examples.push(PixelExample {
                     pixel: [x, y],
                     yours,
                     expected,
-                    colour: s.sum[i].map(|v| v / f64::from(s.n[i])),
+                    colour: s.average(i).unwrap_or_default(),
                 });
             }
         }
@@ -411,16 +414,15 @@ fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64
         Conversion::Bgr,
         Conversion::Summed,
     ];
-    let close = |a: [u8; 3], b: &[u8]| a.iter().zip(b).all(|(&p, &q)| p.abs_diff(q) <= 1);
     // The pixels a pair fits among every `step`-th pixel.
     let fits = |m: Conversion, v: Conversion, step: usize| -> u64 {
         (0..s.n.len())
             .step_by(step)
             .filter(|&i| {
                 let (x, y) = (i as u32 % s.width, i as u32 / s.width);
-                let yours = image.get(3 * i..3 * i + 3);
+                let yours = image.get(3 * i..3 * i + 3).map(|b| [b[0], b[1], b[2]]);
                 let b = m.source(s, x, y).and_then(|(sx, sy)| v.bytes(s, sx, sy));
-                b.zip(yours).is_some_and(|(b, yours)| close(b, yours))
+                b.zip(yours).is_some_and(|(b, yours)| within_a_level(b, yours))
             })
             .count() as u64
     };
@@ -444,9 +446,8 @@ fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64
 fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
     let pixels = || {
         (0..s.n.len()).filter_map(|i| {
-            let n = s.n[i];
             let yours = image.get(3 * i..3 * i + 3)?;
-            (n == s.spp && n != 0).then(|| (s.sum[i].map(|v| v / f64::from(n)), [yours[0], yours[1], yours[2]]))
+            Some((s.average(i)?, [yours[0], yours[1], yours[2]]))
         })
     };
     // The median of an even spread of at most about 2^16 pixels: the same factor, in bounded
@@ -482,7 +483,7 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
         let mut levels = [false; 256];
         let mut n = 0u64;
         for (avg, yours) in pixels() {
-            if (0..3).all(|c| course_byte(avg[c] * k).abs_diff(yours[c]) <= 1) {
+            if within_a_level(avg.map(|v| course_byte(v * k)), yours) {
                 n += 1;
                 for b in yours {
                     levels[usize::from(b)] = b > 0;
@@ -504,6 +505,12 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
     // One colour everywhere fits any factor: the fit needs colours of several levels to say the
     // picture is a factor of them.
     (levels >= 8).then_some((k, n))
+}
+
+/// True when each channel of `a` is within one level of `b`'s: bytes computed from a colour
+/// logged with fewer digits than it was computed with.
+fn within_a_level(a: [u8; 3], b: [u8; 3]) -> bool {
+    a.iter().zip(b).all(|(&p, q)| p.abs_diff(q) <= 1)
 }
 
 /// A factor as a report words it: a whole number, 1/n, or three decimals.

@@ -493,7 +493,8 @@ impl Judge<'_> {
         let facing = |li: usize| lv.shade.dot((light_pos(li) - lv.point).normalize_or_zero());
         // Held in place for the few lights of a course scene: this runs for every diffuse hit.
         let mut tested: SmallVec<[bool; 8]> = smallvec![false; lights.len()];
-        let mut reached: SmallVec<[bool; 8]> = smallvec![false; lights.len()];
+        // Per light, the first shadow ray that reaches it.
+        let mut reached: SmallVec<[Option<usize>; 8]> = smallvec![None; lights.len()];
         let mut unknown = false;
         for &k in kids.shadow {
             let Some(li) = aimed(k).filter(|&li| li < lights.len()) else {
@@ -501,7 +502,9 @@ impl Judge<'_> {
             };
             tested[li] = true;
             match rays[k].blocked_by {
-                Answer::Nothing => reached[li] = true,
+                Answer::Nothing => {
+                    reached[li].get_or_insert(k);
+                }
                 Answer::Found(_) => {}
                 // Only a light in front of the surface can add to its colour.
                 Answer::NotLogged => unknown |= facing(li) > 0.0,
@@ -528,7 +531,7 @@ impl Judge<'_> {
         let albedo = m.color.as_dvec3();
         // Each reached light's term by the course's rule, and the slack rounding allows.
         let mut t = DiffuseTerms::default();
-        let lit_by = || reached.iter().enumerate().filter(|(_, &x)| x).map(|(li, _)| li);
+        let lit_by = || (0..lights.len()).filter(|&li| reached[li].is_some());
         for li in lit_by() {
             let to = light_pos(li) - lv.point;
             let cos = lv.shade.dot(to.normalize_or_zero());
@@ -548,12 +551,7 @@ impl Judge<'_> {
             return Decision::Judged;
         }
         let name = self.name(lv.entity);
-        let lit: Vec<&str> = reached
-            .iter()
-            .enumerate()
-            .filter(|(_, &x)| x)
-            .map(|(li, _)| self.light_name(li as u32))
-            .collect();
+        let lit: Vec<&str> = lit_by().map(|li| self.light_name(li as u32)).collect();
         let from = if lit.is_empty() {
             "no light (every shadow ray is blocked), so it is black".to_string()
         } else {
@@ -563,12 +561,8 @@ impl Judge<'_> {
         // makes the colour that follows from them: the sum along each reaching shadow ray.
         let mut along = DVec3::ZERO;
         let mut apart = 0.0f64;
-        for li in lit_by() {
-            let reaching = kids
-                .shadow
-                .iter()
-                .find(|&&k| aimed(k) == Some(li) && matches!(rays[k].blocked_by, Answer::Nothing));
-            if let Some(&k) = reaching {
+        for (li, &k) in reached.iter().enumerate() {
+            if let Some(k) = k {
                 let s = &rays[k];
                 along += albedo * lights[li].color.as_dvec3() * lv.shade.dot(s.direction.normalize_or_zero()).max(0.0);
                 apart = apart.max(angle(s.direction, light_pos(li) - s.origin));
