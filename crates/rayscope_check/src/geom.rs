@@ -82,6 +82,41 @@ impl<'a> Geometry<'a> {
         (v0, v1 - v0, v2 - v0)
     }
 
+    /// How far `p` lies from the plane of triangle `prim` (infinite for other primitives).
+    #[must_use]
+    pub fn distance_to_plane(&self, prim: PrimRef, p: DVec3) -> f64 {
+        let PrimRef::Triangle(i) = prim else {
+            return f64::INFINITY;
+        };
+        let (v0, e1, e2) = self.triangle(i);
+        (p - v0).dot(e1.cross(e2).normalize()).abs()
+    }
+
+    /// Where the ray `o + t d` crosses the plane of triangle `prim` with `t_min < t < t_max`
+    /// outside the triangle, and how far outside ([`Self::edge_share`], negative); `None` for
+    /// other primitives, a ray along the plane, or a crossing inside the triangle.
+    #[must_use]
+    pub fn plane_crossing_outside(
+        &self,
+        prim: PrimRef,
+        o: DVec3,
+        d: DVec3,
+        t_min: f64,
+        t_max: f64,
+    ) -> Option<(f64, f64)> {
+        let PrimRef::Triangle(i) = prim else {
+            return None;
+        };
+        let (v0, e1, e2) = self.triangle(i);
+        let n = e1.cross(e2);
+        let t = (v0 - o).dot(n) / d.dot(n);
+        if !(t > t_min && t < t_max) {
+            return None;
+        }
+        let share = self.edge_share(prim, o + d * t)?;
+        (share < 0.0).then_some((t, share))
+    }
+
     /// For a triangle, how far `p` lies inside it as a share of its smallest altitude (0 on an
     /// edge, 1/3 at the centroid, negative outside); `None` for other primitives.
     #[must_use]

@@ -331,7 +331,7 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             None,
             "no pixel had a colour logged for every sample, so the picture was not compared".to_string(),
         )
-    } else if share(course) >= FOLLOWS {
+    } else if course == compared || (fits[0] == compared && best.0 == Conversion::Course) {
         (
             None,
             format!("{course} of {compared} pixels are your logged colours turned into bytes as the course does"),
@@ -374,6 +374,17 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             format!(
                 "{n} of {compared} pixels are your logged colours' average times {}, then turned into bytes as the course does{why}; {course} as the course converts them",
                 factor_words(k)
+            ),
+        )
+    } else if share(course) >= FOLLOWS {
+        // A few pixels only: no rule for the whole picture, but those pixels' bytes came from
+        // something other than their own samples.
+        (
+            Some(Code::ImageDiffers),
+            format!(
+                "{} of {compared} pixels are not your logged colours turned into bytes, though the other {} are: those pixels were written from something other than their own samples' colours (a colour or sum shared by the threads of a parallel loop does this)",
+                compared - fits[0],
+                fits[0]
             ),
         )
     } else {

@@ -159,6 +159,12 @@ pub struct Tally {
     pub acne_wrong_side: u64,
     /// Such rays from an origin on the right side of the surface, or on it.
     pub acne_other: u64,
+    /// Glass verdicts of no reflection (kr = 0) where the reflected ray brought back black:
+    /// there the two colours added, R + T, read the same.
+    pub glass_black_reflection: u64,
+    /// Glass verdicts of another share where the reflected or refracted ray brought back black:
+    /// there R + T reads as a share of 1 or 0.
+    pub glass_black_other: u64,
     /// Per root cause: the pixel samples and rays it is the first mistake of, what follows
     /// from it, and its first examples.
     pub causes: BTreeMap<Cause, CauseCount>,
@@ -364,6 +370,126 @@ impl Tally {
 
     /// Moves the cause `from` into `to`: its examples take `to`'s code, and the rays it counted
     /// under the code it loses are no longer counted there.
+    /// Shadow rays blocked where nothing is in the way, in a log whose other rays report hits
+    /// where there is nothing: the tracer's own surfaces block them, so they are that mistake
+    /// (run after the surfaces' rule, which may gather both on one surface first).
+    pub fn phantom_blockers_with_phantom_hits(&mut self) {
+        let phantom = Cause {
+            code: Code::HitPhantom,
+            or: None,
+        };
+        if self.causes.contains_key(&phantom) {
+            self.move_code(Code::ShadowPhantomBlocker, Code::HitPhantom);
+            self.recast(
+                Cause {
+                    code: Code::ShadowPhantomBlocker,
+                    or: None,
+                },
+                phantom,
+            );
+        }
+    }
+
+    /// Shadow rays through the back faces of triangles, in a log whose shadow rays also pass
+    /// through blockers met from the front or that are no triangles, and whose other rays meet
+    /// back faces as they should: the shadow test misses blockers, whichever side it meets.
+    fn one_sided_or_missed(&mut self) {
+        let missed = Cause {
+            code: Code::ShadowMissedBlocker,
+            or: None,
+        };
+        if !self.causes.contains_key(&missed) || self.codes.contains_key(&Code::HitOneSidedTriangle) {
+            return;
+        }
+        self.move_code(Code::ShadowOneSidedTriangle, Code::ShadowMissedBlocker);
+        self.recast(
+            Cause {
+                code: Code::ShadowOneSidedTriangle,
+                or: Some(Code::HitOneSidedTriangle),
+            },
+            missed,
+        );
+    }
+
+    /// Counts the rays and examples of verdict `from` as `to`'s, where the log as a whole shows
+    /// that they are that verdict.
+    fn move_code(&mut self, from: Code, to: Code) {
+        if let Some((n, mut ex)) = self.codes.remove(&from) {
+            for f in &mut ex {
+                f.code = to;
+            }
+            let e = self.codes.entry(to).or_default();
+            e.0 += n;
+            keep_first(&mut e.1, ex, self.keep);
+        }
+    }
+
+    /// Glass that brings back one of its two colours alone only where the other is black, in a
+    /// log whose glass elsewhere adds the two colours unweighted, is that sum.
+    fn none_or_sum(&mut self) {
+        let sum = Cause {
+            code: Code::ShadingGlassSum,
+            or: None,
+        };
+        if !self.causes.contains_key(&sum) {
+            return;
+        }
+        for (code, black) in [
+            (Code::ShadingFresnelNone, self.glass_black_reflection),
+            (Code::ShadingFresnel, self.glass_black_other),
+        ] {
+            let n = self.codes.get(&code).map_or(0, |e| e.0);
+            if n > 0 && n <= black {
+                self.move_code(code, Code::ShadingGlassSum);
+                self.recast(Cause { code, or: None }, sum);
+            }
+        }
+    }
+
+    /// A reflected share that fits a known wrong formula at some glass hits, in a log whose other
+    /// glass hits fit none: near normal incidence, or where the two colours are alike, every
+    /// formula reads the same, so the formula is chance and the share is the tracer's own.
+    fn fresnel_formula_or_other(&mut self) {
+        let other = Cause {
+            code: Code::ShadingFresnel,
+            or: None,
+        };
+        if !self.causes.contains_key(&other) {
+            return;
+        }
+        for code in [
+            Code::ShadingFresnelSchlick,
+            Code::ShadingFresnelSwappedCosines,
+            Code::ShadingFresnelHalf,
+            Code::ShadingFresnelNone,
+            Code::ShadingFresnelWeightsExchanged,
+        ] {
+            self.move_code(code, Code::ShadingFresnel);
+            self.recast(Cause { code, or: None }, other);
+        }
+    }
+
+    /// A reflected share that fits no formula, in a log whose glass elsewhere brings back no
+    /// weighted mix at all: where the two colours have one hue every colour on their line reads
+    /// as a mix with some share, so those hits are the same mistake.
+    fn share_or_not_a_mix(&mut self) {
+        let glass = Cause {
+            code: Code::ShadingGlass,
+            or: None,
+        };
+        let other = Cause {
+            code: Code::ShadingFresnel,
+            or: None,
+        };
+        let samples = |c: &Cause| self.causes.get(c).map_or(0, |n| n.samples);
+        // Only where the colours that are no mix are as many: a few such hits among many shares
+        // that fit are the rounding of colours of nearly one hue, not a mistake of their own.
+        if samples(&glass) >= samples(&other) {
+            self.move_code(Code::ShadingFresnel, Code::ShadingGlass);
+            self.recast(other, glass);
+        }
+    }
+
     fn recast(&mut self, from: Cause, to: Cause) {
         let Some(mut moved) = self.causes.remove(&from) else {
             return;
@@ -461,14 +587,7 @@ impl Tally {
         if !self.causes.contains_key(&wrong) || self.acne_wrong_side == 0 || self.acne_other > 0 {
             return;
         }
-        if let Some((n, mut ex)) = self.codes.remove(&Code::SecondaryAcne) {
-            for f in &mut ex {
-                f.code = Code::SecondaryOffsetWrongSide;
-            }
-            let e = self.codes.entry(Code::SecondaryOffsetWrongSide).or_default();
-            e.0 += n;
-            keep_first(&mut e.1, ex, self.keep);
-        }
+        self.move_code(Code::SecondaryAcne, Code::SecondaryOffsetWrongSide);
         self.recast(acne, wrong);
     }
 
@@ -484,14 +603,7 @@ impl Tally {
             return;
         }
         for code in [Code::HitOneSidedTriangle, Code::ShadowOneSidedTriangle] {
-            if let Some((n, mut ex)) = self.codes.remove(&code) {
-                for f in &mut ex {
-                    f.code = Code::HitTriangleEdge;
-                }
-                let e = self.codes.entry(Code::HitTriangleEdge).or_default();
-                e.0 += n;
-                keep_first(&mut e.1, ex, self.keep);
-            }
+            self.move_code(code, Code::HitTriangleEdge);
         }
         self.recast(
             Cause {
@@ -538,6 +650,8 @@ impl Tally {
         self.skipped.merge(o.skipped);
         self.acne_wrong_side += o.acne_wrong_side;
         self.acne_other += o.acne_other;
+        self.glass_black_reflection += o.glass_black_reflection;
+        self.glass_black_other += o.glass_black_other;
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
         let keep = self.keep.max(o.keep);
@@ -564,6 +678,10 @@ impl Tally {
         self.acne_or_wrong_side();
         self.one_sided_or_edges();
         self.tir_test_or_ratio();
+        self.one_sided_or_missed();
+        self.none_or_sum();
+        self.fresnel_formula_or_other();
+        self.share_or_not_a_mix();
         let (out, fac) = (self.outward.0, self.facing.0);
         if out == 0 || fac == 0 {
             return;
@@ -648,6 +766,10 @@ impl Eval {
         })
     }
 }
+
+/// Most triangles an entity may have for a wrong hit or blocker to be searched for the triangle
+/// whose plane it lies in: the course's triangles and quads, not models.
+const FEW_TRIANGLES: usize = 16;
 
 /// The judge for one scene and one set of render flags.
 pub struct Judge<'a> {
@@ -922,6 +1044,7 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, parent, evals, kinds, findings);
+        self.carried_over(rays, parent, kinds, findings);
         tally.entering_refracted_ok += (0..n)
             .filter(|&i| {
                 kinds[i] == Kind::Refraction
@@ -1154,7 +1277,7 @@ fn hit_entities(found: &mut [Finding], claimed: Option<u32>, rayscope: Option<u3
             | Code::HitWrongT
             | Code::HitPointOffRay
             | Code::HitBehindOrigin
-            | Code::HitNormalWrong => claimed.or(rayscope),
+            | Code::HitNormalWrong => claimed.or(x.entity).or(rayscope),
             Code::HitMissed | Code::HitFarther | Code::HitOneSidedTriangle | Code::HitTriangleEdge => rayscope,
             _ => None,
         };
@@ -1166,7 +1289,10 @@ fn hit_entities(found: &mut [Finding], claimed: Option<u32>, rayscope: Option<u3
 fn blocker_entities(found: &mut [Finding], named: Option<u32>, rayscope: Option<u32>) {
     for x in found {
         x.entity = match x.code {
-            Code::ShadowPhantomBlocker | Code::ShadowWrongBlocker => named,
+            // A blocker logged without a name keeps the entity its verdict found it could be.
+            Code::ShadowPhantomBlocker | Code::ShadowWrongBlocker | Code::ShadowBlockedBeyondLight => {
+                named.or(x.entity)
+            }
             Code::ShadowMissedBlocker | Code::ShadowOneSidedTriangle | Code::HitTriangleEdge => rayscope,
             _ => None,
         };

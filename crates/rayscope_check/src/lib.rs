@@ -505,6 +505,7 @@ pub(crate) fn run(
     }
     tally.finish();
     judge.fold_surfaces(&mut tally);
+    tally.phantom_blockers_with_phantom_hits();
     let (skipped, first) = source.skipped();
     let mut report = Report::new(
         tally,

@@ -30,6 +30,12 @@ macro_rules! codes {
                 match self { $(Code::$variant => $tie),* }
             }
 
+            /// True for a verdict on how a surface's colour was put together (`shading.*`).
+            #[must_use]
+            pub fn is_shading(self) -> bool {
+                self.as_str().starts_with("shading.")
+            }
+
             /// One line: what was found.
             #[must_use]
             pub fn summary(self) -> &'static str {
@@ -175,6 +181,9 @@ codes! {
     ShadowPhantomBlocker = "shadow.phantom-blocker", false,
         "shadow ray blocked by something that is not in the way",
         "Your tracer says this light is blocked by an entity that rayscope does not find on the segment from the point to the light. Check the intersection test's acceptance and that the shadow ray's direction is normalised before comparing t with the distance to the light.";
+    ShadowBlockedCarriedOver = "shadow.blocked-carried-over", false,
+        "shadow ray blocked only because the one before it from the same point was",
+        "Nothing lies between this point and its light, but the shadow ray your tracer cast just before it from the same point, toward another light, is blocked (and where the log names blockers, this one names the same): a 'blocked' or 'in shadow' flag, or the blocker found, set for one light and not reset before the next. Declare it inside the loop over the lights, or reset it at the start of each pass.";
     ShadowWrongBlocker = "shadow.wrong-blocker", false,
         "light blocked, but not by the entity named",
         "The light is blocked, but the entity your tracer names is not on the shadow ray. The answer (in shadow) is right; the entity you report comes from somewhere else, perhaps an earlier ray.";
@@ -208,6 +217,12 @@ codes! {
     ShadingGlass = "shading.glass", false,
         "glass colour is not a mix of its reflected and refracted colours",
         "A glass hit brings back kr·R + (1 − kr)·T, a weighted mix of what its reflected ray (R) and refracted ray (T) brought back, with weights that sum to 1; at stage 2 the glass's own colour plays no part. Your colour is no such mix: check for the material colour multiplied in, weights that do not sum to 1, or a term added twice.";
+    ShadingGlassSum = "shading.glass-sum", false,
+        "glass colour is its reflected and refracted colours added, with no weights",
+        "Your glass brings back R + T, what its reflected and refracted rays brought back added together; the course's glass mixes them as kr·R + (1 − kr)·T, with kr from the Fresnel equations. Weight the two colours before adding them. If your tracer passes the weight down and each child multiplies its own colour by it, the colours your log holds for those children already carry kr and 1 − kr: log each ray's colour before that weight (docs/check.md, Colours), and rayscope names what is left.";
+    ShadingLoggedWeighted = "shading.logged-weighted", false,
+        "colour logged after its parent glass weighted it",
+        "The colour logged for this reflected or refracted ray is what it brought back multiplied by the share its parent glass gives it (kr for the reflected ray, 1 − kr for the refracted one). A log's `color` is what a ray brought back before its parent weighted it (docs/check.md, Colours), so rayscope cannot judge the decisions below and above it as logged. Log the colour before multiplying it by the Fresnel weight; if your tracer weights inside the child on purpose, your picture may well be right, and logging the unweighted colour lets rayscope judge the rest.";
     ShadingMissNotBlack = "shading.miss-not-black", false,
         "a ray that hits nothing brings back a colour",
         "A ray that leaves the scene hits nothing and brings back black at stage 2: there is no background colour or sky. Return (0, 0, 0) on a miss.";

@@ -502,3 +502,59 @@ fn a_tinted_mirror_a_tinted_glass_and_a_background_colour_are_named() {
         &[],
     );
 }
+
+/// Glass colours no catalogue has: R + T added with no weights is named as such; a tracer whose
+/// picture is right but whose log holds its glass children's colours after weighting them is
+/// told that the log, not the shading, differs; a Fresnel reflectance with the indices exchanged
+/// is one verdict with its share, never a formula it matches by chance near normal incidence.
+#[test]
+fn glass_weights_left_out_or_logged_in_and_an_unknown_share_get_one_true_headline() {
+    let Some(scene) = course_scene("sample_scene_2.txt") else {
+        return;
+    };
+    // The glass above rays that logged weighted colours is judged from those: what it reads
+    // follows from them (where one colour is black, a share of 0 or 1 is the sum as well).
+    let above = [
+        Code::ShadingGlassSum,
+        Code::ShadingGlass,
+        Code::ShadingFresnel,
+        Code::ShadingFresnelNone,
+        Code::ShadingFresnelWeightsExchanged,
+        Code::ShadingFresnelSchlick,
+        Code::ShadingFresnelSwappedCosines,
+        Code::ShadingFresnelHalf,
+    ];
+    for (bug, code, words, follows) in [
+        ("glass-sum", Code::ShadingGlassSum, "R + T", &[][..]),
+        (
+            "logged-weighted",
+            Code::ShadingLoggedWeighted,
+            "what this ray brings back times",
+            &above[..],
+        ),
+        (
+            "fresnel-indices-swapped",
+            Code::ShadingFresnel,
+            "the Fresnel equations give",
+            &[],
+        ),
+    ] {
+        for aa in [1, 2] {
+            let Some(r) = assert_named(
+                Run {
+                    bug,
+                    aa,
+                    ..Run::new(scene.clone(), 40, 40)
+                },
+                code,
+                follows,
+            ) else {
+                return;
+            };
+            for d in details(&r, code) {
+                assert!(d.contains(words) && d.contains("GlassSphere"), "{bug}: {d}");
+            }
+            assert_eq!(r.causes[0].code, code, "{}", text(&r));
+        }
+    }
+}

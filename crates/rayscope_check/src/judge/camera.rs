@@ -142,19 +142,34 @@ impl Judge<'_> {
             proj_code: None,
         });
         if let Some(k) = self.plane_scale(p, dc) {
-            let fov = 2.0 * (k * if horizontal { half.0 } else { half.1 }).atan();
-            f.push(self.finding(
-                r,
-                kind,
-                Code::CameraPlaneDistance,
+            let tan = if horizontal { half.0 } else { half.1 };
+            let fov_deg = self.settings.camera.fov_deg;
+            let detail = if k < 0.0 {
+                // A negative half-width turns the picture half a turn: the tangent of an angle in
+                // degrees taken as radians is one way to get it.
+                let as_radians = (f64::from(fov_deg) / 2.0).tan();
+                let why = if ((k * tan - as_radians) / as_radians).abs() < 1e-3 {
+                    format!(
+                        ": tan({}) with {} read as radians, as Math.Tan reads it; convert the half angle to radians (× π / 180) first",
+                        fov_deg / 2.0,
+                        fov_deg / 2.0
+                    )
+                } else {
+                    String::new()
+                };
                 format!(
-                    "{off_by}; it fits an image plane at distance {:.4} instead of 1 (or a field of view of {:.2}° instead of {}°)",
+                    "{off_by}; it fits an image plane whose half-width is {:.4} instead of tan({}°) = {tan:.4}, a negative size that turns the picture half a turn{why}",
+                    k * tan,
+                    fov_deg / 2.0
+                )
+            } else {
+                format!(
+                    "{off_by}; it fits an image plane at distance {:.4} instead of 1 (or a field of view of {:.2}° instead of {fov_deg}°)",
                     1.0 / k,
-                    fov.to_degrees(),
-                    self.settings.camera.fov_deg
-                ),
-                values,
-            ));
+                    (2.0 * (k * tan).atan()).to_degrees()
+                )
+            };
+            f.push(self.finding(r, kind, Code::CameraPlaneDistance, detail, values));
             return;
         }
         let (px, py) = ((us * w).floor(), (vs * h).floor());
@@ -253,7 +268,7 @@ impl Judge<'_> {
         let (xs, ys) = (dc.x / dc.z, dc.y / dc.z);
         let k = (xs * xr + ys * yr) / (xr * xr + yr * yr).max(1e-300);
         let fit = DVec3::new(k * xr, k * yr, 1.0).normalize();
-        ((k - 1.0).abs() > 1e-4 && k > 0.0 && angle(fit, dc) <= self.cam_tol).then_some(k)
+        ((k - 1.0).abs() > 1e-4 && k != 0.0 && angle(fit, dc) <= self.cam_tol).then_some(k)
     }
 
     /// Where sample `s` lies in its pixel by rayscope's grid, and where the usual mistakes put it.

@@ -166,33 +166,55 @@ fn fold_siblings(out: &mut SampleCauses, parent: &[Option<usize>]) {
     }
 }
 
-/// Causes on a ray that a cause on one of the rays cast from its hit explains: the parent's code
-/// and the start of the child's. A missing reflected ray at glass whose refracted ray bends
-/// wrong: the tracer's Fresnel weight comes from the same wrong indices or normal. A diffuse
-/// colour that takes N·L along shadow rays that miss their lights: the shadow rays' direction is
-/// the mistake.
-const FROM_CHILD: &[(Code, &str)] = &[
-    (Code::MissingReflection, "refraction."),
-    (Code::ShadingShadowDirection, "shadow.not-at-light"),
+/// Causes on a ray (a code, or a family ending in '.') that a cause on one of the rays cast from
+/// its hit explains (the start of its code). A missing reflected ray at glass whose refracted ray
+/// bends wrong: the tracer's Fresnel weight comes from the same wrong indices or normal. A
+/// diffuse colour that takes N·L along shadow rays that miss their lights: the shadow rays'
+/// direction is the mistake. Any colour judged from children that logged their colours already
+/// weighted: judged from those, it cannot come out right.
+const FROM_CHILD: &[(&str, &str)] = &[
+    ("missing.reflection", "refraction."),
+    ("shading.shadow-direction", "shadow.not-at-light"),
+    ("shading.", "shading.logged-weighted"),
 ];
 
 /// Folds a root into the cause of a ray cast from its hit where [`FROM_CHILD`] says that cause
 /// explains it.
 fn fold_into_child(out: &mut SampleCauses, parent: &[Option<usize>]) {
-    let mut k = 0;
-    while k < out.roots.len() {
-        let (i, c) = out.roots[k];
-        let by = FROM_CHILD.iter().find(|(p, _)| *p == c.code).and_then(|&(_, child)| {
-            out.roots
-                .iter()
-                .find(|&&(j, d)| parent[j] == Some(i) && d.code.as_str().starts_with(child))
-        });
-        match by {
-            Some(&(_, d)) => {
-                out.consequences.push((d, c.code));
-                out.roots.remove(k);
+    // Rays whose cause was folded into another, with that cause: a ray above them folds into it
+    // in turn (glass above glass above the ray the mistake is on).
+    let mut joined: Vec<(usize, Cause)> = Vec::new();
+    loop {
+        let before = out.roots.len();
+        let mut k = 0;
+        while k < out.roots.len() {
+            let (i, c) = out.roots[k];
+            let name = c.code.as_str();
+            let of = |p: &str| {
+                if p.ends_with('.') {
+                    name.starts_with(p)
+                } else {
+                    name == p
+                }
+            };
+            let by = FROM_CHILD.iter().filter(|(p, _)| of(p)).find_map(|&(_, child)| {
+                out.roots
+                    .iter()
+                    .chain(&joined)
+                    .find(|&&(j, d)| parent[j] == Some(i) && d.code.as_str().starts_with(child))
+                    .map(|&(_, d)| d)
+            });
+            match by {
+                Some(d) => {
+                    out.consequences.push((d, c.code));
+                    joined.push((i, d));
+                    out.roots.remove(k);
+                }
+                None => k += 1,
             }
-            None => k += 1,
+        }
+        if out.roots.len() == before {
+            return;
         }
     }
 }

@@ -299,7 +299,7 @@ impl Judge<'_> {
                     return;
                 }
             }
-            f.push(self.finding(
+            let mut x = self.finding(
                 r,
                 kind,
                 Code::HitPhantom,
@@ -308,7 +308,9 @@ impl Judge<'_> {
                     c.entity.map_or("a hit".to_string(), |e| format!("'{}'", self.name(e)))
                 ),
                 v(),
-            ));
+            );
+            self.past_an_edge(&mut x, ps, pos);
+            f.push(x);
             return;
         };
         let cos = h.own.dot(d).abs().max(1e-3);
@@ -351,7 +353,7 @@ impl Judge<'_> {
                         v(),
                     ));
                 } else {
-                    f.push(self.finding(
+                    let mut x = self.finding(
                         r,
                         kind,
                         Code::HitPhantom,
@@ -364,12 +366,14 @@ impl Judge<'_> {
                             self.unit_sphere_note(r, e, Some(ts), pos)
                         ),
                         v(),
-                    ));
+                    );
+                    self.past_an_edge(&mut x, ps, pos);
+                    f.push(x);
                 }
                 return;
             }
         } else if ts < h.t && c.entity.is_none() {
-            f.push(self.finding(
+            let mut x = self.finding(
                 r,
                 kind,
                 Code::HitPhantom,
@@ -379,10 +383,33 @@ impl Judge<'_> {
                     h.t
                 ),
                 v(),
-            ));
+            );
+            self.past_an_edge(&mut x, ps, pos);
+            f.push(x);
             return;
         }
         self.beyond_nearest(r, kind, c, ts, ps, h, f, tally);
+    }
+
+    /// Where a hit `p` that nothing holds lies in the plane of a triangle (within `pos`) just
+    /// outside it, says so in `x` and makes that triangle's entity what `x` is about. Models are
+    /// left out: every wrong ray would then search all their triangles.
+    fn past_an_edge(&self, x: &mut Finding, p: DVec3, pos: f64) {
+        let near = (0..self.scene.entities.len() as u32)
+            .filter(|&e| self.geo.prims(e).len() <= FEW_TRIANGLES)
+            .flat_map(|e| self.geo.prims(e).iter().map(move |&q| (e, q)))
+            .filter(|&(_, q)| matches!(q, PrimRef::Triangle(_)) && self.geo.distance_to_plane(q, p) <= pos)
+            .filter_map(|(e, q)| self.geo.edge_share(q, p).map(|s| (e, s)))
+            .filter(|&(_, s)| (-1.0..0.0).contains(&s))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((e, share)) = near {
+            x.detail.push_str(&format!(
+                "; the point lies in the plane of triangle '{}', outside the triangle by {:.1} % of its height: an inside test that lets points past an edge through gives it",
+                self.name(e),
+                -share * 100.0
+            ));
+            x.entity = Some(e);
+        }
     }
 
     /// The tracer's hit lies beyond the oracle's nearest one, `h`.

@@ -144,15 +144,50 @@ enum GlassFit {
 /// The reflected share `kr` for which `c = kr·r + (1 − kr)·t` fits best, from the channels where
 /// `r` and `t` differ enough to tell; `None` where none does.
 fn solve_kr(c: DVec3, r: DVec3, t: DVec3) -> Option<f64> {
+    solve_kr_over(c, r, t, SPLIT)
+}
+
+/// [`solve_kr`] from the channels where `r` and `t` differ by more than `split`.
+fn solve_kr_over(c: DVec3, r: DVec3, t: DVec3, split: f64) -> Option<f64> {
     let (mut num, mut den) = (0.0, 0.0);
     for i in 0..3 {
         let d = r[i] - t[i];
-        if d.abs() > SPLIT {
+        if d.abs() > split {
             num += (c[i] - t[i]) * d;
             den += d * d;
         }
     }
     (den > 0.0).then(|| num / den)
+}
+
+/// The weights `(a, b)` with `c = a·r + b·t`, where the two colours differ in hue enough to tell
+/// them apart and the colour fits.
+fn solve_weights(c: DVec3, r: DVec3, t: DVec3) -> Option<(f64, f64)> {
+    let (rr, tt, rt) = (r.dot(r), t.dot(t), r.dot(t));
+    let det = rr * tt - rt * rt;
+    // Colours of one hue (or a NaN) leave the two weights undetermined.
+    if det.is_nan() || det <= 1e-6 * rr * tt {
+        return None;
+    }
+    let (rc, tc) = (r.dot(c), t.dot(c));
+    let (a, b) = ((rc * tt - tc * rt) / det, (tc * rr - rc * rt) / det);
+    fits(c, r * a + t * b, DVec3::ZERO).then_some((a, b))
+}
+
+/// `w·name` with the share of the Fresnel reflectance `kr` that `w` is, where it is one.
+fn weight_words(w: f64, name: &str, kr: f64) -> String {
+    let known = [
+        (kr, "kr"),
+        (1.0 - kr, "1 − kr"),
+        (kr * kr, "kr²"),
+        ((1.0 - kr).powi(2), "(1 − kr)²"),
+        (1.0, "1"),
+    ];
+    match known.iter().find(|(v, _)| (w - v).abs() <= 1e-4 * v.abs().max(1.0)) {
+        Some((_, "1")) => name.to_string(),
+        Some((v, words)) => format!("{w:.4}·{name} ({words} = {v:.4})"),
+        None => format!("{w:.4}·{name}"),
+    }
 }
 
 /// Which formula's share mixes `r` and `t` into `c` at cos θi `ci` from index `n1` into `n2`,
@@ -175,7 +210,8 @@ fn classify_glass(c: DVec3, r: DVec3, t: DVec3, ci: f64, n1: f64, n2: f64, unc: 
     if let Some((f, _)) = best {
         return GlassFit::Mistake(f, solved);
     }
-    match solved {
+    // Colours too alike for the share to be read safely still give it where it fits exactly.
+    match solved.or_else(|| solve_kr_over(c, r, t, 0.0)) {
         Some(k) if fits(c, mix(k), DVec3::ZERO) => GlassFit::Other(Some(k)),
         _ => GlassFit::NotAMix,
     }
@@ -302,7 +338,30 @@ impl Judge<'_> {
                 continue;
             };
             let ch = children(i, findings);
-            let d = self.decision(i, rays, parent, evals, kinds, ev, &ch, &logs, &mut findings[i]);
+            let before = findings[i].len();
+            let d = self.decision(
+                &rays[i],
+                i,
+                rays,
+                parent,
+                evals,
+                kinds,
+                ev,
+                &ch,
+                &logs,
+                &mut findings[i],
+            );
+            if findings[i][before..].iter().any(|f| f.code.is_shading()) {
+                self.logged_weighted(i, rays, parent, evals, kinds, ev, &ch, &logs, &mut findings[i], before);
+                let black = |&k: &usize| rays[k].color.is_some_and(|c| fits(c, DVec3::ZERO, DVec3::ZERO));
+                let has = |code: Code| findings[i].iter().any(|f| f.code == code);
+                if ch.reflection.iter().all(black) && has(Code::ShadingFresnelNone) {
+                    tally.glass_black_reflection += 1;
+                }
+                if ch.reflection.iter().chain(ch.refraction).any(black) && has(Code::ShadingFresnel) {
+                    tally.glass_black_other += 1;
+                }
+            }
             if matches!(d, Decision::Judged) {
                 tally.shaded_judged += 1;
             } else {
@@ -315,6 +374,7 @@ impl Judge<'_> {
     #[allow(clippy::too_many_arguments)]
     fn decision(
         &self,
+        r: &LoggedRay,
         i: usize,
         rays: &[LoggedRay],
         parent: &[Option<usize>],
@@ -325,7 +385,6 @@ impl Judge<'_> {
         logs: &Logs,
         f: &mut Vec<Finding>,
     ) -> Decision {
-        let r = &rays[i];
         let Some(lv) = ev.leave() else {
             // rayscope's trace misses too: a miss brings back black.
             let Some(c) = r.color else {
@@ -376,6 +435,112 @@ impl Judge<'_> {
             }
             Lobe::Emitter | Lobe::Bsdf => Decision::Unjudged,
         }
+    }
+
+    /// Replaces the colour verdicts from `before` on in `f`, ray `i`'s, with one
+    /// [`Code::ShadingLoggedWeighted`] where its decision holds once its logged colour, and its
+    /// reflected and refracted children's, are divided by the share of its parent glass each
+    /// carries (its own share, or the product down from the camera ray that a tracer carrying a
+    /// path weight logs): then the log, not the shading, is what differs. Decisions at glass are
+    /// left as they are.
+    #[allow(clippy::too_many_arguments)]
+    fn logged_weighted(
+        &self,
+        i: usize,
+        rays: &[LoggedRay],
+        parent: &[Option<usize>],
+        evals: &[Option<Eval>],
+        kinds: &[Kind],
+        ev: &Eval,
+        kids: &Children,
+        logs: &Logs,
+        f: &mut Vec<Finding>,
+        before: usize,
+    ) {
+        let (Some(c), Some(p)) = (rays[i].color, parent[i]) else {
+            return;
+        };
+        // The share of ray `k` (a reflected or refracted ray) that its parent glass gives it.
+        let own = |k: usize| -> Option<f64> {
+            let lv = evals[parent[k]?]?.leave()?;
+            let m = &self.scene.materials[lv.material as usize];
+            let kr = super::secondary::glass_fresnel(&lv, f64::from(m.value));
+            match kinds[k] {
+                Kind::Reflection if m.is_glass() => Some(kr),
+                Kind::Refraction if m.is_glass() => Some(1.0 - kr),
+                _ => None,
+            }
+        };
+        let Some(share) = own(i) else {
+            return;
+        };
+        let path = |k: usize| self.path_weight(k, parent, evals, kinds);
+        let mut unweighted = Vec::new();
+        let mut scratch = Vec::new();
+        let weights: [&dyn Fn(usize) -> Option<f64>; 2] = [&own, &|k| Some(path(k))];
+        // At glass, colours logged with a weight read as mistakes in the mix itself (the weights
+        // left out, or exchanged where a sphere's inner bounces keep one angle): only a decision
+        // at another surface tells the readings apart, and the glass above it follows from it.
+        if ev
+            .leave()
+            .is_some_and(|lv| self.scene.materials[lv.material as usize].is_glass())
+        {
+            return;
+        }
+        let fit = weights.iter().find_map(|weight| {
+            let w = weight(i)?;
+            if !(1e-6..1.0 - 1e-9).contains(&w) {
+                return None;
+            }
+            unweighted.clear();
+            unweighted.extend_from_slice(rays);
+            unweighted[i].color = Some(c / w);
+            for &k in kids.reflection.iter().chain(kids.refraction) {
+                if let (Some(ck), Some(wk)) = (rays[k].color, weight(k).filter(|&wk| wk > 1e-6)) {
+                    unweighted[k].color = Some(ck / wk);
+                }
+            }
+            scratch.clear();
+            let d = self.decision(
+                &unweighted[i],
+                i,
+                &unweighted,
+                parent,
+                evals,
+                kinds,
+                ev,
+                kids,
+                logs,
+                &mut scratch,
+            );
+            (matches!(d, Decision::Judged) && scratch.iter().all(|s| !s.code.is_shading())).then_some(w)
+        });
+        let Some(w) = fit else {
+            return;
+        };
+        let lv = evals[p].and_then(|e| e.leave()).expect("a glass parent");
+        let why = if w == share {
+            format!(
+                "the share its parent glass '{}' gives the {} ray ({} = {share:.4})",
+                self.name(lv.entity),
+                kinds[i].name(),
+                if kinds[i] == Kind::Reflection { "kr" } else { "1 − kr" }
+            )
+        } else {
+            format!("the product of the glass shares down to it from the camera ray ({w:.4})")
+        };
+        let mut kept: Vec<Finding> = f.drain(before..).filter(|x| !x.code.is_shading()).collect();
+        kept.insert(
+            0,
+            self.finding(
+                &rays[i],
+                &kinds[i],
+                Code::ShadingLoggedWeighted,
+                format!("your logged colour is what this ray brings back times {w:.4}, {why}"),
+                vec![colour_value(c, c / w)],
+            ),
+        );
+        f.extend(kept);
     }
 
     /// A mirror or glass hit that cast no ray: black at the depth limit, a missing ray above it.
@@ -762,22 +927,42 @@ impl Judge<'_> {
             f.push(t);
             return Decision::Judged;
         }
-        let (code, detail, values) = match fit {
+        let (code, mut detail, values) = match fit {
             GlassFit::Exact => return Decision::Judged,
             GlassFit::Mistake(formula, k) => (
                 formula.code(),
                 format!(
-                    "at '{name}' ({}, cos θi = {ci:.4}) your colour mixes the reflected and refracted colours by {}: kr = {:.4}; the Fresnel equations give {exact:.4}",
+                    "at '{name}' ({}, cos θi = {ci:.4}) your colour fits the reflected and refracted colours mixed by {}: kr = {:.4}; the Fresnel equations give {exact:.4}",
                     if lv.front { "entering" } else { "leaving" },
                     formula.describe(),
                     formula.kr(ci, n1, n2)
                 ),
                 vec![kr_value(k), colour_value(c, want)],
             ),
+            // Colours of one hue are a "mix" for some share outside [0, 1] as well: the plain sum
+            // is the simpler reading, and no share in [0, 1] gives it.
+            GlassFit::Other(k)
+                if fits(c, rc + tc, DVec3::ZERO) && k.is_some_and(|k| !(0.0..=1.0).contains(&k)) =>
+            {
+                (
+                    Code::ShadingGlassSum,
+                    format!(
+                        "at '{name}' your colour is your reflected and refracted rays' colours added, R + T, with no weights; kr = {exact:.4} by the Fresnel equations"
+                    ),
+                    vec![colour_value(c, want)],
+                )
+            }
+            GlassFit::NotAMix if fits(c, rc + tc, DVec3::ZERO) => (
+                Code::ShadingGlassSum,
+                format!(
+                    "at '{name}' your colour is your reflected and refracted rays' colours added, R + T, with no weights; kr = {exact:.4} by the Fresnel equations"
+                ),
+                vec![colour_value(c, want)],
+            ),
             GlassFit::Other(k) => (
                 Code::ShadingFresnel,
                 format!(
-                    "at '{name}' ({}, cos θi = {ci:.4}) your colour mixes the reflected and refracted colours with kr = {:.4}; the Fresnel equations give {exact:.4}",
+                    "at '{name}' ({}, cos θi = {ci:.4}) your colour fits the reflected and refracted colours mixed with kr = {:.4}; the Fresnel equations give {exact:.4}",
                     if lv.front { "entering" } else { "leaving" },
                     k.unwrap_or(f64::NAN)
                 ),
@@ -785,7 +970,17 @@ impl Judge<'_> {
             ),
             GlassFit::NotAMix => (
                 Code::ShadingGlass,
-                format!("at '{name}' your colour is no mix kr·R + (1 − kr)·T of your reflected and refracted rays' colours"),
+                match solve_weights(c, rc, tc) {
+                    Some((a, b)) => format!(
+                        "at '{name}' your colour is {} + {}, weights that add up to {:.4}, not kr·R + (1 − kr)·T with kr = {exact:.4}",
+                        weight_words(a, "R", exact),
+                        weight_words(b, "T", exact),
+                        a + b
+                    ),
+                    None => format!(
+                        "at '{name}' your colour is no mix kr·R + (1 − kr)·T of your reflected and refracted rays' colours"
+                    ),
+                },
                 vec![
                     colour_value(c, want),
                     Value {
@@ -796,6 +991,10 @@ impl Judge<'_> {
                 ],
             ),
         };
+        if matches!(code, Code::ShadingFresnelNone | Code::ShadingFresnel) && fits(c, rc + tc, DVec3::ZERO) {
+            // One colour is black: the share read is also the two colours added, R + T.
+            detail.push_str("; one of the two colours is black, so your colour is R + T as well");
+        }
         f.push(self.finding(r, kind, code, detail, values));
         Decision::Judged
     }

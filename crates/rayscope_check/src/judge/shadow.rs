@@ -90,10 +90,10 @@ impl Judge<'_> {
     }
 
     /// The entity a shadow ray logged as blocked, without a name, stands for: rayscope's blocker
-    /// on the segment where there is one, else what the tracer most likely met there — the
-    /// surface it leaves, met again at its origin; another surface touching its origin; the
-    /// nearest surface beyond the light; one behind the origin. `None`: nothing lies on the
-    /// ray's line at all.
+    /// on the segment where there is one, else the surface the ray leaves, met again at its
+    /// origin, or another surface touching its origin. `None`: nothing is in the way, and what
+    /// the tracer met cannot be told from the log ([`Self::blocked_by_nothing`] says what could
+    /// have been).
     pub(super) fn unnamed_blocker(
         &self,
         r: &LoggedRay,
@@ -113,43 +113,123 @@ impl Judge<'_> {
                 return Some(lv.entity);
             }
         }
-        let all = 0..self.scene.entities.len() as u32;
-        let touching = all.clone().find(|&e| {
+        (0..self.scene.entities.len() as u32).find(|&e| {
             self.geo.entity_distance(e, o).0 <= near && self.geo.entity_intersect(e, o, d, -near, near).is_some()
-        });
-        let beyond = || {
-            all.clone()
-                .filter_map(|e| {
-                    self.geo
-                        .entity_intersect(e, o, d, dist + pos, f64::INFINITY)
-                        .map(|x| (e, x.0))
-                })
-                .min_by(|a, b| a.1.total_cmp(&b.1))
-        };
-        let behind = || {
-            all.clone()
-                .filter_map(|e| self.geo.entity_intersect(e, o, d, f64::MIN, -near).map(|x| (e, x.0)))
-                .max_by(|a, b| a.1.total_cmp(&b.1))
-        };
-        touching.or_else(|| beyond().or_else(behind).map(|x| x.0))
+        })
     }
 
-    /// A shadow ray logged as blocked, without a name, where nothing at all lies on its line.
+    /// A shadow ray logged as blocked, without a name, where nothing lies between its origin and
+    /// its light: what lies on its line elsewhere, each with the mistake that would count it.
     pub(super) fn blocked_by_nothing(&self, r: &LoggedRay, kind: &Kind, li: u32, f: &mut Vec<Finding>) {
-        f.push(self.finding(
+        let ToLight { dist, l, pos } = self.to_light(r, li);
+        let (o, d) = (r.origin, r.direction);
+        let near = SURFACE_ROUNDING * l;
+        let all = || 0..self.scene.entities.len() as u32;
+        let mut could = Vec::new();
+        let mut crossed = None;
+        // The nearest crossing of a triangle's plane just outside it (within its own height), of
+        // entities of a few triangles: a model's would be searched for every such ray.
+        let outside = all()
+            .filter(|&e| self.geo.prims(e).len() <= FEW_TRIANGLES)
+            .flat_map(|e| self.geo.prims(e).iter().map(move |&p| (e, p)))
+            .filter_map(|(e, p)| {
+                let (t, share) = self.geo.plane_crossing_outside(p, o, d, near, dist - pos)?;
+                (share > -1.0).then_some((e, t, share))
+            })
+            .max_by(|a, b| a.2.total_cmp(&b.2));
+        if let Some((e, t, share)) = outside {
+            crossed = Some(e);
+            could.push(format!(
+                "it crosses the plane of triangle '{}' at t = {t:.6}, outside the triangle by {:.1} % of its height (an inside test that lets points past an edge through counts it)",
+                self.name(e),
+                -share * 100.0
+            ));
+        }
+        let beyond = all()
+            .filter_map(|e| {
+                self.geo
+                    .entity_intersect(e, o, d, dist + pos, f64::INFINITY)
+                    .map(|x| (e, x.0))
+            })
+            .min_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((e, t)) = beyond {
+            could.push(format!(
+                "'{}' lies beyond the light, at t = {t:.6} (a blocker test that does not stop at the light counts it)",
+                self.name(e)
+            ));
+        }
+        let behind = all()
+            .filter_map(|e| self.geo.entity_intersect(e, o, d, f64::MIN, -near).map(|x| (e, x.0)))
+            .max_by(|a, b| a.1.total_cmp(&b.1));
+        if let Some((e, t)) = behind {
+            could.push(format!(
+                "'{}' lies behind the origin, at t = {t:.6} (a test that accepts t < 0 counts it)",
+                self.name(e)
+            ));
+        }
+        let detail = format!(
+            "your tracer says light '{}' is blocked, but nothing lies between the point and the light (at t = {dist:.6}){}",
+            self.light_name(li),
+            if could.is_empty() {
+                ", nor anywhere else on the ray's line".to_string()
+            } else {
+                format!("; your log names no blocker: {}", could.join("; "))
+            }
+        );
+        let mut x = self.finding(
             r,
             kind,
             Code::ShadowPhantomBlocker,
-            format!(
-                "your tracer says light '{}' is blocked, but no surface lies anywhere on the ray's line, ahead of its origin or behind it",
-                self.light_name(li)
-            ),
+            detail,
             vec![Value {
                 what: format!("blocker of light '{}'", self.light_name(li)),
                 yours: json!(UNNAMED_BLOCKER),
                 rayscope: json!("none: light reached"),
             }],
-        ));
+        );
+        // The triangle whose plane it crosses is the surface the verdict is about, for the
+        // log-wide rule that gathers a surface's verdicts.
+        x.entity = crossed;
+        f.push(x);
+    }
+
+    /// Shadow rays blocked by nothing in their way (by what they name, where they name it) whose
+    /// sibling cast just before them from the same hit is blocked and names the same: the flag
+    /// or blocker of the light before, not reset. Judged in the log's order, so that a third
+    /// light's ray follows a second that is itself carried over.
+    pub(super) fn carried_over(
+        &self,
+        rays: &[LoggedRay],
+        parent: &[Option<usize>],
+        kinds: &[Kind],
+        findings: &mut [Vec<Finding>],
+    ) {
+        let wrongly = |f: &Finding| matches!(f.code, Code::ShadowPhantomBlocker | Code::ShadowBlockedBeyondLight);
+        if !findings.iter().flatten().any(wrongly) {
+            return;
+        }
+        for i in 0..rays.len() {
+            let (Some(k), Some(p)) = (findings[i].iter().position(wrongly), parent[i]) else {
+                continue;
+            };
+            let Some(j) = (0..i).rev().find(|&j| parent[j] == Some(p) && kinds[j] == Kind::Shadow) else {
+                continue;
+            };
+            let Answer::Found(before) = rays[j].blocked_by else {
+                continue;
+            };
+            if findings[j].iter().any(wrongly) || rays[i].blocked_by != Answer::Found(before) {
+                continue;
+            }
+            let f = &mut findings[i][k];
+            f.code = Code::ShadowBlockedCarriedOver;
+            f.detail = format!(
+                "nothing lies between the point and light '{}', but the shadow ray cast just before it from this point (line {}) is blocked{}",
+                rays[i].light.map_or("?", |li| self.light_name(li)),
+                rays[j].line,
+                before.map_or(String::new(), |e| format!(" by '{}', the blocker this one names too", self.name(e)))
+            );
+        }
     }
 
     /// The verdict on a shadow ray that names `e` where rayscope finds `b` in the way and `e` is

@@ -23,6 +23,7 @@ const MET: &[Code] = &[
     Code::HitNormalWrong,
     Code::ShadowMissedBlocker,
     Code::ShadowPhantomBlocker,
+    Code::ShadowBlockedCarriedOver,
     Code::ShadowWrongBlocker,
     Code::ShadowOneSidedTriangle,
 ];

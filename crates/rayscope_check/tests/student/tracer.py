@@ -9,6 +9,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   refraction-normal  refraction never flips the normal when the ray leaves glass
   shadow-no-offset   shadow rays start exactly on the surface (no offset)
   vertical-fov       the 60 degrees span the image height instead of its width
+  fov-degrees        the half angle in degrees given to tan, which takes radians: tan(30) (no catalogue has it)
   one-sided          triangles are one-sided (back faces culled)
   aspect             the aspect ratio is applied the wrong way round
   no-tir             refraction without total internal reflection
@@ -28,6 +29,14 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   radius-not-squared the sphere test compares |o - c|^2 with r, not r^2 (no catalogue has it)
   plane-behind       the shadow test's plane intersection accepts t < 0: planes behind the point
                      block the light
+  blocked-not-reset  the shadow loop's blocker is set for one light and never reset for the next
+                     (no catalogue has it)
+  shadow-t-below-1   the shadow test counts blockers at t < 1 instead of t < distance to the light
+                     (no catalogue has it)
+  parallelogram      the triangle's inside test checks v > 1 instead of u + v > 1: hits past the
+                     third edge count (no catalogue has it)
+  fresnel-indices-swapped  the Fresnel reflectance computed with n1 and n2 exchanged (Snell's law
+                     right) (no catalogue has it)
   shadow-unnormalised the shadow test is given light - point unnormalised, so its spheres' t is
                      off (it logs the normalised direction; no catalogue has it)
   camera-unnormalised camera rays' directions are not normalised, and the sphere test takes a = 1
@@ -46,6 +55,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      columns right to left, rows and columns both reversed
   flipped-gamma-out  the picture both upside down and gamma-corrected (two mistakes at once)
   stale-image        the picture is not made of the logged colours (no catalogue has it)
+  stray-pixels-out   one pixel in 97 holds the colour of the pixel written just before it, as a
+                     colour shared by a parallel loop's threads leaves it (no catalogue has it)
   accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   summed-out         the picture's pixels are the sums of their samples, never divided
   aa-divided-by-n    the picture's pixels are the sums of their N x N samples divided by N, not N^2
@@ -54,6 +65,9 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   schlick            Schlick's approximation with cos(theta_i) instead of the Fresnel equations
   fresnel-half       glass mixes reflection and refraction half and half
   fresnel-weights-exchanged  glass mixes (1 - kr) R + kr T: the reflectance given to the refracted colour
+  glass-sum          glass adds its reflected and refracted colours, R + T, with no weights (no catalogue has it)
+  logged-weighted    the picture is right, but the log holds each reflected and refracted ray's colour after
+                     its parent glass weighted it (kr R, (1 - kr) T) (no catalogue has it)
   no-clamp           N.L not clamped at 0, and the shadow test skips the surface being shaded
   falloff            each light divided by its squared distance
   ambient            an ambient term of 0.1 x albedo added to every diffuse hit
@@ -85,19 +99,20 @@ import sys
 EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
-BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "one-sided", "aspect", "no-tir",
+BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
+        "glass-sum", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
-               "flipped-gamma-out")
+               "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit")
+                 "farthest-hit", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -229,7 +244,7 @@ class Tracer:
             return None
         q = cross(s, e.e1)
         v = dot(d, q) * inv
-        if v < m or u + v > 1 - m:
+        if v < m or (v if self.bug == "parallelogram" else u + v) > 1 - m:
             return None
         t = dot(e.e2, q) * inv
         return t if t > 0 else None
@@ -337,12 +352,15 @@ class Tracer:
     def diffuse(self, p, nf, m, rid, shaded):
         col = (0.0, 0.0, 0.0)
         lights = self.lights[:-1] if self.bug == "skip-shadow-ray" else self.lights
+        b = None
         for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
             to = light["pos"] if self.bug == "light-as-direction" else sub(light["pos"], so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
-            b = self.blocker(so, to if self.bug == "shadow-unnormalised" else ldir, dist, shaded if self.bug == "no-clamp" else None)
+            reach = min(dist, 1.0) if self.bug == "shadow-t-below-1" else dist
+            found = self.blocker(so, to if self.bug == "shadow-unnormalised" else ldir, reach, shaded if self.bug == "no-clamp" else None)
+            b = (found or b) if self.bug == "blocked-not-reset" else found
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
@@ -380,6 +398,16 @@ class Tracer:
         elif self.bug == "schlick":
             r0 = ((n1 - n2) / (n1 + n2)) ** 2
             kr = r0 + (1 - r0) * (1 - ci) ** 5
+        elif self.bug == "fresnel-indices-swapped":
+            # The reflectance of the other side: n1 and n2 exchanged, and cos(theta_t) with them.
+            k2 = 1 - (n2 / n1) ** 2 * (1 - ci * ci)
+            if k2 < 0:
+                kr = 1.0
+            else:
+                ct = math.sqrt(k2)
+                rs = (n2 * ci - n1 * ct) / (n2 * ci + n1 * ct)
+                rp = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct)
+                kr = 0.5 * (rs * rs + rp * rp)
         else:
             ct = math.sqrt(k)
             rs = (n1 * ci - n2 * ct) / (n1 * ci + n2 * ct)
@@ -390,12 +418,14 @@ class Tracer:
             kr = 0.5 * (rs * rs + rp * rp)
             if self.bug == "fresnel-weights-exchanged":
                 kr = 1 - kr
+        if self.bug == "glass-sum":
+            kr = 1.0
         r = normalize(sub(d, mul(nf, 2 * dot(d, nf))))
         if self.bug == "no-reflection-ray":
             col = (0.0, 0.0, 0.0)
         else:
             ro = add(p, mul(d, EPS)) if self.bug == "reflect-along-ray" else add(p, mul(nf, EPS))
-            col = mul(self.trace(ro, r, depth + 1, rid, "reflection"), kr)
+            col = self.weighted(lambda: self.trace(ro, r, depth + 1, rid, "reflection"), kr)
         if k < 0 and self.bug != "no-tir":
             return col
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
@@ -403,8 +433,17 @@ class Tracer:
         k = max(k, 0.0)
         tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
         ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))
-        sub_col = self.trace(ro, tdir, depth + 1, rid, "refraction")
-        return add(col, mul(sub_col, 1 - kr))
+        sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction"), 1.0 if self.bug == "glass-sum" else 1 - kr)
+        return add(col, sub_col)
+
+    def weighted(self, trace, w):
+        """What a glass child brings back times its share `w`; under logged-weighted the child's logged
+        colour is the weighted one."""
+        first = len(self.pending)
+        col = mul(trace(), w)
+        if self.bug == "logged-weighted" and self.log and self.colors and len(self.pending) > first:
+            self.pending[first]["color"] = list(col)
+        return col
 
 
 def to_byte(v):
@@ -454,7 +493,7 @@ def main():
         x0, y0, x1, y1 = (int(v) for v in args.region.split(","))
     log = sys.stdout if args.log == "-" else open(args.log, "w")
     tr = Tracer(load_scene(args.f), args, log)
-    t = math.tan(math.radians(60) / 2)
+    t = math.tan(30) if args.bug == "fov-degrees" else math.tan(math.radians(60) / 2)
     hx, hy = t, t * h / w
     if args.bug == "vertical-fov":
         hx, hy = t * w / h, t
@@ -492,9 +531,15 @@ def main():
             f.write(f"P3\n{x1 - x0} {y1 - y0}\n255\n")
             rows = range(y1 - 1, y0 - 1, -1) if args.bug in ("flipped-out", "rotated-out", "flipped-gamma-out") else range(y0, y1)
             cols = range(x1 - 1, x0 - 1, -1) if args.bug in ("mirrored-out", "rotated-out") else range(x0, x1)
+            written = None
             for y in rows:
-                f.write(" ".join(" ".join(str(out_byte(c, args.bug)) for c in out_pixel(image[(x, y)], args.bug))
-                                 for x in cols) + "\n")
+                line = []
+                for x in cols:
+                    # A colour shared by the threads: now and then a pixel gets its neighbour's.
+                    stray = args.bug == "stray-pixels-out" and written is not None and (y * (x1 - x0) + x) % 97 == 0
+                    written = written if stray else image[(x, y)]
+                    line.append(" ".join(str(out_byte(c, args.bug)) for c in out_pixel(written, args.bug)))
+                f.write(" ".join(line) + "\n")
 
 
 if __name__ == "__main__":
