@@ -379,14 +379,7 @@ impl Tally {
             or: None,
         };
         if self.causes.contains_key(&phantom) {
-            self.move_code(Code::ShadowPhantomBlocker, Code::HitPhantom);
-            self.recast(
-                Cause {
-                    code: Code::ShadowPhantomBlocker,
-                    or: None,
-                },
-                phantom,
-            );
+            self.fold(Code::ShadowPhantomBlocker, phantom);
         }
     }
 
@@ -440,8 +433,7 @@ impl Tally {
         ] {
             let n = self.codes.get(&code).map_or(0, |e| e.0);
             if n > 0 && n <= black {
-                self.move_code(code, Code::ShadingGlassSum);
-                self.recast(Cause { code, or: None }, sum);
+                self.fold(code, sum);
             }
         }
     }
@@ -464,8 +456,7 @@ impl Tally {
             Code::ShadingFresnelNone,
             Code::ShadingFresnelWeightsExchanged,
         ] {
-            self.move_code(code, Code::ShadingFresnel);
-            self.recast(Cause { code, or: None }, other);
+            self.fold(code, other);
         }
     }
 
@@ -477,17 +468,19 @@ impl Tally {
             code: Code::ShadingGlass,
             or: None,
         };
-        let other = Cause {
-            code: Code::ShadingFresnel,
-            or: None,
-        };
-        let samples = |c: &Cause| self.causes.get(c).map_or(0, |n| n.samples);
+        let samples = |code: Code| self.causes.get(&Cause { code, or: None }).map_or(0, |n| n.samples);
         // Only where the colours that are no mix are as many: a few such hits among many shares
         // that fit are the rounding of colours of nearly one hue, not a mistake of their own.
-        if samples(&glass) >= samples(&other) {
-            self.move_code(Code::ShadingFresnel, Code::ShadingGlass);
-            self.recast(other, glass);
+        if self.causes.contains_key(&glass) && samples(Code::ShadingGlass) >= samples(Code::ShadingFresnel) {
+            self.fold(Code::ShadingFresnel, glass);
         }
+    }
+
+    /// Counts verdict `from`, and its cause, as cause `to`: [`Self::move_code`] and
+    /// [`Self::recast`] together.
+    fn fold(&mut self, from: Code, to: Cause) {
+        self.move_code(from, to.code);
+        self.recast(Cause { code: from, or: None }, to);
     }
 
     fn recast(&mut self, from: Cause, to: Cause) {

@@ -238,6 +238,17 @@ struct Children<'a> {
     refraction_wrong: bool,
 }
 
+/// One pixel sample's rays as its surface decisions are judged: the rays, each one's parent,
+/// rayscope's answer and kind, and what the tracer logs.
+#[derive(Clone, Copy)]
+struct Sample<'a> {
+    rays: &'a [LoggedRay],
+    parent: &'a [Option<usize>],
+    evals: &'a [Option<Eval>],
+    kinds: &'a [Kind],
+    logs: &'a Logs,
+}
+
 /// What the group's rays say about what the tracer logs.
 struct Logs {
     shadow: bool,
@@ -330,6 +341,13 @@ impl Judge<'_> {
             shadow: kinds.contains(&Kind::Shadow),
             secondary: kinds.iter().any(|k| matches!(k, Kind::Reflection | Kind::Refraction)),
         };
+        let sample = Sample {
+            rays,
+            parent,
+            evals,
+            kinds,
+            logs: &logs,
+        };
         for i in 0..n {
             if kinds[i] == Kind::Shadow {
                 continue;
@@ -339,20 +357,9 @@ impl Judge<'_> {
             };
             let ch = children(i, findings);
             let before = findings[i].len();
-            let d = self.decision(
-                &rays[i],
-                i,
-                rays,
-                parent,
-                evals,
-                kinds,
-                ev,
-                &ch,
-                &logs,
-                &mut findings[i],
-            );
+            let d = self.decision(i, &sample, ev, &ch, &mut findings[i]);
             if findings[i][before..].iter().any(|f| f.code.is_shading()) {
-                self.logged_weighted(i, rays, parent, evals, kinds, ev, &ch, &logs, &mut findings[i], before);
+                self.logged_weighted(i, &sample, ev, &ch, &mut findings[i], before);
                 let black = |&k: &usize| rays[k].color.is_some_and(|c| fits(c, DVec3::ZERO, DVec3::ZERO));
                 let has = |code: Code| findings[i].iter().any(|f| f.code == code);
                 if ch.reflection.iter().all(black) && has(Code::ShadingFresnelNone) {
@@ -371,20 +378,15 @@ impl Judge<'_> {
     }
 
     /// Judges ray `i`'s surface decision.
-    #[allow(clippy::too_many_arguments)]
-    fn decision(
-        &self,
-        r: &LoggedRay,
-        i: usize,
-        rays: &[LoggedRay],
-        parent: &[Option<usize>],
-        evals: &[Option<Eval>],
-        kinds: &[Kind],
-        ev: &Eval,
-        kids: &Children,
-        logs: &Logs,
-        f: &mut Vec<Finding>,
-    ) -> Decision {
+    fn decision(&self, i: usize, s: &Sample, ev: &Eval, kids: &Children, f: &mut Vec<Finding>) -> Decision {
+        let Sample {
+            rays,
+            parent,
+            evals,
+            kinds,
+            logs,
+        } = *s;
+        let r = &rays[i];
         let Some(lv) = ev.leave() else {
             // rayscope's trace misses too: a miss brings back black.
             let Some(c) = r.color else {
@@ -443,20 +445,14 @@ impl Judge<'_> {
     /// carries (its own share, or the product down from the camera ray that a tracer carrying a
     /// path weight logs): then the log, not the shading, is what differs. Decisions at glass are
     /// left as they are.
-    #[allow(clippy::too_many_arguments)]
-    fn logged_weighted(
-        &self,
-        i: usize,
-        rays: &[LoggedRay],
-        parent: &[Option<usize>],
-        evals: &[Option<Eval>],
-        kinds: &[Kind],
-        ev: &Eval,
-        kids: &Children,
-        logs: &Logs,
-        f: &mut Vec<Finding>,
-        before: usize,
-    ) {
+    fn logged_weighted(&self, i: usize, s: &Sample, ev: &Eval, kids: &Children, f: &mut Vec<Finding>, before: usize) {
+        let Sample {
+            rays,
+            parent,
+            evals,
+            kinds,
+            ..
+        } = *s;
         let (Some(c), Some(p)) = (rays[i].color, parent[i]) else {
             return;
         };
@@ -501,18 +497,11 @@ impl Judge<'_> {
                 }
             }
             scratch.clear();
-            let d = self.decision(
-                &unweighted[i],
-                i,
-                &unweighted,
-                parent,
-                evals,
-                kinds,
-                ev,
-                kids,
-                logs,
-                &mut scratch,
-            );
+            let alt = Sample {
+                rays: &unweighted,
+                ..*s
+            };
+            let d = self.decision(i, &alt, ev, kids, &mut scratch);
             (matches!(d, Decision::Judged) && scratch.iter().all(|s| !s.code.is_shading())).then_some(w)
         });
         let Some(w) = fit else {
