@@ -348,6 +348,9 @@ impl Judge<'_> {
             kinds,
             logs: &logs,
         };
+        // The sample's rays with some colours divided by their glass shares, filled at the first
+        // decision that needs it ([`Self::logged_weighted`]).
+        let mut unweighted = Vec::new();
         for i in 0..n {
             if kinds[i] == Kind::Shadow {
                 continue;
@@ -359,7 +362,7 @@ impl Judge<'_> {
             let before = findings[i].len();
             let d = self.decision(i, &sample, ev, &ch, &mut findings[i]);
             if findings[i][before..].iter().any(|f| f.code.is_shading()) {
-                self.logged_weighted(i, &sample, ev, &ch, &mut findings[i], before);
+                self.logged_weighted(i, &sample, ev, &ch, &mut findings[i], before, &mut unweighted);
                 let black = |&k: &usize| rays[k].color.is_some_and(|c| fits(c, DVec3::ZERO, DVec3::ZERO));
                 let has = |code: Code| findings[i].iter().any(|f| f.code == code);
                 if ch.reflection.iter().all(black) && has(Code::ShadingFresnelNone) {
@@ -444,8 +447,18 @@ impl Judge<'_> {
     /// reflected and refracted children's, are divided by the share of its parent glass each
     /// carries (its own share, or the product down from the camera ray that a tracer carrying a
     /// path weight logs): then the log, not the shading, is what differs. Decisions at glass are
-    /// left as they are.
-    fn logged_weighted(&self, i: usize, s: &Sample, ev: &Eval, kids: &Children, f: &mut Vec<Finding>, before: usize) {
+    /// left as they are. `unweighted` holds a copy of the sample's rays between calls.
+    #[allow(clippy::too_many_arguments)]
+    fn logged_weighted(
+        &self,
+        i: usize,
+        s: &Sample,
+        ev: &Eval,
+        kids: &Children,
+        f: &mut Vec<Finding>,
+        before: usize,
+        unweighted: &mut Vec<LoggedRay>,
+    ) {
         let Sample {
             rays,
             parent,
@@ -471,7 +484,6 @@ impl Judge<'_> {
             return;
         };
         let path = |k: usize| self.path_weight(k, parent, evals, kinds);
-        let mut unweighted = Vec::new();
         let mut scratch = Vec::new();
         let weights: [&dyn Fn(usize) -> Option<f64>; 2] = [&own, &|k| Some(path(k))];
         // At glass, colours logged with a weight read as mistakes in the mix itself (the weights
@@ -488,20 +500,25 @@ impl Judge<'_> {
             if !(1e-6..1.0 - 1e-9).contains(&w) {
                 return None;
             }
-            unweighted.clear();
-            unweighted.extend_from_slice(rays);
+            // The sample's rays are copied once a sample; each try changes the colours of this
+            // ray and its children and puts them back.
+            if unweighted.len() != rays.len() {
+                unweighted.clear();
+                unweighted.extend_from_slice(rays);
+            }
+            let changed = || std::iter::once(i).chain(kids.reflection.iter().chain(kids.refraction).copied());
             unweighted[i].color = Some(c / w);
-            for &k in kids.reflection.iter().chain(kids.refraction) {
+            for k in changed().skip(1) {
                 if let (Some(ck), Some(wk)) = (rays[k].color, weight(k).filter(|&wk| wk > 1e-6)) {
                     unweighted[k].color = Some(ck / wk);
                 }
             }
             scratch.clear();
-            let alt = Sample {
-                rays: &unweighted,
-                ..*s
-            };
+            let alt = Sample { rays: unweighted, ..*s };
             let d = self.decision(i, &alt, ev, kids, &mut scratch);
+            for k in changed() {
+                unweighted[k].color = rays[k].color;
+            }
             (matches!(d, Decision::Judged) && scratch.iter().all(|s| !s.code.is_shading())).then_some(w)
         });
         let Some(w) = fit else {
