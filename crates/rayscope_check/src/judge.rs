@@ -374,10 +374,7 @@ impl Tally {
     /// where there is nothing: the tracer's own surfaces block them, so they are that mistake
     /// (run after the surfaces' rule, which may gather both on one surface first).
     pub fn phantom_blockers_with_phantom_hits(&mut self) {
-        let phantom = Cause {
-            code: Code::HitPhantom,
-            or: None,
-        };
+        let phantom = Cause::of(Code::HitPhantom);
         if self.causes.contains_key(&phantom) {
             self.fold(Code::ShadowPhantomBlocker, phantom);
         }
@@ -387,10 +384,7 @@ impl Tally {
     /// through blockers met from the front or that are no triangles, and whose other rays meet
     /// back faces as they should: the shadow test misses blockers, whichever side it meets.
     fn one_sided_or_missed(&mut self) {
-        let missed = Cause {
-            code: Code::ShadowMissedBlocker,
-            or: None,
-        };
+        let missed = Cause::of(Code::ShadowMissedBlocker);
         if !self.causes.contains_key(&missed) || self.codes.contains_key(&Code::HitOneSidedTriangle) {
             return;
         }
@@ -420,10 +414,7 @@ impl Tally {
     /// Glass that brings back one of its two colours alone only where the other is black, in a
     /// log whose glass elsewhere adds the two colours unweighted, is that sum.
     fn none_or_sum(&mut self) {
-        let sum = Cause {
-            code: Code::ShadingGlassSum,
-            or: None,
-        };
+        let sum = Cause::of(Code::ShadingGlassSum);
         if !self.causes.contains_key(&sum) {
             return;
         }
@@ -442,10 +433,7 @@ impl Tally {
     /// glass hits fit none: near normal incidence, or where the two colours are alike, every
     /// formula reads the same, so the formula is chance and the share is the tracer's own.
     fn fresnel_formula_or_other(&mut self) {
-        let other = Cause {
-            code: Code::ShadingFresnel,
-            or: None,
-        };
+        let other = Cause::of(Code::ShadingFresnel);
         if !self.causes.contains_key(&other) {
             return;
         }
@@ -464,11 +452,8 @@ impl Tally {
     /// weighted mix at all: where the two colours have one hue every colour on their line reads
     /// as a mix with some share, so those hits are the same mistake.
     fn share_or_not_a_mix(&mut self) {
-        let glass = Cause {
-            code: Code::ShadingGlass,
-            or: None,
-        };
-        let samples = |code: Code| self.causes.get(&Cause { code, or: None }).map_or(0, |n| n.samples);
+        let glass = Cause::of(Code::ShadingGlass);
+        let samples = |code: Code| self.causes.get(&Cause::of(code)).map_or(0, |n| n.samples);
         // Only where the colours that are no mix are as many: a few such hits among many shares
         // that fit are the rounding of colours of nearly one hue, not a mistake of their own.
         if self.causes.contains_key(&glass) && samples(Code::ShadingGlass) >= samples(Code::ShadingFresnel) {
@@ -480,7 +465,7 @@ impl Tally {
     /// [`Self::recast`] together.
     fn fold(&mut self, from: Code, to: Cause) {
         self.move_code(from, to.code);
-        self.recast(Cause { code: from, or: None }, to);
+        self.recast(Cause::of(from), to);
     }
 
     fn recast(&mut self, from: Cause, to: Cause) {
@@ -512,20 +497,11 @@ impl Tally {
             code: Code::RefractionTirInvented,
             or: Some(Code::RefractionIndicesNotSwapped),
         };
-        let ratio = Cause {
-            code: Code::RefractionIndicesNotSwapped,
-            or: None,
-        };
+        let ratio = Cause::of(Code::RefractionIndicesNotSwapped);
         if self.causes.contains_key(&ratio) {
             self.recast(both, ratio);
         } else if self.entering_refracted_ok > 0 {
-            self.recast(
-                both,
-                Cause {
-                    code: Code::RefractionTirInvented,
-                    or: None,
-                },
-            );
+            self.recast(both, Cause::of(Code::RefractionTirInvented));
         }
     }
 
@@ -536,7 +512,7 @@ impl Tally {
         let Some((code, why)) = self.skipped.rule() else {
             return;
         };
-        let to = Cause { code, or: None };
+        let to = Cause::of(code);
         let from: Vec<Cause> = (self.causes.keys())
             .filter(|c| c.codes().iter().all(|k| PASSED_OVER.contains(k)))
             .copied()
@@ -569,14 +545,8 @@ impl Tally {
     /// on the wrong side of the surface, in a log whose other secondary rays are offset to the
     /// wrong side: one offset mistake, whose grazing rays start too near the surface to tell.
     fn acne_or_wrong_side(&mut self) {
-        let acne = Cause {
-            code: Code::SecondaryAcne,
-            or: None,
-        };
-        let wrong = Cause {
-            code: Code::SecondaryOffsetWrongSide,
-            or: None,
-        };
+        let acne = Cause::of(Code::SecondaryAcne);
+        let wrong = Cause::of(Code::SecondaryOffsetWrongSide);
         if !self.causes.contains_key(&wrong) || self.acne_wrong_side == 0 || self.acne_other > 0 {
             return;
         }
@@ -588,10 +558,7 @@ impl Tally {
     /// only near edges too, has an inside test that is too strict, not a one-sided one: its
     /// back-face misses are counted as such.
     fn one_sided_or_edges(&mut self) {
-        let edge = Cause {
-            code: Code::HitTriangleEdge,
-            or: None,
-        };
+        let edge = Cause::of(Code::HitTriangleEdge);
         if !self.causes.contains_key(&edge) || self.back_near_edge == 0 || self.back_inside > 0 {
             return;
         }
@@ -686,10 +653,7 @@ impl Tally {
         e.0 += n;
         keep_first(&mut e.1, ex.clone(), self.keep);
         // Decided over the whole log, so each such ray is a cause of its own sample.
-        let c = self.causes.entry(Cause {
-            code: Code::HitNormalInconsistent,
-            or: None,
-        });
+        let c = self.causes.entry(Cause::of(Code::HitNormalInconsistent));
         let c = c.or_default();
         c.samples += n;
         c.rays += n;

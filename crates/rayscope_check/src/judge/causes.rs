@@ -23,6 +23,12 @@ pub struct Cause {
 }
 
 impl Cause {
+    /// The cause of verdict `code` alone.
+    #[must_use]
+    pub const fn of(code: Code) -> Cause {
+        Cause { code, or: None }
+    }
+
     /// The codes of the cause, first the one reports lead with.
     #[must_use]
     pub fn codes(self) -> Vec<Code> {
@@ -251,10 +257,7 @@ mod tests {
             vec![finding(Code::HitMissed)],
         ];
         let c = causes(&[0, 1, 2, 3], &parent, &findings);
-        let root = Cause {
-            code: Code::HitNormalNotUnit,
-            or: None,
-        };
+        let root = Cause::of(Code::HitNormalNotUnit);
         assert_eq!(c.roots, vec![(0, root)]);
         assert_eq!(c.consequences.len(), 4);
         assert!(c.consequences.iter().all(|(k, _)| *k == root));
@@ -353,25 +356,10 @@ mod tests {
             vec![],
         ];
         let c = causes(&[0, 1, 2], &parent, &findings);
-        assert_eq!(
-            c.roots,
-            vec![(
-                1,
-                Cause {
-                    code: Code::ShadowNotAtLight,
-                    or: None
-                }
-            )]
-        );
+        assert_eq!(c.roots, vec![(1, Cause::of(Code::ShadowNotAtLight))]);
         assert_eq!(
             c.consequences,
-            vec![(
-                Cause {
-                    code: Code::ShadowNotAtLight,
-                    or: None
-                },
-                Code::ShadingShadowDirection
-            )]
+            vec![(Cause::of(Code::ShadowNotAtLight), Code::ShadingShadowDirection)]
         );
         let findings = vec![
             vec![finding(Code::ShadingDiffuse)],

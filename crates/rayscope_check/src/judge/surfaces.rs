@@ -108,10 +108,7 @@ impl Judge<'_> {
                 folded.samples = folded.samples.max(samples);
             }
         }
-        let e = t.causes.entry(Cause {
-            code: Code::HitSurfaceWrong,
-            or: None,
-        });
+        let e = t.causes.entry(Cause::of(Code::HitSurfaceWrong));
         e.or_default().merge(folded, keep);
     }
 }
