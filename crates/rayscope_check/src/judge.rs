@@ -170,6 +170,8 @@ pub struct Tally {
     pub causes: BTreeMap<Cause, CauseCount>,
     /// Examples kept per code.
     pub keep: usize,
+    /// Per entity (by index): the hits on it the tracer reported, right or wrong.
+    pub claimed_hits: Vec<u64>,
     /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
     pub shaded_judged: u64,
     /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
@@ -411,6 +413,36 @@ impl Tally {
         }
     }
 
+    /// Camera rays through the corner of their sub-pixel cell, in a log whose other camera rays
+    /// go through one point of their pixel whatever their sample: the cell corners that fit are
+    /// the samples whose cell corner is that point (sample 0 at the pixel's corner, the cell
+    /// whose corner is its centre), so they are the same mistake.
+    fn one_point_or_corners(&mut self) {
+        let one = Cause::of(Code::CameraOnePoint);
+        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
+        if rays(&one) > 0 && rays(&one) >= rays(&Cause::of(Code::CameraPixelCorner)) {
+            self.fold(Code::CameraPixelCorner, one);
+        }
+    }
+
+    /// Camera rays that fit another sub-pixel layout and a scaled image plane alike: the one the
+    /// log's other camera rays show where they show only one.
+    fn layout_or_plane(&mut self) {
+        let both = Cause {
+            code: Code::CameraSubpixelGrid,
+            or: Some(Code::CameraPlaneDistance),
+        };
+        let (layout, plane) = (
+            Cause::of(Code::CameraSubpixelGrid),
+            Cause::of(Code::CameraPlaneDistance),
+        );
+        match (self.causes.contains_key(&layout), self.causes.contains_key(&plane)) {
+            (true, false) => self.recast(both, layout),
+            (false, true) => self.recast(both, plane),
+            _ => {}
+        }
+    }
+
     /// Glass that brings back one of its two colours alone only where the other is black, in a
     /// log whose glass elsewhere adds the two colours unweighted, is that sum.
     fn none_or_sum(&mut self) {
@@ -614,6 +646,12 @@ impl Tally {
         self.glass_black_other += o.glass_black_other;
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
+        if self.claimed_hits.len() < o.claimed_hits.len() {
+            self.claimed_hits.resize(o.claimed_hits.len(), 0);
+        }
+        for (a, b) in self.claimed_hits.iter_mut().zip(&o.claimed_hits) {
+            *a += b;
+        }
         let keep = self.keep.max(o.keep);
         self.keep = keep;
         for (c, (n, ex)) in o.codes {
@@ -635,6 +673,8 @@ impl Tally {
     /// is inconsistent with the rest. Those rays are counted as disagreeing.
     pub fn finish(&mut self) {
         self.nearest_rule();
+        self.one_point_or_corners();
+        self.layout_or_plane();
         self.acne_or_wrong_side();
         self.one_sided_or_edges();
         self.tir_test_or_ratio();
@@ -963,7 +1003,7 @@ impl<'a> Judge<'a> {
             kinds,
             findings,
         } = s;
-        parents(rays, 32, parent);
+        parents(rays, SCAN_MOST, parent);
         tally.orphans += rays
             .iter()
             .zip(parent.iter())
@@ -1148,6 +1188,13 @@ impl<'a> Judge<'a> {
                 Answer::Found(c) => c.entity,
                 _ => None,
             };
+            if let Some(e) = claimed {
+                let e = e as usize;
+                if tally.claimed_hits.len() <= e {
+                    tally.claimed_hits.resize(self.scene.entities.len().max(e + 1), 0);
+                }
+                tally.claimed_hits[e] += 1;
+            }
             hit_entities(&mut f[before..], claimed, rs.map(|h| h.entity));
             // After a tie the tracer's ray may go on from the other surface: its children are
             // judged on their own answers only.
@@ -1256,14 +1303,24 @@ fn blocker_entities(found: &mut [Finding], named: Option<u32>, rayscope: Option<
     }
 }
 
+/// The most rays of a sample whose parents are found by scanning their ids; more are mapped.
+const SCAN_MOST: usize = 32;
+
 fn parents(rays: &[LoggedRay], scan: usize, out: &mut Vec<Option<usize>>) {
     let own = |i: usize, p: Option<usize>| p.filter(|&p| p != i);
     out.clear();
-    if rays.len() <= scan {
+    if rays.len() <= scan.min(SCAN_MOST) {
+        // The ids side by side first, so that each scan reads them rather than a cache line of
+        // every ray.
+        let mut ids = [None; SCAN_MOST];
+        for (slot, r) in ids.iter_mut().zip(rays) {
+            *slot = r.id;
+        }
+        let ids = &ids[..rays.len()];
         out.extend(
             rays.iter()
                 .enumerate()
-                .map(|(i, r)| own(i, r.parent.and_then(|p| rays.iter().rposition(|q| q.id == Some(p))))),
+                .map(|(i, r)| own(i, r.parent.and_then(|p| ids.iter().rposition(|&q| q == Some(p))))),
         );
     } else {
         let ids: FxHashMap<i64, usize> = rays
@@ -1322,7 +1379,7 @@ mod tests {
         ];
         let want = vec![None, Some(0), Some(0), Some(2), None, None, Some(3)];
         let mut got = Vec::new();
-        parents(&rays, 32, &mut got);
+        parents(&rays, SCAN_MOST, &mut got);
         assert_eq!(got, want);
         parents(&rays, 0, &mut got);
         assert_eq!(got, want);

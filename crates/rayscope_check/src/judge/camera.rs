@@ -141,6 +141,8 @@ impl Judge<'_> {
             pos_code: None,
             proj_code: None,
         });
+        let (px, py) = ((us * w).floor(), (vs * h).floor());
+        let own_pixel = px == f64::from(x) && py == f64::from(y);
         if let Some(k) = self.plane_scale(p, dc) {
             let tan = if horizontal { half.0 } else { half.1 };
             let fov_deg = self.settings.camera.fov_deg;
@@ -169,20 +171,29 @@ impl Judge<'_> {
                     (2.0 * (k * tan).atan()).to_degrees()
                 )
             };
+            if own_pixel && self.grid > 1 {
+                // A ray a fraction of a pixel from its sample's place fits a slightly scaled
+                // image plane as well as another sub-pixel layout: both are named, and the log
+                // as a whole decides (`Tally::layout_or_plane`).
+                let layout = self.where_in_pixel(dc, (x, y, s), (us * w - px, vs * h - py), half);
+                f.push(self.finding(
+                    r,
+                    kind,
+                    Code::CameraSubpixelGrid,
+                    format!(
+                        "{off_by}; {layout}; it also fits an image plane at distance {:.4} instead of 1",
+                        1.0 / k
+                    ),
+                    values.clone(),
+                ));
+            }
             f.push(self.finding(r, kind, Code::CameraPlaneDistance, detail, values));
             return;
         }
-        let (px, py) = ((us * w).floor(), (vs * h).floor());
-        let detail = if px == f64::from(x) && py == f64::from(y) {
-            f.push(self.finding(
-                r,
-                kind,
-                Code::CameraSubpixelGrid,
-                format!(
-                    "{off_by}; it passes through its own pixel, but not where rayscope puts sample {s} (random jitter, or another sub-pixel layout)"
-                ),
-                values,
-            ));
+        let detail = if own_pixel {
+            let at = (us * w - px, vs * h - py);
+            let detail = self.where_in_pixel(dc, (x, y, s), at, half);
+            f.push(self.finding(r, kind, Code::CameraSubpixelGrid, format!("{off_by}; {detail}"), values));
             return;
         } else if px.is_finite() {
             format!("{off_by}; it passes through pixel ({px}, {py}) of rayscope's image instead of ({x}, {y})")
@@ -190,6 +201,42 @@ impl Judge<'_> {
             off_by
         };
         f.push(self.finding(r, kind, Code::CameraDirection, detail, values));
+    }
+
+    /// Where in pixel (x, y) a camera ray of sample `s` that passes through it goes, beside where
+    /// rayscope puts the sample, and the centre of another cell of the N×N grid where it is one
+    /// (samples numbered in another order).
+    /// `at` is where it crosses the pixel, from (0, 0) at its top-left corner to (1, 1).
+    fn where_in_pixel(&self, dc: DVec3, (x, y, s): (u32, u32, u32), at: (f64, f64), half: (f64, f64)) -> String {
+        let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
+        let n = self.grid;
+        let fits = |off: (f64, f64)| {
+            let u = (f64::from(x) + off.0) / w;
+            let v = (f64::from(y) + off.1) / h;
+            let p = DVec3::new((2.0 * u - 1.0) * half.0, (1.0 - 2.0 * v) * half.1, 1.0).normalize();
+            angle(p, dc) <= self.cam_tol
+        };
+        let cell = |m: u32| {
+            let c = |a: f64| (a * f64::from(m)).floor().clamp(0.0, f64::from(m - 1));
+            let (i, j) = (c(at.0), c(at.1));
+            let mf = f64::from(m);
+            fits(((i + 0.5) / mf, (j + 0.5) / mf)).then_some((i as u32, j as u32))
+        };
+        let expected = (
+            (f64::from(s % n) + 0.5) / f64::from(n),
+            (f64::from(s / n) + 0.5) / f64::from(n),
+        );
+        let place = format!(
+            "it crosses its pixel at ({:.3}, {:.3}) of the way across and down, where rayscope puts sample {s} at ({:.3}, {:.3})",
+            at.0, at.1, expected.0, expected.1
+        );
+        if let Some((i, j)) = cell(n) {
+            return format!(
+                "{place}: the centre of cell ({i}, {j}) of the {n}×{n} grid, rayscope's sample {}; your samples are numbered in another order (rayscope: i = s mod {n}, j = s div {n})",
+                i + j * n
+            );
+        }
+        format!("{place} (random jitter, or a sub-pixel layout rayscope does not know)")
     }
 
     /// For a camera turned by `--cam-angle`: whether direction `d` is the unturned camera's `p`
@@ -294,17 +341,27 @@ impl Judge<'_> {
                 )),
             ));
             offs.push((
-                (0.5, 0.5),
-                Some((
-                    Code::CameraSubpixelGrid,
-                    "through the pixel centre instead of sample s's grid cell",
-                )),
-            ));
-            offs.push((
                 (i / (n - 1.0), j / (n - 1.0)),
                 Some((
                     Code::CameraSubpixelGrid,
                     "on a grid that spans the pixel's corners instead of cell centres",
+                )),
+            ));
+            // After the cell corners, which take the samples where the two coincide (sample 0 at
+            // the pixel's corner, the cell whose corner is the pixel's centre): the log as a
+            // whole tells the two apart (`Tally::one_point_or_corners`).
+            offs.push((
+                (0.5, 0.5),
+                Some((
+                    Code::CameraOnePoint,
+                    "through the centre of its pixel, (x + 0.5) / width, with no sub-pixel offset for its sample",
+                )),
+            ));
+            offs.push((
+                (0.0, 0.0),
+                Some((
+                    Code::CameraOnePoint,
+                    "through the top-left corner of its pixel, x / width, with no sub-pixel offset for its sample",
                 )),
             ));
         }

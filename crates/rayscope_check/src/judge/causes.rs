@@ -54,6 +54,9 @@ const SAME_RAYS: &[(Code, Code)] = &[
     // Entering glass, a reflection where the ray refracts fits a critical-angle test with the
     // leaving side's ratio and a ratio upside down alike (the log as a whole decides).
     (Code::RefractionTirInvented, Code::RefractionIndicesNotSwapped),
+    // A camera ray a fraction of a pixel from its sample's place fits another sub-pixel layout
+    // and a slightly scaled image plane alike (the log as a whole decides).
+    (Code::CameraSubpixelGrid, Code::CameraPlaneDistance),
 ];
 
 /// Verdicts that are one mistake wherever they show: merged into the first as one cause.

@@ -429,8 +429,12 @@ impl Judge<'_> {
         let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
         let before = f.len();
         self.beyond_nearest_verdict(r, kind, c, ts, h, f, tally, l, &v);
-        let kept = || Some((c.entity.is_some_and(|e| e < h.entity), ps.length() < h.point.length()));
-        self.passed_over(&f[before..], h.t, kept, &mut tally.skipped);
+        // A hit on the nearest surface itself, short of where the ray meets it, passes nothing
+        // over: its distance is wrong, not the choice among hits.
+        if !(c.entity == Some(h.entity) && ts < h.t) {
+            let kept = || Some((c.entity.is_some_and(|e| e < h.entity), ps.length() < h.point.length()));
+            self.passed_over(&f[before..], h.t, kept, &mut tally.skipped);
+        }
     }
 
     /// [`Self::beyond_nearest`]'s verdict on the ray alone.

@@ -32,6 +32,60 @@ const MET: &[Code] = &[
 const GATHERED: f64 = 0.95;
 
 impl Judge<'_> {
+    /// The entities of one kind of surface that the rays of causes `met` gather on, when at least
+    /// [`GATHERED`] of them do: in words ("sphere 'Ball'", "planes ('Floor', 'Roof')"), and
+    /// their indices.
+    fn gathered(&self, t: &Tally, met: &[Cause]) -> Option<(String, Vec<u32>)> {
+        let mut entities: BTreeMap<u32, u64> = BTreeMap::new();
+        let mut rays = 0;
+        for c in met {
+            let n = &t.causes[c];
+            rays += n.rays;
+            for (&e, &k) in &n.entities {
+                *entities.entry(e).or_default() += k;
+            }
+        }
+        let (&top, _) = entities.iter().max_by_key(|(_, &k)| k)?;
+        let kind = self.surface_kind(top);
+        let same_kind: Vec<u32> = entities
+            .keys()
+            .copied()
+            .filter(|&e| self.surface_kind(e) == kind)
+            .collect();
+        let on: u64 = same_kind.iter().map(|e| entities[e]).sum();
+        if (on as f64) < GATHERED * rays as f64 {
+            return None;
+        }
+        let names: Vec<String> = same_kind.iter().map(|&e| format!("'{}'", self.name(e))).collect();
+        let what = if same_kind.len() == 1 {
+            format!("{kind} {}", names[0])
+        } else {
+            format!("{kind}s ({})", names.join(", "))
+        };
+        Some((what, same_kind))
+    }
+
+    /// Missed hits, and no other verdict on what rays met, that gather on one kind of surface:
+    /// the headline names it, and says when the tracer never reports a hit on it at all (an
+    /// intersection test that cannot succeed, as a plane test that divides by |n·d| does).
+    fn missed_on_one_kind(&self, t: &mut Tally, missed: Cause) {
+        let Some((what, entities)) = self.gathered(t, &[missed]) else {
+            return;
+        };
+        let never = entities
+            .iter()
+            .all(|&e| t.claimed_hits.get(e as usize).copied().unwrap_or(0) == 0);
+        let them = if entities.len() == 1 { "it" } else { "any of them" };
+        let note = if never {
+            format!("missed a hit: every ray it missed meets the {what}, and your tracer never reports a hit on {them}")
+        } else {
+            format!("missed a hit: every ray it missed meets the {what}")
+        };
+        if let Some(n) = t.causes.get_mut(&missed) {
+            n.note = Some(note);
+        }
+    }
+
     /// The kind of surface entity `e` is, in words.
     fn surface_kind(&self, e: u32) -> &'static str {
         let prims = self.geo.prims(e);
@@ -48,42 +102,24 @@ impl Judge<'_> {
     /// entity or one kind of surface.
     pub fn fold_surfaces(&self, t: &mut Tally) {
         let met: Vec<Cause> = t.causes.keys().copied().filter(|c| MET.contains(&c.code)).collect();
+        if let [missed] = met[..] {
+            if missed == Cause::of(Code::HitMissed) {
+                self.missed_on_one_kind(t, missed);
+            }
+            return;
+        }
         // Verdicts on shadow rays alone point at the shadow test (its own intersection call, a
         // direction left unnormalised there), not at the surface: only hits make it the surface.
-        if met.len() < 2 || met.iter().all(|c| c.code.as_str().starts_with("shadow.")) {
+        if met.is_empty() || met.iter().all(|c| c.code.as_str().starts_with("shadow.")) {
             return;
         }
-        let mut entities: BTreeMap<u32, u64> = BTreeMap::new();
-        let mut rays = 0;
-        for c in &met {
-            let n = &t.causes[c];
-            rays += n.rays;
-            for (&e, &k) in &n.entities {
-                *entities.entry(e).or_default() += k;
-            }
-        }
-        let Some((&top, _)) = entities.iter().max_by_key(|(_, &k)| k) else {
+        let Some((what, entities)) = self.gathered(t, &met) else {
             return;
-        };
-        let kind = self.surface_kind(top);
-        let same_kind: Vec<u32> = entities
-            .keys()
-            .copied()
-            .filter(|&e| self.surface_kind(e) == kind)
-            .collect();
-        let on: u64 = same_kind.iter().map(|e| entities[e]).sum();
-        if (on as f64) < GATHERED * rays as f64 {
-            return;
-        }
-        let names: Vec<String> = same_kind.iter().map(|&e| format!("'{}'", self.name(e))).collect();
-        let what = if same_kind.len() == 1 {
-            format!("{kind} {}", names[0])
-        } else {
-            format!("{kind}s ({})", names.join(", "))
         };
         let mut folded = CauseCount {
             note: Some(format!(
-                "your tracer's intersection with the {what} is wrong: rays that meet it go wrong in {} ways and no others do",
+                "your tracer's intersection with the {what} is wrong: rays that meet {} go wrong in {} ways and no others do",
+                if entities.len() == 1 { "it" } else { "them" },
                 met.len()
             )),
             ..CauseCount::default()

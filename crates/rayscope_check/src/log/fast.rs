@@ -9,7 +9,7 @@
 
 use std::borrow::Cow;
 
-use wide::u8x16;
+use wide::{f64x4, u8x16};
 
 use super::raw::{BlockerRef, LightRef, RawHit, RawRay};
 
@@ -596,6 +596,22 @@ fn window_tail(b: &[u8], at: usize) -> [u8; 16] {
 /// anything else.
 #[inline(always)]
 fn decimal(b: &[u8], at: usize) -> Option<(f64, usize, u8)> {
+    let (Fraction { num, den }, end, after) = decimal_fraction(b, at)?;
+    Some((num / den, end, after))
+}
+
+/// A decimal's value as the division that gives it, both sides exact: its digits, signed, over
+/// the power of ten its point stands for. Dividing a negated numerator gives the negated
+/// quotient (rounding to nearest is symmetric), `-0` included.
+#[derive(Clone, Copy)]
+struct Fraction {
+    num: f64,
+    den: f64,
+}
+
+/// [`decimal`] before its one division.
+#[inline(always)]
+fn decimal_fraction(b: &[u8], at: usize) -> Option<(Fraction, usize, u8)> {
     const POW10: [f64; 15] = [
         1e0, 1e1, 1e2, 1e3, 1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11, 1e12, 1e13, 1e14,
     ];
@@ -640,8 +656,9 @@ fn decimal(b: &[u8], at: usize) -> Option<(f64, usize, u8)> {
         (0, int)
     };
     // Below 2^53, so also as a signed integer, which converts in one instruction.
-    let v = m as i64 as f64 / POW10[frac];
-    Some((if negative { -v } else { v }, start + end, w[end]))
+    let v = m as i64 as f64;
+    let num = if negative { -v } else { v };
+    Some((Fraction { num, den: POW10[frac] }, start + end, w[end]))
 }
 
 /// Three decimals as [`decimal`] reads them, in brackets, with commas and no spaces between,
@@ -669,10 +686,16 @@ fn tight_vec3(b: &[u8], at: usize) -> Option<([f64; 3], usize)> {
     }
     // A decimal holds no comma or bracket, so each one ends at its separator exactly when the
     // byte after it is that separator.
-    let (x, xe, _) = decimal(b, at + 1)?;
-    let (y, ye, _) = decimal(b, at + c1 + 1)?;
-    let (z, ze, _) = decimal(b, at + c2 + 1)?;
-    (xe == at + c1 && ye == at + c2 && ze == at + close).then_some(([x, y, z], at + close + 1))
+    let (x, xe, _) = decimal_fraction(b, at + 1)?;
+    let (y, ye, _) = decimal_fraction(b, at + c1 + 1)?;
+    let (z, ze, _) = decimal_fraction(b, at + c2 + 1)?;
+    if xe != at + c1 || ye != at + c2 || ze != at + close {
+        return None;
+    }
+    // The three divisions as one: each lane is the same correctly rounded quotient.
+    let q = f64x4::new([x.num, y.num, z.num, 1.0]) / f64x4::new([x.den, y.den, z.den, 1.0]);
+    let [x, y, z, _] = q.to_array();
+    Some(([x, y, z], at + close + 1))
 }
 
 /// [`tight_vec3`] one number after the other, for triples longer than the bytes it looks at.

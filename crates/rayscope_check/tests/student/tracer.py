@@ -16,6 +16,12 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   pixel-corner       rays through pixel corners instead of centres
   plane-distance     the image plane at z = 2 with the half-width of the plane at z = 1
   subpixel-grid      sub-pixel samples numbered column by column (i * N + j)
+  aa-same-ray        every one of a pixel's N x N samples cast through the pixel's centre
+  aa-same-corner     every one of a pixel's N x N samples cast through the pixel's corner
+  aa-evenly-spaced   sub-pixel samples at (i + 1) / (N + 1), evenly spaced with gaps at the edges
+  aa-reversed        sub-pixel samples numbered from the last cell to the first
+  sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
+  plane-abs-den      plane test dividing by |n.d|, so t is negative wherever the ray meets the plane's front
   indices-not-swapped n1 = 1 and n2 = index on both sides of the glass (never swapped)
   tir-entering       the critical-angle test applied when entering glass as well
   blocker-name       shadow rays name the surface being shaded as their blocker
@@ -100,7 +106,7 @@ EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
-        "pixel-corner", "plane-distance", "subpixel-grid", "indices-not-swapped", "tir-entering",
+        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
         "glass-sum", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
@@ -112,7 +118,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
+                 "farthest-hit", "sphere-disc-no-4", "plane-abs-den", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -210,6 +216,8 @@ class Tracer:
     def intersect_from(self, e, o, d):
         if e.kind == "plane":
             den = dot(e.n, d)
+            if self.bug == "plane-abs-den":
+                den = abs(den)
             if den == 0:
                 return None
             t = dot(sub(e.p, o), e.n) / den
@@ -219,6 +227,9 @@ class Tracer:
             b = dot(oc, d)
             c = dot(oc, oc) - (e.r if self.bug == "radius-not-squared" else e.r * e.r)
             disc = b * b - c
+            if self.bug == "sphere-disc-no-4":
+                # The full quadratic's b is 2 oc.d; its discriminant lost the 4 of 4ac.
+                disc = ((2 * b) ** 2 - c) / 4
             if disc < 0:
                 return None
             s = math.sqrt(disc)
@@ -509,9 +520,17 @@ def main():
             for j in range(n):
                 for i in range(n):
                     tr.pixel, tr.sample = (x, y), (i * n + j if args.bug == "subpixel-grid" else j * n + i)
+                    if args.bug == "aa-reversed":
+                        tr.sample = n * n - 1 - tr.sample
                     c = 0.0 if args.bug == "pixel-corner" else 0.5
                     u = (x + (i + c) / n) / w
                     v = (y + (j + c) / n) / h
+                    if args.bug == "aa-same-ray":
+                        u, v = (x + 0.5) / w, (y + 0.5) / h
+                    elif args.bug == "aa-same-corner":
+                        u, v = x / w, y / h
+                    elif args.bug == "aa-evenly-spaced":
+                        u, v = (x + (i + 1) / (n + 1)) / w, (y + (j + 1) / (n + 1)) / h
                     z = 2.0 if args.bug == "plane-distance" else 1.0
                     d = ((2 * u - 1) * hx, (1 - 2 * v) * hy, z)
                     if args.bug != "camera-unnormalised":
