@@ -40,7 +40,7 @@ fn nothing_judged(path: &std::path::Path, report: &rayscope_check::Report) -> Fa
     Failure::input(message)
 }
 
-/// Largest picture `check --image` compares: its colour sums take 41 bytes a pixel (164 MiB at
+/// Largest picture `check --image` compares: its colour sums take 47 bytes a pixel (188 MiB at
 /// this size; rayscope's own render, made after they are dropped, 15), far past any course image
 /// (400×400) and a 2560×1600 screen.
 const MAX_PICTURE_PIXELS: u64 = 1 << 22;
@@ -58,7 +58,7 @@ fn picture(
     let pixels = u64::from(s.width) * u64::from(s.height);
     if pixels > MAX_PICTURE_PIXELS {
         return Err(Failure::input(format!(
-            "--image: a {}×{} picture is over check's {} megapixels (its colour sums take 40 bytes a pixel); check a region of it rendered on its own",
+            "--image: a {}×{} picture is over check's {} megapixels (its colour sums take 47 bytes a pixel); check a region of it rendered on its own",
             s.width,
             s.height,
             MAX_PICTURE_PIXELS >> 20

@@ -24,13 +24,16 @@ pub struct PixelSums {
     bytes: Vec<[u32; 3]>,
     /// Samples with a colour.
     n: Vec<u32>,
+    /// The course's bytes of the colour of the pixel's first and of its last sample (by sample
+    /// number, else by their order in the log).
+    one: Vec<[[u8; 3]; 2]>,
     /// Pixels with a logged camera ray, coloured or not.
     logged: Vec<bool>,
 }
 
 impl PixelSums {
     /// Empty sums for a `width` × `height` image of `spp` samples a pixel (the caller bounds the
-    /// size: 41 bytes a pixel).
+    /// size: 47 bytes a pixel).
     #[must_use]
     pub fn new(width: u32, height: u32, spp: u32) -> Self {
         let len = width as usize * height as usize;
@@ -41,6 +44,7 @@ impl PixelSums {
             sum: vec![[0.0; 3]; len],
             bytes: vec![[0; 3]; len],
             n: vec![0; len],
+            one: vec![[[0; 3]; 2]; len],
             logged: vec![false; len],
         }
     }
@@ -74,6 +78,17 @@ impl PixelSums {
         for ((sum, bytes), v) in self.sum[i].iter_mut().zip(&mut self.bytes[i]).zip(c.to_array()) {
             *sum += v;
             *bytes += u32::from(course_byte(v));
+        }
+        let b = c.to_array().map(course_byte);
+        let (first, last) = match r.sample {
+            Some(s) => (s == 0, s + 1 == self.spp),
+            None => (self.n[i] == 0, true),
+        };
+        if first {
+            self.one[i][0] = b;
+        }
+        if last {
+            self.one[i][1] = b;
         }
         self.n[i] += 1;
     }
@@ -132,10 +147,14 @@ pub enum Conversion {
     /// The samples' average times one factor for every pixel ([`ImageCheck::factor`]), then
     /// the course's conversion.
     Scaled,
+    /// The first sample's colour alone, not the samples' average.
+    FirstSample,
+    /// The last sample's colour alone: each sample's colour written over the one before.
+    LastSample,
 }
 
 impl Conversion {
-    const ALL: [Conversion; 12] = [
+    const ALL: [Conversion; 14] = [
         Conversion::Course,
         Conversion::Rounded,
         Conversion::Gamma,
@@ -148,6 +167,8 @@ impl Conversion {
         Conversion::Bgr,
         Conversion::Accumulated,
         Conversion::Summed,
+        Conversion::FirstSample,
+        Conversion::LastSample,
     ];
 
     /// The verdict a picture following this rule gets.
@@ -166,6 +187,7 @@ impl Conversion {
             Conversion::Accumulated => Some(Code::ImageAccumulated),
             Conversion::Summed => Some(Code::ImageSummed),
             Conversion::Scaled => Some(Code::ImageScaled),
+            Conversion::FirstSample | Conversion::LastSample => Some(Code::ImageOneSample),
         }
     }
 
@@ -191,6 +213,11 @@ impl Conversion {
         let i = (y * s.width + x) as usize;
         let avg = s.average(i)?;
         let n = s.spp;
+        match self {
+            Conversion::FirstSample => return Some(s.one[i][0]),
+            Conversion::LastSample => return Some(s.one[i][1]),
+            _ => {}
+        }
         let one = |v: f64| -> u8 {
             match self {
                 Conversion::Course
@@ -204,7 +231,11 @@ impl Conversion {
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
                 Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
                 Conversion::Summed => course_byte(v * f64::from(n)),
-                Conversion::ByteAverage | Conversion::Accumulated | Conversion::Scaled => 0,
+                Conversion::ByteAverage
+                | Conversion::Accumulated
+                | Conversion::Scaled
+                | Conversion::FirstSample
+                | Conversion::LastSample => 0,
             }
         };
         let mut b = if self == Conversion::ByteAverage {
@@ -337,10 +368,18 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             format!("{course} of {compared} pixels are your logged colours turned into bytes as the course does"),
         )
     } else if best.0 != Conversion::Course && share(bn) >= FOLLOWS {
+        let which = match best.0 {
+            Conversion::FirstSample => format!(": each pixel is its first sample's colour alone, not the average of its {}", s.spp),
+            Conversion::LastSample => format!(
+                ": each pixel is its last sample's colour alone, not the average of its {} (a pixel written inside the sample loop, each sample over the one before)",
+                s.spp
+            ),
+            _ => String::new(),
+        };
         (
             best.0.code(),
             format!(
-                "{bn} of {compared} pixels are your logged colours converted that way; {course} as the course converts them"
+                "{bn} of {compared} pixels are your logged colours converted that way{which}; {course} as the course converts them"
             ),
         )
     } else if let Some((moved, value, n)) = two_rules(s, image).filter(|&(_, _, n)| share(n) >= FOLLOWS) {

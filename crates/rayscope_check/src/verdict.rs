@@ -274,6 +274,9 @@ codes! {
     ImageSummed = "image.summed", false,
         "samples added up, not averaged",
         "Your picture's bytes are the sum of each pixel's logged sample colours, not their average: with -x N, divide the sum of the N×N samples by N² before clamping and converting. The picture is N² times too bright, mostly white.";
+    ImageOneSample = "image.one-sample", false,
+        "each pixel is one sample's colour, not their average",
+        "Your picture's pixels are the colour of one of their samples alone (the details say which: the first or the last), not the average of the pixel's N×N samples: anti-aliasing is traced but never shows. Add the samples' colours up over the whole sample loop and write the pixel once, after the loop, as the sum divided by N².";
     ImageScaled = "image.scaled", false,
         "colours multiplied by a plain factor before they are written",
         "Your picture's bytes are your logged colours' average times one factor, the same for every pixel (the details give it), then turned into bytes by the course's rule. With -x N the usual cause is the N×N samples' sum divided by N instead of N² (the picture N times too bright), or divided by N² twice; otherwise a brightness factor applied only when writing the picture, or the picture of another run. Divide the sum of the samples by N², then clamp and convert, with nothing else in between.";

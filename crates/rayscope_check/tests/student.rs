@@ -695,6 +695,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("rotated-out", Some(Code::ImageRotated)),
         ("flipped-gamma-out", Some(Code::ImageFlipped)),
         ("stray-pixels-out", Some(Code::ImageDiffers)),
+        ("last-sample-out", Some(Code::ImageOneSample)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -737,6 +738,13 @@ fn the_picture_is_judged_against_the_logged_colours() {
         }
         if bug == "aa-divided-by-n" {
             assert!(j.detail.contains("divided by 2, not by 4"), "{bug}: {}", j.detail);
+        }
+        if bug == "last-sample-out" {
+            assert!(
+                j.detail.contains("its last sample's colour alone"),
+                "{bug}: {}",
+                j.detail
+            );
         }
         if bug == "stray-pixels-out" {
             // One pixel in 97 holds its neighbour's colour (a few the same colour anyway): those

@@ -65,6 +65,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      colour shared by a parallel loop's threads leaves it (no catalogue has it)
   accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   summed-out         the picture's pixels are the sums of their samples, never divided
+  last-sample-out    each pixel written inside the sample loop: the last sample's colour alone
   aa-divided-by-n    the picture's pixels are the sums of their N x N samples divided by N, not N^2
   no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
@@ -114,7 +115,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-de
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
-               "stale-image", "accumulator-out", "summed-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
+               "stale-image", "accumulator-out", "summed-out", "last-sample-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
@@ -541,6 +542,8 @@ def main():
                     if log:
                         tr.flush()
             image[(x, y)] = mul(total, 1 if args.bug == "summed-out" else 1 / n if args.bug == "aa-divided-by-n" else 1 / (n * n))
+            if args.bug == "last-sample-out":
+                image[(x, y)] = col
             if args.bug == "byte-average-out":
                 image[(x, y)] = tuple(b // (n * n) for b in byte_total)
     if log is not sys.stdout:
