@@ -170,6 +170,8 @@ pub struct Tally {
     pub causes: BTreeMap<Cause, CauseCount>,
     /// Examples kept per code.
     pub keep: usize,
+    /// Where the wrong camera rays cross the image plane, from where rayscope puts their samples.
+    pub shift: Shift,
     /// Per entity (by index): the hits on it the tracer reported, right or wrong.
     pub claimed_hits: Vec<u64>,
     /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
@@ -177,6 +179,53 @@ pub struct Tally {
     /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
     /// material the course's stage-2 rules do not cover).
     pub shaded_unjudged: u64,
+}
+
+/// How far, in pixels across and down, wrong camera rays cross rayscope's image plane from
+/// where rayscope puts their samples: the least and the most, and how many rays.
+#[derive(Debug, Clone, Copy)]
+pub struct Shift {
+    /// Rays counted (those crossing the plane in front of the camera).
+    pub rays: u64,
+    /// The least shift across and down.
+    pub lo: (f64, f64),
+    /// The most.
+    pub hi: (f64, f64),
+}
+
+impl Default for Shift {
+    fn default() -> Self {
+        Self {
+            rays: 0,
+            lo: (f64::INFINITY, f64::INFINITY),
+            hi: (f64::NEG_INFINITY, f64::NEG_INFINITY),
+        }
+    }
+}
+
+impl Shift {
+    /// Counts one ray's shift; a ray that crosses no plane in front of the camera is left out.
+    pub(crate) fn add(&mut self, du: f64, dv: f64) {
+        if !(du.is_finite() && dv.is_finite()) {
+            return;
+        }
+        self.rays += 1;
+        self.lo = (self.lo.0.min(du), self.lo.1.min(dv));
+        self.hi = (self.hi.0.max(du), self.hi.1.max(dv));
+    }
+
+    fn merge(&mut self, o: Shift) {
+        self.rays += o.rays;
+        self.lo = (self.lo.0.min(o.lo.0), self.lo.1.min(o.lo.1));
+        self.hi = (self.hi.0.max(o.hi.0), self.hi.1.max(o.hi.1));
+    }
+
+    /// The one shift every counted ray has (within a hundredth of a pixel), when there is one.
+    fn constant(&self) -> Option<(f64, f64)> {
+        const WITHIN: f64 = 0.01;
+        (self.rays > 0 && self.hi.0 - self.lo.0 <= WITHIN && self.hi.1 - self.lo.1 <= WITHIN)
+            .then(|| ((self.lo.0 + self.hi.0) / 2.0, (self.lo.1 + self.hi.1) / 2.0))
+    }
 }
 
 /// The nearest hits (or shadow blockers) a tracer passed over, log-wide: which rule other
@@ -425,6 +474,49 @@ impl Tally {
         }
     }
 
+    /// Wrong camera rays named by several verdicts, in a log where every wrong camera ray is
+    /// shifted by the same fraction of a pixel from its sample's place: one mistake, that shift
+    /// (an offset added twice, a half pixel on top of the sample's own), whatever each ray
+    /// happens to fit alone.
+    fn shifted(&mut self) {
+        let camera: Vec<Cause> = self
+            .causes
+            .keys()
+            .copied()
+            .filter(|c| c.code.as_str().starts_with("camera."))
+            .collect();
+        let Some((du, dv)) = self.shift.constant() else {
+            return;
+        };
+        if camera.len() < 2 || self.shift.rays != self.camera_disagree {
+            return;
+        }
+        let to = Cause::of(Code::CameraShifted);
+        let side = |v: f64, plus: &str, minus: &str| {
+            if v.abs() < 0.005 {
+                String::new()
+            } else {
+                format!("{:.3} of a pixel {}", v.abs(), if v > 0.0 { plus } else { minus })
+            }
+        };
+        let parts: Vec<String> = [side(du, "to the right", "to the left"), side(dv, "down", "up")]
+            .into_iter()
+            .filter(|p| !p.is_empty())
+            .collect();
+        for c in camera {
+            for code in c.codes() {
+                self.move_code(code, Code::CameraShifted);
+            }
+            self.recast(c, to);
+        }
+        if let Some(n) = self.causes.get_mut(&to) {
+            n.note = Some(format!(
+                "every wrong camera ray is shifted {} from where rayscope puts its sample",
+                parts.join(" and ")
+            ));
+        }
+    }
+
     /// Camera rays that fit another sub-pixel layout and a scaled image plane alike: the one the
     /// log's other camera rays show where they show only one.
     fn layout_or_plane(&mut self) {
@@ -646,6 +738,7 @@ impl Tally {
         self.glass_black_other += o.glass_black_other;
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
+        self.shift.merge(o.shift);
         if self.claimed_hits.len() < o.claimed_hits.len() {
             self.claimed_hits.resize(o.claimed_hits.len(), 0);
         }
@@ -673,6 +766,7 @@ impl Tally {
     /// is inconsistent with the rest. Those rays are counted as disagreeing.
     pub fn finish(&mut self) {
         self.nearest_rule();
+        self.shifted();
         self.one_point_or_corners();
         self.layout_or_plane();
         self.acne_or_wrong_side();
@@ -1094,7 +1188,7 @@ impl<'a> Judge<'a> {
         let mut sound = true;
         if kind == Kind::Camera && r.parent.is_none() {
             let before = f.len();
-            self.camera(r, &kind, f);
+            self.camera(r, &kind, f, &mut tally.shift);
             sound &= f.len() == before;
         }
         // Where rayscope traces from: the logged origin, moved off the surface it leaves by

@@ -82,6 +82,9 @@ codes! {
     CameraOnePoint = "camera.one-point", false,
         "every sample of a pixel goes through the same point",
         "With -x N each pixel's N×N samples spread over its area: sample s goes through ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height), with i = s mod N and j = s div N. Your camera rays go through one point of their pixel whatever their sample (the details say which: its centre or its top-left corner), so the sub-pixel offset is never added: each pixel traces one ray N² times and anti-aliasing does nothing. Add (i + 0.5)/N to x and (j + 0.5)/N to y inside the sample loop.";
+    CameraShifted = "camera.shifted", false,
+        "every camera ray shifted by the same fraction of a pixel",
+        "Every camera ray your tracer got wrong crosses the image plane the same fraction of a pixel away from where rayscope puts its sample (the headline gives the shift), though each alone may fit another mistake by chance. Sample s of pixel (x, y) goes through (x + (i + 0.5)/N, y + (j + 0.5)/N) in pixels, with i = s mod N and j = s div N: look for an offset added twice (a half pixel on top of the sample's own half cell) or one left out.";
     CameraRotation = "camera.rotation", false,
         "camera turned by another angle about its axis",
         "Your camera rays fit the camera turned about the --cam-axis by an angle other than --cam-angle: the details give the angle they fit. --cam-angle is in degrees; most rotation functions (System.Numerics' Quaternion.CreateFromAxisAngle, Matrix4x4.CreateFromAxisAngle) take radians, so convert with angle · π / 180. A turn the wrong way round is the angle's sign, or the rotation applied as its inverse.";
@@ -169,6 +172,9 @@ codes! {
     RefractionTirInvented = "refraction.tir-invented", false,
         "total internal reflection where the ray refracts",
         "Your tracer reflected at glass and cast no refracted ray, as if the ray were past the critical angle, but it is not: rayscope refracts here. Check the total-internal-reflection test (it applies only when 1 − η² (1 − cos² θi) < 0, with η = n1 / n2 of the side the ray comes from).";
+    ShadowOtherLight = "shadow.other-light", false,
+        "shadow ray aimed at another light",
+        "Your shadow ray is logged for one light but points exactly at another (the details name both): inside the loop over the lights, the shadow ray is cast towards a fixed light (the first, say, or the previous loop's) instead of the light the loop is at, or it is logged with the wrong light's name. Cast each light's shadow ray towards that light's own position, light − point.";
     ShadowNotAtLight = "shadow.not-at-light", false,
         "shadow ray not aimed at a light",
         "A shadow ray must point from the hit point toward a light: direction = normalise(light − point). This one points at no light of the scene (or not at the light it names). Check for light − point reversed as point − light, and for a direction left unnormalised.";

@@ -936,6 +936,26 @@ fn samples_cast_through_one_point_of_their_pixel_are_one_headline_and_other_layo
         "{}",
         text(&r)
     );
+    // Half a pixel added on top of each cell's corner: every sample a quarter pixel off, which
+    // ray by ray fits a pixel centre, a neighbouring pixel or a grid over the corners.
+    for scene in [scene(), course.scene("sample_scene_2.txt")] {
+        let Some(r) = assert_one_headline(
+            Run {
+                bug: "aa-half-twice",
+                aa: 2,
+                ..Run::new(scene, 40, 40)
+            },
+            Code::CameraShifted,
+        ) else {
+            return;
+        };
+        assert_eq!(r.causes.len(), 1, "{}", text(&r));
+        let first = text(&r).lines().next().unwrap_or_default().to_string();
+        assert!(
+            first.contains("shifted 0.250 of a pixel to the right and 0.250 of a pixel down"),
+            "{first}"
+        );
+    }
     // Samples numbered from the last cell: each ray is the centre of another cell of the grid.
     let Some(r) = assert_one_headline(
         Run {
@@ -1012,4 +1032,28 @@ fn a_sphere_quadratic_without_its_4_and_a_plane_test_on_n_dot_d_abs_name_their_s
             "{first}"
         );
     }
+}
+
+#[test]
+fn a_shadow_ray_cast_towards_another_light_than_its_own_is_said_to_be() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "shadow-first-light",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::ShadowOtherLight,
+    ) else {
+        return;
+    };
+    assert_eq!(r.causes.len(), 1, "{}", text(&r));
+    assert!(
+        r.causes[0].examples[0]
+            .detail
+            .contains("logged for light 'Light2' but aimed at light 'Light1'"),
+        "{}",
+        text(&r)
+    );
 }

@@ -19,7 +19,7 @@ struct CamGuess {
 
 impl Judge<'_> {
     /// The camera ray against rayscope's camera for its pixel and sample.
-    pub(super) fn camera(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>) {
+    pub(super) fn camera(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>, shift: &mut Shift) {
         let Some([x, y]) = r.pixel else {
             return;
         };
@@ -59,12 +59,20 @@ impl Judge<'_> {
         if err <= self.cam_tol {
             return;
         }
-        self.camera_wrong(r, kind, (x, y, s), err, f);
+        self.camera_wrong(r, kind, (x, y, s), err, f, shift);
     }
 
     /// Names what a camera ray `err` radians off rayscope's sample `s` of pixel (x, y) fits: one
     /// of the usual camera mistakes, another distance to the image plane, another pixel, or none.
-    fn camera_wrong(&self, r: &LoggedRay, kind: &Kind, (x, y, s): (u32, u32, u32), err: f64, f: &mut Vec<Finding>) {
+    fn camera_wrong(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        (x, y, s): (u32, u32, u32),
+        err: f64,
+        f: &mut Vec<Finding>,
+        shift: &mut Shift,
+    ) {
         let d = r.direction;
         let rs = self.cam.ray(x, y, s).1;
         let dc = (self.rot.transpose() * d).normalize();
@@ -99,6 +107,10 @@ impl Judge<'_> {
             }
         }
         let (us, vs, values) = self.camera_values(d, rs, dc, half, (x, y, offs[0].0));
+        shift.add(
+            us * w - f64::from(x) - offs[0].0 .0,
+            vs * h - f64::from(y) - offs[0].0 .1,
+        );
         let off_by = format!("{:.4}° off", err.to_degrees());
         if let Some((_, g)) = best.filter(|(e, _)| *e <= self.cam_tol) {
             for (code, why) in [g.pos_code, g.proj_code].into_iter().flatten() {

@@ -184,6 +184,7 @@ fn fold_siblings(out: &mut SampleCauses, parent: &[Option<usize>]) {
 const FROM_CHILD: &[(&str, &str)] = &[
     ("missing.reflection", "refraction."),
     ("shading.shadow-direction", "shadow.not-at-light"),
+    ("shading.shadow-direction", "shadow.other-light"),
     ("shading.", "shading.logged-weighted"),
 ];
 

@@ -53,6 +53,25 @@ impl Judge<'_> {
             return Some(li);
         }
         let target = to(li);
+        // Aimed at another light than the one it is logged for.
+        if let Some(other) = (0..lights.len() as u32).find(|&lj| lj != li && off(lj) <= self.tol.direction) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::ShadowOtherLight,
+                format!(
+                    "logged for light '{}' but aimed at light '{}'",
+                    self.light_name(li),
+                    self.light_name(other)
+                ),
+                vec![Value {
+                    what: "direction".into(),
+                    yours: vjson(r.direction),
+                    rayscope: vjson(target.normalize()),
+                }],
+            ));
+            return None;
+        }
         let backwards = angle(r.direction, -target) <= self.tol.direction;
         let position = d3(Vec3A::from(lights[li as usize].position));
         let unshifted = position.length_squared() > 0.0 && angle(r.direction, position) <= self.tol.direction;

@@ -20,7 +20,9 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   aa-same-corner     every one of a pixel's N x N samples cast through the pixel's corner
   aa-evenly-spaced   sub-pixel samples at (i + 1) / (N + 1), evenly spaced with gaps at the edges
   aa-reversed        sub-pixel samples numbered from the last cell to the first
+  aa-half-twice      sub-pixel samples at x + i / N + 0.5: the half pixel on top of the cell's corner
   sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
+  shadow-first-light every light's shadow ray cast towards the first light
   plane-abs-den      plane test dividing by |n.d|, so t is negative wherever the ray meets the plane's front
   indices-not-swapped n1 = 1 and n2 = index on both sides of the glass (never swapped)
   tir-entering       the critical-angle test applied when entering glass as well
@@ -107,7 +109,7 @@ EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
-        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "indices-not-swapped", "tir-entering",
+        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
         "glass-sum", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
@@ -119,7 +121,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit", "sphere-disc-no-4", "plane-abs-den", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
+                 "farthest-hit", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -367,7 +369,8 @@ class Tracer:
         b = None
         for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
-            to = light["pos"] if self.bug == "light-as-direction" else sub(light["pos"], so)
+            aim = self.lights[0]["pos"] if self.bug == "shadow-first-light" else light["pos"]
+            to = aim if self.bug == "light-as-direction" else sub(aim, so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
             reach = min(dist, 1.0) if self.bug == "shadow-t-below-1" else dist
@@ -530,6 +533,8 @@ def main():
                         u, v = (x + 0.5) / w, (y + 0.5) / h
                     elif args.bug == "aa-same-corner":
                         u, v = x / w, y / h
+                    elif args.bug == "aa-half-twice":
+                        u, v = (x + i / n + 0.5) / w, (y + j / n + 0.5) / h
                     elif args.bug == "aa-evenly-spaced":
                         u, v = (x + (i + 1) / (n + 1)) / w, (y + (j + 1) / (n + 1)) / h
                     z = 2.0 if args.bug == "plane-distance" else 1.0
