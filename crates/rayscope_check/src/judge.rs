@@ -242,6 +242,8 @@ pub struct Skipped {
     pub size: f64,
     /// Passed-over rays whose kept hit's entity comes earlier in the scene file.
     pub earlier_in_file: u64,
+    /// Passed-over rays whose kept hit's entity comes later in the scene file.
+    pub later_in_file: u64,
     /// Passed-over rays whose kept hit lies nearer the world's origin.
     pub nearer_origin: u64,
     /// A ray the tracer got right meets an entity listed earlier beyond its nearest hit: the
@@ -250,6 +252,9 @@ pub struct Skipped {
     /// A ray the tracer got right meets a point nearer the world's origin beyond its nearest
     /// hit: so the distance from the origin is not the rule.
     pub origin_refuted: bool,
+    /// A ray the tracer got right meets an entity listed later beyond its nearest hit: so the
+    /// last hit in the file's order is not the rule.
+    pub last_refuted: bool,
 }
 
 impl Default for Skipped {
@@ -260,9 +265,11 @@ impl Default for Skipped {
             kept_min_t: f64::INFINITY,
             size: 0.0,
             earlier_in_file: 0,
+            later_in_file: 0,
             nearer_origin: 0,
             order_refuted: false,
             origin_refuted: false,
+            last_refuted: false,
         }
     }
 }
@@ -279,19 +286,22 @@ impl Skipped {
         self.kept_min_t = self.kept_min_t.min(o.kept_min_t);
         self.size = self.size.max(o.size);
         self.earlier_in_file += o.earlier_in_file;
+        self.later_in_file += o.later_in_file;
         self.nearer_origin += o.nearer_origin;
         self.order_refuted |= o.order_refuted;
         self.origin_refuted |= o.origin_refuted;
+        self.last_refuted |= o.last_refuted;
     }
 
     /// Counts a passed-over hit at `t` along its ray; `kept` tells, for a farther hit the tracer
-    /// kept instead, whether its entity comes earlier in the file and whether it is nearer the
-    /// world's origin.
-    pub(crate) fn pass(&mut self, t: f64, kept: Option<(bool, bool)>) {
+    /// kept instead, whether its entity comes earlier in the file, whether it comes later, and
+    /// whether it is nearer the world's origin.
+    pub(crate) fn pass(&mut self, t: f64, kept: Option<(bool, bool, bool)>) {
         self.rays += 1;
         self.max_t = self.max_t.max(t);
-        if let Some((earlier, nearer)) = kept {
+        if let Some((earlier, later, nearer)) = kept {
             self.earlier_in_file += u64::from(earlier);
+            self.later_in_file += u64::from(later);
             self.nearer_origin += u64::from(nearer);
         }
     }
@@ -317,6 +327,15 @@ impl Skipped {
                 Code::HitSceneOrder,
                 format!(
                     "in all {} rays that passed over the nearest hit, the hit kept belongs to an entity listed earlier in the scene file",
+                    self.rays
+                ),
+            ));
+        }
+        if self.rays >= 3 && self.later_in_file == self.rays && !self.last_refuted {
+            return Some((
+                Code::HitSceneOrder,
+                format!(
+                    "in all {} rays that passed over the nearest hit, the hit kept belongs to an entity listed later in the scene file: the last entity hit wins, as when the nearest distance found so far is never updated",
                     self.rays
                 ),
             ));
@@ -986,7 +1005,7 @@ impl<'a> Judge<'a> {
     /// compares its distance with the light's would say so, with the hit kept (among each
     /// entity's nearest) being the first in the scene's order, and with it being the one nearest
     /// the world's origin.
-    fn kept_beyond(&self, o: DVec3, d: DVec3, dist: f64) -> (bool, bool) {
+    fn kept_beyond(&self, o: DVec3, d: DVec3, dist: f64) -> (bool, bool, bool) {
         let mut hits = Vec::new();
         let mut lo = 0.0;
         while hits.len() < 64 {
@@ -1000,9 +1019,11 @@ impl<'a> Judge<'a> {
             }
         }
         let first = hits.iter().min_by_key(|h| h.entity);
+        let last = hits.iter().max_by_key(|h| h.entity);
         let nearest_origin = hits.iter().min_by(|a, b| a.point.length().total_cmp(&b.point.length()));
         (
             first.is_none_or(|h| h.t >= dist),
+            last.is_none_or(|h| h.t >= dist),
             nearest_origin.is_none_or(|h| h.t >= dist),
         )
     }
@@ -1011,7 +1032,7 @@ impl<'a> Judge<'a> {
     /// beyond it (past `margin`) is listed earlier, or lies nearer the world's origin, which
     /// refutes the rule that would have kept it.
     fn walk_agreeing(&self, r: &LoggedRay, h: &RsHit, margin: f64, s: &mut Skipped) {
-        if !r.line.is_multiple_of(WALK_EVERY) || s.order_refuted && s.origin_refuted {
+        if !r.line.is_multiple_of(WALK_EVERY) || s.order_refuted && s.origin_refuted && s.last_refuted {
             return;
         }
         let (o, d) = (r.origin, r.direction);
@@ -1027,13 +1048,20 @@ impl<'a> Judge<'a> {
             }
             seen.push(k.entity);
             s.order_refuted |= k.entity < h.entity;
+            s.last_refuted |= k.entity > h.entity;
             s.origin_refuted |= k.point.length() < h.point.length() - margin;
         }
     }
 
     /// Counts a nearest hit at `t` the tracer passed over, unless the verdicts its ray just got,
     /// `found`, are all ties; `kept` gives the rules' answers for it (see [`Skipped::pass`]).
-    fn passed_over(&self, found: &[Finding], t: f64, kept: impl FnOnce() -> Option<(bool, bool)>, s: &mut Skipped) {
+    fn passed_over(
+        &self,
+        found: &[Finding],
+        t: f64,
+        kept: impl FnOnce() -> Option<(bool, bool, bool)>,
+        s: &mut Skipped,
+    ) {
         if found.iter().any(|x| !x.code.is_tie()) {
             s.size = s.size.max(self.scene_size());
             s.pass(t, kept());

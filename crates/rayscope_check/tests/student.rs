@@ -608,6 +608,23 @@ fn rules_that_pass_over_the_nearest_hit_are_named_by_what_they_share() {
         },
         Code::HitSceneOrder,
     );
+    // The nearest t never updated: the last entity hit in the file's order is kept (scene 2
+    // lists its spheres before the box around them; on scene 1 the last is the nearest).
+    if let Some(r) = assert_one_headline(
+        Run {
+            bug: "best-t-stale",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::HitSceneOrder,
+    ) {
+        assert!(
+            r.causes[0].examples[0]
+                .detail
+                .contains("an entity listed later in the scene file"),
+            "{}",
+            text(&r)
+        );
+    }
     assert_one_headline(
         Run {
             bug: "origin-distance",

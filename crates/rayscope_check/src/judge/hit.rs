@@ -432,7 +432,14 @@ impl Judge<'_> {
         // A hit on the nearest surface itself, short of where the ray meets it, passes nothing
         // over: its distance is wrong, not the choice among hits.
         if !(c.entity == Some(h.entity) && ts < h.t) {
-            let kept = || Some((c.entity.is_some_and(|e| e < h.entity), ps.length() < h.point.length()));
+            // A hit point on the edge two entities share names neither: it fits either order.
+            let kept = || {
+                Some((
+                    c.entity.is_none_or(|e| e < h.entity),
+                    c.entity.is_none_or(|e| e > h.entity),
+                    ps.length() < h.point.length(),
+                ))
+            };
             self.passed_over(&f[before..], h.t, kept, &mut tally.skipped);
         }
     }

@@ -55,6 +55,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   first-in-list      the nearest-hit loop keeps the first entity hit in the scene's order
   origin-distance    the nearest-hit loop keeps the hit whose point is nearest (0, 0, 0)
   farthest-hit       the nearest-hit loop keeps the farthest hit (no catalogue has it)
+  best-t-stale       the nearest-hit loop never updates the nearest t, so the last entity hit wins
   reflect-along-ray  glass's reflected ray starts at p + EPS * d, along the incident ray
   refraction-origin-outside  glass's refracted ray starts at p + EPS * n, on the incoming side
   gamma-out, rounded-out, unclamped-out, byte-average-out, flipped-out, bgr-out, mirrored-out, rotated-out
@@ -121,7 +122,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
+                 "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -273,6 +274,8 @@ class Tracer:
                 best = (t, e)
             elif self.bug == "first-in-list":
                 pass
+            elif self.bug == "best-t-stale":
+                best = (t, e)
             elif self.bug == "origin-distance":
                 if dot(add(o, mul(d, t)), add(o, mul(d, t))) < dot(add(o, mul(d, best[0])), add(o, mul(d, best[0]))):
                     best = (t, e)
