@@ -731,8 +731,12 @@ mod tests {
         let s = sums(&colours, 8, 8);
         for c in Conversion::ALL {
             let j = judge(&s, &picture(&s, c), 3);
-            // One sample a pixel: averaging bytes is averaging colours, and the sum is the mean.
-            let want = if matches!(c, Conversion::ByteAverage | Conversion::Summed) {
+            // One sample a pixel: averaging bytes is averaging colours, the sum is the mean, and
+            // the one sample is the first and the last.
+            let want = if matches!(
+                c,
+                Conversion::ByteAverage | Conversion::Summed | Conversion::FirstSample | Conversion::LastSample
+            ) {
                 None
             } else {
                 c.code()
@@ -745,6 +749,15 @@ mod tests {
         assert_eq!(j.verdict, Some(Code::ImageByteAverage), "{}", j.detail);
         let j = judge(&two, &picture(&two, Conversion::Summed), 3);
         assert_eq!(j.verdict, Some(Code::ImageSummed), "{}", j.detail);
+        for (c, which) in [(Conversion::FirstSample, "first"), (Conversion::LastSample, "last")] {
+            let j = judge(&two, &picture(&two, c), 3);
+            assert_eq!(j.verdict, Some(Code::ImageOneSample), "{}", j.detail);
+            assert!(
+                j.detail.contains(&format!("its {which} sample's colour alone")),
+                "{}",
+                j.detail
+            );
+        }
     }
 
     #[test]

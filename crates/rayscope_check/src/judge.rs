@@ -172,6 +172,8 @@ pub struct Tally {
     pub keep: usize,
     /// Where the wrong camera rays cross the image plane, from where rayscope puts their samples.
     pub shift: Shift,
+    /// `shadow.blocked-carried-over` verdicts whose rays name no blocker (`true`).
+    pub carried_unnamed: u64,
     /// Per entity (by index): the hits on it the tracer reported, right or wrong.
     pub claimed_hits: Vec<u64>,
     /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
@@ -536,6 +538,19 @@ impl Tally {
         }
     }
 
+    /// Shadow rays blocked by nothing, their blocker unnamed, whose sibling before them is
+    /// blocked: a flag not reset between lights reads so, but so does any test that blocks rays
+    /// with nothing in the way. Where the log also has such rays with no blocked sibling, the
+    /// flag is not what blocks them, and all are the one phantom blocker.
+    fn carried_or_phantom(&mut self) {
+        let carried = Cause::of(Code::ShadowBlockedCarriedOver);
+        let phantom = Cause::of(Code::ShadowPhantomBlocker);
+        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
+        if rays(&phantom) > 0 && rays(&carried) > 0 && self.carried_unnamed == rays(&carried) {
+            self.fold(Code::ShadowBlockedCarriedOver, phantom);
+        }
+    }
+
     /// Camera rays that fit another sub-pixel layout and a scaled image plane alike: the one the
     /// log's other camera rays show where they show only one.
     fn layout_or_plane(&mut self) {
@@ -758,6 +773,7 @@ impl Tally {
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
         self.shift.merge(o.shift);
+        self.carried_unnamed += o.carried_unnamed;
         if self.claimed_hits.len() < o.claimed_hits.len() {
             self.claimed_hits.resize(o.claimed_hits.len(), 0);
         }
@@ -788,6 +804,7 @@ impl Tally {
         self.shifted();
         self.one_point_or_corners();
         self.layout_or_plane();
+        self.carried_or_phantom();
         self.acne_or_wrong_side();
         self.one_sided_or_edges();
         self.tir_test_or_ratio();
@@ -1163,7 +1180,7 @@ impl<'a> Judge<'a> {
             kinds[i] = kind;
         }
         self.tir_invented(rays, parent, evals, kinds, findings);
-        self.carried_over(rays, parent, kinds, findings);
+        tally.carried_unnamed += self.carried_over(rays, parent, kinds, findings);
         tally.entering_refracted_ok += (0..n)
             .filter(|&i| {
                 kinds[i] == Kind::Refraction

@@ -870,6 +870,28 @@ fn shadow_and_triangle_mistakes_no_catalogue_has_get_one_true_headline() {
         "{}",
         text(&r)
     );
+    // Blocked at t < |light − point|², blockers logged as `true`: a ray blocked past its light
+    // after a sibling blocked in earnest reads like a flag not reset, but the rays blocked with
+    // no blocked sibling show the test itself counts what lies beyond.
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "shadow-t-dist-squared",
+            names: false,
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::ShadowPhantomBlocker,
+    ) else {
+        return;
+    };
+    assert_eq!(r.causes.len(), 1, "{}", text(&r));
+    assert!(
+        r.causes[0].examples[0].detail.contains("lies beyond the light"),
+        "{}",
+        text(&r)
+    );
 }
 
 /// The half angle in degrees given to a tangent that takes radians (no catalogue has it): tan(30)

@@ -215,18 +215,20 @@ impl Judge<'_> {
     /// Shadow rays blocked by nothing in their way (by what they name, where they name it) whose
     /// sibling cast just before them from the same hit is blocked and names the same: the flag
     /// or blocker of the light before, not reset. Judged in the log's order, so that a third
-    /// light's ray follows a second that is itself carried over.
+    /// light's ray follows a second that is itself carried over. Returns how many of them name
+    /// no blocker.
     pub(super) fn carried_over(
         &self,
         rays: &[LoggedRay],
         parent: &[Option<usize>],
         kinds: &[Kind],
         findings: &mut [Vec<Finding>],
-    ) {
+    ) -> u64 {
         let wrongly = |f: &Finding| matches!(f.code, Code::ShadowPhantomBlocker | Code::ShadowBlockedBeyondLight);
         if !findings.iter().flatten().any(wrongly) {
-            return;
+            return 0;
         }
+        let mut unnamed = 0;
         for i in 0..rays.len() {
             let (Some(k), Some(p)) = (findings[i].iter().position(wrongly), parent[i]) else {
                 continue;
@@ -240,6 +242,7 @@ impl Judge<'_> {
             if findings[j].iter().any(wrongly) || rays[i].blocked_by != Answer::Found(before) {
                 continue;
             }
+            unnamed += u64::from(before.is_none());
             let f = &mut findings[i][k];
             f.code = Code::ShadowBlockedCarriedOver;
             f.detail = format!(
@@ -249,6 +252,7 @@ impl Judge<'_> {
                 before.map_or(String::new(), |e| format!(" by '{}', the blocker this one names too", self.name(e)))
             );
         }
+        unnamed
     }
 
     /// The verdict on a shadow ray that names `e` where rayscope finds `b` in the way and `e` is

@@ -23,6 +23,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   aa-half-twice      sub-pixel samples at x + i / N + 0.5: the half pixel on top of the cell's corner
   sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
   shadow-first-light every light's shadow ray cast towards the first light
+  shadow-t-dist-squared  the shadow test blocks at t < |light - point|^2, not t < |light - point|
   plane-abs-den      plane test dividing by |n.d|, so t is negative wherever the ray meets the plane's front
   indices-not-swapped n1 = 1 and n2 = index on both sides of the glass (never swapped)
   tir-entering       the critical-angle test applied when entering glass as well
@@ -122,7 +123,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
+                 "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "shadow-t-dist-squared", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -376,7 +377,7 @@ class Tracer:
             to = aim if self.bug == "light-as-direction" else sub(aim, so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
-            reach = min(dist, 1.0) if self.bug == "shadow-t-below-1" else dist
+            reach = min(dist, 1.0) if self.bug == "shadow-t-below-1" else dist * dist if self.bug == "shadow-t-dist-squared" else dist
             found = self.blocker(so, to if self.bug == "shadow-unnormalised" else ldir, reach, shaded if self.bug == "no-clamp" else None)
             b = (found or b) if self.bug == "blocked-not-reset" else found
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
