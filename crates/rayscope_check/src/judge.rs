@@ -538,6 +538,17 @@ impl Tally {
         }
     }
 
+    /// Camera rays of the diagonal's pixels with their sub-pixel row and column exchanged, in a
+    /// log whose other pixels' rays go through the pixel with column and row exchanged: the same
+    /// exchange, which on the diagonal moves the samples only.
+    fn transposed_diagonal(&mut self) {
+        let transposed = Cause::of(Code::CameraTransposed);
+        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
+        if rays(&transposed) > rays(&Cause::of(Code::CameraSubpixelGrid)) {
+            self.fold(Code::CameraSubpixelGrid, transposed);
+        }
+    }
+
     /// Shadow rays blocked by nothing, their blocker unnamed, whose sibling before them is
     /// blocked: a flag not reset between lights reads so, but so does any test that blocks rays
     /// with nothing in the way. Where the log also has such rays with no blocked sibling, the
@@ -802,6 +813,7 @@ impl Tally {
     pub fn finish(&mut self) {
         self.nearest_rule();
         self.shifted();
+        self.transposed_diagonal();
         self.one_point_or_corners();
         self.layout_or_plane();
         self.carried_or_phantom();

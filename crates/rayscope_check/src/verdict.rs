@@ -73,6 +73,9 @@ codes! {
     CameraFlipped = "camera.flipped", false,
         "image upside down or mirrored",
         "Your camera rays fit rayscope's with the image flipped: row 0 is the top of the image, so the image-plane y is (1 − 2·(y + 0.5)/height)·half-height (positive at the top), and +x is to the right in the course's left-handed camera looking along +z.";
+    CameraTransposed = "camera.transposed", false,
+        "pixel column and row exchanged",
+        "Your camera ray for pixel (x, y) goes where rayscope's ray for pixel (y, x) goes: the column and the row are exchanged where the pixel is mapped to the image plane (u from y and v from x, or the loops' variables swapped), so the picture is mirrored about its diagonal. The image-plane x comes from the column: (2·(x + 0.5)/width − 1)·half-width; y from the row: (1 − 2·(y + 0.5)/height)·half-height.";
     CameraPlaneDistance = "camera.plane-distance", false,
         "wrong distance to the image plane (or a wrong field of view)",
         "Your camera rays fit an image plane at a different distance from the camera than the one its size was computed for, which is the same as using a different field of view: the course puts the plane at distance 1 with a half-width of tan(fov/2). Check the image plane's distance, and whether the FOV is converted from degrees to radians and halved.";

@@ -332,6 +332,8 @@ fn camera_mistakes_are_named_by_their_cause() {
         ("pixel-corner", 1, Code::CameraPixelCorner),
         ("plane-distance", 1, Code::CameraPlaneDistance),
         ("subpixel-grid", 2, Code::CameraSubpixelGrid),
+        ("pixel-transposed", 1, Code::CameraTransposed),
+        ("pixel-transposed", 2, Code::CameraTransposed),
     ] {
         assert_named(
             Run {

@@ -124,6 +124,25 @@ impl Judge<'_> {
             }
             return;
         }
+        // The pixel's column and row exchanged: (x, y) cast through where (y, x) goes.
+        let (ox, oy) = offs[0].0;
+        let swapped = {
+            let u = (f64::from(y) + oy) / w;
+            let v = (f64::from(x) + ox) / h;
+            DVec3::new((2.0 * u - 1.0) * half.0, (1.0 - 2.0 * v) * half.1, 1.0).normalize()
+        };
+        if x != y && angle(swapped, dc) <= self.cam_tol {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::CameraTransposed,
+                format!(
+                    "{off_by}; it goes through pixel ({y}, {x}) instead of ({x}, {y}): its column and row exchanged"
+                ),
+                values,
+            ));
+            return;
+        }
         if let Some(detail) = self.turned(
             d,
             dir_of(&CamGuess {

@@ -20,6 +20,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   aa-same-corner     every one of a pixel's N x N samples cast through the pixel's corner
   aa-evenly-spaced   sub-pixel samples at (i + 1) / (N + 1), evenly spaced with gaps at the edges
   aa-reversed        sub-pixel samples numbered from the last cell to the first
+  pixel-transposed   the image-plane x computed from the row and y from the column
   aa-half-twice      sub-pixel samples at x + i / N + 0.5: the half pixel on top of the cell's corner
   sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
   shadow-first-light every light's shadow ray cast towards the first light
@@ -111,7 +112,7 @@ EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
-        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "indices-not-swapped", "tir-entering",
+        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
         "glass-sum", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
@@ -537,6 +538,8 @@ def main():
                         u, v = (x + 0.5) / w, (y + 0.5) / h
                     elif args.bug == "aa-same-corner":
                         u, v = x / w, y / h
+                    elif args.bug == "pixel-transposed":
+                        u, v = v * h / w, u * w / h
                     elif args.bug == "aa-half-twice":
                         u, v = (x + i / n + 0.5) / w, (y + j / n + 0.5) / h
                     elif args.bug == "aa-evenly-spaced":
