@@ -1098,3 +1098,29 @@ fn a_shadow_ray_cast_towards_another_light_than_its_own_is_said_to_be() {
         text(&r)
     );
 }
+
+#[test]
+fn a_sphere_shaded_with_a_normal_as_long_as_its_radius_is_said_to_be() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // P − C used for N·L on the sphere only (the normal logged is the unit one): every sphere
+    // hit is the course's sum times the radius, 0.5, and the details say whose length it is.
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "shade-normal-radius",
+            ..Run::new(course.scene("sample_scene_1.txt"), 40, 40)
+        },
+        Code::ShadingDiffuse,
+    ) else {
+        return;
+    };
+    assert_eq!(r.causes.len(), 1, "{}", text(&r));
+    for ex in &r.causes[0].examples {
+        assert!(
+            ex.detail.contains("× 0.5000") && ex.detail.contains("the sphere's radius, 0.5"),
+            "{}",
+            text(&r)
+        );
+    }
+}

@@ -6,7 +6,7 @@
 //! is made, not one at every ancestor that passed it on.
 
 use glam::DVec3;
-use rayscope_core::scene::Lobe;
+use rayscope_core::scene::{Lobe, PrimRef};
 use rayscope_core::Stage;
 use rayscope_scene::MaterialKind;
 use serde_json::json;
@@ -766,13 +766,17 @@ impl Judge<'_> {
             t.unnormalised += term * lv.shade.dot(to).max(0.0);
             t.reach = t.reach.max(to.length());
         }
+        let radius = match self.geo.prims(lv.entity) {
+            [PrimRef::Sphere(i)] => Some(f64::from(self.scene.spheres[*i as usize].radius)),
+            _ => None,
+        };
         let guess = diffuse_guess(
             c,
             &t,
             albedo,
             (lv.shade - lv.facing).length() > 1e-9,
             lit.is_empty(),
-            lights.len(),
+            (lights.len(), radius),
         );
         let detail = match guess {
             Some(g) => format!("diffuse '{name}' lit by {from}: {g}"),
@@ -1147,14 +1151,15 @@ struct DiffuseTerms {
 }
 
 /// Which usual mistake a diffuse colour `c` fits, in words (`smooth`: the hit has an
-/// interpolated normal; `unlit`: every shadow ray is blocked; `lights`: the scene's lights).
+/// interpolated normal; `unlit`: every shadow ray is blocked; `lights`: the scene's lights, and
+/// the radius of the sphere hit where it is one).
 fn diffuse_guess(
     c: DVec3,
     t: &DiffuseTerms,
     albedo: DVec3,
     smooth: bool,
     unlit: bool,
-    lights: usize,
+    (lights, radius): (usize, Option<f64>),
 ) -> Option<String> {
     let diff = c - t.exact;
     let ambient_k = (albedo.length_squared() > 0.0)
@@ -1163,9 +1168,9 @@ fn diffuse_guess(
     let scale = (t.exact.length_squared() > 0.0)
         .then(|| c.dot(t.exact) / t.exact.length_squared())
         .filter(|&s| (s - 1.0).abs() > 1e-4 && fits(c, t.exact * s, t.slack * s.abs().max(1.0)))
-        // On a hit one light reaches, any mistake in N·L is some factor: only a plain fraction
-        // is worth a name.
-        .filter(|&s| plain_fraction(s));
+        // On a hit one light reaches, any mistake in N·L is some factor: only a plain fraction,
+        // or a sphere's radius, is worth a name.
+        .filter(|&s| plain_fraction(s) || radius_factor(s, radius).is_some());
     let constant = (diff.x + diff.y + diff.z) / 3.0;
     if smooth && fits(c, t.flat, t.slack) {
         Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
@@ -1184,7 +1189,7 @@ fn diffuse_guess(
     } else if fits(c, t.no_albedo, t.slack) {
         Some("it fits the lights' colour without the surface's albedo".into())
     } else if let Some(s) = scale {
-        let factor = scale_words(s, lights);
+        let factor = scale_words(s, lights, radius);
         Some(match ambient_k {
             // Under white lights the course's sum is a multiple of the albedo, so one hit
             // cannot tell a factor from an added term: the number that stays the same over
@@ -1223,7 +1228,25 @@ fn plain_fraction(s: f64) -> bool {
 
 /// What a factor `s` on the course's diffuse sum may come from, as words to follow it (empty
 /// when no usual cause gives exactly that factor); `lights`: the scene's lights.
-fn scale_words(s: f64, lights: usize) -> String {
+/// A diffuse factor `s` that is the hit sphere's radius (other than 1), or its reciprocal: the
+/// length of a sphere normal divided by the radius not at all, or twice.
+fn radius_factor(s: f64, radius: Option<f64>) -> Option<String> {
+    let near = |a: f64, b: f64| (a - b).abs() <= 1e-4 * b.abs().max(1e-30);
+    match radius {
+        Some(r) if !near(r, 1.0) && near(s, r) => Some(format!(
+            " (the sphere's radius, {r}: a normal P − C not divided by the radius is that long, not 1)"
+        )),
+        Some(r) if !near(r, 1.0) && near(s, 1.0 / r) => Some(format!(
+            " (1 / the sphere's radius, {r}: a normal divided by the radius twice is that long, not 1)"
+        )),
+        _ => None,
+    }
+}
+
+fn scale_words(s: f64, lights: usize, radius: Option<f64>) -> String {
+    if let Some(words) = radius_factor(s, radius) {
+        return words;
+    }
     if lights > 1 && (s * lights as f64 - 1.0).abs() < 1e-4 {
         format!(" (the sum over the {lights} lights divided by their number: the course adds them)")
     } else {

@@ -24,6 +24,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   aa-half-twice      sub-pixel samples at x + i / N + 0.5: the half pixel on top of the cell's corner
   sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
   shadow-first-light every light's shadow ray cast towards the first light
+  shade-normal-radius  N.L on a sphere taken with P - C, not divided by the radius (the logged normal is right)
   shadow-t-dist-squared  the shadow test blocks at t < |light - point|^2, not t < |light - point|
   plane-abs-den      plane test dividing by |n.d|, so t is negative wherever the ray meets the plane's front
   indices-not-swapped n1 = 1 and n2 = index on both sides of the glass (never swapped)
@@ -124,7 +125,7 @@ OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", 
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
-                 "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "shadow-t-dist-squared", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
+                 "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "shadow-t-dist-squared", "shade-normal-radius", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
 
 
 def add(a, b):
@@ -385,7 +386,8 @@ class Tracer:
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
             if b is None:
-                cos = dot(nf, ldir) if self.bug == "no-clamp" else max(0.0, dot(nf, to if self.bug == "l-unnormalised" else ldir))
+                ns = mul(nf, shaded.r) if self.bug == "shade-normal-radius" and shaded.kind == "sphere" else nf
+                cos = dot(ns, ldir) if self.bug == "no-clamp" else max(0.0, dot(ns, to if self.bug == "l-unnormalised" else ldir))
                 if self.bug == "cos-twice":
                     cos *= cos
                 if self.bug == "falloff":
