@@ -174,6 +174,8 @@ pub struct Tally {
     pub shift: Shift,
     /// `shadow.blocked-carried-over` verdicts whose rays name no blocker (`true`).
     pub carried_unnamed: u64,
+    /// Rays with a logged colour.
+    pub coloured: u64,
     /// Per entity (by index): the hits on it the tracer reported, right or wrong.
     pub claimed_hits: Vec<u64>,
     /// Surface decisions (what a ray brought back from its hit) whose colour was judged.
@@ -785,6 +787,7 @@ impl Tally {
         self.shaded_unjudged += o.shaded_unjudged;
         self.shift.merge(o.shift);
         self.carried_unnamed += o.carried_unnamed;
+        self.coloured += o.coloured;
         if self.claimed_hits.len() < o.claimed_hits.len() {
             self.claimed_hits.resize(o.claimed_hits.len(), 0);
         }
@@ -1212,6 +1215,7 @@ impl<'a> Judge<'a> {
             if keep {
                 out.push(f.clone());
             }
+            tally.coloured += u64::from(rays[i].color.is_some());
             tally.add_ray(kinds[i] == Kind::Camera, f);
         }
         out

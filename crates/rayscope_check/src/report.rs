@@ -225,6 +225,8 @@ pub struct Report {
     pub orphans: u64,
     /// Surface decisions whose colour was judged.
     pub shaded_judged: u64,
+    /// Rays that logged a colour.
+    pub coloured_rays: u64,
     /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
     /// material the course's stage-2 rules do not cover).
     pub shaded_unjudged: u64,
@@ -298,6 +300,7 @@ impl Report {
             camera_disagree: t.camera_disagree,
             orphans: t.orphans,
             shaded_judged: t.shaded_judged,
+            coloured_rays: t.coloured,
             shaded_unjudged: t.shaded_unjudged,
             skipped_lines: skipped,
             first_skipped,
@@ -390,6 +393,8 @@ impl Report {
                 "no mistake found in the log, but your picture differs from rayscope's at {differing} pixel{}, {unlogged} of them not in your log: log some of those next (below)",
                 plural(*differing)
             )
+        } else if self.shaded_judged == 0 && self.coloured_rays > 0 {
+            "no mistake found in the rays: every ray agrees with rayscope; colours were logged, but no surface's colour could be judged: the shadow, reflected or refracted rays it is made from are not in the log (or its material is not one stage 2 covers)".to_string()
         } else if self.shaded_judged == 0 {
             "no mistake found in the rays: every ray agrees with rayscope; no colour was logged, so shading (diffuse sums, Fresnel, mirrors) was not judged: log \"color\" to have it judged".to_string()
         } else if self.shaded_unjudged > self.shaded_judged / 10 {

@@ -1124,3 +1124,50 @@ fn a_sphere_shaded_with_a_normal_as_long_as_its_radius_is_said_to_be() {
         );
     }
 }
+
+#[test]
+fn colours_logged_without_the_rays_they_come_from_are_not_called_missing() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(py) = python() else {
+        return;
+    };
+    let scene = course.scene("sample_scene_1.txt");
+    let dir = tempfile::tempdir().expect("temp dir");
+    let (all, first) = (dir.path().join("all.jsonl"), dir.path().join("first.jsonl"));
+    let out = Command::new(py)
+        .arg(root().join("crates/rayscope_check/tests/student/tracer.py"))
+        .arg("-f")
+        .arg(&scene)
+        .args(["-w", "40", "-h", "40", "-x", "1", "--log"])
+        .arg(&all)
+        .output()
+        .expect("run the student tracer");
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    // The first camera ray that meets a surface, alone, with its colour, and none of the
+    // shadow rays its colour comes from.
+    let text_all = std::fs::read_to_string(&all).expect("log");
+    let lines: Vec<&str> = text_all.lines().collect();
+    let line = lines
+        .windows(2)
+        .find(|w| w[0].contains("\"camera\"") && w[1].contains("\"shadow\""))
+        .map(|w| w[0])
+        .expect("a camera ray with shadow rays");
+    assert!(line.contains("\"color\""), "{line}");
+    std::fs::write(&first, format!("{line}\n")).expect("write");
+    let settings = RenderSettings {
+        width: 40,
+        height: 40,
+        stage: Stage::Two,
+        ..RenderSettings::default()
+    };
+    let r = check_log(&scene, settings, &first, 3);
+    let t = text(&r);
+    assert!(
+        t.lines()
+            .next()
+            .is_some_and(|l| l.contains("colours were logged, but no surface's colour could be judged")),
+        "{t}"
+    );
+}
