@@ -147,6 +147,9 @@ pub enum Conversion {
     /// The samples' average times one factor for every pixel ([`ImageCheck::factor`]), then
     /// the course's conversion.
     Scaled,
+    /// Each pixel the sum of its own colour and every pixel's before it in its row: the sum
+    /// reset at the start of each row instead of each pixel.
+    AccumulatedRow,
     /// The first sample's colour alone, not the samples' average.
     FirstSample,
     /// The last sample's colour alone: each sample's colour written over the one before.
@@ -154,7 +157,7 @@ pub enum Conversion {
 }
 
 impl Conversion {
-    const ALL: [Conversion; 14] = [
+    const ALL: [Conversion; 15] = [
         Conversion::Course,
         Conversion::Rounded,
         Conversion::Gamma,
@@ -167,6 +170,7 @@ impl Conversion {
         Conversion::Bgr,
         Conversion::Accumulated,
         Conversion::Summed,
+        Conversion::AccumulatedRow,
         Conversion::FirstSample,
         Conversion::LastSample,
     ];
@@ -184,7 +188,7 @@ impl Conversion {
             Conversion::Rotated => Some(Code::ImageRotated),
             Conversion::Transposed => Some(Code::ImageTransposed),
             Conversion::Bgr => Some(Code::ImageChannels),
-            Conversion::Accumulated => Some(Code::ImageAccumulated),
+            Conversion::Accumulated | Conversion::AccumulatedRow => Some(Code::ImageAccumulated),
             Conversion::Summed => Some(Code::ImageSummed),
             Conversion::Scaled => Some(Code::ImageScaled),
             Conversion::FirstSample | Conversion::LastSample => Some(Code::ImageOneSample),
@@ -207,7 +211,10 @@ impl Conversion {
     /// Pixel (x, y)'s bytes under this rule; `None` when the rule needs a pixel not fully logged.
     fn bytes(self, s: &PixelSums, x: u32, y: u32) -> Option<[u8; 3]> {
         let (x, y) = self.source(s, x, y)?;
-        if matches!(self, Conversion::Accumulated | Conversion::Scaled) {
+        if matches!(
+            self,
+            Conversion::Accumulated | Conversion::AccumulatedRow | Conversion::Scaled
+        ) {
             return None;
         }
         let i = (y * s.width + x) as usize;
@@ -233,6 +240,7 @@ impl Conversion {
                 Conversion::Summed => course_byte(v * f64::from(n)),
                 Conversion::ByteAverage
                 | Conversion::Accumulated
+                | Conversion::AccumulatedRow
                 | Conversion::Scaled
                 | Conversion::FirstSample
                 | Conversion::LastSample => 0,
@@ -306,7 +314,12 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
         })
         .collect();
     for y in 0..s.height {
+        // The running sum of the row so far, while every pixel of it so far is logged.
+        let mut row_sum = Some([0.0f64; 3]);
         for x in 0..s.width {
+            row_sum = row_sum
+                .zip(s.average((y * s.width + x) as usize))
+                .map(|(t, avg)| [t[0] + avg[0], t[1] + avg[1], t[2] + avg[2]]);
             let Some(expected) = Conversion::Course.bytes(s, x, y) else {
                 continue;
             };
@@ -316,10 +329,10 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
             };
             compared += 1;
             for (k, c) in Conversion::ALL.iter().enumerate() {
-                let b = if *c == Conversion::Accumulated {
-                    running[(y * s.width + x) as usize]
-                } else {
-                    c.bytes(s, x, y)
+                let b = match c {
+                    Conversion::Accumulated => running[(y * s.width + x) as usize],
+                    Conversion::AccumulatedRow => row_sum.map(|t| t.map(course_byte)),
+                    _ => c.bytes(s, x, y),
                 };
                 fits[k] += u64::from(b.is_some_and(|b| within_a_level(b, yours)));
                 exact[k] += u64::from(b == Some(yours));
@@ -370,6 +383,9 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     } else if best.0 != Conversion::Course && share(bn) >= FOLLOWS {
         let which = match best.0 {
             Conversion::FirstSample => format!(": each pixel is its first sample's colour alone, not the average of its {}", s.spp),
+            Conversion::AccumulatedRow => {
+                ": each pixel is the sum of its own colour and those before it in its row, the sum set to black at the start of each row instead of each pixel".to_string()
+            }
             Conversion::LastSample => format!(
                 ": each pixel is its last sample's colour alone, not the average of its {} (a pixel written inside the sample loop, each sample over the one before)",
                 s.spp
@@ -686,8 +702,11 @@ mod tests {
         let mut out = Vec::new();
         let mut sum = [0.0f64; 3];
         for y in 0..s.height {
+            if c == Conversion::AccumulatedRow {
+                sum = [0.0; 3];
+            }
             for x in 0..s.width {
-                if c == Conversion::Accumulated {
+                if matches!(c, Conversion::Accumulated | Conversion::AccumulatedRow) {
                     let i = (y * s.width + x) as usize;
                     for (t, v) in sum.iter_mut().zip(s.sum[i]) {
                         *t += v / f64::from(s.n[i]);

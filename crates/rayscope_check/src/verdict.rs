@@ -278,8 +278,8 @@ codes! {
         "red and blue exchanged in the picture",
         "Your picture's red and blue bytes are exchanged relative to the colours your camera rays logged (BGR order): write red, green, blue in that order.";
     ImageAccumulated = "image.accumulated", false,
-        "each pixel adds up all the pixels before it",
-        "Each pixel of your picture is the sum of its own logged colour and those of every pixel before it, row by row from the top-left: the variable that sums a pixel's anti-aliasing samples is set to black once, outside the loops over pixels, and never again. Set it to black at the start of each pixel, before the loop over its samples.";
+        "each pixel adds up the pixels before it",
+        "Each pixel of your picture is the sum of its own logged colour and those of every pixel before it, row by row from the top-left, or (the details say which) of those before it in its row: the variable that sums a pixel's anti-aliasing samples is set to black once, outside the loops over pixels, or once a row, and not for each pixel. Set it to black at the start of each pixel, before the loop over its samples.";
     ImageSummed = "image.summed", false,
         "samples added up, not averaged",
         "Your picture's bytes are the sum of each pixel's logged sample colours, not their average: with -x N, divide the sum of the N×N samples by N² before clamping and converting. The picture is N² times too bright, mostly white.";

@@ -715,6 +715,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("flipped-gamma-out", Some(Code::ImageFlipped)),
         ("stray-pixels-out", Some(Code::ImageDiffers)),
         ("last-sample-out", Some(Code::ImageOneSample)),
+        ("row-accumulator-out", Some(Code::ImageAccumulated)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -757,6 +758,13 @@ fn the_picture_is_judged_against_the_logged_colours() {
         }
         if bug == "aa-divided-by-n" {
             assert!(j.detail.contains("divided by 2, not by 4"), "{bug}: {}", j.detail);
+        }
+        if bug == "row-accumulator-out" {
+            assert!(
+                j.detail.contains("set to black at the start of each row"),
+                "{bug}: {}",
+                j.detail
+            );
         }
         if bug == "last-sample-out" {
             assert!(

@@ -72,6 +72,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   accumulator-out    the picture's per-pixel sum of samples is never reset between pixels
   summed-out         the picture's pixels are the sums of their samples, never divided
   last-sample-out    each pixel written inside the sample loop: the last sample's colour alone
+  row-accumulator-out  the sum of samples set to black once a row, not once a pixel
   aa-divided-by-n    the picture's pixels are the sums of their N x N samples divided by N, not N^2
   no-fresnel         glass brings back its refracted colour only (kr = 0, still casting the reflection)
   fresnel-swapped    rp written with cos(theta_i) and cos(theta_t) exchanged (kr comes out as rs^2)
@@ -121,7 +122,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-de
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
-               "stale-image", "accumulator-out", "summed-out", "last-sample-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
+               "stale-image", "accumulator-out", "summed-out", "last-sample-out", "row-accumulator-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
                "flipped-gamma-out", "stray-pixels-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
@@ -524,8 +525,10 @@ def main():
     image = {}
     total = (0.0, 0.0, 0.0)
     for y in range(y0, y1):
+        if args.bug == "row-accumulator-out":
+            total = (0.0, 0.0, 0.0)
         for x in range(x0, x1):
-            if args.bug != "accumulator-out":
+            if args.bug not in ("accumulator-out", "row-accumulator-out"):
                 total = (0.0, 0.0, 0.0)
             byte_total = [0, 0, 0]
             for j in range(n):
