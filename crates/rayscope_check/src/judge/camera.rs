@@ -17,6 +17,12 @@ struct CamGuess {
     proj_code: Option<(Code, &'static str)>,
 }
 
+/// The unit camera-space direction through image position (u, v) (0 to 1 across and down) of an
+/// image plane at distance 1 with half extents `half`.
+fn image_dir(u: f64, v: f64, half: (f64, f64)) -> DVec3 {
+    DVec3::new((2.0 * u - 1.0) * half.0, (1.0 - 2.0 * v) * half.1, 1.0).normalize()
+}
+
 impl Judge<'_> {
     /// The camera ray against rayscope's camera for its pixel and sample.
     pub(super) fn camera(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>, shift: &mut Shift) {
@@ -83,11 +89,7 @@ impl Judge<'_> {
         let half = if horizontal { (t, t / aspect) } else { (t * aspect, t) };
         let offs = self.sample_offsets(s);
         let projs = self.projections(half, t, aspect, horizontal);
-        let dir_of = |g: &CamGuess| {
-            let u = (f64::from(x) + g.off.0) / w;
-            let v = (f64::from(y) + g.off.1) / h;
-            DVec3::new((2.0 * u - 1.0) * g.half.0, (1.0 - 2.0 * v) * g.half.1, 1.0).normalize()
-        };
+        let dir_of = |g: &CamGuess| image_dir((f64::from(x) + g.off.0) / w, (f64::from(y) + g.off.1) / h, g.half);
         let mut best: Option<(f64, CamGuess)> = None;
         for &(off, pc) in &offs {
             for &(hh, qc) in &projs {
@@ -126,11 +128,7 @@ impl Judge<'_> {
         }
         // The pixel's column and row exchanged: (x, y) cast through where (y, x) goes.
         let (ox, oy) = offs[0].0;
-        let swapped = {
-            let u = (f64::from(y) + oy) / w;
-            let v = (f64::from(x) + ox) / h;
-            DVec3::new((2.0 * u - 1.0) * half.0, (1.0 - 2.0 * v) * half.1, 1.0).normalize()
-        };
+        let swapped = image_dir((f64::from(y) + oy) / w, (f64::from(x) + ox) / h, half);
         if x != y && angle(swapped, dc) <= self.cam_tol {
             f.push(self.finding(
                 r,
@@ -241,18 +239,16 @@ impl Judge<'_> {
     fn where_in_pixel(&self, dc: DVec3, (x, y, s): (u32, u32, u32), at: (f64, f64), half: (f64, f64)) -> String {
         let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
         let n = self.grid;
-        let fits = |off: (f64, f64)| {
-            let u = (f64::from(x) + off.0) / w;
-            let v = (f64::from(y) + off.1) / h;
-            let p = DVec3::new((2.0 * u - 1.0) * half.0, (1.0 - 2.0 * v) * half.1, 1.0).normalize();
-            angle(p, dc) <= self.cam_tol
-        };
-        let cell = |m: u32| {
-            let c = |a: f64| (a * f64::from(m)).floor().clamp(0.0, f64::from(m - 1));
-            let (i, j) = (c(at.0), c(at.1));
-            let mf = f64::from(m);
-            fits(((i + 0.5) / mf, (j + 0.5) / mf)).then_some((i as u32, j as u32))
-        };
+        // The cell of the N×N grid the ray crosses, when it crosses at that cell's centre.
+        let nf = f64::from(n);
+        let c = |a: f64| (a * nf).floor().clamp(0.0, nf - 1.0);
+        let (ci, cj) = (c(at.0), c(at.1));
+        let centre = image_dir(
+            (f64::from(x) + (ci + 0.5) / nf) / w,
+            (f64::from(y) + (cj + 0.5) / nf) / h,
+            half,
+        );
+        let cell = (angle(centre, dc) <= self.cam_tol).then_some((ci as u32, cj as u32));
         let expected = (
             (f64::from(s % n) + 0.5) / f64::from(n),
             (f64::from(s / n) + 0.5) / f64::from(n),
@@ -261,7 +257,7 @@ impl Judge<'_> {
             "it crosses its pixel at ({:.3}, {:.3}) of the way across and down, where rayscope puts sample {s} at ({:.3}, {:.3})",
             at.0, at.1, expected.0, expected.1
         );
-        if let Some((i, j)) = cell(n) {
+        if let Some((i, j)) = cell {
             return format!(
                 "{place}: the centre of cell ({i}, {j}) of the {n}×{n} grid, rayscope's sample {}; your samples are numbered in another order (rayscope: i = s mod {n}, j = s div {n})",
                 i + j * n
