@@ -278,6 +278,16 @@ impl Default for Skipped {
     }
 }
 
+/// What the rules say of the hit a tracer kept in place of the nearest one: whether its entity
+/// comes earlier in the scene file, whether it comes later, and whether it lies nearer the
+/// world's origin.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct Kept {
+    pub earlier: bool,
+    pub later: bool,
+    pub nearer: bool,
+}
+
 /// One in this many rays the tracer got right (by log line) is walked to test the nearest-hit
 /// rules: enough to meet an entity behind another in any scene with more than a few, few enough
 /// to cost little, and the same rays whatever the threads.
@@ -300,10 +310,10 @@ impl Skipped {
     /// Counts a passed-over hit at `t` along its ray; `kept` tells, for a farther hit the tracer
     /// kept instead, whether its entity comes earlier in the file, whether it comes later, and
     /// whether it is nearer the world's origin.
-    pub(crate) fn pass(&mut self, t: f64, kept: Option<(bool, bool, bool)>) {
+    pub(crate) fn pass(&mut self, t: f64, kept: Option<Kept>) {
         self.rays += 1;
         self.max_t = self.max_t.max(t);
-        if let Some((earlier, later, nearer)) = kept {
+        if let Some(Kept { earlier, later, nearer }) = kept {
             self.earlier_in_file += u64::from(earlier);
             self.later_in_file += u64::from(later);
             self.nearer_origin += u64::from(nearer);
@@ -490,10 +500,9 @@ impl Tally {
     /// the samples whose cell corner is that point (sample 0 at the pixel's corner, the cell
     /// whose corner is its centre), so they are the same mistake.
     fn one_point_or_corners(&mut self) {
-        let one = Cause::of(Code::CameraOnePoint);
-        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
-        if rays(&one) > 0 && rays(&one) >= rays(&Cause::of(Code::CameraPixelCorner)) {
-            self.fold(Code::CameraPixelCorner, one);
+        let one = self.cause_rays(Code::CameraOnePoint);
+        if one > 0 && one >= self.cause_rays(Code::CameraPixelCorner) {
+            self.fold(Code::CameraPixelCorner, Cause::of(Code::CameraOnePoint));
         }
     }
 
@@ -544,10 +553,8 @@ impl Tally {
     /// log whose other pixels' rays go through the pixel with column and row exchanged: the same
     /// exchange, which on the diagonal moves the samples only.
     fn transposed_diagonal(&mut self) {
-        let transposed = Cause::of(Code::CameraTransposed);
-        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
-        if rays(&transposed) > rays(&Cause::of(Code::CameraSubpixelGrid)) {
-            self.fold(Code::CameraSubpixelGrid, transposed);
+        if self.cause_rays(Code::CameraTransposed) > self.cause_rays(Code::CameraSubpixelGrid) {
+            self.fold(Code::CameraSubpixelGrid, Cause::of(Code::CameraTransposed));
         }
     }
 
@@ -556,11 +563,9 @@ impl Tally {
     /// with nothing in the way. Where the log also has such rays with no blocked sibling, the
     /// flag is not what blocks them, and all are the one phantom blocker.
     fn carried_or_phantom(&mut self) {
-        let carried = Cause::of(Code::ShadowBlockedCarriedOver);
-        let phantom = Cause::of(Code::ShadowPhantomBlocker);
-        let rays = |c: &Cause| self.causes.get(c).map_or(0, |n| n.rays);
-        if rays(&phantom) > 0 && rays(&carried) > 0 && self.carried_unnamed == rays(&carried) {
-            self.fold(Code::ShadowBlockedCarriedOver, phantom);
+        let carried = self.cause_rays(Code::ShadowBlockedCarriedOver);
+        if self.cause_rays(Code::ShadowPhantomBlocker) > 0 && carried > 0 && self.carried_unnamed == carried {
+            self.fold(Code::ShadowBlockedCarriedOver, Cause::of(Code::ShadowPhantomBlocker));
         }
     }
 
@@ -630,6 +635,11 @@ impl Tally {
         if self.causes.contains_key(&glass) && samples(Code::ShadingGlass) >= samples(Code::ShadingFresnel) {
             self.fold(Code::ShadingFresnel, glass);
         }
+    }
+
+    /// The rays of the cause of verdict `code` alone (0 where the log has none).
+    fn cause_rays(&self, code: Code) -> u64 {
+        self.causes.get(&Cause::of(code)).map_or(0, |n| n.rays)
     }
 
     /// Counts verdict `from`, and its cause, as cause `to`: [`Self::move_code`] and
@@ -1035,9 +1045,9 @@ impl<'a> Judge<'a> {
     /// For a shadow ray the tracer says reaches its light at `dist`, though something blocks
     /// it: whether a shadow test that takes the tracer's "closest" hit on the whole ray and
     /// compares its distance with the light's would say so, with the hit kept (among each
-    /// entity's nearest) being the first in the scene's order, and with it being the one nearest
-    /// the world's origin.
-    fn kept_beyond(&self, o: DVec3, d: DVec3, dist: f64) -> (bool, bool, bool) {
+    /// entity's nearest) being the first in the scene's order, the last, or the one nearest the
+    /// world's origin.
+    fn kept_beyond(&self, o: DVec3, d: DVec3, dist: f64) -> Kept {
         let mut hits = Vec::new();
         let mut lo = 0.0;
         while hits.len() < 64 {
@@ -1053,11 +1063,11 @@ impl<'a> Judge<'a> {
         let first = hits.iter().min_by_key(|h| h.entity);
         let last = hits.iter().max_by_key(|h| h.entity);
         let nearest_origin = hits.iter().min_by(|a, b| a.point.length().total_cmp(&b.point.length()));
-        (
-            first.is_none_or(|h| h.t >= dist),
-            last.is_none_or(|h| h.t >= dist),
-            nearest_origin.is_none_or(|h| h.t >= dist),
-        )
+        Kept {
+            earlier: first.is_none_or(|h| h.t >= dist),
+            later: last.is_none_or(|h| h.t >= dist),
+            nearer: nearest_origin.is_none_or(|h| h.t >= dist),
+        }
     }
 
     /// For a ray whose nearest hit `h` the tracer got right: whether an entity's own nearest hit
@@ -1087,13 +1097,7 @@ impl<'a> Judge<'a> {
 
     /// Counts a nearest hit at `t` the tracer passed over, unless the verdicts its ray just got,
     /// `found`, are all ties; `kept` gives the rules' answers for it (see [`Skipped::pass`]).
-    fn passed_over(
-        &self,
-        found: &[Finding],
-        t: f64,
-        kept: impl FnOnce() -> Option<(bool, bool, bool)>,
-        s: &mut Skipped,
-    ) {
+    fn passed_over(&self, found: &[Finding], t: f64, kept: impl FnOnce() -> Option<Kept>, s: &mut Skipped) {
         if found.iter().any(|x| !x.code.is_tie()) {
             s.size = s.size.max(self.scene_size());
             s.pass(t, kept());

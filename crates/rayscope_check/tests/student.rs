@@ -428,6 +428,18 @@ fn assert_one_headline(run: Run<'_>, code: Code) -> Option<Report> {
     Some(r)
 }
 
+/// Asserts that the report's first line says `words`.
+fn first_line_says(r: &Report, words: &str) {
+    let t = text(r);
+    assert!(t.lines().next().is_some_and(|l| l.contains(words)), "{t}");
+}
+
+/// Asserts that the first example of the report's first cause says each of `words`.
+fn first_example_says(r: &Report, words: &[&str]) {
+    let detail = &r.causes[0].examples[0].detail;
+    assert!(words.iter().all(|w| detail.contains(w)), "{}", text(r));
+}
+
 /// Asserts that every example of the report's first cause says each of `words`.
 fn every_example_says(r: &Report, words: &[&str]) {
     for ex in &r.causes[0].examples {
@@ -626,13 +638,7 @@ fn rules_that_pass_over_the_nearest_hit_are_named_by_what_they_share() {
         },
         Code::HitSceneOrder,
     ) {
-        assert!(
-            r.causes[0].examples[0]
-                .detail
-                .contains("an entity listed later in the scene file"),
-            "{}",
-            text(&r)
-        );
+        first_example_says(&r, &["an entity listed later in the scene file"]);
     }
     assert_one_headline(
         Run {
@@ -903,12 +909,7 @@ fn shadow_and_triangle_mistakes_no_catalogue_has_get_one_true_headline() {
     ) else {
         return;
     };
-    assert_eq!(r.causes.len(), 1, "{}", text(&r));
-    assert!(
-        r.causes[0].examples[0].detail.contains("lies beyond the light"),
-        "{}",
-        text(&r)
-    );
+    first_example_says(&r, &["lies beyond the light"]);
 }
 
 /// The half angle in degrees given to a tangent that takes radians (no catalogue has it): tan(30)
@@ -976,13 +977,13 @@ fn samples_cast_through_one_point_of_their_pixel_are_one_headline_and_other_layo
     ) else {
         return;
     };
-    let first = &r.causes[0].examples[0];
-    assert!(
-        first.detail.contains("crosses its pixel at (0.333, 0.333)")
-            && first.detail.contains("puts sample 0 at (0.250, 0.250)")
-            && first.detail.contains("a sub-pixel layout rayscope does not know"),
-        "{}",
-        text(&r)
+    first_example_says(
+        &r,
+        &[
+            "crosses its pixel at (0.333, 0.333)",
+            "puts sample 0 at (0.250, 0.250)",
+            "a sub-pixel layout rayscope does not know",
+        ],
     );
     // Half a pixel added on top of each cell's corner: every sample a quarter pixel off, which
     // ray by ray fits a pixel centre, a neighbouring pixel or a grid over the corners.
@@ -997,11 +998,7 @@ fn samples_cast_through_one_point_of_their_pixel_are_one_headline_and_other_layo
         ) else {
             return;
         };
-        let first = text(&r).lines().next().unwrap_or_default().to_string();
-        assert!(
-            first.contains("shifted 0.250 of a pixel to the right and 0.250 of a pixel down"),
-            "{first}"
-        );
+        first_line_says(&r, "shifted 0.250 of a pixel to the right and 0.250 of a pixel down");
     }
     // Samples numbered from the last cell: each ray is the centre of another cell of the grid.
     let Some(r) = assert_one_headline(
@@ -1014,12 +1011,12 @@ fn samples_cast_through_one_point_of_their_pixel_are_one_headline_and_other_layo
     ) else {
         return;
     };
-    let first = &r.causes[0].examples[0];
-    assert!(
-        first.detail.contains("where rayscope puts sample 8 at (0.833, 0.833): the centre of cell (0, 0) of the 3×3 grid, rayscope's sample 0")
-            && first.detail.contains("numbered in another order"),
-        "{}",
-        text(&r)
+    first_example_says(
+        &r,
+        &[
+            "where rayscope puts sample 8 at (0.833, 0.833): the centre of cell (0, 0) of the 3×3 grid, rayscope's sample 0",
+            "numbered in another order",
+        ],
     );
 }
 
@@ -1043,11 +1040,7 @@ fn a_sphere_quadratic_without_its_4_and_a_plane_test_on_n_dot_d_abs_name_their_s
         ) else {
             return;
         };
-        let first = text(&r).lines().next().unwrap_or_default().to_string();
-        assert!(
-            first.contains(&format!("intersection with the {named} is wrong")),
-            "{first}"
-        );
+        first_line_says(&r, &format!("intersection with the {named} is wrong"));
     }
     // Dividing by |n·d| makes t negative wherever a ray meets a plane's front: the planes are
     // never hit, and the headline says so.
@@ -1070,11 +1063,7 @@ fn a_sphere_quadratic_without_its_4_and_a_plane_test_on_n_dot_d_abs_name_their_s
         ) else {
             return;
         };
-        let first = text(&r).lines().next().unwrap_or_default().to_string();
-        assert!(
-            first.contains(&format!("every ray it missed meets the {named}")),
-            "{first}"
-        );
+        first_line_says(&r, &format!("every ray it missed meets the {named}"));
     }
 }
 
@@ -1092,13 +1081,7 @@ fn a_shadow_ray_cast_towards_another_light_than_its_own_is_said_to_be() {
     ) else {
         return;
     };
-    assert!(
-        r.causes[0].examples[0]
-            .detail
-            .contains("logged for light 'Light2' but aimed at light 'Light1'"),
-        "{}",
-        text(&r)
-    );
+    first_example_says(&r, &["logged for light 'Light2' but aimed at light 'Light1'"]);
 }
 
 #[test]

@@ -434,11 +434,11 @@ impl Judge<'_> {
         if !(c.entity == Some(h.entity) && ts < h.t) {
             // A hit point on the edge two entities share names neither: it fits either order.
             let kept = || {
-                Some((
-                    c.entity.is_none_or(|e| e < h.entity),
-                    c.entity.is_none_or(|e| e > h.entity),
-                    ps.length() < h.point.length(),
-                ))
+                Some(Kept {
+                    earlier: c.entity.is_none_or(|e| e < h.entity),
+                    later: c.entity.is_none_or(|e| e > h.entity),
+                    nearer: ps.length() < h.point.length(),
+                })
             };
             self.passed_over(&f[before..], h.t, kept, &mut tally.skipped);
         }
