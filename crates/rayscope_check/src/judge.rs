@@ -172,6 +172,8 @@ pub struct Tally {
     pub keep: usize,
     /// Where the wrong camera rays cross the image plane, from where rayscope puts their samples.
     pub shift: Shift,
+    /// Camera rays through the centre of another cell of their pixel's grid than their sample's.
+    pub order: SampleOrder,
     /// `shadow.blocked-carried-over` verdicts whose rays name no blocker (`true`).
     pub carried_unnamed: u64,
     /// Rays with a logged colour.
@@ -183,6 +185,82 @@ pub struct Tally {
     /// Surface decisions whose colour was not judged (no colour logged, a child missing, or a
     /// material the course's stage-2 rules do not cover).
     pub shaded_unjudged: u64,
+}
+
+/// Camera rays that go exactly through the centre of another cell of their pixel's N×N grid
+/// than rayscope's sample of their number: how many, and two sums that are equal when the cells
+/// they go through are the samples they are numbered as, in another order, pixel by pixel.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct SampleOrder {
+    /// Rays counted.
+    pub rays: u64,
+    /// Those of them with no other verdict that counts against the tracer.
+    pub alone: u64,
+    /// Those of them through the middle cell, the centre of the pixel (odd N).
+    pub middle: u64,
+    /// The sum of a hash of each ray's pixel and the cell it goes through.
+    cells: u64,
+    /// The sum of the same hash of its pixel and the cell of its sample's number.
+    numbers: u64,
+    /// The sum of that hash over every numbered camera ray, whatever cell it goes through.
+    every: u64,
+    /// The sum of that hash over all N² numbers of each pixel whose sample 0 is logged: equal to
+    /// `every` when each pixel logged has each of its samples once.
+    whole: u64,
+}
+
+impl SampleOrder {
+    /// Counts a ray of pixel (x, y) numbered `s` that goes through the centre of cell `cell`, the
+    /// pixel's centre when `middle`.
+    pub(crate) fn add(&mut self, (x, y): (u32, u32), s: u32, cell: u32, middle: bool) {
+        self.rays += 1;
+        self.middle += u64::from(middle);
+        self.cells = self.cells.wrapping_add(Self::hash((x, y), cell));
+        self.numbers = self.numbers.wrapping_add(Self::hash((x, y), s));
+    }
+
+    /// Counts any camera ray of pixel (x, y) numbered `s` of `spp`.
+    pub(crate) fn numbered(&mut self, (x, y): (u32, u32), s: u32, spp: u32) {
+        self.every = self.every.wrapping_add(Self::hash((x, y), s));
+        if s == 0 {
+            for k in 0..spp {
+                self.whole = self.whole.wrapping_add(Self::hash((x, y), k));
+            }
+        }
+    }
+
+    /// A well-mixed hash of a pixel and a cell: two multisets of (pixel, cell) pairs are the same
+    /// exactly when their sums of it agree (up to a chance of 2^-64).
+    fn hash((x, y): (u32, u32), c: u32) -> u64 {
+        let mut z = (u64::from(x) << 40 ^ u64::from(y) << 16 ^ u64::from(c)).wrapping_add(0x9E37_79B9_7F4A_7C15);
+        z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+        z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+        z ^ (z >> 31)
+    }
+
+    fn merge(&mut self, o: SampleOrder) {
+        self.rays += o.rays;
+        self.alone += o.alone;
+        self.middle += o.middle;
+        self.cells = self.cells.wrapping_add(o.cells);
+        self.numbers = self.numbers.wrapping_add(o.numbers);
+        self.every = self.every.wrapping_add(o.every);
+        self.whole = self.whole.wrapping_add(o.whole);
+    }
+
+    /// True when every pixel logged has each of its samples once, so that the cells the rays
+    /// go through tell a numbering from samples that share a cell.
+    #[must_use]
+    pub fn whole(&self) -> bool {
+        self.every == self.whole
+    }
+
+    /// True when the rays counted are samples numbered in another order: each pixel's cells are
+    /// its numbers, rearranged.
+    #[must_use]
+    pub fn renumbered(&self) -> bool {
+        self.rays > 0 && self.cells == self.numbers
+    }
 }
 
 /// How far, in pixels across and down, wrong camera rays cross rayscope's image plane from
@@ -434,14 +512,19 @@ impl Tally {
         if findings.is_empty() {
             return;
         }
-        let bad = findings.iter().any(|f| !f.code.is_tie());
+        let bad = findings.iter().any(|f| !f.code.is_excused());
         if bad {
             self.disagree += 1;
             // Only where the ray goes can come from flags the check was not given.
-            let placed = findings.iter().any(|f| f.code.as_str().starts_with("camera."));
+            let placed = findings
+                .iter()
+                .any(|f| f.code.as_str().starts_with("camera.") && !f.code.is_excused());
             self.camera_disagree += u64::from(camera && placed);
-        } else if !findings.is_empty() {
+        } else if findings.iter().any(|f| f.code.is_tie()) {
             self.tied += 1;
+        }
+        if !bad && findings.iter().any(|f| f.code == Code::CameraSampleOrder) {
+            self.order.alone += 1;
         }
         for f in findings {
             let e = self.codes.entry(f.code).or_default();
@@ -492,6 +575,47 @@ impl Tally {
             let e = self.codes.entry(to).or_default();
             e.0 += n;
             keep_first(&mut e.1, ex, self.keep);
+        }
+    }
+
+    /// Camera rays through the centre of another cell of their pixel's grid than their number's:
+    /// where each pixel's samples still cover each cell once, a numbering, which stays excused;
+    /// where they do not, and the log holds each sample of its pixels once, a mistake on each
+    /// such ray, the cause of its sample (with some samples missing, the report says it cannot
+    /// tell). Samples all through the middle cell are a pixel's samples all through its centre.
+    fn sample_order(&mut self) {
+        let o = self.order;
+        if o.rays == 0 || o.renumbered() || !o.whole() {
+            return;
+        }
+        let (to, note) = if o.middle == o.rays {
+            (Code::CameraOnePoint, None)
+        } else {
+            (
+                Code::CameraSubpixelGrid,
+                Some(
+                    "several samples of a pixel go through the same cell of its sub-pixel grid, and other cells get none"
+                        .to_string(),
+                ),
+            )
+        };
+        let mut examples = self
+            .codes
+            .get(&Code::CameraSampleOrder)
+            .map(|e| e.1.clone())
+            .unwrap_or_default();
+        for f in &mut examples {
+            f.code = to;
+        }
+        self.move_code(Code::CameraSampleOrder, to);
+        self.disagree += o.alone;
+        self.camera_disagree += o.alone;
+        let c = self.causes.entry(Cause::of(to)).or_default();
+        c.samples += o.alone;
+        c.rays += o.alone;
+        keep_first(&mut c.examples, examples, self.keep);
+        if c.note.is_none() {
+            c.note = note;
         }
     }
 
@@ -762,11 +886,11 @@ impl Tally {
         for &(i, c) in &sample.roots {
             let e = self.causes.entry(c).or_default();
             e.rays += 1;
-            if let Some(ent) = findings[i].iter().find(|f| !f.code.is_tie()).and_then(|f| f.entity) {
+            if let Some(ent) = findings[i].iter().find(|f| !f.code.is_excused()).and_then(|f| f.entity) {
                 *e.entities.entry(ent).or_default() += 1;
             }
             if e.examples.len() < self.keep {
-                if let Some(f) = findings[i].iter().find(|f| !f.code.is_tie()) {
+                if let Some(f) = findings[i].iter().find(|f| !f.code.is_excused()) {
                     e.examples.push(f.clone());
                 }
             }
@@ -796,6 +920,7 @@ impl Tally {
         self.shaded_judged += o.shaded_judged;
         self.shaded_unjudged += o.shaded_unjudged;
         self.shift.merge(o.shift);
+        self.order.merge(o.order);
         self.carried_unnamed += o.carried_unnamed;
         self.coloured += o.coloured;
         if self.claimed_hits.len() < o.claimed_hits.len() {
@@ -824,6 +949,7 @@ impl Tally {
     /// Turns the normal conventions into a verdict: when back-face hits use both, the rarer one
     /// is inconsistent with the rest. Those rays are counted as disagreeing.
     pub fn finish(&mut self) {
+        self.sample_order();
         self.nearest_rule();
         self.shifted();
         self.transposed_diagonal();
@@ -1098,7 +1224,7 @@ impl<'a> Judge<'a> {
     /// Counts a nearest hit at `t` the tracer passed over, unless the verdicts its ray just got,
     /// `found`, are all ties; `kept` gives the rules' answers for it (see [`Skipped::pass`]).
     fn passed_over(&self, found: &[Finding], t: f64, kept: impl FnOnce() -> Option<Kept>, s: &mut Skipped) {
-        if found.iter().any(|x| !x.code.is_tie()) {
+        if found.iter().any(|x| !x.code.is_excused()) {
             s.size = s.size.max(self.scene_size());
             s.pass(t, kept());
         }
@@ -1253,7 +1379,7 @@ impl<'a> Judge<'a> {
         let mut sound = true;
         if kind == Kind::Camera && r.parent.is_none() {
             let before = f.len();
-            self.camera(r, &kind, f, &mut tally.shift);
+            self.camera(r, &kind, f, (&mut tally.shift, &mut tally.order));
             sound &= f.len() == before;
         }
         // Where rayscope traces from: the logged origin, moved off the surface it leaves by

@@ -95,7 +95,7 @@ impl ShownRay {
     /// True when a verdict that is not a tie was given.
     #[must_use]
     pub fn disagrees(&self) -> bool {
-        self.findings.iter().any(|f| !f.code.is_tie())
+        self.findings.iter().any(|f| !f.code.is_excused())
     }
 }
 
@@ -299,6 +299,9 @@ pub fn check_pixels(
     let n = w as usize * h as usize;
     let mut status = vec![0u8; n];
     let mut first: Vec<(u64, u8)> = vec![(u64::MAX, 0); n];
+    // Pixels with a camera ray numbered as another cell's sample, and the first such line.
+    let mut renumbered = vec![false; n];
+    let mut first_order = vec![u64::MAX; n];
     let mut rays: HashMap<[u32; 2], Vec<ShownRay>> = HashMap::new();
     let (mut kept, mut dropped, mut unplaced) = (0u64, 0u64, 0u64);
     let cap = opts.detail_cap as u64;
@@ -315,7 +318,13 @@ pub fn check_pixels(
         let mut st = PixelStatus::Agrees;
         for (r, f) in group.iter().zip(&findings) {
             for v in f {
-                if v.code.is_tie() {
+                if v.code == Code::CameraSampleOrder {
+                    // A numbering or a mistake, as the whole log decides (below).
+                    renumbered[i] = true;
+                    if r.line < first_order[i] {
+                        first_order[i] = r.line;
+                    }
+                } else if v.code.is_tie() {
                     st = st.max(PixelStatus::Tie);
                 } else {
                     st = PixelStatus::Disagrees;
@@ -354,6 +363,22 @@ pub fn check_pixels(
     let Some(report) = report else {
         return Ok(None);
     };
+    if report.renumbered.is_none() {
+        // Not a numbering: those rays are the mistake the report names.
+        let to = report
+            .causes
+            .iter()
+            .map(|c| c.code)
+            .find(|&c| matches!(c, Code::CameraSubpixelGrid | Code::CameraOnePoint))
+            .unwrap_or(Code::CameraSubpixelGrid);
+        let c = Code::ALL.iter().position(|&c| c == to).unwrap_or(0) as u8 + 1;
+        for i in (0..n).filter(|&i| renumbered[i]) {
+            status[i] = (status[i] & DROPPED) | PixelStatus::Disagrees as u8;
+            if first_order[i] < first[i].0 {
+                first[i] = (first_order[i], c);
+            }
+        }
+    }
     for v in rays.values_mut() {
         v.sort_by_key(|r| r.line);
     }

@@ -240,6 +240,12 @@ pub struct Report {
     pub verdicts: Vec<VerdictGroup>,
     /// Genuine ties, most frequent first.
     pub tie_verdicts: Vec<VerdictGroup>,
+    /// Camera rays through another cell of their pixel's grid than their number's, where the log
+    /// as a whole shows a numbering of the samples other than rayscope's (not a mistake).
+    pub renumbered: Option<VerdictGroup>,
+    /// Whether the log holds each sample of its pixels once, so that `renumbered` is surely a
+    /// numbering (otherwise samples sharing a cell cannot be told from it).
+    pub renumbered_whole: bool,
     /// The tracer's picture against its logged colours (`check --image`).
     pub image: Option<crate::image::ImageCheck>,
     /// What to log next when no ray disagrees but the log does not show the whole picture.
@@ -270,6 +276,8 @@ impl Report {
     pub fn new(t: Tally, skipped: u64, first_skipped: Option<String>, tolerances: Tolerances, timing: Timing) -> Self {
         let mut verdicts = Vec::new();
         let mut ties = Vec::new();
+        let mut renumbered = None;
+        let order = t.order;
         for (code, (count, examples)) in t.codes {
             let g = VerdictGroup {
                 code,
@@ -280,6 +288,8 @@ impl Report {
             };
             if code.is_tie() {
                 ties.push(g);
+            } else if code == Code::CameraSampleOrder {
+                renumbered = Some(g);
             } else {
                 verdicts.push(g);
             }
@@ -307,6 +317,8 @@ impl Report {
             causes,
             verdicts,
             tie_verdicts: ties,
+            renumbered,
+            renumbered_whole: order.whole(),
             image: None,
             next: None,
             tolerances,
@@ -437,6 +449,29 @@ impl Report {
                     let _ = writeln!(s, "  {}", printable(l));
                 }
             }
+        }
+        if let Some(g) = &self.renumbered {
+            let conclusion = if self.renumbered_whole {
+                "your samples are rayscope's grid positions, numbered in another order, which changes nothing in the picture and is not counted against you (each was judged as the sample whose cell it crosses)"
+            } else {
+                "the log does not hold every sample of each of its pixels once, so rayscope cannot tell whether that is only another numbering (no mistake) or several samples through the same cell (a mistake); it is not counted against you: log every sample of a few pixels (with the logging kit, leave RAYSCOPE_LOG_SAMPLES unset) to find out"
+            };
+            let _ = writeln!(
+                s,
+                "note: {} camera ray{} go{} through the centre of another cell of {} pixel's sub-pixel grid than rayscope's sample of {} number: {conclusion}; the first:",
+                g.count,
+                plural(g.count),
+                if g.count == 1 { "es" } else { "" },
+                if g.count == 1 { "its" } else { "their" },
+                if g.count == 1 { "its" } else { "their" },
+            );
+            if let Some(f) = g.examples.first() {
+                let _ = writeln!(s, "{}", example(f, trace_command(f)));
+            }
+            let _ = writeln!(
+                s,
+                "  rayscope numbers sample s as cell (s mod N, s div N), left to right, then top to bottom; number yours the same way to have the debugger pair your trees with rayscope's sample by sample"
+            );
         }
         if self.camera_rays > 0 && self.camera_disagree * 2 > self.camera_rays {
             let _ = writeln!(

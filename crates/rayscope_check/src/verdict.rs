@@ -81,7 +81,10 @@ codes! {
         "Your camera rays fit an image plane at a different distance from the camera than the one its size was computed for, which is the same as using a different field of view: the course puts the plane at distance 1 with a half-width of tan(fov/2). Check the image plane's distance, and whether the FOV is converted from degrees to radians and halved.";
     CameraSubpixelGrid = "camera.subpixel-grid", false,
         "sample not at rayscope's sub-pixel grid position",
-        "With -x N each pixel is sampled on an N×N regular grid: sample s is cell (i, j) = (s mod N, s div N), at ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height). Your ray lies elsewhere in its pixel: the details say where, and which layout that fits (rows and columns swapped, another numbering, a grid that spans the pixel's corners, or none: random jitter). Number your samples row by row, as rayscope does, to compare them.";
+        "With -x N each pixel is sampled on an N×N regular grid: sample s is cell (i, j) = (s mod N, s div N), at ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height). Your ray lies elsewhere in its pixel: the details say where, and which layout that fits (rows and columns swapped, a grid that spans the pixel's corners, several samples through the same cell, or none: random jitter). Samples that are rayscope's cells numbered in another order are no mistake (`camera.sample-order`).";
+    CameraSampleOrder = "camera.sample-order", false,
+        "samples numbered in another order",
+        "Your camera ray goes exactly through the centre of another cell of the pixel's N×N grid than rayscope's sample of that number. Where every pixel's samples still cover each cell once, that is only a numbering: the picture is the same, nothing is counted against you, and each ray is judged as the sample whose cell it crosses. rayscope numbers sample s as cell (i, j) = (s mod N, s div N), left to right, then top to bottom; numbering yours the same way lets the debugger pair your trees with rayscope's sample by sample. Where some cells get several of a pixel's samples and others none, it is a mistake, reported as one.";
     CameraOnePoint = "camera.one-point", false,
         "every sample of a pixel goes through the same point",
         "With -x N each pixel's N×N samples spread over its area: sample s goes through ((x + (i + 0.5)/N)/width, (y + (j + 0.5)/N)/height), with i = s mod N and j = s div N. Your camera rays go through one point of their pixel whatever their sample (the details say which: its centre or its top-left corner), so the sub-pixel offset is never added: each pixel traces one ray N² times and anti-aliasing does nothing. Add (i + 0.5)/N to x and (j + 0.5)/N to y inside the sample loop.";
@@ -304,6 +307,16 @@ codes! {
     TieCriticalAngle = "tie.critical-angle", true,
         "ray at the critical angle (a genuine tie)",
         "The ray meets the glass within rounding of the critical angle, so whether it refracts or is totally reflected is rounding. Not counted against you.";
+}
+
+impl Code {
+    /// True for a verdict not counted against the tracer while the log is read: a tie, or a
+    /// sample numbered in another order, which the log as a whole decides
+    /// (`Tally::sample_order`).
+    #[must_use]
+    pub fn is_excused(self) -> bool {
+        self.is_tie() || self == Code::CameraSampleOrder
+    }
 }
 
 impl Serialize for Code {

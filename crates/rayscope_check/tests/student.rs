@@ -22,6 +22,8 @@ struct Run<'a> {
     /// Whether the log names entities and lights (and gives t), or is shaped like the course
     /// template's tracer, which has none.
     names: bool,
+    /// The sample numbers logged, as `0,3` (all when `None`).
+    log_samples: Option<&'a str>,
 }
 
 impl Run<'_> {
@@ -34,6 +36,7 @@ impl Run<'_> {
             region: None,
             bug: "none",
             names: true,
+            log_samples: None,
         }
     }
 
@@ -59,6 +62,9 @@ impl Run<'_> {
             .arg(&log);
         if !self.names {
             cmd.arg("--no-names");
+        }
+        if let Some(k) = self.log_samples {
+            cmd.args(["--log-samples", k]);
         }
         if let Some([a, b, c, d]) = self.region {
             cmd.arg("--region").arg(format!("{a},{b},{c},{d}"));
@@ -331,7 +337,6 @@ fn camera_mistakes_are_named_by_their_cause() {
     for (bug, aa, code) in [
         ("pixel-corner", 1, Code::CameraPixelCorner),
         ("plane-distance", 1, Code::CameraPlaneDistance),
-        ("subpixel-grid", 2, Code::CameraSubpixelGrid),
         ("pixel-transposed", 1, Code::CameraTransposed),
         ("pixel-transposed", 2, Code::CameraTransposed),
     ] {
@@ -1000,24 +1005,92 @@ fn samples_cast_through_one_point_of_their_pixel_are_one_headline_and_other_layo
         };
         first_line_says(&r, "shifted 0.250 of a pixel to the right and 0.250 of a pixel down");
     }
-    // Samples numbered from the last cell: each ray is the centre of another cell of the grid.
-    let Some(r) = assert_one_headline(
-        Run {
-            bug: "aa-reversed",
-            aa: 3,
-            ..Run::new(scene(), 40, 40)
-        },
-        Code::CameraSubpixelGrid,
-    ) else {
+    // Every sample through the centre of the pixel's first cell: each ray is where another
+    // sample of rayscope's goes, but the cells are not the samples in another order.
+    for aa in [2, 3] {
+        let Some(r) = assert_one_headline(
+            Run {
+                bug: "aa-one-cell",
+                aa,
+                ..Run::new(scene(), 40, 40)
+            },
+            Code::CameraSubpixelGrid,
+        ) else {
+            return;
+        };
+        first_line_says(&r, "several samples of a pixel go through the same cell");
+        first_example_says(
+            &r,
+            &[
+                "the centre of cell (0, 0)",
+                "where rayscope puts sample 0; rayscope puts sample 1 at",
+            ],
+        );
+    }
+}
+
+#[test]
+fn samples_numbered_in_another_order_are_no_mistake() {
+    let Some(course) = rayscope_testkit::course() else {
         return;
     };
-    first_example_says(
-        &r,
-        &[
-            "where rayscope puts sample 8 at (0.833, 0.833): the centre of cell (0, 0) of the 3×3 grid, rayscope's sample 0",
-            "numbered in another order",
-        ],
-    );
+    // Column by column, or from the last cell: the same rays as rayscope's, the same picture.
+    for (bug, aa, said) in [
+        (
+            "aa-column-major",
+            2,
+            [
+                "pixel (0, 0) sample 2, camera ray ",
+                "0.9150° off; it goes through (0.750, 0.250) of the way across and down its pixel: the centre of cell (1, 0) of the 2×2 grid, where rayscope puts sample 1; rayscope puts sample 2 at (0.250, 0.750)",
+            ],
+        ),
+        (
+            "aa-reversed",
+            3,
+            [
+                "pixel (0, 0) sample 8, camera ray ",
+                "it goes through (0.167, 0.167) of the way across and down its pixel: the centre of cell (0, 0) of the 3×3 grid, where rayscope puts sample 0; rayscope puts sample 8 at (0.833, 0.833)",
+            ],
+        ),
+    ] {
+        for scene in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+            let Some(r) = (Run {
+                bug,
+                aa,
+                ..Run::new(course.scene(scene), 40, 40)
+            })
+            .check() else {
+                return;
+            };
+            let t = text(&r);
+            assert!(r.passed() && r.causes.is_empty(), "{bug} -x {aa} on {scene}: {t}");
+            let n = r.renumbered.as_ref().map_or(0, |g| g.count);
+            assert!(n > 0, "{t}");
+            assert!(t.contains("numbered in another order, which changes nothing in the picture"), "{t}");
+            for words in said {
+                assert!(t.contains(words), "{bug}: {words:?} in {t}");
+            }
+        }
+    }
+    // Only some of each pixel's samples logged: a numbering cannot be told from samples sharing
+    // a cell, and the report says so, counting neither against the tracer.
+    for bug in ["aa-column-major", "aa-one-cell"] {
+        let Some(r) = (Run {
+            bug,
+            aa: 2,
+            log_samples: Some("1"),
+            ..Run::new(course.scene("sample_scene_1.txt"), 40, 40)
+        })
+        .check() else {
+            return;
+        };
+        let t = text(&r);
+        assert!(r.passed() && r.renumbered.is_some(), "{bug}: {t}");
+        assert!(
+            t.contains("rayscope cannot tell whether that is only another numbering (no mistake) or several samples through the same cell (a mistake)"),
+            "{bug}: {t}"
+        );
+    }
 }
 
 #[test]

@@ -25,7 +25,13 @@ fn image_dir(u: f64, v: f64, half: (f64, f64)) -> DVec3 {
 
 impl Judge<'_> {
     /// The camera ray against rayscope's camera for its pixel and sample.
-    pub(super) fn camera(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>, shift: &mut Shift) {
+    pub(super) fn camera(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        f: &mut Vec<Finding>,
+        (shift, order): (&mut Shift, &mut SampleOrder),
+    ) {
         let Some([x, y]) = r.pixel else {
             return;
         };
@@ -62,10 +68,78 @@ impl Judge<'_> {
         let (s, err) = candidates
             .map(|s| (s, angle(d, rs_dir(s))))
             .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
+        if let Some(s) = r.sample {
+            order.numbered((x, y), s, self.spp);
+        }
         if err <= self.cam_tol {
             return;
         }
+        if r.sample.is_some() {
+            if let Some(cell) = (0..self.spp).find(|&k| angle(d, rs_dir(k)) <= self.cam_tol) {
+                f.push(self.renumbered(r, kind, (x, y, s), cell, err, order));
+                return;
+            }
+        }
         self.camera_wrong(r, kind, (x, y, s), err, f, shift);
+    }
+
+    /// The half extents of rayscope's image plane at distance 1, across and down.
+    fn half_extents(&self) -> (f64, f64) {
+        let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
+        let t = (f64::from(self.settings.camera.fov_deg).to_radians() * 0.5).tan();
+        let aspect = w / h;
+        if self.settings.camera.fov_axis == FovAxis::Horizontal {
+            (t, t / aspect)
+        } else {
+            (t * aspect, t)
+        }
+    }
+
+    /// The verdict on a camera ray of pixel (x, y) numbered `s` that goes exactly where rayscope's
+    /// sample `cell` goes, counted for the log-wide rule that decides whether it is a numbering.
+    fn renumbered(
+        &self,
+        r: &LoggedRay,
+        kind: &Kind,
+        (x, y, s): (u32, u32, u32),
+        cell: u32,
+        err: f64,
+        order: &mut SampleOrder,
+    ) -> Finding {
+        let n = self.grid;
+        let middle = n % 2 == 1 && cell == n * n / 2;
+        order.add((x, y), s, cell, middle);
+        let centre = |k: u32| {
+            (
+                (f64::from(k % n) + 0.5) / f64::from(n),
+                (f64::from(k / n) + 0.5) / f64::from(n),
+            )
+        };
+        let (at, own) = (centre(cell), centre(s));
+        let through = if middle {
+            "the centre of its pixel, ".to_string()
+        } else {
+            String::new()
+        };
+        let dc = (self.rot.transpose() * r.direction).normalize();
+        let rs = self.cam.ray(x, y, s).1;
+        let (_, _, values) = self.camera_values(r.direction, rs, dc, self.half_extents(), (x, y, own));
+        self.finding(
+            r,
+            kind,
+            Code::CameraSampleOrder,
+            format!(
+                "{:.4}° off; it goes through {through}({:.3}, {:.3}) of the way across and down its pixel: the centre of cell ({}, {}) of the {n}×{n} grid, where rayscope puts sample {cell}; rayscope puts sample {s} at ({:.3}, {:.3})",
+                err.to_degrees(),
+                at.0,
+                at.1,
+                cell % n,
+                cell / n,
+                own.0,
+                own.1
+            ),
+            values,
+        )
     }
 
     /// Names what a camera ray `err` radians off rayscope's sample `s` of pixel (x, y) fits: one
@@ -86,7 +160,7 @@ impl Judge<'_> {
         let t = (f64::from(self.settings.camera.fov_deg).to_radians() * 0.5).tan();
         let aspect = w / h;
         let horizontal = self.settings.camera.fov_axis == FovAxis::Horizontal;
-        let half = if horizontal { (t, t / aspect) } else { (t * aspect, t) };
+        let half = self.half_extents();
         let offs = self.sample_offsets(s);
         let projs = self.projections(half, t, aspect, horizontal);
         let dir_of = |g: &CamGuess| image_dir((f64::from(x) + g.off.0) / w, (f64::from(y) + g.off.1) / h, g.half);
@@ -204,7 +278,7 @@ impl Judge<'_> {
                 // A ray a fraction of a pixel from its sample's place fits a slightly scaled
                 // image plane as well as another sub-pixel layout: both are named, and the log
                 // as a whole decides (`Tally::layout_or_plane`).
-                let layout = self.where_in_pixel(dc, (x, y, s), (us * w - px, vs * h - py), half);
+                let layout = self.where_in_pixel(s, (us * w - px, vs * h - py));
                 f.push(self.finding(
                     r,
                     kind,
@@ -221,7 +295,7 @@ impl Judge<'_> {
         }
         let detail = if own_pixel {
             let at = (us * w - px, vs * h - py);
-            let detail = self.where_in_pixel(dc, (x, y, s), at, half);
+            let detail = self.where_in_pixel(s, at);
             f.push(self.finding(r, kind, Code::CameraSubpixelGrid, format!("{off_by}; {detail}"), values));
             return;
         } else if px.is_finite() {
@@ -233,37 +307,19 @@ impl Judge<'_> {
     }
 
     /// Where in pixel (x, y) a camera ray of sample `s` that passes through it goes, beside where
-    /// rayscope puts the sample, and the centre of another cell of the N×N grid where it is one
-    /// (samples numbered in another order).
-    /// `at` is where it crosses the pixel, from (0, 0) at its top-left corner to (1, 1).
-    fn where_in_pixel(&self, dc: DVec3, (x, y, s): (u32, u32, u32), at: (f64, f64), half: (f64, f64)) -> String {
-        let (w, h) = (f64::from(self.settings.width), f64::from(self.settings.height));
-        let n = self.grid;
-        // The cell of the N×N grid the ray crosses, when it crosses at that cell's centre.
-        let nf = f64::from(n);
-        let c = |a: f64| (a * nf).floor().clamp(0.0, nf - 1.0);
-        let (ci, cj) = (c(at.0), c(at.1));
-        let centre = image_dir(
-            (f64::from(x) + (ci + 0.5) / nf) / w,
-            (f64::from(y) + (cj + 0.5) / nf) / h,
-            half,
-        );
-        let cell = (angle(centre, dc) <= self.cam_tol).then_some((ci as u32, cj as u32));
+    /// rayscope puts the sample. `at` is where it crosses the pixel, from (0, 0) at its top-left
+    /// corner to (1, 1). (A ray through the centre of another cell of the N×N grid is
+    /// [`Self::renumbered`]'s.)
+    fn where_in_pixel(&self, s: u32, at: (f64, f64)) -> String {
+        let n = f64::from(self.grid);
         let expected = (
-            (f64::from(s % n) + 0.5) / f64::from(n),
-            (f64::from(s / n) + 0.5) / f64::from(n),
+            (f64::from(s % self.grid) + 0.5) / n,
+            (f64::from(s / self.grid) + 0.5) / n,
         );
-        let place = format!(
-            "it crosses its pixel at ({:.3}, {:.3}) of the way across and down, where rayscope puts sample {s} at ({:.3}, {:.3})",
+        format!(
+            "it crosses its pixel at ({:.3}, {:.3}) of the way across and down, where rayscope puts sample {s} at ({:.3}, {:.3}) (random jitter, or a sub-pixel layout rayscope does not know)",
             at.0, at.1, expected.0, expected.1
-        );
-        if let Some((i, j)) = cell {
-            return format!(
-                "{place}: the centre of cell ({i}, {j}) of the {n}×{n} grid, rayscope's sample {}; your samples are numbered in another order (rayscope: i = s mod {n}, j = s div {n})",
-                i + j * n
-            );
-        }
-        format!("{place} (random jitter, or a sub-pixel layout rayscope does not know)")
+        )
     }
 
     /// For a camera turned by `--cam-angle`: whether direction `d` is the unturned camera's `p`

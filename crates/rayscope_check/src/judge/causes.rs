@@ -72,7 +72,7 @@ const SAME_HIT: &[(Code, Code)] = &[(Code::SecondaryOffsetWrongSide, Code::Refra
 
 /// True when a wrong verdict on a ray can explain verdicts on the rays cast from its hit.
 fn handed_down(code: Code) -> bool {
-    !code.is_tie()
+    !code.is_excused()
         && !matches!(code, Code::RefractionTirInvented)
         && !code.as_str().starts_with("shading.")
         && !code.as_str().starts_with("missing.")
@@ -127,7 +127,7 @@ pub fn causes(order: &[usize], parent: &[Option<usize>], findings: &[Vec<Finding
     let mut blame: Vec<Option<Cause>> = vec![None; findings.len()];
     for &i in order {
         let inherited = parent[i].and_then(|p| blame[p]);
-        let wrong: Vec<&Finding> = findings[i].iter().filter(|f| !f.code.is_tie()).collect();
+        let wrong: Vec<&Finding> = findings[i].iter().filter(|f| !f.code.is_excused()).collect();
         if wrong.is_empty() {
             blame[i] = inherited;
             continue;

@@ -334,7 +334,9 @@ impl Judge<'_> {
                 reflection: &all[a..b],
                 refraction: &all[b..c],
                 other: all.len() - c,
-                refraction_wrong: all[b..c].iter().any(|&k| findings[k].iter().any(|f| !f.code.is_tie())),
+                refraction_wrong: all[b..c]
+                    .iter()
+                    .any(|&k| findings[k].iter().any(|f| !f.code.is_excused())),
             }
         };
         let logs = Logs {

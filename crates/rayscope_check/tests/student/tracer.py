@@ -15,11 +15,12 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   no-tir             refraction without total internal reflection
   pixel-corner       rays through pixel corners instead of centres
   plane-distance     the image plane at z = 2 with the half-width of the plane at z = 1
-  subpixel-grid      sub-pixel samples numbered column by column (i * N + j)
+  aa-column-major    sub-pixel samples numbered column by column (i * N + j): the same picture
+  aa-one-cell        every one of a pixel's N x N samples cast through the centre of its first cell
   aa-same-ray        every one of a pixel's N x N samples cast through the pixel's centre
   aa-same-corner     every one of a pixel's N x N samples cast through the pixel's corner
   aa-evenly-spaced   sub-pixel samples at (i + 1) / (N + 1), evenly spaced with gaps at the edges
-  aa-reversed        sub-pixel samples numbered from the last cell to the first
+  aa-reversed        sub-pixel samples numbered from the last cell to the first: the same picture
   pixel-transposed   the image-plane x computed from the row and y from the column
   aa-half-twice      sub-pixel samples at x + i / N + 0.5: the half pixel on top of the cell's corner
   sphere-disc-no-4   sphere quadratic with b = 2 oc.d whose discriminant is b^2 - c, not b^2 - 4c
@@ -101,7 +102,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
 Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
-       [--log rays.jsonl] [--image out.ppm] [--no-colors]
+       [--log rays.jsonl] [--log-samples 0,3] [--image out.ppm] [--no-colors]
 """
 
 import argparse
@@ -114,7 +115,7 @@ EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
-        "pixel-corner", "plane-distance", "subpixel-grid", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
+        "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
         "glass-sum", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
@@ -204,6 +205,8 @@ class Tracer:
         self.names = args.names
         # The current sample's records: a ray's colour is known only once its children are traced.
         self.pending = []
+        # The sample numbers logged (--log-samples), as the logging kit's RAYSCOPE_LOG_SAMPLES.
+        self.samples = None if args.log_samples is None else {int(k) for k in args.log_samples.split(",")}
         self.next_id = 0
         self.pixel = (0, 0)
         self.sample = 0
@@ -329,8 +332,9 @@ class Tracer:
             self.pending.append(rec)
 
     def flush(self):
-        for rec in self.pending:
-            self.log.write(json.dumps(rec) + "\n")
+        if self.samples is None or self.sample in self.samples:
+            for rec in self.pending:
+                self.log.write(json.dumps(rec) + "\n")
         self.pending = []
 
     def colored(self, rec, col):
@@ -502,6 +506,7 @@ def main():
     ap.add_argument("-h", type=int, default=400)
     ap.add_argument("-x", type=int, default=1)
     ap.add_argument("--region", default=None)
+    ap.add_argument("--log-samples", default=None)
     ap.add_argument("--bug", default="none")
     ap.add_argument("--log", default="-")
     ap.add_argument("--image", default=None)
@@ -533,7 +538,7 @@ def main():
             byte_total = [0, 0, 0]
             for j in range(n):
                 for i in range(n):
-                    tr.pixel, tr.sample = (x, y), (i * n + j if args.bug == "subpixel-grid" else j * n + i)
+                    tr.pixel, tr.sample = (x, y), (i * n + j if args.bug == "aa-column-major" else j * n + i)
                     if args.bug == "aa-reversed":
                         tr.sample = n * n - 1 - tr.sample
                     c = 0.0 if args.bug == "pixel-corner" else 0.5
@@ -541,6 +546,8 @@ def main():
                     v = (y + (j + c) / n) / h
                     if args.bug == "aa-same-ray":
                         u, v = (x + 0.5) / w, (y + 0.5) / h
+                    elif args.bug == "aa-one-cell":
+                        u, v = (x + 0.5 / n) / w, (y + 0.5 / n) / h
                     elif args.bug == "aa-same-corner":
                         u, v = x / w, y / h
                     elif args.bug == "pixel-transposed":
