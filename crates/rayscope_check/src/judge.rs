@@ -1395,7 +1395,7 @@ impl<'a> Judge<'a> {
             sound &= f.len() == before;
         }
         let light = if kind == Kind::Shadow {
-            self.aim(r, &kind, f)
+            self.aim(r, &kind, leave.map(|lv| lv.point), f)
         } else {
             None
         };

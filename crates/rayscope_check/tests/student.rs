@@ -24,6 +24,8 @@ struct Run<'a> {
     names: bool,
     /// The sample numbers logged, as `0,3` (all when `None`).
     log_samples: Option<&'a str>,
+    /// More of the tracer's options (its offset, where shadow rays are aimed from).
+    options: &'a [&'a str],
 }
 
 impl Run<'_> {
@@ -37,6 +39,7 @@ impl Run<'_> {
             bug: "none",
             names: true,
             log_samples: None,
+            options: &[],
         }
     }
 
@@ -66,6 +69,7 @@ impl Run<'_> {
         if let Some(k) = self.log_samples {
             cmd.args(["--log-samples", k]);
         }
+        cmd.args(self.options);
         if let Some([a, b, c, d]) = self.region {
             cmd.arg("--region").arg(format!("{a},{b},{c},{d}"));
         }
@@ -149,6 +153,21 @@ fn correct_tracer_gets_no_verdict_on_course_scene_2_with_aa() {
         aa: 2,
         ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
     });
+}
+
+#[test]
+fn shadow_rays_aimed_from_the_hit_point_before_a_large_offset_get_no_verdict() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    // light − point with the point before it is offset 1e-4 off the surface: the course's rule,
+    // about 0.006° from light − origin.
+    for scene in ["sample_scene_1.txt", "sample_scene_2.txt"] {
+        assert_clean(Run {
+            options: &["--eps", "1e-4", "--aim-from-hit"],
+            ..Run::new(course.scene(scene), 40, 40)
+        });
+    }
 }
 
 #[test]

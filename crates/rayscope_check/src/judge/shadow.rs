@@ -28,16 +28,25 @@ impl Judge<'_> {
     }
 
     /// Which light a shadow ray aims at; a verdict when it aims at none (or not at the one named).
-    pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, f: &mut Vec<Finding>) -> Option<u32> {
+    /// The direction may be taken from the ray's origin or from the hit point it leaves (`from`),
+    /// which the course's light − point is, before the origin is offset off the surface.
+    pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, from: Option<DVec3>, f: &mut Vec<Finding>) -> Option<u32> {
         let lights = &self.scene.lights;
         let to = |li: u32| d3(Vec3A::from(lights[li as usize].position)) - r.origin;
         let off = |li: u32| {
-            let v = to(li);
-            if v.length_squared() == 0.0 {
-                0.0
-            } else {
-                angle(r.direction, v)
-            }
+            let light = d3(Vec3A::from(lights[li as usize].position));
+            [Some(r.origin), from]
+                .into_iter()
+                .flatten()
+                .map(|o| {
+                    let v = light - o;
+                    if v.length_squared() == 0.0 {
+                        0.0
+                    } else {
+                        angle(r.direction, v)
+                    }
+                })
+                .fold(f64::INFINITY, f64::min)
         };
         let pick = match r.light {
             Some(li) => Some((li, off(li))),

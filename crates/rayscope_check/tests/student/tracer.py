@@ -103,6 +103,10 @@ Every ray but shadow rays logs "color", the linear colour it brought back (--no-
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
        [--log rays.jsonl] [--log-samples 0,3] [--image out.ppm] [--no-colors]
+       [--eps 1e-5] [--aim-from-hit]
+
+--eps sets the offset of secondary and shadow rays' origins off the surface; --aim-from-hit aims
+shadow rays from the hit point rather than from the offset origin. Neither is a mistake.
 """
 
 import argparse
@@ -205,6 +209,8 @@ class Tracer:
         self.names = args.names
         # The current sample's records: a ray's colour is known only once its children are traced.
         self.pending = []
+        # Shadow rays aimed from the hit point, before the origin is offset (--aim-from-hit).
+        self.aim_from_hit = args.aim_from_hit
         # The sample numbers logged (--log-samples), as the logging kit's RAYSCOPE_LOG_SAMPLES.
         self.samples = None if args.log_samples is None else {int(k) for k in args.log_samples.split(",")}
         self.next_id = 0
@@ -381,7 +387,7 @@ class Tracer:
         for light in lights:
             so = p if self.bug == "shadow-no-offset" else add(p, mul(nf, EPS))
             aim = self.lights[0]["pos"] if self.bug == "shadow-first-light" else light["pos"]
-            to = aim if self.bug == "light-as-direction" else sub(aim, so)
+            to = aim if self.bug == "light-as-direction" else sub(aim, p if self.aim_from_hit else so)
             dist = math.sqrt(dot(to, to))
             ldir = mul(to, 1 / dist)
             reach = min(dist, 1.0) if self.bug == "shadow-t-below-1" else dist * dist if self.bug == "shadow-t-dist-squared" else dist
@@ -500,6 +506,7 @@ def out_byte(v, bug):
 
 
 def main():
+    global EPS
     ap = argparse.ArgumentParser(add_help=False)
     ap.add_argument("-f", required=True)
     ap.add_argument("-w", type=int, default=400)
@@ -507,12 +514,15 @@ def main():
     ap.add_argument("-x", type=int, default=1)
     ap.add_argument("--region", default=None)
     ap.add_argument("--log-samples", default=None)
+    ap.add_argument("--eps", type=float, default=1e-5)
+    ap.add_argument("--aim-from-hit", action="store_true")
     ap.add_argument("--bug", default="none")
     ap.add_argument("--log", default="-")
     ap.add_argument("--image", default=None)
     ap.add_argument("--no-colors", dest="colors", action="store_false")
     ap.add_argument("--no-names", dest="names", action="store_false")
     args = ap.parse_args()
+    EPS = args.eps
     if args.bug not in BUGS and args.bug not in GEOMETRY_BUGS and args.bug not in OUTPUT_BUGS:
         sys.exit(f"unknown bug {args.bug}")
     w, h, n = args.w, args.h, args.x
