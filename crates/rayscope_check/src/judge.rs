@@ -1083,6 +1083,12 @@ const MIN_SHARE: f64 = 0.01;
 /// ten times farther.
 const SURFACE_ROUNDING: f64 = 1e-6;
 
+/// Relative distance along a ray within which an f32 tracer's `t` for the surface its origin
+/// lies on can come out on the other side of 0: a few of f32's steps at the coordinates' size.
+/// A surface the exact ray meets farther behind its origin is no rounding-error hit (acne); a
+/// tracer that counts it accepts hits behind the origin.
+const T_ROUNDING: f64 = 2.5e-7;
+
 impl<'a> Judge<'a> {
     /// True when the catalogue's mistake `m` can show in a picture of the judged scene under the
     /// judged settings: only those are named beside a verdict.

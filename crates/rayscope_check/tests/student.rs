@@ -171,6 +171,51 @@ fn shadow_rays_aimed_from_the_hit_point_before_a_large_offset_get_no_verdict() {
 }
 
 #[test]
+fn unnamed_blockers_behind_a_small_offset_are_not_called_acne() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let scene = || course.scene("sample_scene_2.txt");
+    // The template's log (no names) with an offset of 1e-6: the surface a shadow ray leaves lies
+    // 1e-6 / cos behind its origin, which no rounding brings in front, so a light blocked by
+    // something past it is not shadow acne; the first example says what lies where.
+    for eps in ["1e-5", "1e-6"] {
+        let Some(r) = assert_one_headline(
+            Run {
+                bug: "shadow-t-dist-squared",
+                names: false,
+                options: &["--eps", eps],
+                ..Run::new(scene(), 40, 40)
+            },
+            Code::ShadowPhantomBlocker,
+        ) else {
+            return;
+        };
+        first_example_says(
+            &r,
+            &[
+                "lies beyond the light",
+                "(a blocker test that does not stop at the light counts it)",
+            ],
+        );
+    }
+    // With no offset at all it is acne, and the correct tracer's log gets no verdict.
+    assert_one_headline(
+        Run {
+            bug: "shadow-no-offset",
+            names: false,
+            ..Run::new(scene(), 40, 40)
+        },
+        Code::ShadowAcne,
+    );
+    assert_clean(Run {
+        names: false,
+        options: &["--eps", "1e-6"],
+        ..Run::new(scene(), 40, 40)
+    });
+}
+
+#[test]
 fn correct_tracer_gets_no_verdict_on_our_scenes() {
     assert_clean(Run::new(root().join("scenes/whitted.txt"), 40, 40));
     assert_clean(Run::new(

@@ -137,13 +137,17 @@ impl Judge<'_> {
         let near = SURFACE_ROUNDING * l;
         if let Some(lv) = leave {
             let t_self = self.geo.entity_intersect(lv.entity, o, d, -pos, dist).map(|x| x.0);
-            if t_self.is_some_and(|t| t >= -near) {
+            if t_self.is_some_and(|t| t >= -T_ROUNDING * l) {
                 return Some(lv.entity);
             }
         }
-        (0..self.scene.entities.len() as u32).find(|&e| {
-            self.geo.entity_distance(e, o).0 <= near && self.geo.entity_intersect(e, o, d, -near, near).is_some()
-        })
+        // Another surface its origin touches (at a corner), met within rounding of t = 0.
+        (0..self.scene.entities.len() as u32)
+            .filter(|&e| leave.is_none_or(|lv| lv.entity != e))
+            .find(|&e| {
+                self.geo.entity_distance(e, o).0 <= near
+                    && self.geo.entity_intersect(e, o, d, -T_ROUNDING * l, near).is_some()
+            })
     }
 
     /// A shadow ray logged as blocked, without a name, where nothing lies between its origin and
@@ -186,8 +190,14 @@ impl Judge<'_> {
                 self.name(e)
             ));
         }
+        // The surface the ray leaves counts where it lies behind the origin by more than an f32
+        // tracer's rounding of t.
         let behind = all()
-            .filter_map(|e| self.geo.entity_intersect(e, o, d, f64::MIN, -near).map(|x| (e, x.0)))
+            .filter_map(|e| {
+                self.geo
+                    .entity_intersect(e, o, d, f64::MIN, -T_ROUNDING * l)
+                    .map(|x| (e, x.0))
+            })
             .max_by(|a, b| a.1.total_cmp(&b.1));
         if let Some((e, t)) = behind {
             could.push(format!(
