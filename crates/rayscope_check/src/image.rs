@@ -284,6 +284,8 @@ pub struct ImageCheck {
     pub verdict: Option<Code>,
     /// The factor of [`Conversion::Scaled`], when the picture follows it.
     pub factor: Option<f64>,
+    /// The exponent of [`Conversion::Gamma`] when the picture follows a power other than 1/2.2.
+    pub exponent: Option<f64>,
     /// The verdict on the bytes when the picture follows two rules at once, one that moves its
     /// pixels (the verdict) and one that changes their bytes (this one).
     pub also: Option<Code>,
@@ -369,6 +371,7 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
     };
     let mut best = (Conversion::ALL[bk], bn);
     let mut factor = None;
+    let mut exponent = None;
     let mut also = None;
     let (verdict, detail) = if compared == 0 {
         (
@@ -431,6 +434,16 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
                 factor_words(k)
             ),
         )
+    } else if let Some((g, n)) = plain_exponent(s, image).filter(|&(_, n)| share(n) >= FOLLOWS) {
+        best = (Conversion::Gamma, n);
+        exponent = Some(g);
+        (
+            Some(Code::ImageGamma),
+            format!(
+                "{n} of {compared} pixels are your logged colours raised to the power {}, then turned into bytes as the course does; {course} as the course converts them",
+                exponent_words(g)
+            ),
+        )
     } else if share(course) >= FOLLOWS {
         // A few pixels only: no rule for the whole picture, but those pixels' bytes came from
         // something other than their own samples.
@@ -456,6 +469,7 @@ pub fn judge(s: &PixelSums, image: &[u8], keep: usize) -> ImageCheck {
         best,
         verdict,
         factor,
+        exponent,
         also,
         detail,
         examples,
@@ -571,6 +585,69 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
     // One colour everywhere fits any factor: the fit needs colours of several levels to say the
     // picture is a factor of them.
     (levels >= 8).then_some((k, n))
+}
+
+/// The one exponent each fully logged pixel's average colour is raised to before the course's
+/// conversion, when the picture has one other than 1, with the number of pixels it fits (each
+/// channel within one level). Estimated as the median of the channels' log ratios where neither
+/// the clamp nor the byte's rounding hides it, then taken as 1/2.2, 1/2.4, 1/2, 2, 2.2 or a
+/// whole number where within 1 % of one.
+fn plain_exponent(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
+    let pixels = || {
+        (0..s.n.len()).filter_map(|i| {
+            let yours = image.get(3 * i..3 * i + 3)?;
+            Some((s.average(i)?, [yours[0], yours[1], yours[2]]))
+        })
+    };
+    // As in `plain_factor`: an even spread of at most about 2^16 pixels.
+    let every = (s.n.len() >> 16).max(1);
+    let mut logs: Vec<f64> = pixels()
+        .step_by(every)
+        .flat_map(|(avg, yours)| {
+            (0..3).filter_map(move |c| {
+                let (v, b) = (avg[c], yours[c]);
+                ((0.02..0.9).contains(&v) && (8..247).contains(&b))
+                    .then(|| ((f64::from(b) + 0.5) / 255.0).ln() / v.ln())
+            })
+        })
+        .collect();
+    if logs.len() < 16 {
+        return None;
+    }
+    let mid = logs.len() / 2;
+    let (_, &mut g, _) = logs.select_nth_unstable_by(mid, f64::total_cmp);
+    let g = [1.0 / 2.2, 1.0 / 2.4, 0.5, 2.0, 2.2, g.round()]
+        .into_iter()
+        .find(|&a| a > 0.0 && ((g - a) / a).abs() < 0.01)
+        .unwrap_or(g);
+    if ((g - 1.0).abs() < 0.01) || !g.is_finite() || g <= 0.0 {
+        return None;
+    }
+    let mut levels = [false; 256];
+    let mut n = 0u64;
+    for (avg, yours) in pixels() {
+        if within_a_level(avg.map(|v| course_byte(v.max(0.0).powf(g))), yours) {
+            n += 1;
+            for b in yours {
+                levels[usize::from(b)] = b > 0;
+            }
+        }
+    }
+    // As for a factor, colours of several levels are needed to say the picture is a power of them.
+    (levels.iter().filter(|&&l| l).count() >= 8).then_some((g, n))
+}
+
+/// An exponent as a report words it: 1/2.2 and the like as a fraction, else three decimals.
+fn exponent_words(g: f64) -> String {
+    let inv = 1.0 / g;
+    if g < 1.0 && ((inv * 10.0).round() - inv * 10.0).abs() < 1e-9 {
+        let name = if inv == 2.0 { " (a square root)" } else { "" };
+        format!("1/{}{name}", (inv * 10.0).round() / 10.0)
+    } else if g == g.round() {
+        format!("{g}")
+    } else {
+        format!("{g:.3}")
+    }
 }
 
 /// True when each channel of `a` is within one level of `b`'s: bytes computed from a colour
@@ -742,6 +819,27 @@ mod tests {
                 [v, 0.3 * v + 0.05, blue - v / 2.0]
             })
             .collect()
+    }
+
+    #[test]
+    fn a_picture_raised_to_a_power_gives_the_power() {
+        let s = sums(&ramp(80.0, 0.9), 8, 8);
+        for (g, said) in [(0.5, "the power 1/2 (a square root)"), (2.0, "the power 2,")] {
+            let bytes: Vec<u8> = (0..64)
+                .flat_map(|i| s.average(i).unwrap_or_default().map(|v| course_byte(v.powf(g))))
+                .collect();
+            let j = judge(&s, &bytes, 3);
+            assert_eq!(
+                (j.verdict, j.exponent),
+                (Some(Code::ImageGamma), Some(g)),
+                "{}",
+                j.detail
+            );
+            assert!(j.detail.contains(said), "{}", j.detail);
+        }
+        // The course's own bytes are no power.
+        let j = judge(&s, &picture(&s, Conversion::Course), 3);
+        assert_eq!((j.verdict, j.exponent), (None, None), "{}", j.detail);
     }
 
     #[test]

@@ -69,7 +69,7 @@ codes! {
         "Your camera rays fit an image plane whose width-to-height ratio is wrong: either the aspect ratio is ignored (a square image plane on a non-square image) or it is applied the wrong way round (height / width instead of width / height). Objects look stretched. With a horizontal FOV the image plane is 2·tan(fov/2) wide and 2·tan(fov/2)·height/width high.";
     CameraPixelCorner = "camera.pixel-corner", false,
         "ray through the pixel's corner instead of its centre",
-        "Your camera ray goes through the top-left corner of the pixel (or of the sub-pixel cell) rather than its centre: use (x + 0.5) / width and (y + 0.5) / height. The whole image shifts by half a pixel.";
+        "Your camera ray goes through the top-left corner of the pixel (or of the sub-pixel cell) rather than its centre: use (x + 0.5) / width and (y + 0.5) / height. The whole image shifts by half a pixel. With -x N it is each sample's own cell whose corner is taken: sample (i, j) goes through (x + (i + 0.5) / N) / width and (y + (j + 0.5) / N) / height, half a cell in from the corner, and the image shifts by half a cell.";
     CameraFlipped = "camera.flipped", false,
         "image upside down or mirrored",
         "Your camera rays fit rayscope's with the image flipped: row 0 is the top of the image, so the image-plane y is (1 − 2·(y + 0.5)/height)·half-height (positive at the top), and +x is to the right in the course's left-handed camera looking along +z.";
@@ -258,7 +258,7 @@ codes! {
         "Your picture's bytes are your logged colours rounded to the nearest byte. The course's template truncates: byte = (byte)(Math.Min(v, 1) * 255), so 0.999 · 255 = 254.7 becomes 254. About half the pixels come out one level too bright; invisible by eye, but not an exact match.";
     ImageGamma = "image.gamma", false,
         "colours gamma-corrected before they are written",
-        "Your picture's bytes are your logged colours raised to 1/2.2 (gamma-corrected) before the conversion. The course writes linear values: byte = (byte)(Math.Min(v, 1) * 255). Remove the gamma correction; the picture is brighter and washed out with it.";
+        "Your picture's bytes are your logged colours raised to a power (1/2.2, gamma correction, unless the details give another, such as 1/2: a square root) before the conversion. The course writes linear values: byte = (byte)(Math.Min(v, 1) * 255). Remove the power; with an exponent below 1 the picture is brighter and washed out.";
     ImageUnclamped = "image.unclamped", false,
         "colours over 1 not clamped: the byte wraps around",
         "Where a colour is over 1, your picture's byte wraps around (1.2 · 255 = 306 becomes 50) instead of saturating at 255: clamp each channel to at most 1 before multiplying by 255, as the template's Math.Min(v, 1) does. Bright spots come out dark.";

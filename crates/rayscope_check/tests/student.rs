@@ -798,6 +798,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("stray-pixels-out", Some(Code::ImageDiffers)),
         ("last-sample-out", Some(Code::ImageOneSample)),
         ("row-accumulator-out", Some(Code::ImageAccumulated)),
+        ("sqrt-out", Some(Code::ImageGamma)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -834,6 +835,13 @@ fn the_picture_is_judged_against_the_logged_colours() {
         if bug == "flipped-gamma-out" {
             assert!(
                 j.detail.contains("two mistakes") && j.detail.contains("image.gamma"),
+                "{bug}: {}",
+                j.detail
+            );
+        }
+        if bug == "sqrt-out" {
+            assert!(
+                j.detail.contains("raised to the power 1/2 (a square root)") && j.exponent == Some(0.5),
                 "{bug}: {}",
                 j.detail
             );

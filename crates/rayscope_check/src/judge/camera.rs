@@ -411,18 +411,15 @@ impl Judge<'_> {
                 (i / n, j / n),
                 Some((
                     Code::CameraPixelCorner,
-                    "through the top-left corner of its pixel (or sub-pixel cell), not the centre",
+                    if self.grid == 1 {
+                        "through the top-left corner of its pixel, x / width, not its centre, (x + 0.5) / width"
+                    } else {
+                        "through the top-left corner of its sub-pixel cell, (x + i / N) / width, not the cell's centre, (x + (i + 0.5) / N) / width"
+                    },
                 )),
             ),
         ];
         if self.grid > 1 {
-            offs.push((
-                ((j + 0.5) / n, (i + 0.5) / n),
-                Some((
-                    Code::CameraSubpixelGrid,
-                    "with the sample's row and column swapped (rayscope numbers samples row by row: i = s mod N, j = s div N)",
-                )),
-            ));
             offs.push((
                 (i / (n - 1.0), j / (n - 1.0)),
                 Some((

@@ -67,6 +67,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      samples averaged as bytes, rows upside down, red and blue swapped,
                      columns right to left, rows and columns both reversed
   flipped-gamma-out  the picture both upside down and gamma-corrected (two mistakes at once)
+  sqrt-out           the picture's colours square-rooted before they are written (no rule has it)
   stale-image        the picture is not made of the logged colours (no catalogue has it)
   stray-pixels-out   one pixel in 97 holds the colour of the pixel written just before it, as a
                      colour shared by a parallel loop's threads leaves it (no catalogue has it)
@@ -128,7 +129,7 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-de
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image", "accumulator-out", "summed-out", "last-sample-out", "row-accumulator-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
-               "flipped-gamma-out", "stray-pixels-out")
+               "flipped-gamma-out", "stray-pixels-out", "sqrt-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "shadow-t-dist-squared", "shade-normal-radius", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
@@ -498,6 +499,8 @@ def out_byte(v, bug):
         return v
     if bug in ("gamma-out", "flipped-gamma-out"):
         return to_byte(max(v, 0.0) ** (1 / 2.2))
+    if bug == "sqrt-out":
+        return to_byte(math.sqrt(max(v, 0.0)))
     if bug == "rounded-out":
         return int(round(min(max(v, 0.0), 1.0) * 255))
     if bug == "unclamped-out":
