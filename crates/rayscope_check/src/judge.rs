@@ -712,12 +712,17 @@ impl Tally {
     }
 
     /// Glass that brings back one of its two colours alone only where the other is black, in a
-    /// log whose glass elsewhere adds the two colours unweighted, is that sum.
+    /// log whose glass elsewhere adds the two colours unweighted (R + T), or adds the refracted
+    /// colour unweighted beside a weighted reflection (kr·R + T), is that sum.
     fn none_or_sum(&mut self) {
-        let sum = Cause::of(Code::ShadingGlassSum);
-        if !self.causes.contains_key(&sum) {
+        let sum = [Code::ShadingGlassSum, Code::ShadingTransmissionUnweighted]
+            .into_iter()
+            .map(Cause::of)
+            .filter(|c| self.causes.contains_key(c))
+            .max_by_key(|c| self.causes.get(c).map_or(0, |n| n.samples));
+        let Some(sum) = sum else {
             return;
-        }
+        };
         for (code, black) in [
             (Code::ShadingFresnelNone, self.glass_black_reflection),
             (Code::ShadingFresnel, self.glass_black_other),

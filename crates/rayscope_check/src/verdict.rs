@@ -235,6 +235,9 @@ codes! {
     ShadingGlassSum = "shading.glass-sum", false,
         "glass colour is its reflected and refracted colours added, with no weights",
         "Your glass brings back R + T, what its reflected and refracted rays brought back added together; the course's glass mixes them as kr·R + (1 − kr)·T, with kr from the Fresnel equations. Weight the two colours before adding them. If your tracer passes the weight down and each child multiplies its own colour by it, the colours your log holds for those children already carry kr and 1 − kr: log each ray's colour before that weight (docs/check.md, Colours), and rayscope names what is left.";
+    ShadingTransmissionUnweighted = "shading.transmission-unweighted", false,
+        "glass colour is kr·R + T: the refracted colour not weighted by 1 − kr",
+        "Your glass brings back kr·R + T: its reflected colour weighted by the Fresnel reflectance, as it should be, but its refracted colour added whole instead of weighted by 1 − kr. The course's glass mixes them as kr·R + (1 − kr)·T, so that the two weights add up to 1; with T added whole the glass brings back more light than reaches it and looks too bright.";
     ShadingLoggedWeighted = "shading.logged-weighted", false,
         "colour logged after its parent glass weighted it",
         "The colour logged for this reflected or refracted ray is what it brought back multiplied by the share its parent glass gives it (kr for the reflected ray, 1 − kr for the refracted one). A log's `color` is what a ray brought back before its parent weighted it (docs/check.md, Colours), so rayscope cannot judge the decisions below and above it as logged. Log the colour before multiplying it by the Fresnel weight; if your tracer weights inside the child on purpose, your picture may well be right, and logging the unweighted colour lets rayscope judge the rest.";

@@ -503,7 +503,7 @@ fn a_tinted_mirror_a_tinted_glass_and_a_background_colour_are_named() {
     );
 }
 
-/// Glass colours no catalogue has: R + T added with no weights is named as such; a tracer whose
+/// Glass colours no catalogue has: R + T added with no weights, or kr·R + T, is named as such; a tracer whose
 /// picture is right but whose log holds its glass children's colours after weighting them is
 /// told that the log, not the shading, differs; a Fresnel reflectance with the indices exchanged
 /// is one verdict with its share, never a formula it matches by chance near normal incidence.
@@ -516,6 +516,7 @@ fn glass_weights_left_out_or_logged_in_and_an_unknown_share_get_one_true_headlin
     // follows from them (where one colour is black, a share of 0 or 1 is the sum as well).
     let above = [
         Code::ShadingGlassSum,
+        Code::ShadingTransmissionUnweighted,
         Code::ShadingGlass,
         Code::ShadingFresnel,
         Code::ShadingFresnelNone,
@@ -526,6 +527,12 @@ fn glass_weights_left_out_or_logged_in_and_an_unknown_share_get_one_true_headlin
     ];
     for (bug, code, words, follows) in [
         ("glass-sum", Code::ShadingGlassSum, "R + T", &[][..]),
+        (
+            "glass-t-unweighted",
+            Code::ShadingTransmissionUnweighted,
+            "your refracted colour added whole",
+            &[][..],
+        ),
         (
             "logged-weighted",
             Code::ShadingLoggedWeighted,

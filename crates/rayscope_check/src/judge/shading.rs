@@ -939,8 +939,22 @@ impl Judge<'_> {
             f.push(t);
             return Decision::Judged;
         }
+        // The refracted colour added whole beside a weighted reflection: told from the plain
+        // sum and from no reflection only where the reflected colour is not black.
+        let unweighted_t = !matches!(fit, GlassFit::Exact)
+            && !fits(rc, DVec3::ZERO, DVec3::ZERO)
+            && fits(c, rc * exact + tc, DVec3::ZERO)
+            && !fits(c, rc + tc, DVec3::ZERO);
         let (code, mut detail, values) = match fit {
             GlassFit::Exact => return Decision::Judged,
+            _ if unweighted_t => (
+                Code::ShadingTransmissionUnweighted,
+                format!(
+                    "at '{name}' your colour is kr·R + T with kr = {exact:.4}: your reflected colour weighted by the Fresnel reflectance and your refracted colour added whole, weights that add up to {:.4}, not 1",
+                    1.0 + exact
+                ),
+                vec![colour_value(c, want)],
+            ),
             GlassFit::Mistake(formula, k) => (
                 formula.code(),
                 format!(

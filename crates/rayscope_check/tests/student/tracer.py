@@ -82,6 +82,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   fresnel-half       glass mixes reflection and refraction half and half
   fresnel-weights-exchanged  glass mixes (1 - kr) R + kr T: the reflectance given to the refracted colour
   glass-sum          glass adds its reflected and refracted colours, R + T, with no weights (no catalogue has it)
+  glass-t-unweighted glass brings back kr R + T: the refracted colour not weighted by 1 - kr (no catalogue has it)
   logged-weighted    the picture is right, but the log holds each reflected and refracted ray's colour after
                      its parent glass weighted it (kr R, (1 - kr) T) (no catalogue has it)
   no-clamp           N.L not clamped at 0, and the shadow test skips the surface being shaded
@@ -122,7 +123,7 @@ AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
-        "glass-sum", "logged-weighted",
+        "glass-sum", "glass-t-unweighted", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
@@ -467,7 +468,7 @@ class Tracer:
         k = max(k, 0.0)
         tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
         ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))
-        sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction"), 1.0 if self.bug == "glass-sum" else 1 - kr)
+        sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction"), 1.0 if self.bug in ("glass-sum", "glass-t-unweighted") else 1 - kr)
         return add(col, sub_col)
 
     def weighted(self, trace, w):
