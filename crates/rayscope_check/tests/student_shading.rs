@@ -276,6 +276,24 @@ fn missing_shadow_and_reflected_rays_are_named_on_the_hit_that_needs_them() {
     for d in details(&r, Code::MissingShadowRay) {
         assert!(d.contains("light 'Light2'"), "{d}");
     }
+    // A break at the first blocked light: the lights after it are never tried, and the details
+    // say so, not an off-by-one.
+    let Some(r) = assert_named(
+        Run {
+            bug: "shadow-loop-break",
+            ..Run::new(scene.clone(), 40, 40)
+        },
+        Code::MissingShadowRay,
+        &[],
+    ) else {
+        return;
+    };
+    for d in details(&r, Code::MissingShadowRay) {
+        assert!(
+            d.contains("toward light 'Light1', is blocked") && d.contains("stops at a blocked light"),
+            "{d}"
+        );
+    }
     let Some(r) = assert_named(
         Run {
             bug: "no-reflection-ray",

@@ -608,13 +608,14 @@ impl Judge<'_> {
     }
 
     /// The verdict on a diffuse hit whose shadow rays leave out lights `untested`, which face it
-    /// (`facing`: N·L of a light).
+    /// (`facing`: N·L of a light), all after light `stopped` where the last shadow ray cast, toward
+    /// it, is blocked.
     fn missing_shadow_rays(
         &self,
         r: &LoggedRay,
         kind: &Kind,
         lv: &Leave,
-        untested: &[usize],
+        (untested, stopped): (&[usize], Option<usize>),
         facing: &dyn Fn(usize) -> f64,
         f: &mut Vec<Finding>,
     ) {
@@ -622,12 +623,18 @@ impl Judge<'_> {
             .iter()
             .map(|&li| format!("'{}' (N·L = {:.4})", self.light_name(li as u32), facing(li)))
             .collect();
+        let why = stopped.map_or(String::new(), |li| {
+            format!(
+                "; the last shadow ray cast from it, toward light '{}', is blocked, and no light after that one is tested: the loop over the lights stops at a blocked light (a break where the next light should be tried)",
+                self.light_name(li as u32)
+            )
+        });
         f.push(self.finding(
             r,
             kind,
             Code::MissingShadowRay,
             format!(
-                "light {} faces this point of '{}' but no shadow ray was cast toward it",
+                "light {} faces this point of '{}' but no shadow ray was cast toward it{why}",
                 names.join(", light "),
                 self.name(lv.entity)
             ),
@@ -689,7 +696,13 @@ impl Judge<'_> {
             .filter(|&li| !tested[li] && facing(li) > 1e-3)
             .collect();
         if logs.shadow && !untested.is_empty() && weight() >= MIN_SHARE {
-            self.missing_shadow_rays(r, kind, lv, &untested, &facing, f);
+            // The last shadow ray cast is blocked and every light left out comes after its light:
+            // the loop over the lights stopped there.
+            let stopped = kids.shadow.last().and_then(|&k| {
+                let li = aimed(k)?;
+                (matches!(rays[k].blocked_by, Answer::Found(_)) && untested.iter().all(|&u| u > li)).then_some(li)
+            });
+            self.missing_shadow_rays(r, kind, lv, (&untested, stopped), &facing, f);
         }
         let Some(c) = r.color else {
             return Decision::Unjudged;

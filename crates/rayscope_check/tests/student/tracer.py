@@ -89,6 +89,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   falloff            each light divided by its squared distance
   ambient            an ambient term of 0.1 x albedo added to every diffuse hit
   skip-shadow-ray    the loop over lights stops before the last one (no shadow ray to it)
+  shadow-loop-break  the loop over the lights stops at the first blocked light (break for continue)
   no-reflection-ray  glass casts no reflected ray and drops the reflected share
   cos-twice          the diffuse term multiplied by N.L twice
   l-unnormalised     N.L taken with L = light - point not normalised (no catalogue has it)
@@ -123,7 +124,7 @@ AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
-        "glass-sum", "glass-t-unweighted", "logged-weighted",
+        "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
 # Mistakes in how rays meet surfaces and leave them.
@@ -398,6 +399,8 @@ class Tracer:
             self.emit({"id": self.new_id(), "parent": rid, "kind": "shadow", "origin": list(so),
                        "direction": list(ldir), "light": light["name"],
                        "blocked_by": (shaded.name if self.bug == "blocker-name" else b.name) if b else None})
+            if b is not None and self.bug == "shadow-loop-break":
+                break
             if b is None:
                 ns = mul(nf, shaded.r) if self.bug == "shade-normal-radius" and shaded.kind == "sphere" else nf
                 cos = dot(ns, ldir) if self.bug == "no-clamp" else max(0.0, dot(ns, to if self.bug == "l-unnormalised" else ldir))
