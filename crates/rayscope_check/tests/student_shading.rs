@@ -219,7 +219,7 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
     // Scene 2's lights are inside the box, in front of every wall: N·L < 0 happens on scene 1's
     // sphere, whose shadow rays toward the light behind it the tracer lets through.
     for (bug, scene, words) in [
-        ("no-clamp", scene1, "without the clamp at 0"),
+        ("no-clamp", scene1.clone(), "without the clamp at 0"),
         ("falloff", scene2.clone(), "squared distance"),
         ("ambient", scene2.clone(), "ambient term of 0.1000 × the albedo"),
         // Not in the catalogue: under scene 2's grey lights both fit the albedo alone or one
@@ -231,6 +231,9 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
         ),
         // Not in the catalogue either: the light's vector not normalised in N·L.
         ("l-unnormalised", scene2.clone(), "L = light − point not normalised"),
+        // Nor the light's position taken for L, the hit point left out (the shadow rays right).
+        ("l-from-origin", scene1, "L = the light's position normalised"),
+        ("l-from-origin", scene2.clone(), "L = the light's position normalised"),
         (
             "lights-averaged",
             scene2,

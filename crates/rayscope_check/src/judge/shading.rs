@@ -779,6 +779,7 @@ impl Judge<'_> {
             t.no_light += albedo * cos.max(0.0);
             t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
             t.unnormalised += term * lv.shade.dot(to).max(0.0);
+            t.from_origin += term * lv.shade.dot(light_pos(li).normalize_or_zero()).max(0.0);
             t.reach = t.reach.max(to.length());
         }
         let radius = match self.geo.prims(lv.entity) {
@@ -1174,6 +1175,8 @@ struct DiffuseTerms {
     flat: DVec3,
     /// N·L with L = light − point not normalised: each term times the light's distance.
     unnormalised: DVec3,
+    /// N·L with L the light's position normalised, the hit point left out of light − point.
+    from_origin: DVec3,
     /// The distance to the farthest light that is reached, which scales `unnormalised`'s slack.
     reach: f64,
     slack: DVec3,
@@ -1207,6 +1210,11 @@ fn diffuse_guess(
         Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
     } else if fits(c, t.falloff, t.slack) {
         Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
+    } else if fits(c, t.from_origin, t.slack) && !fits(t.from_origin, t.exact, t.slack) {
+        Some(
+            "it fits N·L with L = the light's position normalised: the hit point is left out of L = light − point"
+                .into(),
+        )
     } else if fits(c, t.unnormalised, t.slack * t.reach.max(1.0)) {
         Some("it fits N·L with L = light − point not normalised (each light's term times its distance): normalise L before the dot product".into())
     } else if fits(c, t.no_light, t.slack) {

@@ -93,6 +93,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   no-reflection-ray  glass casts no reflected ray and drops the reflected share
   cos-twice          the diffuse term multiplied by N.L twice
   l-unnormalised     N.L taken with L = light - point not normalised (no catalogue has it)
+  l-from-origin      N.L with L = the light's position normalised, the hit point left out (no catalogue has it)
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
@@ -123,7 +124,7 @@ MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
-        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "mirror-dim",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
@@ -403,7 +404,8 @@ class Tracer:
                 break
             if b is None:
                 ns = mul(nf, shaded.r) if self.bug == "shade-normal-radius" and shaded.kind == "sphere" else nf
-                cos = dot(ns, ldir) if self.bug == "no-clamp" else max(0.0, dot(ns, to if self.bug == "l-unnormalised" else ldir))
+                lshade = normalize(light["pos"]) if self.bug == "l-from-origin" else to if self.bug == "l-unnormalised" else ldir
+                cos = dot(ns, ldir) if self.bug == "no-clamp" else max(0.0, dot(ns, lshade))
                 if self.bug == "cos-twice":
                     cos *= cos
                 if self.bug == "falloff":
