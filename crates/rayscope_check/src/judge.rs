@@ -1017,6 +1017,8 @@ struct Leave {
     entity: u32,
     material: u32,
     parent_dir: DVec3,
+    /// The length of the parent's direction as logged (1 for a unit direction).
+    parent_len: f64,
     parent_origin: DVec3,
     /// Uncertainty of the normal in radians.
     un: f64,
@@ -1031,6 +1033,8 @@ struct Eval {
     sound: bool,
     origin: DVec3,
     dir: DVec3,
+    /// The length of the ray's direction as logged.
+    dir_len: f64,
 }
 
 impl Eval {
@@ -1044,6 +1048,7 @@ impl Eval {
             entity: h.entity,
             material: h.material,
             parent_dir: self.dir,
+            parent_len: self.dir_len,
             parent_origin: self.origin,
             un: h.un,
         })
@@ -1438,6 +1443,7 @@ impl<'a> Judge<'a> {
                 sound,
                 origin: o,
                 dir: d,
+                dir_len: r.dir_len,
             },
             kind,
         )

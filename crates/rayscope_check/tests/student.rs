@@ -356,6 +356,49 @@ fn refraction_without_total_internal_reflection_is_named() {
     );
 }
 
+/// Refraction formulas no catalogue has: the cosine's sign not turned, and a direction that is
+/// not unit (the camera's, not normalised) given to a formula that needs one. Each is Snell's
+/// law broken, with the formula it fits said on the ray.
+#[test]
+fn refraction_formulas_given_the_wrong_cosine_or_direction_say_which() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    for (bug, words) in [
+        ("refract-cos-sign", "with cos θi = d·n = -"),
+        (
+            "refract-unnormalised-d",
+            "given the incoming direction as your log has it, of length",
+        ),
+    ] {
+        let Some(r) = (Run {
+            bug,
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        })
+        .check() else {
+            return;
+        };
+        let d = r
+            .causes
+            .iter()
+            .find(|c| c.code == Code::RefractionSnell)
+            .and_then(|c| c.examples.first())
+            .map(|e| e.detail.clone())
+            .unwrap_or_default();
+        assert!(d.contains(words), "{bug}: {}", text(&r));
+    }
+    let Some(r) = assert_one_headline(
+        Run {
+            bug: "refract-cos-sign",
+            ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+        },
+        Code::RefractionSnell,
+    ) else {
+        return;
+    };
+    first_example_says(&r, &["the cosine's sign is not turned"]);
+}
+
 /// rayscope's own trace, logged in the documented format (f32 numbers, the facing-normal
 /// convention, per-sample ids): the judge's tolerances must accept it everywhere.
 #[test]

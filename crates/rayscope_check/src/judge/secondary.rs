@@ -360,9 +360,26 @@ impl Judge<'_> {
             ));
             return want;
         }
+        // The formula t = η d + (η c − √(1 − η²(1 − c²))) n given a direction `d` and a cosine
+        // `c` other than the unit direction's −d·n.
+        let formula = |d: DVec3, c: f64| {
+            let k = 1.0 - eta * eta * (1.0 - c * c);
+            (k >= 0.0).then(|| (d * eta + nf * (eta * c - k.sqrt())).normalize())
+        };
+        let long = dp * lv.parent_len;
         let sin_i = dp.cross(nf).length();
         let sin_t = ds.cross(nf).length();
-        let detail = if ds.dot(nf) > 0.0 {
+        let detail = if (lv.parent_len - 1.0).abs() > 1e-3 && matches(formula(long, -long.dot(nf))) {
+            format!(
+                "{leaving} '{name}' it fits the refraction formula given the incoming direction as your log has it, of length {:.4}: the formula needs a unit direction, so normalise the incoming ray's direction first",
+                lv.parent_len
+            )
+        } else if matches(formula(dp, dp.dot(nf))) {
+            format!(
+                "{leaving} '{name}' it fits the refraction formula with cos θi = d·n = {:.4} instead of −d·n = {cos_i:.4}: the cosine's sign is not turned for a normal that faces the incoming ray",
+                dp.dot(nf)
+            )
+        } else if ds.dot(nf) > 0.0 {
             format!("{leaving} '{name}' the refracted ray goes back out on the side the ray came from")
         } else if sin_i > 1e-6 {
             format!(

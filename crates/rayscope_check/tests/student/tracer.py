@@ -94,6 +94,9 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   cos-twice          the diffuse term multiplied by N.L twice
   l-unnormalised     N.L taken with L = light - point not normalised (no catalogue has it)
   l-from-origin      N.L with L = the light's position normalised, the hit point left out (no catalogue has it)
+  refract-cos-sign   the refraction formula given cos(theta_i) = d.n, its sign not turned (no catalogue has it)
+  refract-unnormalised-d  camera rays' directions not normalised, every test right for any length
+                     but the refraction formula, which needs a unit one (no catalogue has it)
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
@@ -124,7 +127,7 @@ MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
-        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "mirror-dim",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
@@ -243,6 +246,15 @@ class Tracer:
                 return None
             t = dot(sub(e.p, o), e.n) / den
             return t if t > 0 else None
+        if e.kind == "sphere" and self.bug == "refract-unnormalised-d":
+            # The general quadratic, right for a direction of any length.
+            oc = sub(o, e.c)
+            a, b, c = dot(d, d), dot(oc, d), dot(oc, oc) - e.r * e.r
+            disc = b * b - a * c
+            if disc < 0:
+                return None
+            ts = [(-b - math.sqrt(disc)) / a, (-b + math.sqrt(disc)) / a]
+            return next((t for t in ts if t > 0), None)
         if e.kind == "sphere":
             oc = sub(o, e.c)
             b = dot(oc, d)
@@ -471,7 +483,13 @@ class Tracer:
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
             return col
         k = max(k, 0.0)
-        tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
+        if self.bug == "refract-cos-sign":
+            # cos θi taken as d·n: the sign not turned for a normal facing the ray.
+            c = dot(d, nn)
+            k = max(1 - eta * eta * (1 - c * c), 0.0)
+            tdir = normalize(add(mul(d, eta), mul(nn, eta * c - math.sqrt(k))))
+        else:
+            tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
         ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))
         sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction"), 1.0 if self.bug in ("glass-sum", "glass-t-unweighted") else 1 - kr)
         return add(col, sub_col)
@@ -577,7 +595,7 @@ def main():
                         u, v = (x + (i + 1) / (n + 1)) / w, (y + (j + 1) / (n + 1)) / h
                     z = 2.0 if args.bug == "plane-distance" else 1.0
                     d = ((2 * u - 1) * hx, (1 - 2 * v) * hy, z)
-                    if args.bug != "camera-unnormalised":
+                    if args.bug not in ("camera-unnormalised", "refract-unnormalised-d"):
                         d = normalize(d)
                     col = tr.trace((0.0, 0.0, 0.0), d, 0, None, "camera")
                     total = add(total, col)
