@@ -33,20 +33,22 @@ impl Judge<'_> {
     pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, from: Option<DVec3>, f: &mut Vec<Finding>) -> Option<u32> {
         let lights = &self.scene.lights;
         let to = |li: u32| d3(Vec3A::from(lights[li as usize].position)) - r.origin;
+        let light_pos = |li: u32| d3(Vec3A::from(lights[li as usize].position));
+        let off_from = |li: u32, o: DVec3| {
+            let v = light_pos(li) - o;
+            if v.length_squared() == 0.0 {
+                0.0
+            } else {
+                angle(r.direction, v)
+            }
+        };
+        // From the hit point only where the origin's direction is off: most rays are aimed right.
         let off = |li: u32| {
-            let light = d3(Vec3A::from(lights[li as usize].position));
-            [Some(r.origin), from]
-                .into_iter()
-                .flatten()
-                .map(|o| {
-                    let v = light - o;
-                    if v.length_squared() == 0.0 {
-                        0.0
-                    } else {
-                        angle(r.direction, v)
-                    }
-                })
-                .fold(f64::INFINITY, f64::min)
+            let e = off_from(li, r.origin);
+            match from {
+                Some(p) if e > self.tol.direction => e.min(off_from(li, p)),
+                _ => e,
+            }
         };
         let pick = match r.light {
             Some(li) => Some((li, off(li))),
