@@ -159,6 +159,9 @@ pub struct Tally {
     pub acne_wrong_side: u64,
     /// Such rays from an origin on the right side of the surface, or on it.
     pub acne_other: u64,
+    /// Of `acne_wrong_side`, those whose origin lies farther behind the surface than an f32
+    /// tracer's rounding: offset there, not rounded there.
+    pub acne_wrong_side_far: u64,
     /// Glass verdicts of no reflection (kr = 0) where the reflected ray brought back black:
     /// there the two colours added, R + T, read the same.
     pub glass_black_reflection: u64,
@@ -853,11 +856,17 @@ impl Tally {
 
     /// Self-intersections of secondary rays whose origins all lie (if only by a rounding step)
     /// on the wrong side of the surface, in a log whose other secondary rays are offset to the
-    /// wrong side: one offset mistake, whose grazing rays start too near the surface to tell.
+    /// wrong side, or where every such origin lies beyond rounding on that side: one offset
+    /// mistake, whose rays start too near the surface for their origins alone to tell.
     fn acne_or_wrong_side(&mut self) {
         let acne = Cause::of(Code::SecondaryAcne);
         let wrong = Cause::of(Code::SecondaryOffsetWrongSide);
-        if !self.causes.contains_key(&wrong) || self.acne_wrong_side == 0 || self.acne_other > 0 {
+        // Every such hit from an origin offset to the wrong side, beyond rounding: the offset is
+        // the mistake even where no other ray shows it (an offset within the tolerance for a
+        // secondary ray's origin, taken along a normal that faces the wrong way).
+        let all_far = self.acne_wrong_side_far == self.acne_wrong_side
+            && self.cause_rays(Code::SecondaryAcne) <= self.acne_wrong_side;
+        if !(self.causes.contains_key(&wrong) || all_far) || self.acne_wrong_side == 0 || self.acne_other > 0 {
             return;
         }
         self.move_code(Code::SecondaryAcne, Code::SecondaryOffsetWrongSide);
@@ -920,6 +929,7 @@ impl Tally {
         self.skipped.merge(o.skipped);
         self.acne_wrong_side += o.acne_wrong_side;
         self.acne_other += o.acne_other;
+        self.acne_wrong_side_far += o.acne_wrong_side_far;
         self.glass_black_reflection += o.glass_black_reflection;
         self.glass_black_other += o.glass_black_other;
         self.shaded_judged += o.shaded_judged;

@@ -356,6 +356,28 @@ fn refraction_without_total_internal_reflection_is_named() {
     );
 }
 
+/// A normal flipped to face the camera instead of the ray faces out of the glass inside it: the
+/// reflected ray's origin is offset to the wrong side, by 1e-6, within the tolerance for an
+/// origin, and the ray meets the sphere again at once. That is the offset, not rounding (acne).
+#[test]
+fn self_hits_from_origins_offset_to_the_wrong_side_are_that_offset() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let Some(r) = (Run {
+        bug: "normal-toward-camera",
+        options: &["--eps", "1e-6"],
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    })
+    .check() else {
+        return;
+    };
+    let t = text(&r);
+    assert_eq!(r.causes[0].code, Code::SecondaryOffsetWrongSide, "{t}");
+    assert!(r.causes.iter().all(|c| c.code != Code::SecondaryAcne), "{t}");
+    first_example_says(&r, &["to the wrong side of the surface"]);
+}
+
 /// Refraction formulas no catalogue has: the cosine's sign not turned, and a direction that is
 /// not unit (the camera's, not normalised) given to a formula that needs one. Each is Snell's
 /// law broken, with the formula it fits said on the ray.

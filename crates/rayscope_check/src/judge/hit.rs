@@ -173,6 +173,7 @@ impl Judge<'_> {
                     // log-wide decision between acne and an offset to the wrong side.
                     if sigma * heading < 0.0 {
                         tally.acne_wrong_side += 1;
+                        tally.acne_wrong_side_far += u64::from(sigma.abs() > T_ROUNDING * l);
                     } else {
                         tally.acne_other += 1;
                     }

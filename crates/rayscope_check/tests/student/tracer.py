@@ -97,6 +97,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   refract-cos-sign   the refraction formula given cos(theta_i) = d.n, its sign not turned (no catalogue has it)
   refract-unnormalised-d  camera rays' directions not normalised, every test right for any length
                      but the refraction formula, which needs a unit one (no catalogue has it)
+  normal-toward-camera  the normal flipped to face the camera, not the ray (no catalogue has it)
   depth-4            the recursion stops after 4 bounces instead of 8
   limit-colour       a mirror or glass hit at the depth limit returns its material colour, not black
   mirror-tint        a mirror multiplies what it reflects by its material colour
@@ -127,7 +128,7 @@ MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
-        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "mirror-dim",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "normal-toward-camera", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
@@ -380,6 +381,10 @@ class Tracer:
         nf = n if front else mul(n, -1)
         rec["hit"] = {"t": t, "point": list(p), "normal": list(nf), "entity": e.name}
         self.emit(rec)
+        if self.bug == "normal-toward-camera":
+            # Shaded with the normal flipped to face the camera at the origin rather than the
+            # ray (the one logged faces the ray): inside glass it faces out.
+            nf = n if dot(n, mul(p, -1)) > 0 else mul(n, -1)
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
             return self.colored(rec, self.diffuse(p, nf, m, rid, e))
