@@ -524,12 +524,7 @@ fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64
 /// clamp nor the byte's rounding hides it, then taken as a whole number, the reciprocal of one
 /// or the side of the sample grid when within 1 % of it.
 fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
-    let pixels = || {
-        (0..s.n.len()).filter_map(|i| {
-            let yours = image.get(3 * i..3 * i + 3)?;
-            Some((s.average(i)?, [yours[0], yours[1], yours[2]]))
-        })
-    };
+    let pixels = || logged_pixels(s, image);
     // The median of an even spread of at most about 2^16 pixels: the same factor, in bounded
     // memory whatever the picture's size.
     let every = (s.n.len() >> 16).max(1);
@@ -558,20 +553,7 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
     if near(1.0) || !k.is_finite() {
         return None;
     }
-    // The pixels a factor fits, and how many byte levels above black they show.
-    let fit = |k: f64| {
-        let mut levels = [false; 256];
-        let mut n = 0u64;
-        for (avg, yours) in pixels() {
-            if within_a_level(avg.map(|v| course_byte(v * k)), yours) {
-                n += 1;
-                for b in yours {
-                    levels[usize::from(b)] = b > 0;
-                }
-            }
-        }
-        (n, levels.iter().filter(|&&l| l).count())
-    };
+    let fit = |k: f64| fits_with_levels(s, image, |v| v * k);
     // A factor a person wrote has few digits: two decimals where they fit as many pixels.
     let (mut n, mut levels) = fit(k);
     let mut k = k;
@@ -593,12 +575,7 @@ fn plain_factor(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
 /// the clamp nor the byte's rounding hides it, then taken as 1/2.2, 1/2.4, 1/2, 2, 2.2 or a
 /// whole number where within 1 % of one.
 fn plain_exponent(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
-    let pixels = || {
-        (0..s.n.len()).filter_map(|i| {
-            let yours = image.get(3 * i..3 * i + 3)?;
-            Some((s.average(i)?, [yours[0], yours[1], yours[2]]))
-        })
-    };
+    let pixels = || logged_pixels(s, image);
     // As in `plain_factor`: an even spread of at most about 2^16 pixels.
     let every = (s.n.len() >> 16).max(1);
     let mut logs: Vec<f64> = pixels()
@@ -623,18 +600,33 @@ fn plain_exponent(s: &PixelSums, image: &[u8]) -> Option<(f64, u64)> {
     if ((g - 1.0).abs() < 0.01) || !g.is_finite() || g <= 0.0 {
         return None;
     }
+    let (n, levels) = fits_with_levels(s, image, |v| v.max(0.0).powf(g));
+    // As for a factor, colours of several levels are needed to say the picture is a power of them.
+    (levels >= 8).then_some((g, n))
+}
+
+/// Each fully logged pixel's average colour beside the picture's bytes for it.
+fn logged_pixels<'a>(s: &'a PixelSums, image: &'a [u8]) -> impl Iterator<Item = ([f64; 3], [u8; 3])> + 'a {
+    (0..s.n.len()).filter_map(move |i| {
+        let yours = image.get(3 * i..3 * i + 3)?;
+        Some((s.average(i)?, [yours[0], yours[1], yours[2]]))
+    })
+}
+
+/// The pixels whose bytes are their average colour changed by `v`, then turned into bytes as the
+/// course does (each channel within one level), and how many byte levels above black they show.
+fn fits_with_levels(s: &PixelSums, image: &[u8], v: impl Fn(f64) -> f64) -> (u64, usize) {
     let mut levels = [false; 256];
     let mut n = 0u64;
-    for (avg, yours) in pixels() {
-        if within_a_level(avg.map(|v| course_byte(v.max(0.0).powf(g))), yours) {
+    for (avg, yours) in logged_pixels(s, image) {
+        if within_a_level(avg.map(|c| course_byte(v(c))), yours) {
             n += 1;
             for b in yours {
                 levels[usize::from(b)] = b > 0;
             }
         }
     }
-    // As for a factor, colours of several levels are needed to say the picture is a power of them.
-    (levels.iter().filter(|&&l| l).count() >= 8).then_some((g, n))
+    (n, levels.iter().filter(|&&l| l).count())
 }
 
 /// An exponent as a report words it: 1/2.2 and the like as a fraction, else three decimals.
