@@ -299,8 +299,8 @@ pub fn check_pixels(
     let n = w as usize * h as usize;
     let mut status = vec![0u8; n];
     let mut first: Vec<(u64, u8)> = vec![(u64::MAX, 0); n];
-    // Pixels with a camera ray numbered as another cell's sample, and the first such line.
-    let mut renumbered = vec![false; n];
+    // Per pixel, the first line of a camera ray numbered as another cell's sample (`u64::MAX`:
+    // none).
     let mut first_order = vec![u64::MAX; n];
     let mut rays: HashMap<[u32; 2], Vec<ShownRay>> = HashMap::new();
     let (mut kept, mut dropped, mut unplaced) = (0u64, 0u64, 0u64);
@@ -320,10 +320,7 @@ pub fn check_pixels(
             for v in f {
                 if v.code == Code::CameraSampleOrder {
                     // A numbering or a mistake, as the whole log decides (below).
-                    renumbered[i] = true;
-                    if r.line < first_order[i] {
-                        first_order[i] = r.line;
-                    }
+                    first_order[i] = first_order[i].min(r.line);
                 } else if v.code.is_tie() {
                     st = st.max(PixelStatus::Tie);
                 } else {
@@ -372,7 +369,7 @@ pub fn check_pixels(
             .find(|&c| matches!(c, Code::CameraSubpixelGrid | Code::CameraOnePoint))
             .unwrap_or(Code::CameraSubpixelGrid);
         let c = Code::ALL.iter().position(|&c| c == to).unwrap_or(0) as u8 + 1;
-        for i in (0..n).filter(|&i| renumbered[i]) {
+        for i in (0..n).filter(|&i| first_order[i] != u64::MAX) {
             status[i] = (status[i] & DROPPED) | PixelStatus::Disagrees as u8;
             if first_order[i] < first[i].0 {
                 first[i] = (first_order[i], c);

@@ -68,7 +68,8 @@ impl Judge<'_> {
         let (s, err) = candidates
             .map(|s| (s, angle(d, rs_dir(s))))
             .fold((0, f64::INFINITY), |a, b| if b.1 < a.1 { b } else { a });
-        if let Some(s) = r.sample {
+        // One sample a pixel has no other numbering.
+        if let Some(s) = r.sample.filter(|_| self.grid > 1) {
             order.numbered((x, y), s, self.spp);
         }
         if err <= self.cam_tol {
@@ -81,6 +82,16 @@ impl Judge<'_> {
             }
         }
         self.camera_wrong(r, kind, (x, y, s), err, f, shift);
+    }
+
+    /// Where rayscope puts sample `s` in its pixel, from (0, 0) at the top-left corner to (1, 1):
+    /// the centre of cell (s mod N, s div N) of the N×N grid.
+    fn cell_centre(&self, s: u32) -> (f64, f64) {
+        let n = f64::from(self.grid);
+        (
+            (f64::from(s % self.grid) + 0.5) / n,
+            (f64::from(s / self.grid) + 0.5) / n,
+        )
     }
 
     /// The half extents of rayscope's image plane at distance 1, across and down.
@@ -109,13 +120,7 @@ impl Judge<'_> {
         let n = self.grid;
         let middle = n % 2 == 1 && cell == n * n / 2;
         order.add((x, y), s, cell, middle);
-        let centre = |k: u32| {
-            (
-                (f64::from(k % n) + 0.5) / f64::from(n),
-                (f64::from(k / n) + 0.5) / f64::from(n),
-            )
-        };
-        let (at, own) = (centre(cell), centre(s));
+        let (at, own) = (self.cell_centre(cell), self.cell_centre(s));
         let through = if middle {
             "the centre of its pixel, ".to_string()
         } else {
@@ -311,11 +316,7 @@ impl Judge<'_> {
     /// corner to (1, 1). (A ray through the centre of another cell of the N×N grid is
     /// [`Self::renumbered`]'s.)
     fn where_in_pixel(&self, s: u32, at: (f64, f64)) -> String {
-        let n = f64::from(self.grid);
-        let expected = (
-            (f64::from(s % self.grid) + 0.5) / n,
-            (f64::from(s / self.grid) + 0.5) / n,
-        );
+        let expected = self.cell_centre(s);
         format!(
             "it crosses its pixel at ({:.3}, {:.3}) of the way across and down, where rayscope puts sample {s} at ({:.3}, {:.3}) (random jitter, or a sub-pixel layout rayscope does not know)",
             at.0, at.1, expected.0, expected.1
@@ -406,7 +407,7 @@ impl Judge<'_> {
         let n = f64::from(self.grid);
         let (i, j) = (f64::from(s % self.grid), f64::from(s / self.grid));
         let mut offs: Vec<Guess> = vec![
-            (((i + 0.5) / n, (j + 0.5) / n), None),
+            (self.cell_centre(s), None),
             (
                 (i / n, j / n),
                 Some((

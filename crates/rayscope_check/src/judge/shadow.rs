@@ -32,8 +32,8 @@ impl Judge<'_> {
     /// which the course's light − point is, before the origin is offset off the surface.
     pub(super) fn aim(&self, r: &LoggedRay, kind: &Kind, from: Option<DVec3>, f: &mut Vec<Finding>) -> Option<u32> {
         let lights = &self.scene.lights;
-        let to = |li: u32| d3(Vec3A::from(lights[li as usize].position)) - r.origin;
         let light_pos = |li: u32| d3(Vec3A::from(lights[li as usize].position));
+        let to = |li: u32| light_pos(li) - r.origin;
         let off_from = |li: u32, o: DVec3| {
             let v = light_pos(li) - o;
             if v.length_squared() == 0.0 {
@@ -84,7 +84,7 @@ impl Judge<'_> {
             return None;
         }
         let backwards = angle(r.direction, -target) <= self.tol.direction;
-        let position = d3(Vec3A::from(lights[li as usize].position));
+        let position = light_pos(li);
         let unshifted = position.length_squared() > 0.0 && angle(r.direction, position) <= self.tol.direction;
         let detail = if backwards {
             format!(
