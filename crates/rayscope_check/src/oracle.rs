@@ -159,6 +159,34 @@ impl OracleRay {
         (t > t_min && t < t_max).then_some(t)
     }
 
+    /// [`Self::triangle`] for the four triangles of `q`, lane by lane the same arithmetic: each
+    /// lane's `t`, or infinity where that triangle is not met in `t_min..t_max`.
+    #[inline]
+    fn triangles4(&self, q: &TriangleQuad, t_min: f64, t_max: f64) -> [f64; 4] {
+        let [kx, ky, kz] = self.k;
+        let o = self.o.to_array().map(f64x4::splat);
+        let (sx, sy) = (f64x4::splat(self.s.x), f64x4::splat(self.s.y));
+        let rel = |c: usize, a: usize| q.corner[c][a] - o[a];
+        let shear = |c: usize| {
+            let z = rel(c, kz);
+            (rel(c, kx) - sx * z, rel(c, ky) - sy * z, z)
+        };
+        let ((ax, ay, az), (bx, by, bz), (cx, cy, cz)) = (shear(0), shear(1), shear(2));
+        let u = cx * by - cy * bx;
+        let v = ax * cy - ay * cx;
+        let w = bx * ay - by * ax;
+        let zero = f64x4::ZERO;
+        let mixed = (u.simd_lt(zero) | v.simd_lt(zero) | w.simd_lt(zero))
+            & (u.simd_gt(zero) | v.simd_gt(zero) | w.simd_gt(zero));
+        let det = u + v + w;
+        let tz = u * az + v * bz + w * cz;
+        let t = tz * f64x4::splat(self.s.z) / det;
+        let met = t.simd_gt(f64x4::splat(t_min)) & t.simd_lt(f64x4::splat(t_max)) & det.simd_ne(zero);
+        // `mixed` is all ones in the lanes to drop, so it picks infinity there.
+        let keep = met & !mixed;
+        keep.select(t, f64x4::splat(f64::INFINITY)).to_array()
+    }
+
     /// Where the ray's line crosses the plane of the triangle with corners `v`, by the same
     /// computation as [`Self::triangle`]: the barycentric weights of v0, v1 and v2 (summing to
     /// 1; all at least 0 exactly where [`Self::triangle`] hits, one exactly 0 on an edge) and
@@ -307,6 +335,23 @@ pub struct Oracle {
     triangle_info: Vec<(u32, u32)>,
     nodes: Vec<Node>,
     refs: Vec<u32>,
+    /// The triangles four to a group, when the scene is small enough for [`Self::closest`] to
+    /// test every primitive rather than walk the hierarchy; empty otherwise.
+    quads: Vec<TriangleQuad>,
+    /// True when [`Self::closest`] tests every primitive.
+    brute: bool,
+}
+
+/// Most spheres and triangles (together) in a scene whose rays test every one of them: for so
+/// few, four triangles a vector beat the hierarchy's box tests and its branches.
+const BRUTE_MOST: usize = 24;
+
+/// Four triangles' corners in the lanes of vectors, by corner then axis; lanes past the last
+/// triangle hold NaN corners, which no ray meets.
+#[derive(Debug, Clone, Copy)]
+struct TriangleQuad {
+    corner: [[f64x4; 3]; 3],
+    index: [u32; 4],
 }
 
 /// A primitive's bounds and centre while the hierarchy is built.
@@ -355,6 +400,15 @@ impl Oracle {
                 hi: c + DVec3::splat(r),
                 c,
             });
+        }
+        o.brute = items.len() <= BRUTE_MOST;
+        if o.brute {
+            for (q, chunk) in o.triangles.chunks(4).enumerate() {
+                let lane = |k: usize, c: usize, a: usize| chunk.get(k).map_or(f64::NAN, |v| v[c][a]);
+                let corner = [0, 1, 2].map(|c| [0, 1, 2].map(|a| f64x4::new([0, 1, 2, 3].map(|k| lane(k, c, a)))));
+                let index = [0, 1, 2, 3].map(|k| (4 * q + k) as u32);
+                o.quads.push(TriangleQuad { corner, index });
+            }
         }
         if !items.is_empty() {
             o.nodes.push(Node {
@@ -489,10 +543,44 @@ impl Oracle {
         }
         let ray = OracleRay::new(o, d);
         let (mut best, mut t_far) = self.closest_plane(o, d, t_min, t_max);
+        if self.brute {
+            if let Some((prim, t)) = self.closest_of_all(&ray, t_min, t_far) {
+                return self.hit_at(prim.or(best)?, o, d, t);
+            }
+        }
         self.walk(&ray, t_min, &mut t_far, |r, t_far| {
             self.test_leaf(&ray, r, t_min, t_far, &mut best);
         });
         self.hit_at(best?, o, d, t_far)
+    }
+
+    /// The nearest sphere or triangle with `t_min < t < t_far`, every one tested, and its `t`
+    /// (`t_far` and `None` where none is met); `None` when two are met at that same nearest
+    /// `t`, where the answer is the first of them the hierarchy's walk tests. Each primitive's
+    /// `t` is the walk's number, by the same arithmetic, so a single nearest one is the walk's
+    /// answer too.
+    #[inline]
+    fn closest_of_all(&self, ray: &OracleRay, t_min: f64, t_far: f64) -> Option<(Option<PrimRef>, f64)> {
+        let (mut best, mut t_best, mut twice) = (None, t_far, false);
+        let mut take = |t: f64, prim: PrimRef| {
+            if t < t_best {
+                (best, t_best, twice) = (Some(prim), t, false);
+            } else if t == t_best && t < t_far {
+                twice = true;
+            }
+        };
+        for (i, &(c, r)) in self.spheres.iter().enumerate() {
+            if let Some(t) = hit_sphere(c, r, ray.o, ray.d, t_min, t_far) {
+                take(t, PrimRef::Sphere(i as u32));
+            }
+        }
+        for q in &self.quads {
+            let ts = ray.triangles4(q, t_min, t_far);
+            for (t, &i) in ts.iter().zip(&q.index) {
+                take(*t, PrimRef::Triangle(i));
+            }
+        }
+        (!twice).then_some((best, t_best))
     }
 
     /// [`Self::closest`] by [`Self::visit`], which also takes NaN for `t_min` or `t_max`.
