@@ -981,12 +981,26 @@ mod tests {
 
     #[test]
     fn the_walk_answers_as_the_general_visit_bit_for_bit() {
-        // A grid of triangles sharing edges and corners (ties wherever a ray meets an edge), a
-        // box of walls meeting at its edges, spheres and planes, from integer origins (on the
-        // boxes' faces) along directions with zero components as well as random ones.
+        let o = Oracle::new(&scene(&grid(6)));
+        assert!(!o.brute);
+        assert!(same_as_visit(&o) > 100_000);
+    }
+
+    #[test]
+    fn testing_every_primitive_answers_as_the_walk_bit_for_bit() {
+        // 18 triangles and 2 spheres: few enough to test them all.
+        let o = Oracle::new(&scene(&grid(3)));
+        assert!(o.brute);
+        assert!(same_as_visit(&o) > 50_000);
+    }
+
+    /// A grid of n × n squares of two triangles each, sharing edges and corners (ties wherever a
+    /// ray meets an edge), at staggered depths so that their sides make walls meeting at edges,
+    /// with two spheres and two planes.
+    fn grid(n: i32) -> String {
         let mut src = String::from("Material \"M\" Diffuse (1, 1, 1) 1\n");
-        for i in 0..6 {
-            for j in 0..6 {
+        for i in 0..n {
+            for j in 0..n {
                 let (x, y) = (f64::from(i) - 3.0, f64::from(j) - 3.0);
                 let z = f64::from((i * 7 + j * 3) % 5) * 0.25 + 4.0;
                 src.push_str(&format!(
@@ -1005,8 +1019,13 @@ mod tests {
         }
         src.push_str("Sphere \"S1\" (0, 0, 2) 0.5 \"M\"\nSphere \"S2\" (1, 1, 1) 0.25 \"M\"\n");
         src.push_str("Plane \"P1\" (0, -2, 0) (0, 1, 0) \"M\"\nPlane \"P2\" (0, 0, 6) (0, 0, -1) \"M\"\n");
-        let s = scene(&src);
-        let o = Oracle::new(&s);
+        src
+    }
+
+    /// Asserts that [`Oracle::closest`] answers as [`Oracle::closest_by_visit`], bit for bit, for
+    /// 200,000 rays from integer origins (on the squares' sides) along directions with zero
+    /// components as well as random ones; returns how many met something.
+    fn same_as_visit(o: &Oracle) -> usize {
         let mut seed = 0x9e37_79b9_7f4a_7c15_u64;
         let mut next = || {
             seed ^= seed << 13;
@@ -1044,7 +1063,7 @@ mod tests {
             );
             met += usize::from(a.is_some());
         }
-        assert!(met > 100_000, "{met}");
+        met
     }
 
     #[test]
