@@ -123,6 +123,8 @@ pub enum Conversion {
     Course,
     /// Rounded to the nearest byte.
     Rounded,
+    /// Times 256 rather than 255, cut at 255: `(byte)Math.Min(v * 256, 255)`.
+    Times256,
     /// Gamma-corrected, `v^(1/2.2)`, before the conversion.
     Gamma,
     /// Not clamped: a value over 1 wraps around a byte.
@@ -157,9 +159,10 @@ pub enum Conversion {
 }
 
 impl Conversion {
-    const ALL: [Conversion; 15] = [
+    const ALL: [Conversion; 16] = [
         Conversion::Course,
         Conversion::Rounded,
+        Conversion::Times256,
         Conversion::Gamma,
         Conversion::Unclamped,
         Conversion::ByteAverage,
@@ -180,6 +183,7 @@ impl Conversion {
         match self {
             Conversion::Course => None,
             Conversion::Rounded => Some(Code::ImageRounded),
+            Conversion::Times256 => Some(Code::ImageTimes256),
             Conversion::Gamma => Some(Code::ImageGamma),
             Conversion::Unclamped => Some(Code::ImageUnclamped),
             Conversion::ByteAverage => Some(Code::ImageByteAverage),
@@ -234,6 +238,7 @@ impl Conversion {
                 | Conversion::Transposed
                 | Conversion::Bgr => course_byte(v),
                 Conversion::Rounded => (v.clamp(0.0, 1.0) * 255.0).round() as u8,
+                Conversion::Times256 => (v.max(0.0) * 256.0).min(255.0) as u8,
                 Conversion::Gamma => (v.clamp(0.0, 1.0).powf(1.0 / 2.2) * 255.0) as u8,
                 // A C# `(byte)` of a double past 255 keeps the low 8 bits of its integer part.
                 Conversion::Unclamped => ((v.max(0.0) * 255.0) as i64).rem_euclid(256) as u8,
@@ -486,8 +491,9 @@ fn two_rules(s: &PixelSums, image: &[u8]) -> Option<(Conversion, Conversion, u64
         Conversion::Rotated,
         Conversion::Transposed,
     ];
-    const VALUES: [Conversion; 6] = [
+    const VALUES: [Conversion; 7] = [
         Conversion::Rounded,
+        Conversion::Times256,
         Conversion::Gamma,
         Conversion::Unclamped,
         Conversion::ByteAverage,

@@ -35,6 +35,7 @@ mod secondary;
 mod shading;
 mod shadow;
 mod surfaces;
+mod whitted;
 
 /// The tolerances verdicts are decided with. Lengths are relative: each is multiplied by the
 /// ray's scale, max(1, the largest absolute coordinate of its origin and hit point), because
@@ -151,6 +152,9 @@ pub struct Tally {
     /// Refracted rays into glass with no verdict: where they exist the tracer's ratio of
     /// indices is right on the way in.
     pub entering_refracted_ok: u64,
+    /// Refracted rays in the log: where there are any, a glass hit that casts none was kept
+    /// from refracting by a test, not by a tracer that never refracts.
+    pub refracted: u64,
     /// The nearest hits the tracer passed over, for the log-wide rule that explains them.
     pub skipped: Skipped,
     /// Reflected and refracted rays that hit the surface they leave at t ≈ 0 from an origin on
@@ -801,6 +805,18 @@ impl Tally {
         self.causes.entry(to).or_default().merge(moved, keep);
     }
 
+    /// Glass hits that cast a reflection weighted by a share below 1 and no refracted ray: in a
+    /// log with refracted rays elsewhere, a test kept these from refracting (a critical-angle
+    /// test that fires where it should not); in one without, the tracer never refracts.
+    fn refraction_test_or_none(&mut self) {
+        if self.refracted > 0 {
+            self.recast(
+                Cause::of(Code::MissingRefraction),
+                Cause::of(Code::RefractionTirInvented),
+            );
+        }
+    }
+
     /// Reflections at glass a ray entering should have refracted through, where the ratio of
     /// indices upside down would also be past the critical angle: the rest of the log decides.
     /// Refracted rays into glass bent with that ratio make it the ratio; correct ones make it the
@@ -926,6 +942,7 @@ impl Tally {
         self.back_near_edge += o.back_near_edge;
         self.back_inside += o.back_inside;
         self.entering_refracted_ok += o.entering_refracted_ok;
+        self.refracted += o.refracted;
         self.skipped.merge(o.skipped);
         self.acne_wrong_side += o.acne_wrong_side;
         self.acne_other += o.acne_other;
@@ -973,6 +990,7 @@ impl Tally {
         self.carried_or_phantom();
         self.acne_or_wrong_side();
         self.one_sided_or_edges();
+        self.refraction_test_or_none();
         self.tir_test_or_ratio();
         self.one_sided_or_missed();
         self.none_or_sum();
@@ -1352,6 +1370,7 @@ impl<'a> Judge<'a> {
         }
         self.tir_invented(rays, parent, evals, kinds, findings);
         tally.carried_unnamed += self.carried_over(rays, parent, kinds, findings);
+        tally.refracted += kinds.iter().filter(|k| **k == Kind::Refraction).count() as u64;
         tally.entering_refracted_ok += (0..n)
             .filter(|&i| {
                 kinds[i] == Kind::Refraction

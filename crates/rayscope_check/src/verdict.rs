@@ -106,6 +106,9 @@ codes! {
     HitFarther = "hit.farther", false,
         "chose a farther surface over a nearer one",
         "Your tracer reports a surface that lies beyond the nearest one: rayscope finds another entity in front of it. Keep the hit with the smallest positive t over all entities (not the first one found, and not the last one tested).";
+    HitMissedFromInside = "hit.missed-from-inside", false,
+        "missed the far side of the surface the ray leaves, from inside",
+        "This ray starts on a surface and goes into it, like a ray refracted into a glass sphere: its nearest hit is the far side of that same entity, and your tracer passed it by and reported something beyond. Two mistakes do this: an intersection test that gives up when the near root is behind the origin instead of returning the far one (a sphere test must return t1 = −b + √disc when t0 ≤ ε), or a tracer that skips the entity a ray leaves (a cure for acne that also skips the way out of glass). Keep the far root, and offset the new ray's origin instead of skipping its entity.";
     HitNearSkipped = "hit.near-skipped", false,
         "hits nearer than a minimum distance are ignored",
         "Every hit your tracer passed over lies nearer to its ray's origin than every hit it kept: it ignores hits closer than a minimum distance (a test such as t > 0.05, often the cure for shadow acne). That distance is too large for the scene: surfaces that near (where objects touch, across a thin pane of glass, along a wall's foot) are missed. Ignore hits only within a tiny ε (about 1e-5 at the course's scale), or offset the new ray's origin by point + n·ε instead; the details give the distances passed over and kept.";
@@ -204,7 +207,7 @@ codes! {
         "The light is blocked, but the entity your tracer names is not on the shadow ray. The answer (in shadow) is right; the entity you report comes from somewhere else, perhaps an earlier ray.";
     ShadingDiffuse = "shading.diffuse", false,
         "diffuse colour does not follow the course's formula",
-        "A diffuse hit's colour is albedo × Σ light colour × max(0, N·L) over the lights its shadow rays reach, with N the unit normal facing the incoming ray and L the unit direction to the light: no fall-off with distance, no ambient term, nothing for a light whose shadow ray is blocked. The details compare your colour with that sum over your own shadow rays and name the likely mistake when it fits one: N·L not clamped at 0 (lights behind the surface subtract), divided by the squared distance, L taken as the light's position without the hit point, the albedo or the light's colour left out, the whole sum times a plain factor (the lights averaged instead of added), or a constant ambient term added. Fix the diffuse term in your shading function.";
+        "A diffuse hit's colour is albedo × Σ light colour × max(0, N·L) over the lights its shadow rays reach, with N the unit normal facing the incoming ray and L the unit direction to the light: no fall-off with distance, no ambient term, nothing for a light whose shadow ray is blocked. The details compare your colour with that sum over your own shadow rays and name the likely mistake when it fits one: N·L not clamped at 0 (lights behind the surface subtract), divided by the squared distance, L taken as the light's position without the hit point, the albedo or the light's colour left out or multiplied in twice, the whole sum times a plain factor (the lights averaged instead of added), or a constant ambient term added. Fix the diffuse term in your shading function.";
     ShadingShadowDirection = "shading.shadow-direction", false,
         "diffuse colour takes N·L along shadow rays that miss their lights",
         "The colour fits the course's diffuse sum, albedo × Σ light colour × max(0, N·L), with L taken along your own shadow rays; but those rays do not point at their lights, so N·L is wrong with them. It is what the shadow rays' mistake does to the colour: make the shadow ray's direction normalise(light − point) and use that same unit vector as L in N·L, and the colour follows.";
@@ -250,6 +253,9 @@ codes! {
     MissingReflection = "missing.reflection", false,
         "glass hit without its reflected ray",
         "Glass reflects a share of the light by the Fresnel equations whichever way the ray goes, and all of it past the critical angle: a glass hit casts a reflected ray as well as the refracted one. Your log has no reflected ray at a glass hit where the reflected share is at least 1 % of the sample, although it logs refracted rays. Trace the reflection and mix: kr·R + (1 − kr)·T (or, if your tracer does cast it, log it).";
+    MissingRefraction = "missing.refraction", false,
+        "glass hit without its refracted ray",
+        "Below the critical angle a glass hit casts two rays, the reflected one and the refracted one, and mixes their colours by Fresnel's kr: kr·R + (1 − kr)·T. Your tracer casts the reflected ray at glass and weights its colour by a share below 1, but no refracted ray leaves any glass hit in your log: the refraction is never cast (or never logged), and its share of the colour is missing. Cast the refracted ray by Snell's law and add (1 − kr)·T.";
     MissingShadowRay = "missing.shadow-ray", false,
         "diffuse hit without a shadow ray to a light that faces it",
         "A diffuse hit is lit by every light in front of it (N·L > 0) that nothing blocks, so it needs a shadow ray to each of them. Your log has none toward the light named in the details, although it logs shadow rays: check the loop over the scene's lights (an off-by-one in its bound skips the last one; a break at the first blocked light skips those after it, as the details say where that is what the log shows), and that every shadow ray cast is logged.";
@@ -259,6 +265,9 @@ codes! {
     ImageRounded = "image.rounded", false,
         "colours rounded to bytes instead of truncated",
         "Your picture's bytes are your logged colours rounded to the nearest byte. The course's template truncates: byte = (byte)(Math.Min(v, 1) * 255), so 0.999 · 255 = 254.7 becomes 254. About half the pixels come out one level too bright; invisible by eye, but not an exact match.";
+    ImageTimes256 = "image.times-256", false,
+        "colours multiplied by 256 instead of 255 when turned into bytes",
+        "Your picture's bytes are your logged colours times 256, cut at 255: (byte)Math.Min(v * 256, 255). The course's template multiplies by 255 and truncates: byte = (byte)(Math.Min(v, 1) * 255), so 0.5 becomes 127, not 128. Many pixels come out one level too bright; invisible by eye, but not an exact match. Multiply the clamped colour by 255.";
     ImageGamma = "image.gamma", false,
         "colours gamma-corrected before they are written",
         "Your picture's bytes are your logged colours raised to a power (1/2.2, gamma correction, unless the details give another, such as 1/2: a square root) before the conversion. The course writes linear values: byte = (byte)(Math.Min(v, 1) * 255). Remove the power; with an exponent below 1 the picture is brighter and washed out.";

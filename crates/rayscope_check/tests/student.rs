@@ -864,6 +864,7 @@ fn the_picture_is_judged_against_the_logged_colours() {
         ("last-sample-out", Some(Code::ImageOneSample)),
         ("row-accumulator-out", Some(Code::ImageAccumulated)),
         ("sqrt-out", Some(Code::ImageGamma)),
+        ("times-256-out", Some(Code::ImageTimes256)),
     ] {
         let dir = tempfile::tempdir().expect("temp dir");
         let (log, ppm) = (dir.path().join("rays.jsonl"), dir.path().join("out.ppm"));
@@ -1313,6 +1314,10 @@ fn a_sphere_shaded_with_a_normal_as_long_as_its_radius_is_said_to_be() {
     every_example_says(&r, &["× 0.5000", "the sphere's radius, 0.5"]);
 }
 
+/// A camera ray logged alone with its colour, none of the shadow rays it comes from: its colour
+/// is judged against the course's sum over the lights the oracle sees, and a colour that is not
+/// that sum is left unjudged (nothing says which lights the tracer saw), never called a missing
+/// ray.
 #[test]
 fn colours_logged_without_the_rays_they_come_from_are_not_called_missing() {
     let Some(course) = rayscope_testkit::course() else {
@@ -1343,19 +1348,86 @@ fn colours_logged_without_the_rays_they_come_from_are_not_called_missing() {
         .map(|w| w[0])
         .expect("a camera ray with shadow rays");
     assert!(line.contains("\"color\""), "{line}");
-    std::fs::write(&first, format!("{line}\n")).expect("write");
     let settings = RenderSettings {
         width: 40,
         height: 40,
         stage: Stage::Two,
         ..RenderSettings::default()
     };
+    std::fs::write(&first, format!("{line}\n")).expect("write");
+    let r = check_log(&scene, settings.clone(), &first, 3);
+    assert_eq!((r.disagree, r.shaded_judged), (0, 1), "{}", text(&r));
+    first_line_says(&r, "no mistake found: every ray and every logged colour agrees");
+    // The same ray with half its colour.
+    let mut ray: serde_json::Value = serde_json::from_str(line).expect("a JSON line");
+    let c = ray["color"]
+        .as_array()
+        .expect("colour")
+        .iter()
+        .map(|v| v.as_f64().expect("number") * 0.5);
+    ray["color"] = c.collect::<Vec<f64>>().into();
+    std::fs::write(&first, format!("{ray}\n")).expect("write");
     let r = check_log(&scene, settings, &first, 3);
-    let t = text(&r);
-    assert!(
-        t.lines()
-            .next()
-            .is_some_and(|l| l.contains("colours were logged, but no surface's colour could be judged")),
-        "{t}"
-    );
+    assert_eq!(r.disagree, 0, "{}", text(&r));
+    first_line_says(&r, "colours were logged, but no surface's colour could be judged");
+}
+
+/// Rays never cast at all: mirrors and glass that bring back black (the student has not written
+/// them yet), glass without its refracted ray; and rays into the entity they leave that pass its
+/// far side by, by two mistakes no catalogue has; and a light's colour taken twice. Each is one
+/// headline that says what is missing or wrong, not "no mistake" nor a closest-hit loop.
+#[test]
+fn rays_never_cast_and_rays_that_pass_their_own_entity_by_are_named() {
+    for (bug, code, words) in [
+        (
+            "mirror-glass-black",
+            Code::MissingSecondary,
+            &["no ray leaves it and it brings back black"][..],
+        ),
+        (
+            "no-refraction-ray",
+            Code::MissingRefraction,
+            &["no refracted ray, its colour weighted by"],
+        ),
+        (
+            "sphere-no-far-root",
+            Code::HitMissedFromInside,
+            &["goes into 'GlassSphere'"],
+        ),
+        (
+            "skip-own-entity",
+            Code::HitMissedFromInside,
+            &["goes into 'GlassSphere'"],
+        ),
+        ("light-twice", Code::ShadingDiffuse, &["multiplied in twice"]),
+    ] {
+        let Some(r) = one_headline_on_scene_2(bug, code) else {
+            return;
+        };
+        first_example_says(&r, words);
+    }
+}
+
+/// A tracer that logs its camera rays alone, with their colours: where they are the colours the
+/// course's rules give, every surface is judged and nothing is a mistake; mirrors and glass that
+/// bring back black are, though no ray in the log shows what they should have cast.
+#[test]
+fn a_log_of_camera_rays_alone_is_judged_by_their_colours() {
+    let Some(course) = rayscope_testkit::course() else {
+        return;
+    };
+    let run = |bug| Run {
+        aa: 2,
+        bug,
+        options: &["--log-kinds", "camera"],
+        ..Run::new(course.scene("sample_scene_2.txt"), 40, 40)
+    };
+    let Some(r) = run("none").check() else {
+        return;
+    };
+    assert_eq!(r.disagree, 0, "{}", text(&r));
+    assert!(r.shaded_unjudged * 20 < r.shaded_judged, "{}", text(&r));
+    first_line_says(&r, "no mistake found: every ray and every logged colour agrees");
+    let r = assert_one_headline(run("mirror-glass-black"), Code::MissingSecondary);
+    assert!(r.is_some_and(|r| r.disagree > 500));
 }

@@ -424,8 +424,8 @@ fn a_recursion_that_stops_early_or_is_not_black_at_the_limit_is_named() {
     }
 }
 
-/// A tracer that logs no shadow ray at all is not told that every diffuse hit lacks them, and its
-/// diffuse colours, which depend on them, are left unjudged.
+/// A tracer that logs no shadow ray at all is not told that every diffuse hit lacks them; its
+/// diffuse colours are judged against the course's sum over the lights the oracle sees.
 #[test]
 fn a_log_without_shadow_rays_gets_no_missing_shadow_ray_verdict() {
     let Some(scene) = course_scene("sample_scene_2.txt") else {
@@ -446,7 +446,7 @@ fn a_log_without_shadow_rays_gets_no_missing_shadow_ray_verdict() {
         r.shaded_judged + r.shaded_unjudged,
         all.shaded_judged + all.shaded_unjudged
     );
-    assert!(r.shaded_unjudged > r.camera_rays / 2, "{}", text(&r));
+    assert!(r.shaded_unjudged * 20 < r.shaded_judged, "{}", text(&r));
 }
 
 #[test]

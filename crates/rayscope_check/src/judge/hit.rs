@@ -183,7 +183,7 @@ impl Judge<'_> {
                 return;
             }
         }
-        self.against_oracle(r, kind, &c, ts, ps, rs, f, tally);
+        self.against_oracle(r, kind, &c, (ts, ps), (rs, leave), f, tally);
     }
 
     /// The tracer's entity, distance and point beside the oracle's, for a verdict on a hit.
@@ -276,9 +276,8 @@ impl Judge<'_> {
         r: &LoggedRay,
         kind: &Kind,
         c: &HitClaim,
-        ts: f64,
-        ps: DVec3,
-        rs: Option<&RsHit>,
+        (ts, ps): (f64, DVec3),
+        (rs, leave): (Option<&RsHit>, Option<&Leave>),
         f: &mut Vec<Finding>,
         tally: &mut Tally,
     ) {
@@ -389,7 +388,7 @@ impl Judge<'_> {
             f.push(x);
             return;
         }
-        self.beyond_nearest(r, kind, c, ts, ps, h, f, tally);
+        self.beyond_nearest(r, kind, c, (ts, ps), h, leave, f, tally);
     }
 
     /// Where a hit `p` that nothing holds lies in the plane of a triangle (within `pos`) just
@@ -420,16 +419,16 @@ impl Judge<'_> {
         r: &LoggedRay,
         kind: &Kind,
         c: &HitClaim,
-        ts: f64,
-        ps: DVec3,
+        (ts, ps): (f64, DVec3),
         h: &RsHit,
+        leave: Option<&Leave>,
         f: &mut Vec<Finding>,
         tally: &mut Tally,
     ) {
         let l = scale(&[r.origin, ps, h.point]);
         let v = || self.hit_values(Some(h), Some(ts), Some(ps), c.entity);
         let before = f.len();
-        self.beyond_nearest_verdict(r, kind, c, ts, h, f, tally, l, &v);
+        self.beyond_nearest_verdict(r, kind, c, (ts, h), leave, f, tally, l, &v);
         // A hit on the nearest surface itself, short of where the ray meets it, passes nothing
         // over: its distance is wrong, not the choice among hits.
         if !(c.entity == Some(h.entity) && ts < h.t) {
@@ -452,8 +451,8 @@ impl Judge<'_> {
         r: &LoggedRay,
         kind: &Kind,
         c: &HitClaim,
-        ts: f64,
-        h: &RsHit,
+        (ts, h): (f64, &RsHit),
+        leave: Option<&Leave>,
         f: &mut Vec<Finding>,
         tally: &mut Tally,
         l: f64,
@@ -500,6 +499,18 @@ impl Judge<'_> {
                 Code::HitOneSidedTriangle,
                 format!(
                     "the ray passes through the back face of triangle '{}' at t = {:.6} before the hit your tracer reports",
+                    self.name(h.entity),
+                    h.t
+                ),
+                v(),
+            ));
+        } else if leave.is_some_and(|lv| lv.entity == h.entity && d.dot(lv.facing) < 0.0) {
+            f.push(self.finding(
+                r,
+                kind,
+                Code::HitMissedFromInside,
+                format!(
+                    "the ray goes into '{}', the entity it leaves, and meets its far side at t = {:.6}; your tracer passed it by and reports a hit at t = {ts:.6}",
                     self.name(h.entity),
                     h.t
                 ),

@@ -52,6 +52,36 @@ impl Judge<'_> {
             let share = self.path_weight(p, parent, evals, kinds) * (1.0 - glass_fresnel(&lv, ior));
             if sin2_t < 1.0 - 1e-3 && share >= MIN_SHARE {
                 let t = refract(lv.parent_dir, lv.facing, eta).unwrap_or(DVec3::ZERO);
+                // A hit whose colour is its reflection's times a share below 1 is missing its
+                // refracted share; whether a test kept it from refracting or the tracer never
+                // refracts, the rest of the log decides (`Tally::finish`).
+                let weight = match (rays[p].color, rays[k].color) {
+                    (Some(c), Some(rc)) if rc.max_element() > 1e-3 => {
+                        let s = c.dot(rc) / rc.length_squared();
+                        (s < 0.999 && shading::fits(c, rc * s, DVec3::ZERO)).then_some(s)
+                    }
+                    _ => None,
+                };
+                if let Some(s) = weight {
+                    findings[k].push(self.finding(
+                        &rays[k],
+                        &kinds[k],
+                        Code::MissingRefraction,
+                        format!(
+                            "{} '{}' (index {}) sin²θt = {sin2_t:.4} < 1, so the ray refracts; your tracer cast this reflection and no refracted ray, its colour weighted by {s:.4} (Fresnel's kr here is {:.4})",
+                            if lv.front { "entering" } else { "leaving" },
+                            self.name(lv.entity),
+                            m.value,
+                            glass_fresnel(&lv, ior)
+                        ),
+                        vec![Value {
+                            what: "refracted direction".into(),
+                            yours: json!("none"),
+                            rayscope: vjson(t),
+                        }],
+                    ));
+                    continue;
+                }
                 // With the index ratio upside down the ray is past the critical angle: that is
                 // the mistake, and the reflection only its consequence.
                 let sin2_inverted = (1.0 - cos_i * cos_i) / (eta * eta);

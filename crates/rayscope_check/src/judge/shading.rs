@@ -29,7 +29,7 @@ const SPLIT: f64 = 1e-3;
 const CRITICAL: f64 = 1e-3;
 
 /// True when `yours` is `want` to within f32 rounding plus `slack`, channel by channel.
-fn fits(yours: DVec3, want: DVec3, slack: DVec3) -> bool {
+pub(super) fn fits(yours: DVec3, want: DVec3, slack: DVec3) -> bool {
     (0..3).all(|c| (yours[c] - want[c]).abs() <= REL * yours[c].abs().max(want[c].abs()) + ABS + slack[c])
 }
 
@@ -603,8 +603,47 @@ impl Judge<'_> {
                     }),
                 }],
             ));
+            return Decision::Unjudged;
         }
-        Decision::Unjudged
+        // Nothing in this sample says whether the tracer logs its reflected and refracted rays;
+        // the colour it logged says what its hit brought back, against what the course's rules
+        // trace from there.
+        let Some(c) = r.color else {
+            return Decision::Unjudged;
+        };
+        let Some(want) = self.whitted_at(lv, depth, 1.0) else {
+            return Decision::Unjudged;
+        };
+        if fits(c, want, want.abs() * 1e-3) {
+            return Decision::Judged;
+        }
+        let visible = (want * weight()).max_element() >= 2.0 / 255.0;
+        if !fits(c, DVec3::ZERO, DVec3::ZERO) || !visible {
+            return Decision::Unjudged;
+        }
+        let glass = self.scene.materials[lv.material as usize].is_glass();
+        f.push(self.finding(
+            r,
+            kind,
+            Code::MissingSecondary,
+            format!(
+                "'{}' is hit after {depth} bounces, below the depth limit of {limit}: no ray leaves it and it brings back black, where what it {} is ({:.3}, {:.3}, {:.3})",
+                self.name(lv.entity),
+                if glass { "reflects and refracts" } else { "reflects" },
+                want.x,
+                want.y,
+                want.z
+            ),
+            vec![
+                Value {
+                    what: "rays cast from this hit".into(),
+                    yours: json!("none"),
+                    rayscope: json!(if glass { "reflection and refraction" } else { "reflection" }),
+                },
+                colour_value(c, want),
+            ],
+        ));
+        Decision::Judged
     }
 
     /// The verdict on a diffuse hit whose shadow rays leave out lights `untested`, which face it
@@ -710,7 +749,16 @@ impl Judge<'_> {
         // A reflected or refracted ray off a diffuse surface is named on that ray; the colour
         // then mixes in what it brought back.
         let secondary = !kids.reflection.is_empty() || !kids.refraction.is_empty() || kids.other > 0;
-        if unknown || secondary || !untested.is_empty() || kids.shadow.is_empty() && !logs.shadow {
+        if kids.shadow.is_empty() && !logs.shadow && !secondary {
+            // No shadow ray in the sample: the tracer may not log them. A colour that is the
+            // oracle's own sum over the lights it sees is judged right; any other is left, as
+            // nothing says which light the tracer saw.
+            return match self.whitted_at(lv, 0, 1.0) {
+                Some(want) if fits(c, want, want.abs() * 1e-3) => Decision::Judged,
+                _ => Decision::Unjudged,
+            };
+        }
+        if unknown || secondary || !untested.is_empty() {
             return Decision::Unjudged;
         }
         let m = &self.scene.materials[lv.material as usize];
@@ -780,6 +828,7 @@ impl Judge<'_> {
             t.flat += term * lv.facing.dot(to.normalize_or_zero()).max(0.0);
             t.unnormalised += term * lv.shade.dot(to).max(0.0);
             t.from_origin += term * lv.shade.dot(light_pos(li).normalize_or_zero()).max(0.0);
+            t.light_twice += term * cl * cos.max(0.0);
             t.reach = t.reach.max(to.length());
         }
         let radius = match self.geo.prims(lv.entity) {
@@ -1177,6 +1226,8 @@ struct DiffuseTerms {
     unnormalised: DVec3,
     /// N·L with L the light's position normalised, the hit point left out of light − point.
     from_origin: DVec3,
+    /// Each light's colour multiplied in twice.
+    light_twice: DVec3,
     /// The distance to the farthest light that is reached, which scales `unnormalised`'s slack.
     reach: f64,
     slack: DVec3,
@@ -1204,6 +1255,7 @@ fn diffuse_guess(
         // or a sphere's radius, is worth a name.
         .filter(|&s| plain_fraction(s) || radius_factor(s, radius).is_some());
     let constant = (diff.x + diff.y + diff.z) / 3.0;
+    let twice = fits(c, t.light_twice, t.slack) && !fits(t.light_twice, t.exact, t.slack);
     if smooth && fits(c, t.flat, t.slack) {
         Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
     } else if fits(c, t.unclamped, t.slack) {
@@ -1225,8 +1277,14 @@ fn diffuse_guess(
         })
     } else if fits(c, t.no_albedo, t.slack) {
         Some("it fits the lights' colour without the surface's albedo".into())
+    } else if twice && scale.is_none() {
+        Some("it fits each light's colour multiplied in twice, albedo × light colour² × N·L: the course multiplies by it once".into())
     } else if let Some(s) = scale {
-        let factor = scale_words(s, lights, radius);
+        let mut factor = scale_words(s, lights, radius);
+        if twice {
+            // Under lights of one grey, each light's colour taken twice is the sum times it.
+            factor.push_str(" or, the same under these lights, each light's colour multiplied in twice (albedo × light colour² × N·L)");
+        }
         Some(match ambient_k {
             // Under white lights the course's sum is a multiple of the albedo, so one hit
             // cannot tell a factor from an added term: the number that stays the same over

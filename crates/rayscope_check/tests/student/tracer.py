@@ -68,6 +68,13 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      columns right to left, rows and columns both reversed
   flipped-gamma-out  the picture both upside down and gamma-corrected (two mistakes at once)
   sqrt-out           the picture's colours square-rooted before they are written (no rule has it)
+  mirror-glass-black mirrors and glass bring back black and cast no ray (not written yet)
+  no-refraction-ray  glass casts its reflected ray, weighted by kr, and never the refracted one
+  sphere-no-far-root the sphere test gives up when the near root is behind the origin, so rays
+                     inside a sphere never meet it (no catalogue has it)
+  skip-own-entity    reflected and refracted rays skip the entity they leave (no catalogue has it)
+  light-twice        a diffuse hit multiplies by each light's colour twice (no catalogue has it)
+  times-256-out      the picture's bytes are min(v * 256, 255), truncated, not min(v, 1) * 255
   stale-image        the picture is not made of the logged colours (no catalogue has it)
   stray-pixels-out   one pixel in 97 holds the colour of the pixel written just before it, as a
                      colour shared by a parallel loop's threads leaves it (no catalogue has it)
@@ -110,7 +117,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
 Every ray but shadow rays logs "color", the linear colour it brought back (--no-colors: none).
 
 Usage: tracer.py -f scene.txt -w 40 -h 30 [-x 2] [--region x0,y0,x1,y1] [--bug NAME]
-       [--log rays.jsonl] [--log-samples 0,3] [--image out.ppm] [--no-colors]
+       [--log rays.jsonl] [--log-samples 0,3] [--log-kinds camera] [--image out.ppm] [--no-colors]
        [--eps 1e-5] [--aim-from-hit]
 
 --eps sets the offset of secondary and shadow rays' origins off the surface; --aim-from-hit aims
@@ -131,12 +138,13 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-de
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "normal-toward-camera", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
-        "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside")
+        "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside",
+        "mirror-glass-black", "no-refraction-ray", "sphere-no-far-root", "skip-own-entity", "light-twice")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
                "stale-image", "accumulator-out", "summed-out", "last-sample-out", "row-accumulator-out", "aa-divided-by-n", "mirrored-out", "rotated-out",
-               "flipped-gamma-out", "stray-pixels-out", "sqrt-out")
+               "flipped-gamma-out", "stray-pixels-out", "sqrt-out", "times-256-out")
 GEOMETRY_BUGS = ("shadow-unnormalised", "plane-behind", "reflect-no-2", "sphere-normal-unnormalised", "eta-inverted", "near-root-inside",
                  "strict-edges", "radius-not-squared", "camera-unnormalised", "light-as-direction", "min-distance", "first-in-list", "origin-distance",
                  "farthest-hit", "best-t-stale", "sphere-disc-no-4", "plane-abs-den", "shadow-first-light", "shadow-t-dist-squared", "shade-normal-radius", "blocked-not-reset", "shadow-t-below-1", "parallelogram", "fresnel-indices-swapped")
@@ -221,6 +229,8 @@ class Tracer:
         self.aim_from_hit = args.aim_from_hit
         # The sample numbers logged (--log-samples), as the logging kit's RAYSCOPE_LOG_SAMPLES.
         self.samples = None if args.log_samples is None else {int(k) for k in args.log_samples.split(",")}
+        # The kinds of ray logged (--log-kinds): a tracer that logs its camera rays alone.
+        self.kinds = None if args.log_kinds is None else set(args.log_kinds.split(","))
         self.next_id = 0
         self.pixel = (0, 0)
         self.sample = 0
@@ -269,6 +279,8 @@ class Tracer:
             s = math.sqrt(disc)
             if self.bug == "near-root-inside" and -b + s > 0:
                 return -b - s
+            if self.bug == "sphere-no-far-root":
+                return -b - s if -b - s > 0 else None
             for t in (-b - s, -b + s):
                 if t > 0:
                     return t
@@ -294,9 +306,11 @@ class Tracer:
         t = dot(e.e2, q) * inv
         return t if t > 0 else None
 
-    def closest(self, o, d):
+    def closest(self, o, d, skip=None):
         best = None
         for e in self.entities:
+            if e is skip:
+                continue
             t = self.intersect(e, o, d)
             if t is None:
                 continue
@@ -357,7 +371,8 @@ class Tracer:
     def flush(self):
         if self.samples is None or self.sample in self.samples:
             for rec in self.pending:
-                self.log.write(json.dumps(rec) + "\n")
+                if self.kinds is None or rec["kind"] in self.kinds:
+                    self.log.write(json.dumps(rec) + "\n")
         self.pending = []
 
     def colored(self, rec, col):
@@ -366,9 +381,9 @@ class Tracer:
         return col
 
     # --- shading ------------------------------------------------------------------------
-    def trace(self, o, d, depth, parent, kind):
+    def trace(self, o, d, depth, parent, kind, leaving=None):
         rid = self.new_id()
-        h = self.closest(o, d)
+        h = self.closest(o, d, leaving if self.bug == "skip-own-entity" else None)
         rec = {"id": rid, "parent": parent, "kind": kind, "origin": list(o), "direction": list(d)}
         if h is None:
             rec["hit"] = None
@@ -390,13 +405,15 @@ class Tracer:
             return self.colored(rec, self.diffuse(p, nf, m, rid, e))
         if depth >= (4 if self.bug == "depth-4" else MAX_DEPTH):
             return self.colored(rec, m["color"] if self.bug == "limit-colour" else (0.0, 0.0, 0.0))
+        if self.bug == "mirror-glass-black":
+            return self.colored(rec, (0.0, 0.0, 0.0))
         if m["type"] == "Reflective" and self.bug != "mirror-as-glass":
             r = normalize(sub(d, mul(nf, (1 if self.bug == "reflect-no-2" else 2) * dot(d, nf))))
-            col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection")
+            col = self.trace(add(p, mul(nf, EPS)), r, depth + 1, rid, "reflection", e)
             if self.bug == "mirror-dim":
                 col = mul(col, 0.8)
             return self.colored(rec, hadamard(col, m["color"]) if self.bug == "mirror-tint" else col)
-        g = self.glass(d, p, n, nf, front, m, depth, rid)
+        g = self.glass(d, p, n, nf, front, m, depth, rid, e)
         if self.bug == "glass-tint":
             g = hadamard(g, m["color"])
         return self.colored(rec, g)
@@ -428,6 +445,8 @@ class Tracer:
                 if self.bug == "falloff":
                     cos /= dist * dist
                 lc = (1.0, 1.0, 1.0) if self.bug == "light-colour-ignored" else light["color"]
+                if self.bug == "light-twice":
+                    lc = hadamard(lc, light["color"])
                 col = add(col, mul(hadamard(m["color"], lc), cos))
         if self.bug == "lights-averaged":
             col = mul(col, 1 / len(self.lights))
@@ -435,7 +454,7 @@ class Tracer:
             col = add(col, mul(m["color"], AMBIENT))
         return col
 
-    def glass(self, d, p, n, nf, front, m, depth, rid):
+    def glass(self, d, p, n, nf, front, m, depth, rid, e):
         ior = m["value"] if m["type"] == "Refractive" else 1.5
         n1, n2 = (1.0, ior) if front or self.bug == "indices-not-swapped" else (ior, 1.0)
         if self.bug == "eta-inverted":
@@ -482,8 +501,10 @@ class Tracer:
             col = (0.0, 0.0, 0.0)
         else:
             ro = add(p, mul(d, EPS)) if self.bug == "reflect-along-ray" else add(p, mul(nf, EPS))
-            col = self.weighted(lambda: self.trace(ro, r, depth + 1, rid, "reflection"), kr)
+            col = self.weighted(lambda: self.trace(ro, r, depth + 1, rid, "reflection", e), kr)
         if k < 0 and self.bug != "no-tir":
+            return col
+        if self.bug == "no-refraction-ray":
             return col
         if self.bug == "tir-entering" and 1 - cosi * cosi > 1 / (ior * ior):
             return col
@@ -496,7 +517,7 @@ class Tracer:
         else:
             tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
         ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))
-        sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction"), 1.0 if self.bug in ("glass-sum", "glass-t-unweighted") else 1 - kr)
+        sub_col = self.weighted(lambda: self.trace(ro, tdir, depth + 1, rid, "refraction", e), 1.0 if self.bug in ("glass-sum", "glass-t-unweighted") else 1 - kr)
         return add(col, sub_col)
 
     def weighted(self, trace, w):
@@ -532,6 +553,8 @@ def out_byte(v, bug):
         return to_byte(math.sqrt(max(v, 0.0)))
     if bug == "rounded-out":
         return int(round(min(max(v, 0.0), 1.0) * 255))
+    if bug == "times-256-out":
+        return int(min(max(v, 0.0) * 256, 255))
     if bug == "unclamped-out":
         return int(max(v, 0.0) * 255) % 256
     return to_byte(v)
@@ -546,6 +569,7 @@ def main():
     ap.add_argument("-x", type=int, default=1)
     ap.add_argument("--region", default=None)
     ap.add_argument("--log-samples", default=None)
+    ap.add_argument("--log-kinds", default=None)
     ap.add_argument("--eps", type=float, default=1e-5)
     ap.add_argument("--aim-from-hit", action="store_true")
     ap.add_argument("--bug", default="none")
