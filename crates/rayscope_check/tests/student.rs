@@ -1355,7 +1355,7 @@ fn colours_logged_without_the_rays_they_come_from_are_not_called_missing() {
         ..RenderSettings::default()
     };
     std::fs::write(&first, format!("{line}\n")).expect("write");
-    let r = check_log(&scene, settings.clone(), &first, 3);
+    let r = check_log(&scene, settings, &first, 3);
     assert_eq!((r.disagree, r.shaded_judged), (0, 1), "{}", text(&r));
     first_line_says(&r, "no mistake found: every ray and every logged colour agrees");
     // The same ray with half its colour.
