@@ -11,7 +11,9 @@
 //! from its centre; a plane's is the file's.
 //!
 //! **Visibility.** The closest hit with `t_min < t < t_max`, by a bounding volume hierarchy over
-//! spheres and triangles (planes, being infinite, are tested on every ray). Triangles are met by
+//! spheres and triangles (planes, being infinite, are tested on every ray); a scene of at most
+//! 24 spheres and triangles has every one tested on every ray instead, four triangles at a time,
+//! and the hierarchy decides only between two met at the same distance. Triangles are met by
 //! the watertight test of Woop, Benthin and Wald (2013): a ray through an edge two triangles share
 //! meets at least one of them, whatever the rounding. [`Oracle::near_boundary`] says how close a
 //! ray comes to a different answer (an edge, a rim, a second surface at the same depth).

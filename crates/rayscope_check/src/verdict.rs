@@ -159,7 +159,7 @@ codes! {
         "This ray should start where its parent ray hit (plus a tiny offset), but it starts somewhere else. Check which point you pass on, and that the parent's t is the closest hit.";
     SecondaryOffsetWrongSide = "secondary.offset-wrong-side", false,
         "origin offset to the wrong side of the surface",
-        "The ray's origin is offset to the wrong side of the surface it leaves: shadow and reflected rays must start on the side the incoming ray came from (point + n·ε), refracted rays on the other side (point − n·ε), with n facing the incoming ray. Offsetting along the outward normal instead of the facing one does this on the inside of glass.";
+        "The ray's origin is offset to the wrong side of the surface it leaves: shadow and reflected rays must start on the side the incoming ray came from (point + n·ε), refracted rays on the other side (point − n·ε), with n facing the incoming ray. Offsetting along the outward normal instead of the facing one does this on the inside of glass. Where every ray leaving a surface starts on the wrong side and diffuse surfaces come out black, the normal your tracer uses faces away from the incoming ray everywhere (a flip test with its sign reversed, if n·d < 0 then n = −n): turn n toward the ray (if n·d > 0 then n = −n), which puts the offsets and N·L right together.";
     SecondaryWrongMaterial = "secondary.wrong-material", false,
         "ray kind does not fit the material it leaves",
         "This ray's kind does not match the material of the surface its parent hit in rayscope's trace: refracted rays leave Refractive materials only, mirror reflections leave Reflective and Refractive ones. Check how you look up the material of the entity you hit.";

@@ -378,9 +378,10 @@ fn self_hits_from_origins_offset_to_the_wrong_side_are_that_offset() {
     first_example_says(&r, &["to the wrong side of the surface"]);
 }
 
-/// Refraction formulas no catalogue has: the cosine's sign not turned, and a direction that is
-/// not unit (the camera's, not normalised) given to a formula that needs one. Each is Snell's
-/// law broken, with the formula it fits said on the ray.
+/// Refraction formulas no catalogue has: the cosine's sign not turned, a direction that is not
+/// unit (the camera's, not normalised) given to a formula that needs one, η where η² belongs,
+/// the square root left out. Each is Snell's law broken, with the formula it fits said on the
+/// ray.
 #[test]
 fn refraction_formulas_given_the_wrong_cosine_or_direction_say_which() {
     let Some(course) = rayscope_testkit::course() else {
@@ -392,6 +393,8 @@ fn refraction_formulas_given_the_wrong_cosine_or_direction_say_which() {
             "refract-unnormalised-d",
             "given the incoming direction as your log has it, of length",
         ),
+        ("refract-eta-not-squared", "where η² belongs"),
+        ("refract-no-sqrt", "without its square root"),
     ] {
         let Some(r) = (Run {
             bug,

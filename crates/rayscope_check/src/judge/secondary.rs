@@ -396,6 +396,12 @@ impl Judge<'_> {
             let k = 1.0 - eta * eta * (1.0 - c * c);
             (k >= 0.0).then(|| (d * eta + nf * (eta * c - k.sqrt())).normalize())
         };
+        // The same formula with cos θt's radicand `k(cos θi)` written another way, and its
+        // square root taken (`root`) or left out.
+        let written = |k_of: &dyn Fn(f64) -> f64, root: bool| {
+            let k = k_of(cos_i);
+            (k >= 0.0).then(|| (dp * eta + nf * (eta * cos_i - if root { k.sqrt() } else { k })).normalize())
+        };
         let long = dp * lv.parent_len;
         let sin_i = dp.cross(nf).length();
         let sin_t = ds.cross(nf).length();
@@ -408,6 +414,14 @@ impl Judge<'_> {
             format!(
                 "{leaving} '{name}' it fits the refraction formula with cos θi = d·n = {:.4} instead of −d·n = {cos_i:.4}: the cosine's sign is not turned for a normal that faces the incoming ray",
                 dp.dot(nf)
+            )
+        } else if matches(written(&|c| 1.0 - eta * (1.0 - c * c), true)) {
+            format!(
+                "{leaving} '{name}' it fits the refraction formula with η = {eta:.4} where η² belongs: cos θt = √(1 − η² (1 − cos²θi)), not √(1 − η (1 − cos²θi))"
+            )
+        } else if matches(written(&|c| 1.0 - eta * eta * (1.0 - c * c), false)) {
+            format!(
+                "{leaving} '{name}' it fits the refraction formula without its square root: cos θt = √(1 − η² (1 − cos²θi)), not 1 − η² (1 − cos²θi)"
             )
         } else if ds.dot(nf) > 0.0 {
             format!("{leaving} '{name}' the refracted ray goes back out on the side the ray came from")

@@ -102,6 +102,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   l-unnormalised     N.L taken with L = light - point not normalised (no catalogue has it)
   l-from-origin      N.L with L = the light's position normalised, the hit point left out (no catalogue has it)
   refract-cos-sign   the refraction formula given cos(theta_i) = d.n, its sign not turned (no catalogue has it)
+  refract-eta-not-squared  cos(theta_t) = sqrt(1 - eta (1 - cos^2)), eta not squared (no catalogue has it)
+  refract-no-sqrt    the refraction formula without its square root (no catalogue has it)
   refract-unnormalised-d  camera rays' directions not normalised, every test right for any length
                      but the refraction formula, which needs a unit one (no catalogue has it)
   normal-toward-camera  the normal flipped to face the camera, not the ray (no catalogue has it)
@@ -135,7 +137,7 @@ MAX_DEPTH = 8
 AMBIENT = 0.1
 BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
-        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "normal-toward-camera", "mirror-dim",
+        "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "refract-eta-not-squared", "refract-no-sqrt", "normal-toward-camera", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside",
@@ -514,6 +516,10 @@ class Tracer:
             c = dot(d, nn)
             k = max(1 - eta * eta * (1 - c * c), 0.0)
             tdir = normalize(add(mul(d, eta), mul(nn, eta * c - math.sqrt(k))))
+        elif self.bug == "refract-eta-not-squared":
+            tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(max(1 - eta * (1 - cosi * cosi), 0.0)))))
+        elif self.bug == "refract-no-sqrt":
+            tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - k)))
         else:
             tdir = normalize(add(mul(d, eta), mul(nn, eta * cosi - math.sqrt(k))))
         ro = add(p, mul(nn, EPS)) if self.bug == "refraction-origin-outside" else sub(p, mul(nn, EPS))

@@ -141,6 +141,10 @@ const FULL_PERCENT: f64 = 95.0;
 /// Pixels listed for the student to log next.
 const NEXT_PIXELS: usize = 6;
 
+/// Fewest differing pixels of an entity, black in the picture, that say the picture turns it
+/// black.
+const FEW_BLACK: u64 = 3;
+
 /// What the differing pixels' ray trees end on: the entity, the mirrors it is seen in, and the
 /// kind of its material (empty for the background).
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
@@ -231,9 +235,9 @@ impl Traced {
     }
 
     /// The entities the image turns black: those (not the background) of the parts seen
-    /// directly whose traced pixels are mostly (three in four) black in `image` and not in
-    /// `ours`; and where what a mirror shows is black but for no such entity, the mirror, when
-    /// three in four of the traced pixels of all the parts seen in it are black.
+    /// directly whose traced pixels, at least [`FEW_BLACK`], are mostly (three in four) black in
+    /// `image` and not in `ours`; and where what a mirror shows is black but for no such entity,
+    /// the mirror, when three in four of the traced pixels of all the parts seen in it are black.
     pub(crate) fn blackened(&self, ours: &[u8], image: &[u8]) -> Vec<String> {
         let mut black = vec![0u64; self.parts.len()];
         for (&i, &k) in self.pixels.iter().zip(&self.part_of) {
@@ -242,7 +246,9 @@ impl Traced {
                 black[k] += 1;
             }
         }
-        let mostly = |b: u64, n: u64| b * 4 >= n * 3;
+        // A pixel or two black on an entity are an edge or a corner the picture's tracer
+        // resolved otherwise, not the entity turned black.
+        let mostly = |b: u64, n: u64| n >= FEW_BLACK && b * 4 >= n * 3;
         let mut entities: Vec<String> = Vec::new();
         for (k, part) in self.parts.iter().enumerate() {
             let direct = part.seen_in.is_empty() && !part.material.is_empty();
