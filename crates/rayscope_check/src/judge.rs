@@ -701,7 +701,8 @@ impl Tally {
     }
 
     /// Camera rays that fit another sub-pixel layout and a scaled image plane alike: the one the
-    /// log's other camera rays show where they show only one.
+    /// log's other camera rays show where they show only one; and a few rays of another layout
+    /// beside many that fit a scaled plane are that plane's.
     fn layout_or_plane(&mut self) {
         let both = Cause {
             code: Code::CameraSubpixelGrid,
@@ -715,6 +716,17 @@ impl Tally {
             (true, false) => self.recast(both, layout),
             (false, true) => self.recast(both, plane),
             _ => {}
+        }
+        // An image plane at the wrong distance scales every camera ray's place about the image's
+        // centre, which puts a few near it inside their own pixel, some on another cell's centre:
+        // beside many rays that fit the plane, those few are the plane's too.
+        let few = self.cause_rays(Code::CameraSubpixelGrid);
+        if few > 0 && few * 20 <= self.causes.get(&plane).map_or(0, |c| c.samples) {
+            // What the layout's headline would have said is not the plane's.
+            if let Some(c) = self.causes.get_mut(&layout) {
+                c.note = None;
+            }
+            self.fold(Code::CameraSubpixelGrid, plane);
         }
     }
 

@@ -469,6 +469,9 @@ fn camera_mistakes_are_named_by_their_cause() {
     for (bug, aa, code) in [
         ("pixel-corner", 1, Code::CameraPixelCorner),
         ("plane-distance", 1, Code::CameraPlaneDistance),
+        // Three times as wide: at -x 2 a few samples near the image's centre land on the centre
+        // of another cell of their pixel.
+        ("fov-not-halved", 2, Code::CameraPlaneDistance),
         ("pixel-transposed", 1, Code::CameraTransposed),
         ("pixel-transposed", 2, Code::CameraTransposed),
     ] {

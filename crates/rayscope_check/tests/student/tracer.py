@@ -10,6 +10,7 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
   shadow-no-offset   shadow rays start exactly on the surface (no offset)
   vertical-fov       the 60 degrees span the image height instead of its width
   fov-degrees        the half angle in degrees given to tan, which takes radians: tan(30) (no catalogue has it)
+  fov-not-halved     the tangent of the whole field of view, tan(60 degrees), not of its half
   one-sided          triangles are one-sided (back faces culled)
   aspect             the aspect ratio is applied the wrong way round
   no-tir             refraction without total internal reflection
@@ -135,7 +136,7 @@ import sys
 EPS = 1e-5
 MAX_DEPTH = 8
 AMBIENT = 0.1
-BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "one-sided", "aspect", "no-tir",
+BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-degrees", "fov-not-halved", "one-sided", "aspect", "no-tir",
         "pixel-corner", "plane-distance", "aa-column-major", "aa-one-cell", "aa-same-ray", "aa-same-corner", "aa-evenly-spaced", "aa-reversed", "aa-half-twice", "pixel-transposed", "indices-not-swapped", "tir-entering",
         "blocker-name", "mirror-as-glass", "no-fresnel", "fresnel-swapped", "schlick", "fresnel-half", "fresnel-weights-exchanged", "l-unnormalised", "l-from-origin", "refract-cos-sign", "refract-unnormalised-d", "refract-eta-not-squared", "refract-no-sqrt", "normal-toward-camera", "mirror-dim",
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
@@ -593,7 +594,7 @@ def main():
         x0, y0, x1, y1 = (int(v) for v in args.region.split(","))
     log = sys.stdout if args.log == "-" else open(args.log, "w")
     tr = Tracer(load_scene(args.f), args, log)
-    t = math.tan(30) if args.bug == "fov-degrees" else math.tan(math.radians(60) / 2)
+    t = math.tan(30) if args.bug == "fov-degrees" else math.tan(math.radians(60)) if args.bug == "fov-not-halved" else math.tan(math.radians(60) / 2)
     hx, hy = t, t * h / w
     if args.bug == "vertical-fov":
         hx, hy = t * w / h, t
