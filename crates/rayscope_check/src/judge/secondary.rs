@@ -52,6 +52,13 @@ impl Judge<'_> {
             let share = self.path_weight(p, parent, evals, kinds) * (1.0 - glass_fresnel(&lv, ior));
             if sin2_t < 1.0 - 1e-3 && share >= MIN_SHARE {
                 let t = refract(lv.parent_dir, lv.facing, eta).unwrap_or(DVec3::ZERO);
+                let none_refracted = || {
+                    vec![Value {
+                        what: "refracted direction".into(),
+                        yours: json!("none"),
+                        rayscope: vjson(t),
+                    }]
+                };
                 // A hit whose colour is its reflection's times a share below 1 is missing its
                 // refracted share; whether a test kept it from refracting or the tracer never
                 // refracts, the rest of the log decides (`Tally::finish`).
@@ -74,11 +81,7 @@ impl Judge<'_> {
                             m.value,
                             glass_fresnel(&lv, ior)
                         ),
-                        vec![Value {
-                            what: "refracted direction".into(),
-                            yours: json!("none"),
-                            rayscope: vjson(t),
-                        }],
+                        none_refracted(),
                     ));
                     continue;
                 }
@@ -110,11 +113,7 @@ impl Judge<'_> {
                             m.value,
                             1.0 / eta
                         ),
-                        vec![Value {
-                            what: "refracted direction".into(),
-                            yours: json!("none"),
-                            rayscope: vjson(t),
-                        }],
+                        none_refracted(),
                     ));
                     continue;
                 }
@@ -127,11 +126,7 @@ impl Judge<'_> {
                         self.name(lv.entity),
                         m.value
                     ),
-                    vec![Value {
-                        what: "refracted direction".into(),
-                        yours: json!("none"),
-                        rayscope: vjson(t),
-                    }],
+                    none_refracted(),
                 );
                 findings[k].push(f);
             }
