@@ -234,6 +234,13 @@ fn diffuse_mistakes_are_named_by_what_they_fit() {
         // Nor the light's position taken for L, the hit point left out (the shadow rays right).
         ("l-from-origin", scene1, "L = the light's position normalised"),
         ("l-from-origin", scene2.clone(), "L = the light's position normalised"),
+        // Not in the catalogue: each light's term written over the sum, and N·V for N·L.
+        ("light-overwrite", scene2.clone(), "the last lit light's term alone"),
+        (
+            "n-dot-view",
+            scene2.clone(),
+            "N·V, the cosine toward where the ray came from",
+        ),
         (
             "lights-averaged",
             scene2,

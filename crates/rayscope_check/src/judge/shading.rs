@@ -829,7 +829,13 @@ impl Judge<'_> {
             t.unnormalised += term * lv.shade.dot(to).max(0.0);
             t.from_origin += term * lv.shade.dot(light_pos(li).normalize_or_zero()).max(0.0);
             t.light_twice += term * cl * cos.max(0.0);
+            t.toward_eye += term * lv.shade.dot(-lv.parent_dir.normalize_or_zero()).max(0.0);
+            t.first.get_or_insert(term * cos.max(0.0));
+            t.last = Some(term * cos.max(0.0));
             t.reach = t.reach.max(to.length());
+        }
+        if lit.len() < 2 {
+            (t.first, t.last) = (None, None);
         }
         let radius = match self.geo.prims(lv.entity) {
             [PrimRef::Sphere(i)] => Some(f64::from(self.scene.spheres[*i as usize].radius)),
@@ -1228,6 +1234,11 @@ struct DiffuseTerms {
     from_origin: DVec3,
     /// Each light's colour multiplied in twice.
     light_twice: DVec3,
+    /// The first and the last lit light's terms alone, where two or more lights are lit.
+    first: Option<DVec3>,
+    last: Option<DVec3>,
+    /// N·V, the cosine toward where the ray came from, in place of each light's N·L.
+    toward_eye: DVec3,
     /// The distance to the farthest light that is reached, which scales `unnormalised`'s slack.
     reach: f64,
     slack: DVec3,
@@ -1277,6 +1288,18 @@ fn diffuse_guess(
         })
     } else if fits(c, t.no_albedo, t.slack) {
         Some("it fits the lights' colour without the surface's albedo".into())
+    } else if t
+        .first
+        .is_some_and(|f| fits(c, f, t.slack) && !fits(f, t.exact, t.slack))
+    {
+        Some("it fits the first lit light's term alone: the sum over the lights stops after the first light that reaches the surface".into())
+    } else if t
+        .last
+        .is_some_and(|l| fits(c, l, t.slack) && !fits(l, t.exact, t.slack))
+    {
+        Some("it fits the last lit light's term alone: each light's term replaces the sum (sum = …) instead of adding to it (sum += …)".into())
+    } else if fits(c, t.toward_eye, t.slack) && !fits(t.toward_eye, t.exact, t.slack) {
+        Some("it fits N·V, the cosine toward where the ray came from, in place of N·L toward each light: L is the direction from the hit point to the light".into())
     } else if twice && scale.is_none() {
         Some("it fits each light's colour multiplied in twice, albedo × light colour² × N·L: the course multiplies by it once".into())
     } else if let Some(s) = scale {

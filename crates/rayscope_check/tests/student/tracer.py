@@ -75,6 +75,8 @@ rayscope's JSON Lines format. `--bug NAME` switches on one realistic mistake:
                      inside a sphere never meet it (no catalogue has it)
   skip-own-entity    reflected and refracted rays skip the entity they leave (no catalogue has it)
   light-twice        a diffuse hit multiplies by each light's colour twice (no catalogue has it)
+  light-overwrite    each lit light's term replaces the diffuse sum (sum = instead of +=)
+  n-dot-view         N.V, the cosine toward the ray's origin, in place of N.L (no catalogue has it)
   times-256-out      the picture's bytes are min(v * 256, 255), truncated, not min(v, 1) * 255
   stale-image        the picture is not made of the logged colours (no catalogue has it)
   stray-pixels-out   one pixel in 97 holds the colour of the pixel written just before it, as a
@@ -142,7 +144,8 @@ BUGS = ("none", "refraction-normal", "shadow-no-offset", "vertical-fov", "fov-de
         "glass-sum", "glass-t-unweighted", "shadow-loop-break", "logged-weighted",
         "no-clamp", "falloff", "ambient", "light-colour-ignored", "lights-averaged", "skip-shadow-ray", "no-reflection-ray", "cos-twice", "depth-4",
         "limit-colour", "mirror-tint", "glass-tint", "background", "reflect-along-ray", "refraction-origin-outside",
-        "mirror-glass-black", "no-refraction-ray", "sphere-no-far-root", "skip-own-entity", "light-twice")
+        "mirror-glass-black", "no-refraction-ray", "sphere-no-far-root", "skip-own-entity", "light-twice",
+        "light-overwrite", "n-dot-view")
 # Mistakes in how rays meet surfaces and leave them.
 # Mistakes in turning colours into the picture's bytes (--image).
 OUTPUT_BUGS = ("gamma-out", "rounded-out", "unclamped-out", "byte-average-out", "flipped-out", "bgr-out",
@@ -405,6 +408,7 @@ class Tracer:
             nf = n if dot(n, mul(p, -1)) > 0 else mul(n, -1)
         m = e.material
         if m["type"] in ("Diffuse", "Emissive", "Glossy"):
+            self.incoming = d
             return self.colored(rec, self.diffuse(p, nf, m, rid, e))
         if depth >= (4 if self.bug == "depth-4" else MAX_DEPTH):
             return self.colored(rec, m["color"] if self.bug == "limit-colour" else (0.0, 0.0, 0.0))
@@ -443,6 +447,8 @@ class Tracer:
                 ns = mul(nf, shaded.r) if self.bug == "shade-normal-radius" and shaded.kind == "sphere" else nf
                 lshade = normalize(light["pos"]) if self.bug == "l-from-origin" else to if self.bug == "l-unnormalised" else ldir
                 cos = dot(ns, ldir) if self.bug == "no-clamp" else max(0.0, dot(ns, lshade))
+                if self.bug == "n-dot-view":
+                    cos = max(0.0, -dot(ns, self.incoming))
                 if self.bug == "cos-twice":
                     cos *= cos
                 if self.bug == "falloff":
@@ -450,7 +456,8 @@ class Tracer:
                 lc = (1.0, 1.0, 1.0) if self.bug == "light-colour-ignored" else light["color"]
                 if self.bug == "light-twice":
                     lc = hadamard(lc, light["color"])
-                col = add(col, mul(hadamard(m["color"], lc), cos))
+                term = mul(hadamard(m["color"], lc), cos)
+                col = term if self.bug == "light-overwrite" else add(col, term)
         if self.bug == "lights-averaged":
             col = mul(col, 1 / len(self.lights))
         if self.bug == "ambient":
