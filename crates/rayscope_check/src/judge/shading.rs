@@ -382,6 +382,27 @@ impl Judge<'_> {
         }
     }
 
+    /// True where the full renderer's rules for a hit on `material` go past stage 2's: a diffuse
+    /// surface lit by emitters or ambient light as well, and Beer's law inside coloured glass.
+    pub(super) fn beyond_stage_two(&self, material: u32) -> bool {
+        if self.settings.stage != Stage::Full {
+            return false;
+        }
+        let m = &self.scene.materials[material as usize];
+        match m.lobe() {
+            Lobe::Lambert => {
+                self.settings.ambient
+                    || self
+                        .scene
+                        .materials
+                        .iter()
+                        .any(|m| m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0)
+            }
+            Lobe::Dielectric => m.color != glam::Vec3::ZERO,
+            Lobe::Mirror | Lobe::Emitter | Lobe::Bsdf => false,
+        }
+    }
+
     /// Judges ray `i`'s surface decision.
     fn decision(&self, i: usize, s: &Sample, ev: &Eval, kids: &Children, f: &mut Vec<Finding>) -> Decision {
         let Sample {
@@ -411,17 +432,9 @@ impl Judge<'_> {
         let m = &self.scene.materials[lv.material as usize];
         // The share of the sample this hit carries, needed only where a ray is missing.
         let weight = || self.path_weight(i, parent, evals, kinds);
-        let full = self.settings.stage == Stage::Full;
         match m.lobe() {
             Lobe::Lambert => {
-                // Stage 3 lights a diffuse hit by emitters and ambient light as well.
-                let emitters = || {
-                    self.scene
-                        .materials
-                        .iter()
-                        .any(|m| m.kind == MaterialKind::Emissive && m.color.max_element() > 0.0)
-                };
-                if full && (self.settings.ambient || emitters()) {
+                if self.beyond_stage_two(lv.material) {
                     return Decision::Unjudged;
                 }
                 self.diffuse(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
@@ -433,8 +446,7 @@ impl Judge<'_> {
                 }
                 if m.lobe() == Lobe::Mirror {
                     self.mirror(r, &kinds[i], &lv, rays, kids, f)
-                } else if full && m.color != glam::Vec3::ZERO {
-                    // Beer's law absorbs inside coloured glass in the full renderer.
+                } else if self.beyond_stage_two(lv.material) {
                     Decision::Unjudged
                 } else {
                     self.glass(r, &kinds[i], &lv, rays, kids, logs, &weight, f)
@@ -1266,14 +1278,16 @@ fn diffuse_guess(
         // or a sphere's radius, is worth a name.
         .filter(|&s| plain_fraction(s) || radius_factor(s, radius).is_some());
     let constant = (diff.x + diff.y + diff.z) / 3.0;
-    let twice = fits(c, t.light_twice, t.slack) && !fits(t.light_twice, t.exact, t.slack);
+    // A wrong rule's colour that `c` fits and the course's does not.
+    let only = |wrong: DVec3| fits(c, wrong, t.slack) && !fits(wrong, t.exact, t.slack);
+    let twice = only(t.light_twice);
     if smooth && fits(c, t.flat, t.slack) {
         Some("it fits the triangle's face normal instead of the mesh's normal interpolated from its vertices' vn normals (flat shading)".to_string())
     } else if fits(c, t.unclamped, t.slack) {
         Some("it fits N·L without the clamp at 0: a light behind the surface subtracts".to_string())
     } else if fits(c, t.falloff, t.slack) {
         Some("it fits each light divided by its squared distance: the course's point lights do not fall off".into())
-    } else if fits(c, t.from_origin, t.slack) && !fits(t.from_origin, t.exact, t.slack) {
+    } else if only(t.from_origin) {
         Some(
             "it fits N·L with L = the light's position normalised: the hit point is left out of L = light − point"
                 .into(),
@@ -1288,17 +1302,11 @@ fn diffuse_guess(
         })
     } else if fits(c, t.no_albedo, t.slack) {
         Some("it fits the lights' colour without the surface's albedo".into())
-    } else if t
-        .first
-        .is_some_and(|f| fits(c, f, t.slack) && !fits(f, t.exact, t.slack))
-    {
+    } else if t.first.is_some_and(only) {
         Some("it fits the first lit light's term alone: the sum over the lights stops after the first light that reaches the surface".into())
-    } else if t
-        .last
-        .is_some_and(|l| fits(c, l, t.slack) && !fits(l, t.exact, t.slack))
-    {
+    } else if t.last.is_some_and(only) {
         Some("it fits the last lit light's term alone: each light's term replaces the sum (sum = …) instead of adding to it (sum += …)".into())
-    } else if fits(c, t.toward_eye, t.slack) && !fits(t.toward_eye, t.exact, t.slack) {
+    } else if only(t.toward_eye) {
         Some("it fits N·V, the cosine toward where the ray came from, in place of N·L toward each light: L is the direction from the hit point to the light".into())
     } else if twice && scale.is_none() {
         Some("it fits each light's colour multiplied in twice, albedo × light colour² × N·L: the course multiplies by it once".into())

@@ -4,10 +4,9 @@
 
 use glam::DVec3;
 use rayscope_core::scene::Lobe;
-use rayscope_core::Stage;
 
 use super::shading::fresnel;
-use super::{Judge, Leave};
+use super::{Eval, Judge, Leave};
 use crate::geom::{reflect, refract};
 use crate::tie::scale;
 
@@ -26,22 +25,15 @@ impl Judge<'_> {
         if share < SMALLEST_SHARE {
             return Some(DVec3::ZERO);
         }
-        let Some(h) = self.oracle.closest(o, d, t_min, f64::INFINITY) else {
-            return Some(DVec3::ZERO);
+        let hit = Eval {
+            rs: self.trace(o, d, t_min, f64::INFINITY, o),
+            sound: true,
+            origin: o,
+            dir: d,
+            dir_len: 1.0,
         };
-        let shade = self.geo.shading_normal(h.prim, h.point).unwrap_or(h.normal);
-        let facing = if h.front { h.normal } else { -h.normal };
-        let lv = Leave {
-            point: h.point,
-            facing,
-            shade: if shade.dot(facing) < 0.0 { -shade } else { shade },
-            front: h.front,
-            entity: h.entity,
-            material: h.material,
-            parent_dir: d,
-            parent_len: 1.0,
-            parent_origin: o,
-            un: 0.0,
+        let Some(lv) = hit.leave() else {
+            return Some(DVec3::ZERO);
         };
         self.whitted_at(&lv, depth, share)
     }
@@ -52,16 +44,14 @@ impl Judge<'_> {
     /// for what those rules do not cover (an emitter, a glossy material, stage 3's emitters,
     /// ambient light and coloured glass).
     pub(super) fn whitted_at(&self, lv: &Leave, depth: u32, share: f64) -> Option<DVec3> {
+        if self.beyond_stage_two(lv.material) {
+            return None;
+        }
         let m = &self.scene.materials[lv.material as usize];
-        let full = self.settings.stage == Stage::Full;
         let eps = LEAVE * scale(&[lv.point]);
         let d = lv.parent_dir.normalize();
         match m.lobe() {
             Lobe::Lambert => {
-                let emitters = self.scene.materials.iter().any(|m| m.lobe() == Lobe::Emitter);
-                if full && (self.settings.ambient || emitters) {
-                    return None;
-                }
                 let mut sum = DVec3::ZERO;
                 for light in &self.scene.lights {
                     let to = light.position.as_dvec3() - lv.point;
@@ -77,7 +67,6 @@ impl Judge<'_> {
             }
             Lobe::Mirror | Lobe::Dielectric if depth >= self.settings.max_depth => Some(DVec3::ZERO),
             Lobe::Mirror => self.whitted(lv.point, reflect(d, lv.facing), eps, depth + 1, share),
-            Lobe::Dielectric if full && m.color != glam::Vec3::ZERO => None,
             Lobe::Dielectric => {
                 let ior = f64::from(m.value);
                 let (n1, n2) = if lv.front { (1.0, ior) } else { (ior, 1.0) };
